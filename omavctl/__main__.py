@@ -1,0 +1,3 @@
+from omavctl.cli import main
+
+main()

@@ -1,0 +1,129 @@
+"""Data types shared by every log reader and writer.
+
+A log is first read into a :class:`RawLog`: one :class:`RawSeries` per
+*signal role* (``body_rate``, ``attitude``, ...) with its own stamps, exactly
+as recorded. :func:`omavctl.logs.align.align` then puts every role on one
+uniform grid (:class:`FlightLog`), detecting gaps, duplicated and
+out-of-order stamps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "ROLE_COLUMNS",
+    "ROLE_TOPIC",
+    "FlightLog",
+    "RawLog",
+    "RawSeries",
+    "TopicInfo",
+]
+
+XYZ = ("x", "y", "z")
+RPY = ("roll", "pitch", "yaw")
+
+#: Signal roles and their wide-CSV column suffixes (DESIGN.md section 3).
+#: Vectors are SI units, body frame FLU, except ``position`` (world) and
+#: ``attitude`` (ZYX Euler angles of body in world, rad).
+ROLE_COLUMNS: dict[str, tuple[str, ...]] = {
+    "body_rate": XYZ,  # rad/s, body
+    "attitude": RPY,  # rad
+    "position": XYZ,  # m, world
+    "velocity": XYZ,  # m/s, body
+    "force_command": XYZ,  # N, body
+    "torque_command": XYZ,  # N m, body
+    "desired_acceleration": XYZ,  # rad/s^2, body (controller's a*)
+    "desired_linear_acceleration": XYZ,  # m/s^2, world
+    "reference_position": XYZ,  # m, world
+    "reference_attitude": RPY,  # rad
+    "tilt": tuple(str(i) for i in range(6)),  # rad
+    "rotor": tuple(str(i) for i in range(12)),  # rad/s
+}
+
+#: Which topic role (vehicle ``topics:`` key) carries each signal role.
+ROLE_TOPIC: dict[str, str] = {
+    "body_rate": "imu",
+    "attitude": "odometry",
+    "position": "odometry",
+    "velocity": "odometry",
+    "force_command": "wrench_command",
+    "torque_command": "wrench_command",
+    "desired_acceleration": "desired_acceleration",
+    "desired_linear_acceleration": "desired_acceleration",
+    "reference_position": "reference",
+    "reference_attitude": "reference",
+    "tilt": "actuators",
+    "rotor": "actuators",
+}
+
+#: Angle roles: unwrapped before interpolation, wrapped to (-pi, pi] after.
+ANGLE_ROLES = ("attitude", "reference_attitude")
+
+
+@dataclass
+class RawSeries:
+    """Samples of one role as recorded: ``stamps`` shape (n,) in seconds since
+    ``RawLog.t0``, ``values`` shape (n, k) with k = len(ROLE_COLUMNS[role])."""
+
+    stamps: np.ndarray
+    values: np.ndarray
+
+
+@dataclass
+class TopicInfo:
+    """What a reader saw of one topic (or CSV column group)."""
+
+    name: str
+    msgtype: str
+    count: int
+    duration: float  # s between first and last stamp
+    rate: float  # Hz, median
+    gaps: list[tuple[float, float]] = field(default_factory=list)  # (start, end) s
+    duplicates: int = 0
+    out_of_order: int = 0
+
+
+@dataclass
+class RawLog:
+    """A log as read: series per role, topic inventory, problems found.
+
+    ``t0`` is the absolute time (s, e.g. ROS epoch) that series stamps count from.
+    """
+
+    path: Path
+    format: str  # "ros1", "ros2-sqlite3", "ros2-mcap", "mcap", "csv"
+    t0: float
+    series: dict[str, RawSeries]
+    topics: list[TopicInfo] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class FlightLog:
+    """Signals of one log on a uniform time grid.
+
+    ``t`` shape (N,) in s from the grid start; ``signals[role]`` shape (N, k);
+    ``valid`` shape (N,) is False at grid points inside a gap of any role;
+    ``segments`` are half-open index ranges ``[start, stop)`` of valid runs.
+    """
+
+    path: Path
+    format: str
+    t: np.ndarray
+    signals: dict[str, np.ndarray]
+    valid: np.ndarray
+    segments: list[tuple[int, int]]
+    rate: float
+    topics: list[TopicInfo] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.rate
+
+    def has(self, role: str) -> bool:
+        return role in self.signals

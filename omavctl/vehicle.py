@@ -1,0 +1,236 @@
+"""Vehicle description: mass, inertia, geometry, limits, controller gains, topics.
+
+A vehicle YAML overrides the built-in default omav (``omavctl/data/default_vehicle.yaml``,
+whose comments give the source of every value) key by key: a file holding only
+``mass`` and ``inertia`` is valid. Unknown keys are errors naming the key.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from omavctl.errors import ConfigError
+
+__all__ = [
+    "ControllerGains",
+    "Vehicle",
+    "default_vehicle",
+    "load_vehicle",
+    "load_yaml_mapping",
+]
+
+TOPIC_ROLES = (
+    "imu",
+    "odometry",
+    "wrench_command",
+    "desired_acceleration",
+    "reference",
+    "actuators",
+)
+
+
+def _default_tree() -> dict[str, Any]:
+    text = resources.files("omavctl.data").joinpath("default_vehicle.yaml").read_text()
+    tree = yaml.safe_load(text)
+    assert isinstance(tree, dict)
+    return tree
+
+
+def load_yaml_mapping(path: str | Path) -> dict[str, Any]:
+    """Read a YAML file whose top level must be a mapping (``yaml.safe_load`` only)."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise ConfigError("file not found", p) from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f"cannot read: {err}", p) from None
+    try:
+        tree = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ConfigError(f"invalid YAML: {str(err).splitlines()[0]}", p) from None
+    if tree is None:
+        return {}
+    if not isinstance(tree, dict):
+        raise ConfigError("top level must be a mapping of keys to values", p)
+    return tree
+
+
+def _merge(base: dict[str, Any], override: dict[str, Any], path: Path, prefix: str) -> None:
+    """Deep-merge ``override`` into ``base`` in place; unknown keys are errors."""
+    for key, value in override.items():
+        name = f"{prefix}{key}"
+        if key not in base:
+            raise ConfigError(f"unknown key '{name}'", path)
+        # Free-form sections: replaced or merged without a schema below them.
+        if isinstance(base[key], dict) and key not in ("effects",):
+            if not isinstance(value, dict):
+                raise ConfigError(f"key '{name}' must be a mapping", path)
+            _merge(base[key], value, path, f"{name}.")
+        else:
+            base[key] = value
+
+
+def _vec(tree: dict[str, Any], key: str, n: int, path: Path | None, name: str) -> np.ndarray:
+    value = tree[key]
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ConfigError(f"key '{name}' must be numbers", path) from None
+    if arr.size == 1 and n > 1:
+        arr = np.full(n, float(arr[0]))
+    if arr.size != n or not np.all(np.isfinite(arr)):
+        raise ConfigError(f"key '{name}' must be {n} finite numbers", path)
+    return arr
+
+
+def _positive(value: Any, name: str, path: Path | None, allow_zero: bool = False) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"key '{name}' must be a number", path) from None
+    if not np.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
+        raise ConfigError(f"key '{name}' must be {'>= 0' if allow_zero else '> 0'}", path)
+    return x
+
+
+@dataclass(frozen=True)
+class ControllerGains:
+    """PID gains of the attitude and position loops (per axis, shape (3,))."""
+
+    rate_hz: float
+    att_kp: np.ndarray
+    att_kd: np.ndarray
+    att_ki: np.ndarray
+    pos_kp: np.ndarray
+    pos_kd: np.ndarray
+    pos_ki: np.ndarray
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """Physical description of the vehicle.
+
+    ``inertia`` is a (3, 3) matrix in kg m^2 (body FLU frame); ``arm_angles`` in
+    rad, shape (6,). ``effects`` are the names of physical effects that ``fit``
+    estimates for this vehicle.
+    """
+
+    mass: float
+    inertia: np.ndarray
+    gravity: float
+    arm_length: float
+    arm_angles: np.ndarray
+    max_thrust: float
+    min_thrust: float
+    thrust_coefficient: float
+    drag_ratio: float
+    max_tilt_rate: float
+    gains: ControllerGains
+    topics: dict[str, str]
+    effects: tuple[str, ...] = ()
+    source: str = "built-in default omav"
+    tree: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def inertia_inv(self) -> np.ndarray:
+        """Inverse inertia, shape (3, 3)."""
+        return np.linalg.inv(self.inertia)
+
+    @property
+    def n_arms(self) -> int:
+        return int(self.arm_angles.size)
+
+    def to_json(self) -> str:
+        """The merged YAML tree as canonical JSON (stored in model artifacts)."""
+        return json.dumps(self.tree, sort_keys=True)
+
+
+def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
+    mass = _positive(tree["mass"], "mass", path)
+    try:
+        inertia = np.asarray(tree["inertia"], dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError("key 'inertia' must be numbers", path) from None
+    if inertia.shape == (3,):
+        inertia = np.diag(inertia)
+    if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)):
+        raise ConfigError("key 'inertia' must be 3 diagonal values or a 3x3 matrix", path)
+    if not np.allclose(inertia, inertia.T) or np.any(np.linalg.eigvalsh(inertia) <= 0):
+        raise ConfigError("key 'inertia' must be symmetric positive definite", path)
+    geo, rot, servo, ctl = tree["geometry"], tree["rotor"], tree["servo"], tree["controller"]
+    angles = _vec(geo, "arm_angles_deg", 6, path, "geometry.arm_angles_deg")
+    att, pos = ctl["attitude"], ctl["position"]
+    gains = ControllerGains(
+        rate_hz=_positive(ctl["rate_hz"], "controller.rate_hz", path),
+        att_kp=_vec(att, "kp", 3, path, "controller.attitude.kp"),
+        att_kd=_vec(att, "kd", 3, path, "controller.attitude.kd"),
+        att_ki=_vec(att, "ki", 3, path, "controller.attitude.ki"),
+        pos_kp=_vec(pos, "kp", 3, path, "controller.position.kp"),
+        pos_kd=_vec(pos, "kd", 3, path, "controller.position.kd"),
+        pos_ki=_vec(pos, "ki", 3, path, "controller.position.ki"),
+    )
+    topics = tree["topics"]
+    for role, topic in topics.items():
+        if not isinstance(topic, str) or not topic:
+            raise ConfigError(f"key 'topics.{role}' must be a topic name", path)
+    effects = _effect_names(tree.get("effects"), path)
+    max_thrust = _positive(rot["max_thrust"], "rotor.max_thrust", path)
+    min_thrust = _positive(rot["min_thrust"], "rotor.min_thrust", path, allow_zero=True)
+    if min_thrust >= max_thrust:
+        raise ConfigError("key 'rotor.min_thrust' must be below rotor.max_thrust", path)
+    return Vehicle(
+        mass=mass,
+        inertia=inertia,
+        gravity=_positive(tree["gravity"], "gravity", path),
+        arm_length=_positive(geo["arm_length"], "geometry.arm_length", path),
+        arm_angles=np.deg2rad(angles),
+        max_thrust=max_thrust,
+        min_thrust=min_thrust,
+        thrust_coefficient=_positive(rot["thrust_coefficient"], "rotor.thrust_coefficient", path),
+        drag_ratio=_positive(rot["drag_ratio"], "rotor.drag_ratio", path, allow_zero=True),
+        max_tilt_rate=_positive(servo["max_tilt_rate"], "servo.max_tilt_rate", path),
+        gains=gains,
+        topics=dict(topics),
+        effects=effects,
+        source=source,
+        tree=tree,
+    )
+
+
+def _effect_names(value: Any, path: Path | None) -> tuple[str, ...]:
+    from omavctl.physics.effects import EFFECTS
+
+    if value is None:
+        return ()
+    names = list(value) if isinstance(value, (list, dict)) else None
+    if names is None:
+        raise ConfigError("key 'effects' must be a list of effect names", path)
+    for name in names:
+        if name not in EFFECTS:
+            known = ", ".join(sorted(EFFECTS))
+            raise ConfigError(f"unknown effect '{name}' in 'effects' (known: {known})", path)
+    return tuple(str(n) for n in names)
+
+
+def default_vehicle() -> Vehicle:
+    """The built-in omav."""
+    return _build(_default_tree(), None, "built-in default omav")
+
+
+def load_vehicle(path: str | Path | None = None) -> Vehicle:
+    """Load a vehicle YAML over the built-in default; ``None`` gives the default."""
+    if path is None:
+        return default_vehicle()
+    p = Path(path)
+    tree = _default_tree()
+    _merge(tree, load_yaml_mapping(p), p, "")
+    return _build(copy.deepcopy(tree), p, str(p))
