@@ -92,6 +92,8 @@ class RawLog:
     """A log as read: series per role, topic inventory, problems found.
 
     ``t0`` is the absolute time (s, e.g. ROS epoch) that series stamps count from.
+    ``topic_names`` maps topic roles (vehicle ``topics:`` keys) to the topic
+    names the reader looked for (empty for CSV): errors and notes name them.
     """
 
     path: Path
@@ -100,6 +102,7 @@ class RawLog:
     series: dict[str, RawSeries]
     topics: list[TopicInfo] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    topic_names: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass

@@ -1,0 +1,35 @@
+# Set-up and checks. Everything installs into a local virtual environment.
+#   make demo   install, then run the example pipeline on built-in data
+#   make test   install, then lint, type-check and run the test suite
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: install demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e '.[dev]'
+	touch $@
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(MAKE) -C examples demo OMAVCTL=$(abspath $(BIN))/omavctl
+
+lint: $(STAMP)
+	$(BIN)/ruff check omavctl tests benchmarks
+	$(BIN)/ruff format --check omavctl tests benchmarks
+	$(BIN)/mypy omavctl
+
+test: lint
+	$(BIN)/pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_simulate.py
+	$(BIN)/python benchmarks/bench_read.py
+
+clean:
+	rm -rf $(VENV) examples/build .pytest_cache .mypy_cache .ruff_cache

@@ -1,0 +1,252 @@
+"""Command-line interface: parse, call one library function, render.
+
+Library errors (:class:`omavctl.errors.OmavctlError`) become one line
+``error: <file>: <problem>`` on stderr and exit code 1; usage errors stay
+typer's exit code 2. Heavy modules are imported inside the commands so that
+``--help`` and ``--version`` stay fast.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+
+from omavctl import __version__
+from omavctl.errors import OmavctlError
+
+app = typer.Typer(
+    name="omavctl",
+    help="Learn residual models of an omnidirectional aerial vehicle from flight logs, "
+    "diagnose missing physics, and plan informative next flights.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+task_app = typer.Typer(
+    help="Write a task trajectory as contract CSV (t, x..z, roll..yaw, vx..vz, wx..wz, "
+    "ax..az, dwx..dwz; SI units).",
+    no_args_is_help=True,
+    rich_markup_mode=None,
+)
+app.add_typer(task_app, name="task")
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _reports_errors(func: F) -> F:
+    """Turn library errors into one clear line and exit code 1."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except OmavctlError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(1) from None
+        except KeyboardInterrupt:
+            typer.echo("error: interrupted", err=True)
+            raise typer.Exit(130) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"omavctl {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = False,
+) -> None:
+    """omavctl: flight logs -> better models -> better next flights."""
+
+
+def _console(quiet: bool = False):
+    from rich.console import Console
+
+    return Console(stderr=True, quiet=quiet, highlight=False)
+
+
+Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars or summary.")]
+VehicleOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--vehicle",
+        help="Vehicle YAML (mass, inertia, geometry, limits, gains, topics, effects); "
+        "keys not given keep the built-in omav's values.",
+    ),
+]
+
+
+# --------------------------------------------------------------------------- task
+Out = Annotated[Path, typer.Option("--out", "-o", help="Output trajectory CSV.")]
+Rate = Annotated[float, typer.Option(help="Sample rate of the CSV, Hz.")]
+Height = Annotated[float, typer.Option(help="Hover height (z), m.")]
+
+
+def _write_task(traj: Any, out: Path, quiet: bool) -> None:
+    from omavctl.trajectory import write_trajectory
+
+    write_trajectory(out, traj)
+    if not quiet:
+        _console().print(f"wrote {out} ({traj.data.shape[0]} samples, {traj.duration:.2f} s)")
+
+
+@task_app.command("fig8")
+@_reports_errors
+def task_fig8(
+    out: Out,
+    roll: Annotated[float, typer.Option(help="Roll amplitude, deg.")] = 26.0,
+    pitch: Annotated[float, typer.Option(help="Pitch amplitude, deg.")] = 26.0,
+    period: Annotated[float, typer.Option(help="Period of one figure-8, s.")] = 8.0,
+    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 24.0,
+    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+) -> None:
+    """Attitude figure-8 at constant position: roll = A_r sin(wt), pitch = A_p sin(2wt)."""
+    from omavctl.tasks import fig8
+
+    _write_task(fig8(roll, pitch, period, duration, rate, ramp, height), out, quiet)
+
+
+@task_app.command("circle")
+@_reports_errors
+def task_circle(
+    out: Out,
+    radius: Annotated[float, typer.Option(help="Circle radius, m.")] = 1.0,
+    period: Annotated[float, typer.Option(help="Time per lap at full speed, s.")] = 6.0,
+    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 24.0,
+    ramp: Annotated[float, typer.Option(help="Smooth speed-up/slow-down ramp, s.")] = 3.0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+) -> None:
+    """Horizontal circle at level attitude, starting and ending at rest."""
+    from omavctl.tasks import circle
+
+    _write_task(circle(radius, period, duration, rate, ramp, height), out, quiet)
+
+
+@task_app.command("pitch")
+@_reports_errors
+def task_pitch(
+    out: Out,
+    amplitude: Annotated[float, typer.Option(help="Pitch amplitude, deg (< 90).")] = 60.0,
+    max_acceleration: Annotated[
+        float, typer.Option(help="Pitch acceleration amplitude A w^2, rad/s^2 (sets the period).")
+    ] = 1.0,
+    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 30.0,
+    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 3.0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+) -> None:
+    """Pitching manoeuvre as in the paper (60 deg, 1 rad/s^2 by default)."""
+    from omavctl.tasks import pitch
+
+    _write_task(pitch(amplitude, max_acceleration, duration, rate, ramp, height), out, quiet)
+
+
+# ----------------------------------------------------------------------- simulate
+@app.command()
+@_reports_errors
+def simulate(
+    reference: Annotated[Path, typer.Option("--reference", "-r", help="Reference trajectory CSV.")],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Output log; its kind follows the name: a directory (no suffix) -> ROS 2 bag "
+            "(mcap storage), .bag -> ROS 1 bag, .mcap -> standalone MCAP, .csv -> wide CSV.",
+        ),
+    ],
+    truth: Annotated[
+        Path | None,
+        typer.Option(
+            "--truth",
+            help="Truth YAML: actuator imperfections, hidden effects, sensor noise, seed "
+            "(default: documented imperfections, no hidden effect).",
+        ),
+    ] = None,
+    vehicle: VehicleOpt = None,
+    seed: Annotated[
+        int | None, typer.Option(help="Random seed (rotor spread, sensor noise); overrides the truth file's.")
+    ] = None,
+    physics_rate: Annotated[float, typer.Option(help="Integration rate of the truth plant, Hz.")] = 1000.0,
+    quiet: Quiet = False,
+) -> None:
+    """Fly a reference in closed loop through the truth plant and write a flight log."""
+    from omavctl.logs import write_log
+    from omavctl.plant import load_truth
+    from omavctl.plant import simulate as run
+    from omavctl.trajectory import read_trajectory
+    from omavctl.vehicle import load_vehicle
+
+    veh = load_vehicle(vehicle)
+    ref = read_trajectory(reference)
+    plant = load_truth(truth, veh)
+    if physics_rate < 1000.0:
+        raise OmavctlError(f"--physics-rate must be at least 1000 Hz, got {physics_rate:g}")
+    con = _console(quiet)
+    from rich.progress import Progress
+
+    with Progress(console=con, transient=True, disable=quiet) as bar:
+        job = bar.add_task("simulating", total=1.0)
+        result = run(
+            ref,
+            veh,
+            plant,
+            seed=seed,
+            physics_rate=physics_rate,
+            progress=lambda f: bar.update(job, completed=f),
+        )
+    write_log(out, result.log, topics=veh.topics)
+    import math
+
+    con.print(
+        f"wrote {out}: {result.steps / veh.gains.rate_hz:.2f} s flown, "
+        f"max attitude error {math.degrees(result.max_attitude_error):.2f} deg, "
+        f"{result.infeasible_steps}/{result.steps} steps beyond actuator limits"
+    )
+    if result.diverged:
+        con.print("[bold red]warning:[/] the vehicle diverged; the log ends where it did")
+
+
+# ------------------------------------------------------------------------ inspect
+@app.command()
+@_reports_errors
+def inspect(
+    log: Annotated[Path, typer.Argument(help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap or .csv.")],
+    vehicle: VehicleOpt = None,
+) -> None:
+    """List topics, types, counts, rates, duration, gaps and contract roles of a log."""
+    from rich.console import Console
+
+    from omavctl.logs import inspect_log, render_inspect
+    from omavctl.vehicle import load_vehicle
+
+    veh = load_vehicle(vehicle)
+    render_inspect(inspect_log(log, topics=veh.topics), Console(highlight=False))
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app(prog_name="omavctl")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

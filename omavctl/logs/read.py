@@ -1,0 +1,344 @@
+"""Reading flight logs into a :class:`RawLog`: ROS 1 bags, ROS 2 bags, MCAP files, CSV.
+
+The kind of log follows from the path: a directory with ``metadata.yaml`` is a
+ROS 2 bag (sqlite3 or mcap storage), ``.bag`` a ROS 1 bag (both through
+``rosbags.highlevel.AnyReader``), ``.mcap`` a standalone MCAP file (through the
+``mcap`` reader, messages decoded with rosbags typestores, ROS 2 CDR or ROS 1
+encoding), ``.db3`` a bare ROS 2 sqlite3 storage file and ``.csv`` the wide CSV
+of DESIGN.md section 3. rosbags and mcap are imported only when a bag is read.
+
+Inputs are only ever opened for reading.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from omavctl.errors import LogError
+from omavctl.logs.contract import TOPIC_MSGTYPES, merge_topics
+from omavctl.logs.messages import extract_signals, header_stamps_ns
+from omavctl.logs.stats import topic_info
+from omavctl.logs.types import RawLog, RawSeries
+
+__all__ = ["FORMAT_LABELS", "detect_format", "read_raw"]
+
+#: What each input kind is called in messages.
+FORMAT_LABELS = {
+    "ros1": "ROS 1 bag",
+    "ros2": "ROS 2 bag",
+    "mcap": "MCAP file",
+    "csv": "CSV file",
+}
+
+_SUFFIX_KIND = {".bag": "ros1", ".mcap": "mcap", ".csv": "csv", ".db3": "ros2"}
+
+
+def _reason(err: BaseException) -> str:
+    """One line describing ``err`` (its first line, else its type name)."""
+    text = str(err).strip().splitlines()
+    line = text[0].strip() if text else ""
+    if not line:
+        line = type(err).__name__
+    return line if len(line) <= 200 else line[:197] + "..."
+
+
+def detect_format(path: Path) -> str:
+    """Kind of log at ``path``: ``"ros1"``, ``"ros2"``, ``"mcap"`` or ``"csv"``.
+
+    Raises :class:`LogError` for a missing path, a directory that is not a ROS 2
+    bag, an unknown suffix or an empty file.
+    """
+    if not path.exists():
+        raise LogError("file not found", path)
+    if path.is_dir():
+        if (path / "metadata.yaml").is_file():
+            return "ros2"
+        raise LogError("directory is not a ROS 2 bag (no metadata.yaml in it)", path)
+    kind = _SUFFIX_KIND.get(path.suffix.lower())
+    if kind is None:
+        shown = f"'{path.suffix}'" if path.suffix else "no suffix"
+        raise LogError(
+            f"unknown log format ({shown}): expected a .bag, .mcap or .csv file "
+            "or a ROS 2 bag directory",
+            path,
+        )
+    try:
+        size = path.stat().st_size
+    except OSError as err:
+        raise LogError(f"cannot read: {_reason(err)}", path) from err
+    if size == 0:
+        label = "CSV file" if kind == "csv" else f"readable {FORMAT_LABELS[kind]}"
+        raise LogError(f"not a {label}: the file is empty", path)
+    return kind
+
+
+@dataclass
+class _Collected:
+    """Messages gathered from a bag: every topic's type and receive times
+    (int ns), decoded messages of the contract topics in use."""
+
+    msgtypes: dict[str, str] = field(default_factory=dict)
+    logtimes: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
+    msgs: dict[str, list[Any]] = field(default_factory=lambda: defaultdict(list))
+    notes: list[str] = field(default_factory=list)
+
+
+def _use_topic(
+    topic: str,
+    msgtype: str,
+    wanted: Mapping[str, str],
+    strict: bool,
+    notes: list[str],
+    path: Path,
+) -> bool:
+    """Whether messages on ``topic`` are decoded: it is a contract topic of the
+    expected type. A contract topic of another type is an error (strict) or a note."""
+    role = wanted.get(topic)
+    if role is None:
+        return False
+    expected = TOPIC_MSGTYPES[role]
+    if msgtype != expected:
+        msg = f"topic '{topic}' has type '{msgtype}', expected '{expected}' (role {role})"
+        if strict:
+            raise LogError(msg, path)
+        notes.append(msg + "; not read")
+        return False
+    return True
+
+
+def _read_rosbag(path: Path, kind: str, names: Mapping[str, str], strict: bool) -> RawLog:
+    """Read a ROS 1 bag or a ROS 2 bag (directory or bare ``.db3``) with AnyReader."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    label = FORMAT_LABELS[kind]
+    wanted = {name: role for role, name in names.items()}
+    default = get_typestore(Stores.ROS1_NOETIC if kind == "ros1" else Stores.ROS2_HUMBLE)
+    col = _Collected()
+    try:
+        with AnyReader([path], default_typestore=default) as reader:
+            usable: set[str] = set()
+            for conn in reader.connections:
+                col.msgtypes.setdefault(conn.topic, conn.msgtype)
+                if _use_topic(conn.topic, conn.msgtype, wanted, strict, col.notes, path):
+                    usable.add(conn.topic)
+            store = reader.typestore
+            decode = store.deserialize_cdr if reader.is2 else store.deserialize_ros1
+            logtimes, msgs = col.logtimes, col.msgs
+            for conn, stamp, data in reader.messages():
+                topic = conn.topic
+                logtimes[topic].append(stamp)
+                if topic in usable:
+                    msgs[topic].append(decode(data, conn.msgtype))
+    except LogError:
+        raise
+    except Exception as err:  # any failure inside rosbags: corrupt or truncated input
+        raise LogError(f"not a readable {label}: {_reason(err)}", path) from err
+    if kind == "ros1":
+        fmt = "ros1"
+    else:
+        fmt = f"ros2-{_ros2_storage(path)}"
+    return _assemble(path, fmt, names, col)
+
+
+def _ros2_storage(path: Path) -> str:
+    """Storage plugin of a ROS 2 bag: ``"sqlite3"`` or ``"mcap"``."""
+    if path.is_file():
+        return "sqlite3" if path.suffix.lower() == ".db3" else "mcap"
+    import yaml
+
+    try:
+        meta = yaml.safe_load((path / "metadata.yaml").read_text())
+        ident = meta["rosbag2_bagfile_information"]["storage_identifier"]
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return "sqlite3"
+    return str(ident) if ident in ("sqlite3", "mcap") else "sqlite3"
+
+
+class _McapDecoders:
+    """Decoders per MCAP channel: rosbags typestores filled from the file's schemas."""
+
+    def __init__(self, path: Path, wanted: Mapping[str, str], col: _Collected, strict: bool):
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = path
+        self.wanted = wanted
+        self.col = col
+        self.strict = strict
+        self.stores = {"cdr": get_typestore(Stores.EMPTY), "ros1": get_typestore(Stores.EMPTY)}
+        self.defaults = {
+            "cdr": get_typestore(Stores.ROS2_HUMBLE),
+            "ros1": get_typestore(Stores.ROS1_NOETIC),
+        }
+        self.cache: dict[int, Callable[[bytes], Any] | None] = {}
+
+    def msgtype(self, schema: Any, channel: Any) -> str:
+        from rosbags.typesys.msg import normalize_msgtype
+
+        if schema is None or not schema.name:
+            return f"(no schema, {channel.message_encoding or 'no'} encoding)"
+        return normalize_msgtype(schema.name)
+
+    def get(self, schema: Any, channel: Any) -> Callable[[bytes], Any] | None:
+        if channel.id not in self.cache:
+            self.cache[channel.id] = self._make(schema, channel)
+        return self.cache[channel.id]
+
+    def _make(self, schema: Any, channel: Any) -> Callable[[bytes], Any] | None:
+        from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
+        topic, encoding = channel.topic, channel.message_encoding
+        msgtype = self.msgtype(schema, channel)
+        self.col.msgtypes.setdefault(topic, msgtype)
+        if not _use_topic(topic, msgtype, self.wanted, self.strict, self.col.notes, self.path):
+            return None
+        if encoding not in self.stores:
+            raise LogError(
+                f"topic '{topic}' has message encoding '{encoding}', expected cdr or ros1",
+                self.path,
+            )
+        store = self.stores[encoding]
+        if msgtype not in store.fielddefs:
+            text = bytes(schema.data).decode() if schema is not None else ""
+            if not text.strip():
+                store = self.defaults[encoding]
+            elif schema.encoding == "ros2idl":
+                sep = "=" * 80 + "\n"
+                if text.startswith(f"{sep}IDL: "):
+                    for part in text.split(sep)[1:]:
+                        store.register(get_types_from_idl(part.split("\n", 1)[1]))
+                else:
+                    store.register(get_types_from_idl(text))
+            else:
+                store.register(get_types_from_msg(text, msgtype))
+        if encoding == "cdr":
+            cdr = store.deserialize_cdr
+            return lambda data: cdr(data, msgtype)
+        ros1 = store.deserialize_ros1
+        return lambda data: ros1(data, msgtype)
+
+
+def _read_mcap(path: Path, names: Mapping[str, str], strict: bool) -> RawLog:
+    """Read a standalone MCAP file with the ``mcap`` reader."""
+    from mcap.reader import make_reader
+
+    wanted = {name: role for role, name in names.items()}
+    col = _Collected()
+    decoders = _McapDecoders(path, wanted, col, strict)
+    try:
+        with path.open("rb") as stream:
+            reader = make_reader(stream)
+            summary = reader.get_summary()
+            if summary is not None:
+                for channel in summary.channels.values():
+                    schema = summary.schemas.get(channel.schema_id)
+                    col.msgtypes.setdefault(channel.topic, decoders.msgtype(schema, channel))
+            logtimes, msgs = col.logtimes, col.msgs
+            for schema, channel, message in reader.iter_messages(log_time_order=True):
+                topic = channel.topic
+                logtimes[topic].append(message.log_time)
+                decode = decoders.get(schema, channel)
+                if decode is not None:
+                    msgs[topic].append(decode(message.data))
+    except LogError:
+        raise
+    except Exception as err:  # any failure inside mcap/rosbags: corrupt or truncated input
+        raise LogError(f"not a readable MCAP file: {_reason(err)}", path) from err
+    return _assemble(path, "mcap", names, col)
+
+
+def _assemble(path: Path, fmt: str, names: Mapping[str, str], col: _Collected) -> RawLog:
+    """Turn collected messages into series (stamps relative to the earliest used stamp)."""
+    wanted = {name: role for role, name in names.items()}
+    notes = list(col.notes)
+    stamps_ns: dict[str, np.ndarray] = {}
+    for topic, msgs in col.msgs.items():
+        if not msgs:
+            continue
+        recv = np.asarray(col.logtimes[topic], dtype=np.int64)
+        hdr = header_stamps_ns(msgs)
+        if hdr is None:
+            stamps_ns[topic] = recv
+            continue
+        missing = hdr <= 0
+        if missing.any():
+            notes.append(
+                f"{topic}: {int(missing.sum())} of {len(msgs)} messages have no header "
+                "stamp; their log receive time is used"
+            )
+        stamps_ns[topic] = np.where(missing, recv, hdr)
+
+    if stamps_ns:
+        t0_ns = int(min(int(s.min()) for s in stamps_ns.values()))
+    else:
+        all_times = [min(v) for v in col.logtimes.values() if v]
+        t0_ns = int(min(all_times)) if all_times else 0
+
+    series: dict[str, RawSeries] = {}
+    for topic, st in stamps_ns.items():
+        rel = (st - t0_ns) / 1e9
+        signals, extract_notes = extract_signals(wanted[topic], col.msgs[topic], topic)
+        notes += extract_notes
+        for role, values in signals.items():
+            series[role] = RawSeries(stamps=rel, values=values)
+
+    topics = []
+    for topic in sorted(set(col.msgtypes) | set(col.logtimes)):
+        if topic in stamps_ns:
+            st = stamps_ns[topic]
+        else:
+            st = np.asarray(col.logtimes.get(topic, []), dtype=np.int64)
+        topics.append(topic_info(topic, col.msgtypes.get(topic, "?"), (st - t0_ns) / 1e9))
+
+    absent = [name for name in names.values() if name not in stamps_ns]
+    if absent:
+        notes.append(f"contract topics not in the log: {', '.join(absent)}")
+    return RawLog(
+        path=path,
+        format=fmt,
+        t0=t0_ns / 1e9,
+        series=series,
+        topics=topics,
+        notes=notes,
+        topic_names=dict(names),
+    )
+
+
+def _read(path: str | Path, topics: Mapping[str, str] | None, strict: bool) -> RawLog:
+    p = Path(path)
+    kind = detect_format(p)
+    if kind == "csv":
+        from omavctl.logs.csvlog import read_csv
+
+        return read_csv(p, strict=strict).raw
+    names = merge_topics(topics)
+    if kind == "mcap":
+        return _read_mcap(p, names, strict)
+    return _read_rosbag(p, kind, names, strict)
+
+
+def read_raw(path: str | Path, topics: Mapping[str, str] | None = None) -> RawLog:
+    """Read a flight log as recorded (no resampling).
+
+    Args:
+        path: a ROS 2 bag directory, a ``.bag``, ``.mcap``, ``.db3`` or ``.csv`` file.
+        topics: topic role -> topic name, over :data:`DEFAULT_TOPICS` (e.g. a
+            vehicle's ``topics``); ignored for CSV.
+
+    Returns:
+        A :class:`RawLog`: per signal role a :class:`RawSeries` (stamps shape (n,)
+        in s since ``t0``, values shape (n, k)); header stamps are used when
+        present and nonzero, else the log receive time. ``topics`` lists every
+        topic in the file (unused ones timed by receive time).
+
+    Raises:
+        LogError: missing or unreadable file, corrupt/truncated bag, contract
+            topic of the wrong message type, bad CSV.
+    """
+    return _read(path, topics, strict=True)

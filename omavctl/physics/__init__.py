@@ -1,0 +1,1 @@
+"""Physics of the omav: rigid body, allocation, controller, named effects."""

@@ -1,0 +1,148 @@
+"""Tiltable-arm allocation of the omav: wrench <-> 6 tilt angles + 12 rotor thrusts.
+
+Arm ``i`` points along ``d_i = [cos g_i, sin g_i, 0]`` (``g_i`` the arm angle),
+its rotor pair sits at ``r_i = L d_i`` and tilts about the arm axis by
+``alpha_i``. In the arm frame (x along the arm, z up, y = z x x) the pair's
+force is ``F_i [0, sin alpha_i, cos alpha_i]``. Writing ``s_i = F_i sin alpha_i``
+and ``c_i = F_i cos alpha_i`` as 12 free variables (variable decomposition)
+makes the body wrench linear in them::
+
+    [f; tau] = A [s; c],   A = [[y_i, z], [r_i x y_i, r_i x z]]  (6 x 12)
+
+The minimum-norm solution is the pseudo-inverse; then ``alpha_i = atan2(s_i, c_i)``,
+``F_i = hypot(s_i, c_i)``, split equally over the coaxial pair (top rotor
+``2i``, bottom ``2i+1``). Equal split cancels the pair's drag torques.
+
+Infeasible wrenches are *reported* (per-rotor thrust outside
+``[min_thrust, max_thrust]``, tilt rate above ``max_tilt_rate``), never
+silently clipped here: clipping is the actuators' business (see ``plant``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from omavctl.physics.rigid_body import cross, wrap_angle
+from omavctl.vehicle import Vehicle
+
+__all__ = ["Allocation", "AllocationResult"]
+
+#: Below this arm thrust (N) the tilt angle is undetermined; the previous one is kept.
+_TILT_THRUST_EPS = 1e-6
+
+
+@dataclass(frozen=True)
+class AllocationResult:
+    """Actuator setpoints for a batch of wrenches (leading shape ``B``).
+
+    tilt (B, 6) rad; arm_thrust (B, 6) N per coaxial pair; rotor_thrust (B, 12) N;
+    thrust_high / thrust_low (B, 12) bool; tilt_rate_exceeded (B, 6) bool;
+    feasible (B,) bool (no limit violated).
+    """
+
+    tilt: np.ndarray
+    arm_thrust: np.ndarray
+    rotor_thrust: np.ndarray
+    thrust_high: np.ndarray
+    thrust_low: np.ndarray
+    tilt_rate_exceeded: np.ndarray
+
+    @property
+    def feasible(self) -> np.ndarray:
+        return ~(
+            self.thrust_high.any(axis=-1)
+            | self.thrust_low.any(axis=-1)
+            | self.tilt_rate_exceeded.any(axis=-1)
+        )
+
+
+class Allocation:
+    """Allocation for one vehicle geometry (matrix and pseudo-inverse built once)."""
+
+    def __init__(self, vehicle: Vehicle) -> None:
+        self.vehicle = vehicle
+        g = vehicle.arm_angles
+        n = g.size
+        d = np.stack([np.cos(g), np.sin(g), np.zeros(n)], axis=-1)  # (6, 3) arm axes
+        y = np.stack([-np.sin(g), np.cos(g), np.zeros(n)], axis=-1)  # (6, 3) tilt plane
+        z = np.tile([0.0, 0.0, 1.0], (n, 1))
+        r = vehicle.arm_length * d
+        self.arm_axis = d
+        self.arm_y = y
+        self.arm_position = r
+        a = np.zeros((6, 2 * n))
+        a[:3, :n] = y.T
+        a[3:, :n] = cross(r, y).T
+        a[:3, n:] = z.T
+        a[3:, n:] = cross(r, z).T
+        self.matrix = a  # (6, 12)
+        self.pinv = np.linalg.pinv(a)  # (12, 6)
+
+    # --- maps -------------------------------------------------------------
+    def thrust_directions(self, tilt: np.ndarray) -> np.ndarray:
+        """Unit thrust direction of each arm in body frame: (..., 6) -> (..., 6, 3)."""
+        s, c = np.sin(tilt)[..., None], np.cos(tilt)[..., None]
+        return s * self.arm_y + c * np.array([0.0, 0.0, 1.0])
+
+    def forward(self, tilt: np.ndarray, rotor_thrust: np.ndarray) -> np.ndarray:
+        """Body wrench [f, tau] (..., 6) from tilts (..., 6) rad and rotor thrusts (..., 12) N.
+
+        Includes the rotor drag torques ``drag_ratio (T_top - T_bottom) n_i`` of
+        each counter-rotating pair (zero for an equal split).
+        """
+        top, bottom = rotor_thrust[..., 0::2], rotor_thrust[..., 1::2]
+        n = self.thrust_directions(tilt)  # (..., 6, 3)
+        arm_force = (top + bottom)[..., None] * n
+        force = arm_force.sum(axis=-2)
+        drag = (self.vehicle.drag_ratio * (top - bottom))[..., None] * n
+        torque = (cross(self.arm_position, arm_force) + drag).sum(axis=-2)
+        return np.concatenate([force, torque], axis=-1)
+
+    def allocate(
+        self,
+        wrench: np.ndarray,
+        previous_tilt: np.ndarray | None = None,
+        dt: float | None = None,
+    ) -> AllocationResult:
+        """Actuator setpoints for body wrenches (..., 6) [N, N m].
+
+        ``previous_tilt`` (..., 6) and ``dt`` (s) enable the tilt-rate check and
+        keep the tilt of an arm with (near) zero thrust where it was.
+        """
+        wrench = np.asarray(wrench, dtype=float)
+        sc = wrench @ self.pinv.T  # (..., 12)
+        n = self.vehicle.n_arms
+        s, c = sc[..., :n], sc[..., n:]
+        arm_thrust = np.hypot(s, c)
+        tilt = np.arctan2(s, c)
+        if previous_tilt is not None:
+            tilt = np.where(arm_thrust < _TILT_THRUST_EPS, previous_tilt, tilt)
+        rotor = np.repeat(arm_thrust / 2.0, 2, axis=-1)
+        v = self.vehicle
+        tol = 1e-9
+        high = rotor > v.max_thrust + tol
+        low = rotor < v.min_thrust - tol
+        if previous_tilt is not None and dt is not None:
+            rate = np.abs(wrap_angle(tilt - previous_tilt)) / dt
+            rate_bad = rate > v.max_tilt_rate + tol
+        else:
+            rate_bad = np.zeros(tilt.shape, dtype=bool)
+        return AllocationResult(tilt, arm_thrust, rotor, high, low, rate_bad)
+
+    # --- sensitivities used by the lag effects -----------------------------
+    def tilt_jacobian(self, tilt: np.ndarray, arm_thrust: np.ndarray) -> np.ndarray:
+        """d wrench / d tilt_i: (..., 6) x2 -> (..., 6 wrench, 6 arms)."""
+        dn = np.cos(tilt)[..., None] * self.arm_y - np.sin(tilt)[..., None] * np.array(
+            [0.0, 0.0, 1.0]
+        )
+        df = arm_thrust[..., None] * dn  # (..., 6, 3)
+        dtau = cross(self.arm_position, df)
+        return np.concatenate([df, dtau], axis=-1).swapaxes(-1, -2)
+
+    def thrust_jacobian(self, tilt: np.ndarray) -> np.ndarray:
+        """d wrench / d arm_thrust_i: (..., 6) -> (..., 6 wrench, 6 arms)."""
+        n = self.thrust_directions(tilt)
+        dtau = cross(self.arm_position, n)
+        return np.concatenate([n, dtau], axis=-1).swapaxes(-1, -2)

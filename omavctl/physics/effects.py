@@ -1,0 +1,324 @@
+"""Registry of named physical effects (DESIGN.md section 2).
+
+Each effect is one small class: a name, parameters with units, a docstring
+with its formula, a **regressor** (the angular-acceleration residual it causes
+is linear in its estimation parameters ``theta``, so ``fit`` and ``evaluate``
+estimate it by least squares) and a **simulation form** used by the truth
+plant (an extra body torque, a change of plant constants, or a sensor error).
+
+The residual is ``omega_dot_measured - I^-1 (tau_cmd - omega x I omega)``;
+for each effect ``residual ~= X(theta)`` with ``X = regressor(ctx)`` of shape
+(N, 3, p).  To add an effect, subclass :class:`Effect` and add an instance to
+:data:`EFFECTS` (see ``docs/adding-an-effect.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from omavctl.errors import ConfigError
+
+if TYPE_CHECKING:
+    from omavctl.physics.allocation import Allocation
+    from omavctl.plant import TruthParameters
+
+__all__ = [
+    "EFFECTS",
+    "Effect",
+    "EffectContext",
+    "Parameter",
+    "get_effect",
+]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One named parameter of an effect: ``size`` values in ``unit``."""
+
+    name: str
+    size: int
+    unit: str
+    description: str
+
+
+@dataclass
+class EffectContext:
+    """The signals an effect's regressor may use, on a uniform grid.
+
+    omega (N, 3) measured body rate rad/s; force (N, 3) commanded force N;
+    torque (N, 3) commanded torque N m; omega_dot_nominal (N, 3) rad/s^2;
+    dt grid step s; ``allocation`` the vehicle's allocation;
+    ``derivative`` a callable differentiating (N, k) arrays along time
+    (``fit`` passes its Savitzky-Golay derivative so that every signal is
+    filtered alike).
+    """
+
+    omega: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    omega_dot_nominal: np.ndarray
+    inertia: np.ndarray
+    dt: float
+    allocation: Allocation
+    derivative: Any
+
+    @property
+    def inertia_inv(self) -> np.ndarray:
+        return np.linalg.inv(self.inertia)
+
+    @cached_property
+    def allocated(self) -> tuple[np.ndarray, np.ndarray]:
+        """Commanded tilts (N, 6) rad (unwrapped in time) and arm thrusts (N, 6) N."""
+        wrench = np.concatenate([self.force, self.torque], axis=-1)
+        res = self.allocation.allocate(wrench)
+        return np.unwrap(res.tilt, axis=0), res.arm_thrust
+
+    def angular(self, wrench_delta: np.ndarray) -> np.ndarray:
+        """Angular acceleration (..., 3) caused by a body wrench change (..., 6)."""
+        return wrench_delta[..., 3:] @ self.inertia_inv.T
+
+
+class Effect:
+    """Base class. Subclasses set ``name``, ``summary``, ``parameters``."""
+
+    name: ClassVar[str]
+    summary: ClassVar[str]
+    parameters: ClassVar[tuple[Parameter, ...]]
+    #: Whether its parameters can be recovered from angular accelerations alone.
+    identifiable: ClassVar[bool] = True
+
+    # --- estimation --------------------------------------------------------
+    @property
+    def n_theta(self) -> int:
+        return sum(p.size for p in self.parameters)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        """Regressor X, shape (N, 3, n_theta): residual ~= X @ theta."""
+        raise NotImplementedError
+
+    def to_parameters(
+        self, theta: np.ndarray, cov: np.ndarray
+    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Physical parameters and standard errors from ``theta`` (p,) and its covariance
+        (p, p). Default: theta are the parameters."""
+        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        i = 0
+        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        for p in self.parameters:
+            out[p.name] = (theta[i : i + p.size].copy(), se[i : i + p.size].copy())
+            i += p.size
+        return out
+
+    def to_theta(self, params: dict[str, np.ndarray]) -> np.ndarray:
+        """Inverse of :meth:`to_parameters` (values only)."""
+        return np.concatenate([np.asarray(params[p.name], float) for p in self.parameters])
+
+    # --- simulation (truth plant) -----------------------------------------
+    def validate(self, params: Any, where: str = "effects") -> dict[str, np.ndarray]:
+        """Check a parameter mapping from a YAML file; returns arrays per parameter."""
+        if not isinstance(params, dict):
+            raise ConfigError(f"'{where}.{self.name}' must map parameter names to values")
+        names = {p.name: p for p in self.parameters}
+        for key in params:
+            if key not in names:
+                raise ConfigError(
+                    f"unknown parameter '{where}.{self.name}.{key}' "
+                    f"(expected: {', '.join(names)})"
+                )
+        out = {}
+        for p in self.parameters:
+            if p.name not in params:
+                raise ConfigError(f"missing parameter '{where}.{self.name}.{p.name}' ({p.unit})")
+            try:
+                arr = np.asarray(params[p.name], dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise ConfigError(f"'{where}.{self.name}.{p.name}' must be numbers") from None
+            if arr.size != p.size or not np.all(np.isfinite(arr)):
+                raise ConfigError(
+                    f"'{where}.{self.name}.{p.name}' must be {p.size} finite number(s)"
+                )
+            out[p.name] = arr
+        return out
+
+    def body_torque(
+        self, params: dict[str, np.ndarray], omega: np.ndarray, force: np.ndarray
+    ) -> np.ndarray | None:
+        """Extra torque (..., 3) N m on the true body; None if the effect adds none."""
+        return None
+
+    def configure_truth(self, params: dict[str, np.ndarray], truth: TruthParameters) -> None:
+        """Change constants of the truth plant (inertia, actuator time constants)."""
+
+    def gyro_offset(self, params: dict[str, np.ndarray]) -> np.ndarray | None:
+        """Constant offset (3,) rad/s added to the measured body rate, or None."""
+        return None
+
+
+class RotationalDrag(Effect):
+    """Aerodynamic drag torque, quadratic in the body rate.
+
+    ``tau_drag = -D omega |omega|`` (element-wise, D diagonal), hence the residual
+    ``-I^-1 D omega |omega|``. ``D`` in N m s^2 (per rad^2).
+    """
+
+    name = "rotational_drag"
+    summary = "aerodynamic drag torque -D omega|omega|"
+    parameters = (Parameter("D", 3, "N m s^2", "diagonal drag coefficients"),)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        q = ctx.omega * np.abs(ctx.omega)  # (N, 3)
+        return -ctx.inertia_inv[None, :, :] * q[:, None, :]
+
+    def body_torque(self, params, omega, force):
+        return -params["D"] * omega * np.abs(omega)
+
+
+class ComOffset(Effect):
+    """Centre of mass displaced by ``r`` from the geometric centre the allocation assumes.
+
+    Forces act at the geometric centre, so about the true centre of mass they
+    add ``tau = r x f`` (``f`` body force); residual ``I^-1 (r x f)``. ``r`` in m,
+    body frame. Identifiable when the body-frame force changes direction
+    (attitude manoeuvres of an omav, lateral force commands).
+    """
+
+    name = "com_offset"
+    summary = "centre of mass offset r: extra torque r x f"
+    parameters = (Parameter("r", 3, "m", "centre-of-mass offset, body frame"),)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        eye = np.eye(3)
+        # column j: I^-1 (e_j x f)
+        cols = [np.cross(eye[j], ctx.force) @ ctx.inertia_inv.T for j in range(3)]
+        return np.stack(cols, axis=-1)
+
+    def body_torque(self, params, omega, force):
+        return np.cross(params["r"], force)
+
+
+class InertiaError(Effect):
+    """True inertia ``I_true = diag(scale) I`` differs from the nominal one.
+
+    ``omega_dot_k = (tau - omega x I_true omega)_k / (scale_k I_k)``. To first
+    order the residual is ``theta_k * omega_dot_nominal_k`` with
+    ``theta_k = 1/scale_k - 1`` (estimated linearly; ``scale = 1/(1+theta)``,
+    standard error by the delta method). Also estimates the gain of a
+    normalised torque command (units unknown).
+    """
+
+    name = "inertia_error"
+    summary = "true/nominal inertia scale per axis"
+    parameters = (Parameter("scale", 3, "1", "true/nominal inertia per axis"),)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        return np.eye(3)[None, :, :] * ctx.omega_dot_nominal[:, None, :]
+
+    def to_parameters(self, theta, cov):
+        scale = 1.0 / (1.0 + theta)
+        se = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale**2
+        return {"scale": (scale, se)}
+
+    def to_theta(self, params):
+        return 1.0 / np.asarray(params["scale"], float) - 1.0
+
+    def configure_truth(self, params, truth):
+        if np.any(params["scale"] <= 0):
+            raise ConfigError("'effects.inertia_error.scale' must be > 0")
+        s = np.sqrt(params["scale"])
+        truth.inertia = s[:, None] * truth.inertia * s[None, :]
+
+
+class ServoLag(Effect):
+    """Tilt servos follow their setpoints with a first-order lag ``T_s``.
+
+    ``alpha_dot = (alpha_cmd - alpha) / T_s`` gives ``alpha ~= alpha_cmd - T_s
+    alpha_cmd_dot``, so the wrench error is ``-T_s J_alpha alpha_cmd_dot`` with
+    ``J_alpha = d wrench / d alpha`` of the allocation; residual
+    ``-T_s I^-1 [J_alpha alpha_cmd_dot]_torque``. ``T_s`` in s.
+    """
+
+    name = "servo_lag"
+    summary = "first-order tilt-servo lag T_s"
+    parameters = (Parameter("T_s", 1, "s", "servo time constant"),)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        tilt, thrust = ctx.allocated
+        rate = ctx.derivative(tilt)  # (N, 6)
+        jac = ctx.allocation.tilt_jacobian(tilt, thrust)  # (N, 6, 6)
+        dw = -np.einsum("nij,nj->ni", jac, rate)
+        return ctx.angular(dw)[:, :, None]
+
+    def configure_truth(self, params, truth):
+        truth.servo_time_constant = float(params["T_s"][0])
+
+
+class MotorLag(Effect):
+    """Rotor thrust follows its setpoint with a first-order lag ``T_m``.
+
+    ``F ~= F_cmd - T_m F_cmd_dot`` per arm, so the wrench error is
+    ``-T_m J_F F_cmd_dot`` (``J_F`` = thrust directions and their moments);
+    residual ``-T_m I^-1 [J_F F_cmd_dot]_torque``. ``T_m`` in s.
+    """
+
+    name = "motor_lag"
+    summary = "first-order rotor-thrust lag T_m"
+    parameters = (Parameter("T_m", 1, "s", "motor time constant"),)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        tilt, thrust = ctx.allocated
+        rate = ctx.derivative(thrust)
+        jac = ctx.allocation.thrust_jacobian(tilt)
+        dw = -np.einsum("nij,nj->ni", jac, rate)
+        return ctx.angular(dw)[:, :, None]
+
+    def configure_truth(self, params, truth):
+        truth.motor_time_constant = float(params["T_m"][0])
+
+
+class GyroBias(Effect):
+    """Constant bias ``b`` in the measured body rate: ``omega_meas = omega + b``.
+
+    It leaves ``omega_dot`` unchanged; it enters the residual only through the
+    gyroscopic term evaluated with the biased rate,
+    ``I^-1 (b x I omega + omega x I b)`` to first order, which is small at the
+    rates an omav flies: not identifiable from angular accelerations (its
+    visible trace is a steady attitude offset ``Kd b / Kp`` of the controller).
+    """
+
+    name = "gyro_bias"
+    summary = "constant gyro bias b"
+    parameters = (Parameter("b", 3, "rad/s", "gyro bias, body frame"),)
+    identifiable = False
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        eye = np.eye(3)
+        i_omega = ctx.omega @ ctx.inertia.T
+        cols = [
+            (np.cross(eye[j], i_omega) + np.cross(ctx.omega, ctx.inertia[:, j])) @ ctx.inertia_inv.T
+            for j in range(3)
+        ]
+        return np.stack(cols, axis=-1)
+
+    def gyro_offset(self, params):
+        return params["b"]
+
+
+#: All registered effects by name; CLI choices are derived from this.
+EFFECTS: dict[str, Effect] = {
+    e.name: e
+    for e in (RotationalDrag(), ComOffset(), InertiaError(), ServoLag(), MotorLag(), GyroBias())
+}
+
+
+def get_effect(name: str) -> Effect:
+    """Look up an effect by name; ConfigError listing the known ones otherwise."""
+    try:
+        return EFFECTS[name]
+    except KeyError:
+        raise ConfigError(
+            f"unknown effect '{name}' (known: {', '.join(sorted(EFFECTS))})"
+        ) from None

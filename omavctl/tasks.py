@@ -1,0 +1,182 @@
+"""Task trajectories: attitude figure-8, position circle, pitching manoeuvre.
+
+Every task starts and ends at rest: its motion is multiplied by a smooth
+envelope (quintic smoothstep ramps of ``ramp`` seconds), and all derivatives
+are analytic, so body rates and angular accelerations are consistent with the
+angles (``omega = W(eta) eta_dot``, ``omega_dot = W eta_ddot + W_dot eta_dot``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from omavctl.errors import ConfigError
+from omavctl.physics.rigid_body import euler_rates_to_body
+from omavctl.trajectory import Trajectory
+
+__all__ = ["TASKS", "circle", "fig8", "pitch"]
+
+
+@dataclass(frozen=True)
+class _Envelope:
+    """Smooth 0 -> 1 -> 0 window: quintic ramps of ``ramp`` s at both ends of ``duration``."""
+
+    duration: float
+    ramp: float
+
+    def _up(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        r = self.ramp
+        x = np.clip(t / r, 0.0, 1.0)
+        inside = (t > 0) & (t < r)
+        v = 10 * x**3 - 15 * x**4 + 6 * x**5
+        d1 = np.where(inside, (30 * x**2 - 60 * x**3 + 30 * x**4) / r, 0.0)
+        d2 = np.where(inside, (60 * x - 180 * x**2 + 120 * x**3) / r**2, 0.0)
+        integ = np.where(t < r, r * (2.5 * x**4 - 3 * x**5 + x**6), r / 2 + (t - r))
+        return v, d1, d2, integ
+
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Value, first and second derivative, and integral from 0, each (N,)."""
+        up, d_up, dd_up, i_up = self._up(t)
+        tr = self.duration - t
+        dn, d_dn, dd_dn, i_dn = self._up(tr)
+        total = self._up(np.array([self.duration]))[3][0]
+        value = up * dn
+        d1 = d_up * dn - up * d_dn
+        d2 = dd_up * dn - 2 * d_up * d_dn + up * dd_dn
+        # up and dn never overlap below 1 (duration >= 2 ramp), so
+        # up*dn = up + dn - 1 and its integral from 0 is
+        integral = i_up + (total - i_dn) - t
+        return value, d1, d2, integral
+
+
+def _check(duration: float, ramp: float, rate: float) -> None:
+    if rate <= 0:
+        raise ConfigError(f"--rate must be > 0, got {rate}")
+    if ramp <= 0:
+        raise ConfigError(f"--ramp must be > 0, got {ramp}")
+    if duration < 2 * ramp:
+        raise ConfigError(f"--duration ({duration} s) must be at least twice --ramp ({ramp} s)")
+
+
+def _grid(duration: float, rate: float) -> np.ndarray:
+    n = round(duration * rate) + 1
+    return np.arange(n) / rate
+
+
+def _windowed_sine(
+    t: np.ndarray, env: _Envelope, amp: float, omega: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``amp * e(t) * sin(omega t)`` and its first two derivatives."""
+    e, de, dde, _ = env(t)
+    s, c = np.sin(omega * t), np.cos(omega * t)
+    v = amp * e * s
+    d1 = amp * (de * s + e * omega * c)
+    d2 = amp * (dde * s + 2 * de * omega * c - e * omega**2 * s)
+    return v, d1, d2
+
+
+def _attitude_task(
+    t: np.ndarray, eta: np.ndarray, deta: np.ndarray, ddeta: np.ndarray, height: float
+) -> Trajectory:
+    w, dw = euler_rates_to_body(eta, deta, ddeta)
+    assert dw is not None
+    pos = np.zeros((t.size, 3))
+    pos[:, 2] = height
+    zeros = np.zeros((t.size, 3))
+    return Trajectory.from_parts(t, pos, eta, zeros, w, zeros, dw)
+
+
+def fig8(
+    roll_deg: float = 26.0,
+    pitch_deg: float = 26.0,
+    period: float = 8.0,
+    duration: float = 24.0,
+    rate: float = 100.0,
+    ramp: float = 2.0,
+    height: float = 1.0,
+) -> Trajectory:
+    """Attitude figure-8 at constant position (the paper's task).
+
+    ``roll = A_r e(t) sin(2 pi t / period)``, ``pitch = A_p e(t) sin(4 pi t / period)``:
+    the (roll, pitch) path traces an eight once per period.
+    """
+    _check(duration, ramp, rate)
+    if period <= 0:
+        raise ConfigError(f"--period must be > 0, got {period}")
+    t = _grid(duration, rate)
+    env = _Envelope(duration, ramp)
+    w0 = 2 * np.pi / period
+    r = _windowed_sine(t, env, np.deg2rad(roll_deg), w0)
+    p = _windowed_sine(t, env, np.deg2rad(pitch_deg), 2 * w0)
+    z = np.zeros_like(t)
+    eta = np.column_stack([r[0], p[0], z])
+    deta = np.column_stack([r[1], p[1], z])
+    ddeta = np.column_stack([r[2], p[2], z])
+    return _attitude_task(t, eta, deta, ddeta, height)
+
+
+def pitch(
+    amplitude_deg: float = 60.0,
+    max_acceleration: float = 1.0,
+    duration: float = 30.0,
+    rate: float = 100.0,
+    ramp: float = 3.0,
+    height: float = 1.0,
+) -> Trajectory:
+    """Pitching manoeuvre as in the paper: ``pitch = A e(t) sin(w t)`` with the
+    frequency chosen so the peak pitch acceleration ``A w^2`` is ``max_acceleration``
+    (rad/s^2); 60 deg and 1 rad/s^2 give a 6.4 s period."""
+    _check(duration, ramp, rate)
+    amp = np.deg2rad(amplitude_deg)
+    if amp <= 0 or max_acceleration <= 0:
+        raise ConfigError("--amplitude and --max-acceleration must be > 0")
+    if amp >= np.pi / 2:
+        raise ConfigError("--amplitude must be below 90 deg (Euler-angle singularity)")
+    t = _grid(duration, rate)
+    env = _Envelope(duration, ramp)
+    p = _windowed_sine(t, env, amp, float(np.sqrt(max_acceleration / amp)))
+    z = np.zeros_like(t)
+    eta = np.column_stack([z, p[0], z])
+    deta = np.column_stack([z, p[1], z])
+    ddeta = np.column_stack([z, p[2], z])
+    return _attitude_task(t, eta, deta, ddeta, height)
+
+
+def circle(
+    radius: float = 1.0,
+    period: float = 6.0,
+    duration: float = 24.0,
+    rate: float = 100.0,
+    ramp: float = 3.0,
+    height: float = 1.0,
+) -> Trajectory:
+    """Horizontal circle at level attitude starting from the origin.
+
+    The phase ``phi(t) = (2 pi / period) * integral of e(t)`` ramps the speed
+    smoothly; ``p = [R sin phi, R (1 - cos phi), height]``.
+    """
+    _check(duration, ramp, rate)
+    if radius <= 0 or period <= 0:
+        raise ConfigError("--radius and --period must be > 0")
+    t = _grid(duration, rate)
+    e, de, _, ie = _Envelope(duration, ramp)(t)
+    w0 = 2 * np.pi / period
+    phi, dphi, ddphi = w0 * ie, w0 * e, w0 * de
+    s, c = np.sin(phi), np.cos(phi)
+    pos = np.column_stack([radius * s, radius * (1 - c), np.full_like(t, height)])
+    vel = np.column_stack([radius * c * dphi, radius * s * dphi, np.zeros_like(t)])
+    acc = np.column_stack(
+        [
+            radius * (c * ddphi - s * dphi**2),
+            radius * (s * ddphi + c * dphi**2),
+            np.zeros_like(t),
+        ]
+    )
+    zeros = np.zeros((t.size, 3))
+    return Trajectory.from_parts(t, pos, zeros, vel, zeros, acc, zeros)
+
+
+#: Task generators by name (CLI subcommands are derived from this).
+TASKS = {"fig8": fig8, "circle": circle, "pitch": pitch}

@@ -1,0 +1,168 @@
+"""Trajectory CSV (tasks and planned references), DESIGN.md section 4.
+
+Columns ``t,x,y,z,roll,pitch,yaw,vx,vy,vz,wx,wy,wz,ax,ay,az,dwx,dwy,dwz``:
+time (s) on a uniform grid, position (m, world), ZYX Euler angles (rad),
+velocity (m/s, world), body rates (rad/s), linear acceleration (m/s^2, world),
+body angular acceleration (rad/s^2). Header row; SI units.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from omavctl.atomic import write_text_atomic
+from omavctl.errors import TrajectoryError
+
+__all__ = [
+    "COLUMNS",
+    "SCHEMA",
+    "Trajectory",
+    "read_trajectory",
+    "write_trajectory",
+]
+
+SCHEMA = "omavctl.trajectory/1"
+COLUMNS = (
+    "t x y z roll pitch yaw vx vy vz wx wy wz ax ay az dwx dwy dwz".split()
+)
+_UNIFORM_RTOL = 1e-6
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A reference trajectory: ``data`` shape (N, 19) in :data:`COLUMNS` order."""
+
+    data: np.ndarray
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.data[:, 0]
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.data[:, 1:4]
+
+    @property
+    def euler(self) -> np.ndarray:
+        return self.data[:, 4:7]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.data[:, 7:10]
+
+    @property
+    def body_rate(self) -> np.ndarray:
+        return self.data[:, 10:13]
+
+    @property
+    def acceleration(self) -> np.ndarray:
+        return self.data[:, 13:16]
+
+    @property
+    def angular_acceleration(self) -> np.ndarray:
+        return self.data[:, 16:19]
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    @classmethod
+    def from_parts(
+        cls,
+        t: np.ndarray,
+        position: np.ndarray,
+        euler: np.ndarray,
+        velocity: np.ndarray,
+        body_rate: np.ndarray,
+        acceleration: np.ndarray,
+        angular_acceleration: np.ndarray,
+    ) -> Trajectory:
+        """Assemble from arrays: t (N,), the rest (N, 3)."""
+        return cls(
+            np.column_stack(
+                [t, position, euler, velocity, body_rate, acceleration, angular_acceleration]
+            )
+        )
+
+    def sample(self, times: np.ndarray) -> np.ndarray:
+        """Linear interpolation of every column at ``times`` (M,) -> (M, 19); held at ends."""
+        out = np.empty((times.size, len(COLUMNS)))
+        out[:, 0] = times
+        for j in range(1, len(COLUMNS)):
+            out[:, j] = np.interp(times, self.t, self.data[:, j])
+        return out
+
+
+def read_trajectory(path: str | Path) -> Trajectory:
+    """Read and validate a trajectory CSV (exact columns, finite, uniform time grid)."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise TrajectoryError("file not found", p) from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise TrajectoryError(f"cannot read: {err}", p) from None
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise TrajectoryError("empty file: expected a header row and samples", p)
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in COLUMNS if c not in header]
+    if missing:
+        raise TrajectoryError(f"missing columns: {', '.join(missing)}", p)
+    extra = [c for c in header if c not in COLUMNS]
+    if extra:
+        raise TrajectoryError(f"unexpected columns: {', '.join(extra)}", p)
+    idx = [header.index(c) for c in COLUMNS]
+    body = [r for r in rows[1:] if r]
+    if len(body) < 2:
+        raise TrajectoryError("fewer than 2 samples", p)
+    data = np.empty((len(body), len(COLUMNS)))
+    for i, row in enumerate(body):
+        if len(row) != len(header):
+            raise TrajectoryError(
+                f"row {i + 2} has {len(row)} fields, header has {len(header)}", p
+            )
+        for j, k in enumerate(idx):
+            try:
+                data[i, j] = float(row[k])
+            except ValueError:
+                raise TrajectoryError(
+                    f"row {i + 2}, column '{COLUMNS[j]}': not a number: {row[k]!r}", p
+                ) from None
+    bad = ~np.isfinite(data)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise TrajectoryError(f"row {i + 2}, column '{COLUMNS[j]}': not finite", p)
+    dt = np.diff(data[:, 0])
+    if np.any(dt <= 0):
+        i = int(np.argmax(dt <= 0))
+        raise TrajectoryError(f"time not increasing at row {i + 3}", p)
+    if np.max(np.abs(dt - dt.mean())) > _UNIFORM_RTOL * max(dt.mean(), 1e-9) + 1e-9:
+        i = int(np.argmax(np.abs(dt - dt[0]) > _UNIFORM_RTOL * dt[0] + 1e-9))
+        raise TrajectoryError(
+            f"non-uniform time grid: step {dt[i]:.6g} s at row {i + 3}, expected {dt[0]:.6g} s",
+            p,
+        )
+    return Trajectory(data)
+
+
+def format_trajectory(traj: Trajectory) -> str:
+    """CSV text of a trajectory (deterministic: same array, same bytes)."""
+    buf = io.StringIO()
+    buf.write(",".join(COLUMNS) + "\n")
+    np.savetxt(buf, traj.data, delimiter=",", fmt="%.12g")
+    return buf.getvalue()
+
+
+def write_trajectory(path: str | Path, traj: Trajectory) -> None:
+    """Write a trajectory CSV atomically."""
+    write_text_atomic(path, format_trajectory(traj))
