@@ -198,36 +198,36 @@ class _Actuators:
         self.e_kj = np.divide(diff, norm, out=np.zeros_like(diff), where=norm > 0)
 
     def efficiency(self, tilt: np.ndarray) -> np.ndarray:
-        """Per-arm thrust efficiency (6,) from tilts (6,)."""
+        """Per-arm thrust efficiency (..., 6) from tilts (..., 6)."""
         t = self.truth
-        n = self.alloc.thrust_directions(tilt)  # (6, 3)
+        n = self.alloc.thrust_directions(tilt)  # (..., 6, 3)
         # wake of pair k along -n_k hits pair j when -n_k . e_kj > 0
-        hit = np.clip(-np.einsum("kc,kjc->kj", n, self.e_kj), 0.0, None) ** 4  # [k, j]
+        hit = np.clip(-np.einsum("...kc,kjc->...kj", n, self.e_kj), 0.0, None) ** 4
         cols = np.arange(6)
-        loss_rr = hit[self.neigh[:, 0], cols] + hit[self.neigh[:, 1], cols]
+        loss_rr = hit[..., self.neigh[:, 0], cols] + hit[..., self.neigh[:, 1], cols]
         return 1.0 - t.rotor_arm * np.sin(tilt) ** 2 - t.rotor_rotor * loss_rr
 
-    def step(self, tilt_cmd: np.ndarray, thrust_cmd: np.ndarray, dt: float) -> None:
+    def advance(
+        self, tilt_cmd: np.ndarray, thrust_cmd: np.ndarray, dt: float, n: int
+    ) -> np.ndarray:
+        """Run ``n`` steps of ``dt`` towards constant setpoints; returns the actual
+        wrench (n, 6) after each step (efficiency and forward map batched)."""
         t, rate = self.truth, self.v.max_tilt_rate
-        err = wrap_angle(tilt_cmd - self.shaft)
-        if t.servo_time_constant > 0:
-            speed = err / t.servo_time_constant
-        else:
-            speed = err / dt
-        self.shaft = self.shaft + np.clip(speed, -rate, rate) * dt
         half = t.servo_backlash / 2.0
-        gap = self.shaft - self.tilt
-        self.tilt = np.where(gap > half, self.shaft - half, np.where(gap < -half, self.shaft + half, self.tilt))
-        if t.motor_time_constant > 0:
-            self.thrust = self.thrust + (1.0 - np.exp(-dt / t.motor_time_constant)) * (
-                thrust_cmd - self.thrust
+        motor = 1.0 - math.exp(-dt / t.motor_time_constant) if t.motor_time_constant > 0 else 1.0
+        lag = t.servo_time_constant if t.servo_time_constant > 0 else dt
+        tilts, thrusts = np.empty((n, 6)), np.empty((n, 12))
+        for i in range(n):
+            speed = wrap_angle(tilt_cmd - self.shaft) / lag
+            self.shaft = self.shaft + np.clip(speed, -rate, rate) * dt
+            gap = self.shaft - self.tilt
+            self.tilt = np.where(
+                gap > half, self.shaft - half, np.where(gap < -half, self.shaft + half, self.tilt)
             )
-        else:
-            self.thrust = thrust_cmd.copy()
-
-    def wrench(self) -> np.ndarray:
-        eff = np.repeat(self.efficiency(self.tilt), 2)
-        return self.alloc.forward(self.tilt, self.thrust * self.spread * eff)
+            self.thrust = self.thrust + motor * (thrust_cmd - self.thrust)
+            tilts[i], thrusts[i] = self.tilt, self.thrust
+        eff = np.repeat(self.efficiency(tilts), 2, axis=-1)
+        return self.alloc.forward(tilts, thrusts * self.spread * eff)
 
     def rotor_speed(self) -> np.ndarray:
         return np.sqrt(np.clip(self.thrust, 0.0, None) / self.v.thrust_coefficient)
@@ -393,10 +393,9 @@ def simulate(
         if k == len(times) - 1:
             break
         xs = x.tolist()
+        wrenches = act.advance(tilt_cmd, thrust_cmd, dt_phys, n_sub)
         for s in range(n_sub):
-            act.step(tilt_cmd, thrust_cmd, dt_phys)
-            w = act.wrench()
-            force, torque = w[:3], w[3:]
+            force, torque = wrenches[s, :3], wrenches[s, 3:]
             # effect torques from the state at the start of the 1 ms step
             for effect, params in torque_effects:
                 extra = effect.body_torque(params, np.asarray(xs[9:12]), force)

@@ -1,0 +1,34 @@
+"""Shared fixtures: the default vehicle, short simulated flights."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from omavctl.plant import simulate, truth_from_tree
+from omavctl.tasks import fig8
+from omavctl.vehicle import Vehicle, default_vehicle
+
+NO_NOISE = {"gyro": 0.0, "attitude": 0.0, "position": 0.0, "velocity": 0.0}
+
+
+@pytest.fixture(scope="session")
+def vehicle() -> Vehicle:
+    return default_vehicle()
+
+
+@pytest.fixture(scope="session")
+def short_fig8():
+    return fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=6.0, ramp=1.0)
+
+
+def fly(vehicle: Vehicle, ref, truth: dict, seed: int = 0):
+    """Simulate ``ref`` with a truth mapping; returns the SimulationResult."""
+    return simulate(ref, vehicle, truth_from_tree(truth, vehicle), seed=seed)
+
+
+def on_grid(series, times: np.ndarray) -> np.ndarray:
+    """Values of a RawSeries at the given stamps (which must be among its stamps)."""
+    idx = np.searchsorted(series.stamps, times - 1e-9)
+    assert np.allclose(series.stamps[idx], times)
+    return series.values[idx]
