@@ -75,7 +75,7 @@ def _main(
 def _console(quiet: bool = False):
     from rich.console import Console
 
-    return Console(stderr=True, quiet=quiet, highlight=False)
+    return Console(stderr=True, quiet=quiet, highlight=False, soft_wrap=True)
 
 
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars or summary.")]

@@ -1,0 +1,141 @@
+"""The command line: help, version, task, simulate, inspect, error lines."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from omavctl import __version__
+from omavctl.cli import app
+from omavctl.logs import read_log
+from omavctl.trajectory import read_trajectory
+
+runner = CliRunner()
+
+
+def _all_commands(cmd, prefix: tuple[str, ...] = ()):
+    yield prefix
+    for name, sub in getattr(cmd, "commands", {}).items():
+        yield from _all_commands(sub, (*prefix, name))
+
+
+def test_version():
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0
+    assert result.output.strip() == f"omavctl {__version__}"
+
+
+def test_every_command_has_help_with_units_and_defaults():
+    paths = list(_all_commands(typer.main.get_command(app)))
+    assert ("simulate",) in paths and ("task", "fig8") in paths and ("inspect",) in paths
+    for path in paths:
+        result = runner.invoke(app, [*path, "--help"])
+        assert result.exit_code == 0, path
+        assert "Usage:" in result.output
+    sim = " ".join(runner.invoke(app, ["simulate", "--help"]).output.split())
+    assert "Integration rate of the truth plant, Hz. [default: 1000.0]" in sim
+
+
+def test_help_does_not_import_the_numerics():
+    code = (
+        "import sys, omavctl.cli\n"
+        "heavy = ['numpy', 'scipy', 'rosbags', 'mcap', 'matplotlib', 'sklearn']\n"
+        "print(','.join(m for m in heavy if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
+
+
+@pytest.fixture(scope="module")
+def task_csv(tmp_path_factory):
+    path = tmp_path_factory.mktemp("task") / "fig8.csv"
+    result = runner.invoke(app, ["task", "fig8", "--duration", "4", "--ramp", "1", "--out", str(path)])
+    assert result.exit_code == 0, result.output
+    return path
+
+
+def test_task_writes_contract_csv(task_csv):
+    traj = read_trajectory(task_csv)
+    assert traj.data.shape == (401, 19)
+
+
+def test_simulate_is_deterministic_and_does_not_touch_inputs(task_csv, tmp_path):
+    before = task_csv.read_bytes()
+    outs = []
+    for name in ("a.csv", "b.csv"):
+        out = tmp_path / name
+        result = runner.invoke(app, ["simulate", "-r", str(task_csv), "--seed", "3", "-o", str(out), "-q"])
+        assert result.exit_code == 0, result.output
+        outs.append(out.read_bytes())
+    assert outs[0] == outs[1]
+    assert task_csv.read_bytes() == before
+    log = read_log(tmp_path / "a.csv")
+    np.testing.assert_allclose(log.t[-1], 4.0)
+
+
+@pytest.mark.parametrize("name", ["flight.bag", "flight.mcap", "flight"])
+def test_simulate_writes_every_log_kind(task_csv, tmp_path, name):
+    out = tmp_path / name
+    result = runner.invoke(app, ["simulate", "-r", str(task_csv), "-o", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    log = read_log(out)
+    assert {"body_rate", "torque_command", "desired_acceleration", "tilt", "rotor"} <= set(log.signals)
+    inspect = runner.invoke(app, ["inspect", str(out)])
+    assert inspect.exit_code == 0
+    assert "/omav/imu" in inspect.output
+
+
+def _error_line(result) -> str:
+    text = result.output.strip()
+    assert result.exit_code == 1, text
+    assert "Traceback" not in text
+    assert len(text.splitlines()) == 1, text
+    return text
+
+
+def test_simulate_missing_reference(tmp_path):
+    missing = tmp_path / "nope.csv"
+    result = runner.invoke(app, ["simulate", "-r", str(missing), "-o", str(tmp_path / "x.csv")])
+    assert _error_line(result) == f"error: {missing}: file not found"
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_simulate_bad_truth_leaves_nothing(task_csv, tmp_path):
+    truth = tmp_path / "truth.yaml"
+    truth.write_text("effects: {rotational_drag: {D: [1]}}\n")
+    out = tmp_path / "x.bag"
+    result = runner.invoke(app, ["simulate", "-r", str(task_csv), "--truth", str(truth), "-o", str(out)])
+    line = _error_line(result)
+    assert line == f"error: {truth}: 'effects.rotational_drag.D' must be 3 finite number(s)"
+    assert not out.exists() and list(tmp_path.iterdir()) == [truth]
+
+
+def test_simulate_unknown_vehicle_key(task_csv, tmp_path):
+    vehicle = tmp_path / "v.yaml"
+    vehicle.write_text("mass: 4\narms: 6\n")
+    result = runner.invoke(
+        app, ["simulate", "-r", str(task_csv), "--vehicle", str(vehicle), "-o", str(tmp_path / "x.csv")]
+    )
+    assert _error_line(result) == f"error: {vehicle}: unknown key 'arms'"
+
+
+def test_simulate_output_directory_missing(task_csv, tmp_path):
+    out = tmp_path / "no" / "such" / "x.csv"
+    result = runner.invoke(app, ["simulate", "-r", str(task_csv), "-o", str(out)])
+    assert _error_line(result) == f"error: {out.parent}: output directory does not exist"
+
+
+def test_task_bad_option_is_one_line(tmp_path):
+    result = runner.invoke(app, ["task", "fig8", "--duration", "1", "--out", str(tmp_path / "t.csv")])
+    assert _error_line(result) == "error: --duration (1.0 s) must be at least twice --ramp (2.0 s)"
+
+
+def test_inspect_missing_log(tmp_path):
+    missing = tmp_path / "nope.bag"
+    result = runner.invoke(app, ["inspect", str(missing)])
+    assert _error_line(result) == f"error: {missing}: file not found"
