@@ -9,7 +9,6 @@ typer's exit code 2. Heavy modules are imported inside the commands so that
 from __future__ import annotations
 
 import functools
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
@@ -184,9 +183,12 @@ def simulate(
     ] = None,
     vehicle: VehicleOpt = None,
     seed: Annotated[
-        int | None, typer.Option(help="Random seed (rotor spread, sensor noise); overrides the truth file's.")
+        int | None,
+        typer.Option(help="Random seed (rotor spread, sensor noise); overrides the truth file's."),
     ] = None,
-    physics_rate: Annotated[float, typer.Option(help="Integration rate of the truth plant, Hz.")] = 1000.0,
+    physics_rate: Annotated[
+        float, typer.Option(help="Integration rate of the truth plant, Hz.")
+    ] = 1000.0,
     quiet: Quiet = False,
 ) -> None:
     """Fly a reference in closed loop through the truth plant and write a flight log."""
@@ -230,7 +232,9 @@ def simulate(
 @app.command()
 @_reports_errors
 def inspect(
-    log: Annotated[Path, typer.Argument(help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap or .csv.")],
+    log: Annotated[
+        Path, typer.Argument(help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap or .csv.")
+    ],
     vehicle: VehicleOpt = None,
 ) -> None:
     """List topics, types, counts, rates, duration, gaps and contract roles of a log."""
@@ -249,4 +253,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    main()

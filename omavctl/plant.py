@@ -127,7 +127,9 @@ def truth_from_tree(
     inter = {**_ACTUATOR_DEFAULTS["interference"], **inter_tree}
     noise_tree = tree.get("noise") or {}
     _check_keys(noise_tree, _NOISE_DEFAULTS, "noise.", path)
-    noise = {k: _number({**_NOISE_DEFAULTS, **noise_tree}, k, "noise.", path) for k in _NOISE_DEFAULTS}
+    noise = {
+        k: _number({**_NOISE_DEFAULTS, **noise_tree}, k, "noise.", path) for k in _NOISE_DEFAULTS
+    }
     try:
         seed = int(tree.get("seed", 0))
     except (TypeError, ValueError):
@@ -281,12 +283,12 @@ class _Body:
         """One RK4 step with the wrench held over ``dt``."""
         d = self.derivative
         k1 = d(x, f, tau)
-        k2 = d([a + 0.5 * dt * b for a, b in zip(x, k1)], f, tau)
-        k3 = d([a + 0.5 * dt * b for a, b in zip(x, k2)], f, tau)
-        k4 = d([a + dt * b for a, b in zip(x, k3)], f, tau)
+        k2 = d([a + 0.5 * dt * b for a, b in zip(x, k1, strict=True)], f, tau)
+        k3 = d([a + 0.5 * dt * b for a, b in zip(x, k2, strict=True)], f, tau)
+        k4 = d([a + dt * b for a, b in zip(x, k3, strict=True)], f, tau)
         return [
             a + dt / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4)
+            for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)
         ]
 
 
@@ -318,12 +320,17 @@ def simulate(
         off = effect.gyro_offset(params)
         if off is not None:
             gyro_bias = gyro_bias + off
-    torque_effects = [(e, p) for e, p in truth.effects if type(e).body_torque is not Effect.body_torque]
+    torque_effects = [
+        (e, p) for e, p in truth.effects if type(e).body_torque is not Effect.body_torque
+    ]
 
     ctrl_rate = vehicle.gains.rate_hz
     n_sub = round(physics_rate / ctrl_rate)
     imu_every = round(physics_rate / imu_rate)
-    if abs(n_sub * ctrl_rate - physics_rate) > 1e-9 or abs(imu_every * imu_rate - physics_rate) > 1e-9:
+    if (
+        abs(n_sub * ctrl_rate - physics_rate) > 1e-9
+        or abs(imu_every * imu_rate - physics_rate) > 1e-9
+    ):
         raise ConfigError("physics rate must be a multiple of the controller and IMU rates")
     dt_phys, dt_ctrl = 1.0 / physics_rate, 1.0 / ctrl_rate
     n_ctrl = int(np.floor(reference.duration * ctrl_rate + 1e-9)) + 1
@@ -341,10 +348,18 @@ def simulate(
 
     n_imu = (n_ctrl - 1) * (n_sub // imu_every) + 1
     imu_t, imu_v = np.empty(n_imu), np.empty((n_imu, 3))
-    rec = {k: np.empty((n_ctrl, 3)) for k in (
-        "attitude", "position", "velocity", "force_command", "torque_command",
-        "desired_acceleration", "desired_linear_acceleration",
-    )}
+    rec = {
+        k: np.empty((n_ctrl, 3))
+        for k in (
+            "attitude",
+            "position",
+            "velocity",
+            "force_command",
+            "torque_command",
+            "desired_acceleration",
+            "desired_linear_acceleration",
+        )
+    }
     tilt_log, rotor_log = np.empty((n_ctrl, 6)), np.empty((n_ctrl, 12))
     infeasible, max_att_err, diverged = 0, 0.0, False
     prev_tilt_cmd = act.tilt.copy()
@@ -357,12 +372,14 @@ def simulate(
             imu_t[0], imu_v[0] = t, gyro_meas
             i_imu = 1
         rot_free = x.copy()
-        meas = np.concatenate([
-            x[0:3] + noise["position"] * rng.standard_normal(3),
-            wrap_angle(x[3:6] + noise["attitude"] * rng.standard_normal(3)),
-            x[6:9],  # world velocity for the controller; logged in body frame below
-            gyro_meas,
-        ])
+        meas = np.concatenate(
+            [
+                x[0:3] + noise["position"] * rng.standard_normal(3),
+                wrap_angle(x[3:6] + noise["attitude"] * rng.standard_normal(3)),
+                x[6:9],  # world velocity for the controller; logged in body frame below
+                gyro_meas,
+            ]
+        )
         vel_noise = noise["velocity"] * rng.standard_normal(3)
         meas[6:9] += vel_noise
         out = ctrl.step(state, meas[None, :], ref_rows[k : k + 1], dt_ctrl)

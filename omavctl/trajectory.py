@@ -27,9 +27,7 @@ __all__ = [
 ]
 
 SCHEMA = "omavctl.trajectory/1"
-COLUMNS = (
-    "t x y z roll pitch yaw vx vy vz wx wy wz ax ay az dwx dwy dwz".split()
-)
+COLUMNS = "t x y z roll pitch yaw vx vy vz wx wy wz ax ay az dwx dwy dwz".split()
 _UNIFORM_RTOL = 1e-6
 
 
@@ -128,9 +126,7 @@ def read_trajectory(path: str | Path) -> Trajectory:
     data = np.empty((len(body), len(COLUMNS)))
     for i, row in enumerate(body):
         if len(row) != len(header):
-            raise TrajectoryError(
-                f"row {i + 2} has {len(row)} fields, header has {len(header)}", p
-            )
+            raise TrajectoryError(f"row {i + 2} has {len(row)} fields, header has {len(header)}", p)
         for j, k in enumerate(idx):
             try:
                 data[i, j] = float(row[k])

@@ -54,7 +54,9 @@ def test_help_does_not_import_the_numerics():
 @pytest.fixture(scope="module")
 def task_csv(tmp_path_factory):
     path = tmp_path_factory.mktemp("task") / "fig8.csv"
-    result = runner.invoke(app, ["task", "fig8", "--duration", "4", "--ramp", "1", "--out", str(path)])
+    result = runner.invoke(
+        app, ["task", "fig8", "--duration", "4", "--ramp", "1", "--out", str(path)]
+    )
     assert result.exit_code == 0, result.output
     return path
 
@@ -69,7 +71,9 @@ def test_simulate_is_deterministic_and_does_not_touch_inputs(task_csv, tmp_path)
     outs = []
     for name in ("a.csv", "b.csv"):
         out = tmp_path / name
-        result = runner.invoke(app, ["simulate", "-r", str(task_csv), "--seed", "3", "-o", str(out), "-q"])
+        result = runner.invoke(
+            app, ["simulate", "-r", str(task_csv), "--seed", "3", "-o", str(out), "-q"]
+        )
         assert result.exit_code == 0, result.output
         outs.append(out.read_bytes())
     assert outs[0] == outs[1]
@@ -84,7 +88,9 @@ def test_simulate_writes_every_log_kind(task_csv, tmp_path, name):
     result = runner.invoke(app, ["simulate", "-r", str(task_csv), "-o", str(out), "-q"])
     assert result.exit_code == 0, result.output
     log = read_log(out)
-    assert {"body_rate", "torque_command", "desired_acceleration", "tilt", "rotor"} <= set(log.signals)
+    assert {"body_rate", "torque_command", "desired_acceleration", "tilt", "rotor"} <= set(
+        log.signals
+    )
     inspect = runner.invoke(app, ["inspect", str(out)])
     assert inspect.exit_code == 0
     assert "/omav/imu" in inspect.output
@@ -109,7 +115,9 @@ def test_simulate_bad_truth_leaves_nothing(task_csv, tmp_path):
     truth = tmp_path / "truth.yaml"
     truth.write_text("effects: {rotational_drag: {D: [1]}}\n")
     out = tmp_path / "x.bag"
-    result = runner.invoke(app, ["simulate", "-r", str(task_csv), "--truth", str(truth), "-o", str(out)])
+    result = runner.invoke(
+        app, ["simulate", "-r", str(task_csv), "--truth", str(truth), "-o", str(out)]
+    )
     line = _error_line(result)
     assert line == f"error: {truth}: 'effects.rotational_drag.D' must be 3 finite number(s)"
     assert not out.exists() and list(tmp_path.iterdir()) == [truth]
@@ -119,7 +127,8 @@ def test_simulate_unknown_vehicle_key(task_csv, tmp_path):
     vehicle = tmp_path / "v.yaml"
     vehicle.write_text("mass: 4\narms: 6\n")
     result = runner.invoke(
-        app, ["simulate", "-r", str(task_csv), "--vehicle", str(vehicle), "-o", str(tmp_path / "x.csv")]
+        app,
+        ["simulate", "-r", str(task_csv), "--vehicle", str(vehicle), "-o", str(tmp_path / "x.csv")],
     )
     assert _error_line(result) == f"error: {vehicle}: unknown key 'arms'"
 
@@ -131,7 +140,9 @@ def test_simulate_output_directory_missing(task_csv, tmp_path):
 
 
 def test_task_bad_option_is_one_line(tmp_path):
-    result = runner.invoke(app, ["task", "fig8", "--duration", "1", "--out", str(tmp_path / "t.csv")])
+    result = runner.invoke(
+        app, ["task", "fig8", "--duration", "1", "--out", str(tmp_path / "t.csv")]
+    )
     assert _error_line(result) == "error: --duration (1.0 s) must be at least twice --ramp (2.0 s)"
 
 

@@ -24,7 +24,9 @@ def test_rotation_euler_round_trip():
     eta = rng.uniform([-3, -1.4, -3], [3, 1.4, 3], size=(200, 3))
     np.testing.assert_allclose(rotation_to_euler(rotation_matrix(eta)), eta, atol=1e-12)
     r = rotation_matrix(eta)
-    np.testing.assert_allclose(r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape), atol=1e-12)
+    np.testing.assert_allclose(
+        r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape), atol=1e-12
+    )
 
 
 def test_euler_rate_maps_are_inverse():
@@ -53,8 +55,12 @@ def test_scalar_plant_derivative_matches_library(vehicle):
         x = rng.normal(size=12)
         x[4] = np.clip(x[4], -1.2, 1.2)
         f, tau = rng.normal(size=3) * 10, rng.normal(size=3)
-        ref = state_derivative(x, f, tau, vehicle.mass, inertia, np.linalg.inv(inertia), vehicle.gravity)
-        np.testing.assert_allclose(body.derivative(x.tolist(), f.tolist(), tau.tolist()), ref, atol=1e-12)
+        ref = state_derivative(
+            x, f, tau, vehicle.mass, inertia, np.linalg.inv(inertia), vehicle.gravity
+        )
+        np.testing.assert_allclose(
+            body.derivative(x.tolist(), f.tolist(), tau.tolist()), ref, atol=1e-12
+        )
 
 
 def _feasible_wrenches(vehicle, n, rng):
@@ -102,8 +108,12 @@ def test_allocation_jacobians_match_finite_differences(vehicle):
         return alloc.forward(a, np.repeat(f / 2, 2))
 
     h = 1e-6
-    jt = np.column_stack([(wrench(tilt + h * e, thrust) - wrench(tilt - h * e, thrust)) / (2 * h) for e in np.eye(6)])
-    jf = np.column_stack([(wrench(tilt, thrust + h * e) - wrench(tilt, thrust - h * e)) / (2 * h) for e in np.eye(6)])
+    jt = np.column_stack(
+        [(wrench(tilt + h * e, thrust) - wrench(tilt - h * e, thrust)) / (2 * h) for e in np.eye(6)]
+    )
+    jf = np.column_stack(
+        [(wrench(tilt, thrust + h * e) - wrench(tilt, thrust - h * e)) / (2 * h) for e in np.eye(6)]
+    )
     np.testing.assert_allclose(alloc.tilt_jacobian(tilt, thrust), jt, atol=1e-7)
     np.testing.assert_allclose(alloc.thrust_jacobian(tilt), jf, atol=1e-7)
 
@@ -141,7 +151,11 @@ def test_controller_with_zero_model_commands_nominal_torque(vehicle):
     acc = angular_acceleration(x[:, 9:12], out.torque, vehicle.inertia, vehicle.inertia_inv)
     np.testing.assert_allclose(acc, out.desired_angular, atol=1e-12)
     # hover force in body frame balances gravity along world z
-    np.testing.assert_allclose((rotation_matrix(x[0, 3:6]) @ out.force[0])[2], vehicle.mass * vehicle.gravity * 1.0, rtol=1e-12)
+    np.testing.assert_allclose(
+        (rotation_matrix(x[0, 3:6]) @ out.force[0])[2],
+        vehicle.mass * vehicle.gravity * 1.0,
+        rtol=1e-12,
+    )
 
 
 def test_controller_with_model_cancels_the_residual(vehicle):
@@ -182,7 +196,9 @@ def test_torque_effect_regressor_matches_simulation_form(vehicle, name):
     x = effect.regressor(ctx)
     assert x.shape == (ctx.omega.shape[0], 3, effect.n_theta)
     torque = effect.body_torque(params, ctx.omega, ctx.force)
-    np.testing.assert_allclose(x @ effect.to_theta(params), torque @ vehicle.inertia_inv.T, atol=1e-12)
+    np.testing.assert_allclose(
+        x @ effect.to_theta(params), torque @ vehicle.inertia_inv.T, atol=1e-12
+    )
 
 
 def test_inertia_error_regressor_and_parameter_map(vehicle):
@@ -191,7 +207,9 @@ def test_inertia_error_regressor_and_parameter_map(vehicle):
     scale = np.array([1.2, 0.9, 1.1])
     theta = effect.to_theta({"scale": scale})
     # first-order residual: (1/s - 1) * nominal acceleration
-    np.testing.assert_allclose(effect.regressor(ctx) @ theta, (1 / scale - 1) * ctx.omega_dot_nominal)
+    np.testing.assert_allclose(
+        effect.regressor(ctx) @ theta, (1 / scale - 1) * ctx.omega_dot_nominal
+    )
     params = effect.to_parameters(theta, np.eye(3) * 1e-4)
     np.testing.assert_allclose(params["scale"][0], scale)
     np.testing.assert_allclose(params["scale"][1], 1e-2 * scale**2)
@@ -205,4 +223,11 @@ def test_every_effect_has_formula_units_and_regressor(vehicle):
         assert all(p.unit for p in effect.parameters)
         x = effect.regressor(ctx)
         assert x.shape == (400, 3, effect.n_theta) and np.all(np.isfinite(x))
-    assert {"rotational_drag", "com_offset", "inertia_error", "servo_lag", "motor_lag", "gyro_bias"} <= set(EFFECTS)
+    assert {
+        "rotational_drag",
+        "com_offset",
+        "inertia_error",
+        "servo_lag",
+        "motor_lag",
+        "gyro_bias",
+    } <= set(EFFECTS)

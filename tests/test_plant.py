@@ -44,9 +44,18 @@ def test_closed_loop_tracks_the_task_through_imperfect_actuators(vehicle, short_
 def test_log_has_every_role_at_contract_rates(vehicle, short_fig8):
     log = fly(vehicle, short_fig8, {}).log
     expected = {
-        "body_rate", "attitude", "position", "velocity", "force_command", "torque_command",
-        "desired_acceleration", "desired_linear_acceleration", "reference_position",
-        "reference_attitude", "tilt", "rotor",
+        "body_rate",
+        "attitude",
+        "position",
+        "velocity",
+        "force_command",
+        "torque_command",
+        "desired_acceleration",
+        "desired_linear_acceleration",
+        "reference_position",
+        "reference_attitude",
+        "tilt",
+        "rotor",
     }
     assert set(log.series) == expected
     assert np.median(np.diff(log.series["body_rate"].stamps)) == pytest.approx(0.005)
@@ -130,8 +139,14 @@ def test_truth_effects_change_the_plant(vehicle):
         ("foo: 1\n", "unknown key 'foo'"),
         ("actuators: {servo_lag: 1}\n", "unknown key 'actuators.servo_lag'"),
         ("effects: {wind: {v: 1}}\n", "unknown effect 'wind'"),
-        ("effects: {rotational_drag: {D: [1, 2]}}\n", "'effects.rotational_drag.D' must be 3 finite number(s)"),
-        ("effects: {rotational_drag: {C: [1, 2, 3]}}\n", "unknown parameter 'effects.rotational_drag.C'"),
+        (
+            "effects: {rotational_drag: {D: [1, 2]}}\n",
+            "'effects.rotational_drag.D' must be 3 finite number(s)",
+        ),
+        (
+            "effects: {rotational_drag: {C: [1, 2, 3]}}\n",
+            "unknown parameter 'effects.rotational_drag.C'",
+        ),
         ("noise: {gyro: -1}\n", "'noise.gyro' must be >= 0"),
         ("- a\n- b\n", "top level must be a mapping"),
     ],

@@ -8,7 +8,13 @@ import pytest
 from omavctl.errors import ConfigError, TrajectoryError
 from omavctl.physics.rigid_body import euler_rates
 from omavctl.tasks import TASKS, circle, fig8, pitch
-from omavctl.trajectory import COLUMNS, Trajectory, format_trajectory, read_trajectory, write_trajectory
+from omavctl.trajectory import (
+    COLUMNS,
+    Trajectory,
+    format_trajectory,
+    read_trajectory,
+    write_trajectory,
+)
 from omavctl.vehicle import default_vehicle, load_vehicle
 
 
@@ -19,7 +25,9 @@ def test_task_derivatives_are_consistent(name):
     inner = slice(2, -2)
     fd = lambda y: np.gradient(y, dt, axis=0)[inner]  # noqa: E731
     # second-order finite differences at 100 Hz: errors O(dt^2 * third derivative)
-    np.testing.assert_allclose(euler_rates(traj.euler, traj.body_rate)[inner], fd(traj.euler), atol=2e-4)
+    np.testing.assert_allclose(
+        euler_rates(traj.euler, traj.body_rate)[inner], fd(traj.euler), atol=2e-4
+    )
     np.testing.assert_allclose(traj.angular_acceleration[inner], fd(traj.body_rate), atol=2e-2)
     np.testing.assert_allclose(traj.velocity[inner], fd(traj.position), atol=2e-4)
     np.testing.assert_allclose(traj.acceleration[inner], fd(traj.velocity), atol=2e-4)
@@ -45,7 +53,9 @@ def test_circle_radius():
     traj = circle(radius=1.5)
     centre = np.array([0.0, 1.5])
     middle = traj.t > 5
-    np.testing.assert_allclose(np.linalg.norm(traj.position[middle, :2] - centre, axis=1), 1.5, atol=1e-9)
+    np.testing.assert_allclose(
+        np.linalg.norm(traj.position[middle, :2] - centre, axis=1), 1.5, atol=1e-9
+    )
 
 
 def test_task_rejects_impossible_options():

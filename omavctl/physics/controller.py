@@ -136,7 +136,9 @@ class Controller:
 
         # position loop (world frame)
         e_p = p_ref - p
-        state.pos_integral = np.clip(state.pos_integral + e_p * dt, -_INTEGRAL_LIMIT, _INTEGRAL_LIMIT)
+        state.pos_integral = np.clip(
+            state.pos_integral + e_p * dt, -_INTEGRAL_LIMIT, _INTEGRAL_LIMIT
+        )
         a_lin = a_ref + g.pos_kd * (v_ref - vel) + g.pos_kp * e_p + g.pos_ki * state.pos_integral
         rot = rotation_matrix(eta)
         acc_body = np.einsum("bji,bj->bi", rot, a_lin + np.array([0.0, 0.0, v.gravity]))
@@ -151,7 +153,9 @@ class Controller:
         state.att_integral = np.clip(
             state.att_integral + e_att * dt, -_INTEGRAL_LIMIT, _INTEGRAL_LIMIT
         )
-        a_star = dw_ref + g.att_kd * (w_ref - omega) + g.att_kp * e_att + g.att_ki * state.att_integral
+        a_star = (
+            dw_ref + g.att_kd * (w_ref - omega) + g.att_kp * e_att + g.att_ki * state.att_integral
+        )
 
         # model inversion: u_tau + mu(u) = a* - l(x)
         inertia = v.inertia

@@ -126,8 +126,7 @@ class Effect:
         for key in params:
             if key not in names:
                 raise ConfigError(
-                    f"unknown parameter '{where}.{self.name}.{key}' "
-                    f"(expected: {', '.join(names)})"
+                    f"unknown parameter '{where}.{self.name}.{key}' (expected: {', '.join(names)})"
                 )
         out = {}
         for p in self.parameters:
