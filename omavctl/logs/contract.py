@@ -11,6 +11,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from omavctl.errors import ConfigError
 from omavctl.logs.types import ROLE_COLUMNS, ROLE_TOPIC
 
 __all__ = [
@@ -69,10 +70,18 @@ def merge_topics(topics: Mapping[str, str] | None) -> dict[str, str]:
     """Topic role -> topic name: ``topics`` over :data:`DEFAULT_TOPICS`.
 
     Keys that are not topic roles are ignored (a vehicle YAML validates its own keys).
+    Two roles naming one topic is a :class:`ConfigError`.
     """
     merged = dict(DEFAULT_TOPICS)
     if topics:
         merged.update({k: v for k, v in topics.items() if k in DEFAULT_TOPICS})
+    seen: dict[str, str] = {}
+    for role, name in merged.items():
+        if name in seen:
+            raise ConfigError(
+                f"topic '{name}' is given for both topics.{seen[name]} and topics.{role}"
+            )
+        seen[name] = role
     return merged
 
 

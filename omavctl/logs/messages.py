@@ -1,12 +1,13 @@
 """ROS messages <-> signal arrays for the contract topics (ROS 1 and ROS 2 alike).
 
 Works on message objects of a rosbags typestore; never imports rosbags itself.
-Extraction is one list comprehension per field group, then numpy.
+Reading takes one flat row of numbers per message, then converts all rows of
+a topic with numpy at once.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -18,22 +19,60 @@ from omavctl.logs.contract import (
     quaternion_from_euler,
 )
 
-__all__ = ["MessageBuilder", "extract_signals", "header_stamps_ns"]
+__all__ = ["ROW_EXTRACTORS", "MessageBuilder", "rows_to_signals"]
 
 
-def _vec3(objs: Sequence[Any]) -> np.ndarray:
-    """(x, y, z) of each object, shape (n, 3)."""
-    return np.array([(o.x, o.y, o.z) for o in objs], dtype=float).reshape(-1, 3)
+# One flat row per message, taken right after deserialisation: (sec, nanosec,
+# values...). Keeping rows instead of message objects keeps the garbage
+# collector from rescanning tens of thousands of live objects while reading.
 
 
-def _quat(objs: Sequence[Any]) -> np.ndarray:
-    """(x, y, z, w) of each quaternion object, shape (n, 4)."""
-    return np.array([(o.x, o.y, o.z, o.w) for o in objs], dtype=float).reshape(-1, 4)
+def _imu_row(m: Any) -> tuple[Any, ...]:
+    s, w = m.header.stamp, m.angular_velocity
+    return (s.sec, s.nanosec, w.x, w.y, w.z)
 
 
-def _attitude(objs: Sequence[Any]) -> np.ndarray:
-    """ZYX Euler angles of quaternion objects, shape (n, 3); NaN for zero quaternions."""
-    q = _quat(objs)
+def _odometry_row(m: Any) -> tuple[Any, ...]:
+    s, pose, v = m.header.stamp, m.pose.pose, m.twist.twist.linear
+    q, p = pose.orientation, pose.position
+    return (s.sec, s.nanosec, q.x, q.y, q.z, q.w, p.x, p.y, p.z, v.x, v.y, v.z)
+
+
+def _wrench_row(m: Any) -> tuple[Any, ...]:
+    s, f, t = m.header.stamp, m.wrench.force, m.wrench.torque
+    return (s.sec, s.nanosec, f.x, f.y, f.z, t.x, t.y, t.z)
+
+
+def _accel_row(m: Any) -> tuple[Any, ...]:
+    s, w, a = m.header.stamp, m.accel.angular, m.accel.linear
+    return (s.sec, s.nanosec, w.x, w.y, w.z, a.x, a.y, a.z)
+
+
+def _pose_row(m: Any) -> tuple[Any, ...]:
+    s, p, q = m.header.stamp, m.pose.position, m.pose.orientation
+    return (s.sec, s.nanosec, p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+
+
+def _joint_row(m: Any) -> tuple[Any, ...]:
+    s = m.header.stamp
+    return (s.sec, s.nanosec, tuple(m.name), m.position, m.velocity)
+
+
+#: Per topic role: message object -> flat row ``(sec, nanosec, ...)``.
+ROW_EXTRACTORS: dict[str, Callable[[Any], tuple[Any, ...]]] = {
+    "imu": _imu_row,
+    "odometry": _odometry_row,
+    "wrench_command": _wrench_row,
+    "desired_acceleration": _accel_row,
+    "reference": _pose_row,
+    "actuators": _joint_row,
+}
+
+
+def _attitude(q: np.ndarray) -> np.ndarray:
+    """ZYX Euler angles of quaternions shape (n, 4) (x, y, z, w), shape (n, 3);
+    NaN for zero (invalid) quaternions."""
+    q = q.copy()
     bad = ~(np.linalg.norm(q, axis=1) > 0)
     q[bad] = (0.0, 0.0, 0.0, 1.0)
     rpy = euler_from_quaternion(q)
@@ -41,33 +80,25 @@ def _attitude(objs: Sequence[Any]) -> np.ndarray:
     return rpy
 
 
-def header_stamps_ns(msgs: Sequence[Any]) -> np.ndarray | None:
-    """Header stamps (int64 ns, shape (n,)) of messages, or None if they have no header."""
-    if not msgs or not hasattr(msgs[0], "header"):
-        return None
-    st = np.array([(m.header.stamp.sec, m.header.stamp.nanosec) for m in msgs], dtype=np.int64)
-    return st[:, 0] * 1_000_000_000 + st[:, 1]
-
-
 def _joint_values(
-    msgs: Sequence[Any], joints: tuple[str, ...], attr: str
+    rows: Sequence[tuple[Any, ...]], joints: tuple[str, ...], which: int
 ) -> tuple[np.ndarray, int]:
-    """Values of ``attr`` (position/velocity) of ``joints`` per JointState message.
+    """Values of ``joints`` per JointState row (``which`` 3: position, 4: velocity).
 
     Returns shape (n, len(joints)) (NaN where a joint or value is missing) and
     the number of messages that had all of the joints.
     """
-    out = np.full((len(msgs), len(joints)), np.nan)
+    out = np.full((len(rows), len(joints)), np.nan)
     index_cache: dict[tuple[str, ...], np.ndarray | None] = {}
     complete = 0
-    for i, m in enumerate(msgs):
-        names = tuple(m.name)
+    for i, row in enumerate(rows):
+        names = row[2]
         if names not in index_cache:
             lookup = {n: j for j, n in enumerate(names)}
             idx = [lookup.get(n, -1) for n in joints]
             index_cache[names] = None if min(idx) < 0 else np.array(idx)
         idx_arr = index_cache[names]
-        values = getattr(m, attr)
+        values = row[which]
         if idx_arr is None or len(values) != len(names):
             continue
         out[i] = np.asarray(values, dtype=float)[idx_arr]
@@ -75,62 +106,55 @@ def _joint_values(
     return out, complete
 
 
-def extract_signals(
-    topic_role: str, msgs: Sequence[Any], topic: str
-) -> tuple[dict[str, np.ndarray], list[str]]:
-    """Signal arrays (role -> shape (n, k)) carried by ``msgs`` of one contract topic.
+def rows_to_signals(
+    topic_role: str, rows: Sequence[tuple[Any, ...]], topic: str
+) -> tuple[np.ndarray, dict[str, np.ndarray], list[str]]:
+    """Header stamps and signal arrays of the rows of one contract topic.
 
-    Also returns notes on content problems (e.g. joints missing from JointState).
+    Returns header stamps (int64 ns, shape (n,); 0 where the header stamp is
+    unset), signal role -> values shape (n, k), and notes on content problems
+    (e.g. joints missing from JointState).
     """
     notes: list[str] = []
-    if topic_role == "imu":
-        return {"body_rate": _vec3([m.angular_velocity for m in msgs])}, notes
-    if topic_role == "odometry":
-        poses = [m.pose.pose for m in msgs]
-        return {
-            "attitude": _attitude([p.orientation for p in poses]),
-            "position": _vec3([p.position for p in poses]),
-            "velocity": _vec3([m.twist.twist.linear for m in msgs]),
-        }, notes
-    if topic_role == "wrench_command":
-        wrenches = [m.wrench for m in msgs]
-        return {
-            "force_command": _vec3([w.force for w in wrenches]),
-            "torque_command": _vec3([w.torque for w in wrenches]),
-        }, notes
-    if topic_role == "desired_acceleration":
-        accels = [m.accel for m in msgs]
-        return {
-            "desired_acceleration": _vec3([a.angular for a in accels]),
-            "desired_linear_acceleration": _vec3([a.linear for a in accels]),
-        }, notes
-    if topic_role == "reference":
-        poses = [m.pose for m in msgs]
-        return {
-            "reference_position": _vec3([p.position for p in poses]),
-            "reference_attitude": _attitude([p.orientation for p in poses]),
-        }, notes
     if topic_role == "actuators":
+        st = np.array([row[:2] for row in rows], dtype=np.int64).reshape(-1, 2)
+        stamps = st[:, 0] * 1_000_000_000 + st[:, 1]
         out: dict[str, np.ndarray] = {}
-        for role, joints, attr in (
-            ("tilt", TILT_JOINTS, "position"),
-            ("rotor", ROTOR_JOINTS, "velocity"),
+        for role, joints, which, kind in (
+            ("tilt", TILT_JOINTS, 3, "position"),
+            ("rotor", ROTOR_JOINTS, 4, "velocity"),
         ):
-            values, complete = _joint_values(msgs, joints, attr)
+            values, complete = _joint_values(rows, joints, which)
             if complete == 0:
                 notes.append(
-                    f"{topic}: no message has {attr}s of all of {joints[0]}..{joints[-1]}; "
+                    f"{topic}: no message has {kind}s of all of {joints[0]}..{joints[-1]}; "
                     f"{role} not read"
                 )
                 continue
-            if complete < len(msgs):
+            if complete < len(rows):
                 notes.append(
-                    f"{topic}: {len(msgs) - complete} of {len(msgs)} messages lack {attr}s "
+                    f"{topic}: {len(rows) - complete} of {len(rows)} messages lack {kind}s "
                     f"of some of {joints[0]}..{joints[-1]}"
                 )
             out[role] = values
-        return out, notes
-    raise KeyError(topic_role)
+        return stamps, out, notes
+
+    a = np.array(rows, dtype=float)
+    # sec (int32) and nanosec (< 1e9) are exact in float64
+    stamps = a[:, 0].astype(np.int64) * 1_000_000_000 + a[:, 1].astype(np.int64)
+    if topic_role == "imu":
+        signals = {"body_rate": a[:, 2:5]}
+    elif topic_role == "odometry":
+        signals = {"attitude": _attitude(a[:, 2:6]), "position": a[:, 6:9], "velocity": a[:, 9:12]}
+    elif topic_role == "wrench_command":
+        signals = {"force_command": a[:, 2:5], "torque_command": a[:, 5:8]}
+    elif topic_role == "desired_acceleration":
+        signals = {"desired_acceleration": a[:, 2:5], "desired_linear_acceleration": a[:, 5:8]}
+    elif topic_role == "reference":
+        signals = {"reference_position": a[:, 2:5], "reference_attitude": _attitude(a[:, 5:9])}
+    else:
+        raise KeyError(topic_role)
+    return stamps, {k: np.ascontiguousarray(v) for k, v in signals.items()}, notes
 
 
 class MessageBuilder:
@@ -162,11 +186,11 @@ class MessageBuilder:
         if self.has_seq:
             return [
                 self.Header(seq=i, stamp=self.Time(sec=s, nanosec=n), frame_id=frame_id)
-                for i, (s, n) in enumerate(zip(sec, nsec))
+                for i, (s, n) in enumerate(zip(sec, nsec, strict=True))
             ]
         return [
             self.Header(stamp=self.Time(sec=s, nanosec=n), frame_id=frame_id)
-            for s, n in zip(sec, nsec)
+            for s, n in zip(sec, nsec, strict=True)
         ]
 
     def _vec3(self, a: np.ndarray, cls: Any = None) -> list[Any]:
@@ -191,7 +215,7 @@ class MessageBuilder:
                 linear_acceleration=zero,
                 linear_acceleration_covariance=self.no_estimate9,
             )
-            for h, w in zip(headers, self._vec3(body_rate))
+            for h, w in zip(headers, self._vec3(body_rate), strict=True)
         ]
 
     def odometry(
@@ -221,6 +245,7 @@ class MessageBuilder:
                 self._vec3(position, self.Point),
                 self._vec3(velocity),
                 self._vec3(body_rate),
+                strict=True,
             )
         ]
 
@@ -229,7 +254,7 @@ class MessageBuilder:
         stamped, wrench = t["geometry_msgs/msg/WrenchStamped"], t["geometry_msgs/msg/Wrench"]
         return [
             stamped(header=h, wrench=wrench(force=f, torque=m))
-            for h, f, m in zip(headers, self._vec3(force), self._vec3(torque))
+            for h, f, m in zip(headers, self._vec3(force), self._vec3(torque), strict=True)
         ]
 
     def accel(self, headers: list[Any], angular: np.ndarray, linear: np.ndarray) -> list[Any]:
@@ -237,14 +262,16 @@ class MessageBuilder:
         stamped, accel = t["geometry_msgs/msg/AccelStamped"], t["geometry_msgs/msg/Accel"]
         return [
             stamped(header=h, accel=accel(linear=a, angular=w))
-            for h, w, a in zip(headers, self._vec3(angular), self._vec3(linear))
+            for h, w, a in zip(headers, self._vec3(angular), self._vec3(linear), strict=True)
         ]
 
     def pose(self, headers: list[Any], position: np.ndarray, attitude: np.ndarray) -> list[Any]:
         stamped = self.types["geometry_msgs/msg/PoseStamped"]
         return [
             stamped(header=h, pose=self.Pose(position=p, orientation=q))
-            for h, p, q in zip(headers, self._vec3(position, self.Point), self._quat(attitude))
+            for h, p, q in zip(
+                headers, self._vec3(position, self.Point), self._quat(attitude), strict=True
+            )
         ]
 
     def joint_state(

@@ -22,7 +22,7 @@ import numpy as np
 
 from omavctl.errors import LogError
 from omavctl.logs.contract import TOPIC_MSGTYPES, merge_topics
-from omavctl.logs.messages import extract_signals, header_stamps_ns
+from omavctl.logs.messages import ROW_EXTRACTORS, rows_to_signals
 from omavctl.logs.stats import topic_info
 from omavctl.logs.types import RawLog, RawSeries
 
@@ -81,11 +81,11 @@ def detect_format(path: Path) -> str:
 @dataclass
 class _Collected:
     """Messages gathered from a bag: every topic's type and receive times
-    (int ns), decoded messages of the contract topics in use."""
+    (int ns), rows (see :data:`ROW_EXTRACTORS`) of the contract topics in use."""
 
     msgtypes: dict[str, str] = field(default_factory=dict)
     logtimes: dict[str, list[int]] = field(default_factory=lambda: defaultdict(list))
-    msgs: dict[str, list[Any]] = field(default_factory=lambda: defaultdict(list))
+    rows: dict[str, list[tuple[Any, ...]]] = field(default_factory=lambda: defaultdict(list))
     notes: list[str] = field(default_factory=list)
 
 
@@ -123,19 +123,20 @@ def _read_rosbag(path: Path, kind: str, names: Mapping[str, str], strict: bool) 
     col = _Collected()
     try:
         with AnyReader([path], default_typestore=default) as reader:
-            usable: set[str] = set()
+            usable: dict[str, Callable[[Any], tuple[Any, ...]]] = {}
             for conn in reader.connections:
                 col.msgtypes.setdefault(conn.topic, conn.msgtype)
                 if _use_topic(conn.topic, conn.msgtype, wanted, strict, col.notes, path):
-                    usable.add(conn.topic)
+                    usable[conn.topic] = ROW_EXTRACTORS[wanted[conn.topic]]
             store = reader.typestore
             decode = store.deserialize_cdr if reader.is2 else store.deserialize_ros1
-            logtimes, msgs = col.logtimes, col.msgs
+            logtimes, rows = col.logtimes, col.rows
             for conn, stamp, data in reader.messages():
                 topic = conn.topic
                 logtimes[topic].append(stamp)
-                if topic in usable:
-                    msgs[topic].append(decode(data, conn.msgtype))
+                extract = usable.get(topic)
+                if extract is not None:
+                    rows[topic].append(extract(decode(data, conn.msgtype)))
     except LogError:
         raise
     except Exception as err:  # any failure inside rosbags: corrupt or truncated input
@@ -161,8 +162,16 @@ def _ros2_storage(path: Path) -> str:
     return str(ident) if ident in ("sqlite3", "mcap") else "sqlite3"
 
 
+_ROS_SCHEMA_ENCODINGS = ("ros1msg", "ros2msg", "ros2idl")
+
+
 class _McapDecoders:
-    """Decoders per MCAP channel: rosbags typestores filled from the file's schemas."""
+    """Decoders per MCAP channel: rosbags typestores filled from the file's schemas.
+
+    Types come from the schema text stored in the file (as rosbags' AnyReader
+    does); a channel without schema text falls back to the ROS 2 Humble or
+    ROS 1 Noetic definitions of the type the contract expects.
+    """
 
     def __init__(self, path: Path, wanted: Mapping[str, str], col: _Collected, strict: bool):
         from rosbags.typesys import Stores, get_typestore
@@ -172,29 +181,35 @@ class _McapDecoders:
         self.col = col
         self.strict = strict
         self.stores = {"cdr": get_typestore(Stores.EMPTY), "ros1": get_typestore(Stores.EMPTY)}
-        self.defaults = {
-            "cdr": get_typestore(Stores.ROS2_HUMBLE),
-            "ros1": get_typestore(Stores.ROS1_NOETIC),
-        }
-        self.cache: dict[int, Callable[[bytes], Any] | None] = {}
+        self.cache: dict[int, Callable[[bytes], tuple[Any, ...]] | None] = {}
 
-    def msgtype(self, schema: Any, channel: Any) -> str:
+    @staticmethod
+    def msgtype(schema: Any, channel: Any) -> str:
+        """Message type of a channel (ROS types normalised to ``pkg/msg/Name``)."""
         from rosbags.typesys.msg import normalize_msgtype
 
         if schema is None or not schema.name:
             return f"(no schema, {channel.message_encoding or 'no'} encoding)"
-        return normalize_msgtype(schema.name)
+        if schema.encoding in _ROS_SCHEMA_ENCODINGS:
+            return normalize_msgtype(schema.name)
+        return str(schema.name)
 
-    def get(self, schema: Any, channel: Any) -> Callable[[bytes], Any] | None:
+    def get(self, schema: Any, channel: Any) -> Callable[[bytes], tuple[Any, ...]] | None:
+        """Function from message bytes to a row, or None for a topic not read."""
         if channel.id not in self.cache:
             self.cache[channel.id] = self._make(schema, channel)
         return self.cache[channel.id]
 
-    def _make(self, schema: Any, channel: Any) -> Callable[[bytes], Any] | None:
-        from rosbags.typesys import get_types_from_idl, get_types_from_msg
+    def _make(self, schema: Any, channel: Any) -> Callable[[bytes], tuple[Any, ...]] | None:
+        from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
         topic, encoding = channel.topic, channel.message_encoding
-        msgtype = self.msgtype(schema, channel)
+        text = bytes(schema.data).decode() if schema is not None else ""
+        role = self.wanted.get(topic)
+        if role is not None and not text.strip() and encoding in self.stores:
+            msgtype = TOPIC_MSGTYPES[role]  # no schema: trust the contract
+        else:
+            msgtype = self.msgtype(schema, channel)
         self.col.msgtypes.setdefault(topic, msgtype)
         if not _use_topic(topic, msgtype, self.wanted, self.strict, self.col.notes, self.path):
             return None
@@ -205,9 +220,10 @@ class _McapDecoders:
             )
         store = self.stores[encoding]
         if msgtype not in store.fielddefs:
-            text = bytes(schema.data).decode() if schema is not None else ""
             if not text.strip():
-                store = self.defaults[encoding]
+                store = get_typestore(
+                    Stores.ROS2_HUMBLE if encoding == "cdr" else Stores.ROS1_NOETIC
+                )
             elif schema.encoding == "ros2idl":
                 sep = "=" * 80 + "\n"
                 if text.startswith(f"{sep}IDL: "):
@@ -217,11 +233,9 @@ class _McapDecoders:
                     store.register(get_types_from_idl(text))
             else:
                 store.register(get_types_from_msg(text, msgtype))
-        if encoding == "cdr":
-            cdr = store.deserialize_cdr
-            return lambda data: cdr(data, msgtype)
-        ros1 = store.deserialize_ros1
-        return lambda data: ros1(data, msgtype)
+        extract = ROW_EXTRACTORS[self.wanted[topic]]
+        decode = store.deserialize_cdr if encoding == "cdr" else store.deserialize_ros1
+        return lambda data: extract(decode(data, msgtype))
 
 
 def _read_mcap(path: Path, names: Mapping[str, str], strict: bool) -> RawLog:
@@ -239,13 +253,13 @@ def _read_mcap(path: Path, names: Mapping[str, str], strict: bool) -> RawLog:
                 for channel in summary.channels.values():
                     schema = summary.schemas.get(channel.schema_id)
                     col.msgtypes.setdefault(channel.topic, decoders.msgtype(schema, channel))
-            logtimes, msgs = col.logtimes, col.msgs
+            logtimes, rows = col.logtimes, col.rows
             for schema, channel, message in reader.iter_messages(log_time_order=True):
                 topic = channel.topic
                 logtimes[topic].append(message.log_time)
-                decode = decoders.get(schema, channel)
-                if decode is not None:
-                    msgs[topic].append(decode(message.data))
+                to_row = decoders.get(schema, channel)
+                if to_row is not None:
+                    rows[topic].append(to_row(message.data))
     except LogError:
         raise
     except Exception as err:  # any failure inside mcap/rosbags: corrupt or truncated input
@@ -258,18 +272,19 @@ def _assemble(path: Path, fmt: str, names: Mapping[str, str], col: _Collected) -
     wanted = {name: role for role, name in names.items()}
     notes = list(col.notes)
     stamps_ns: dict[str, np.ndarray] = {}
-    for topic, msgs in col.msgs.items():
-        if not msgs:
+    signals: dict[str, dict[str, np.ndarray]] = {}
+    for topic, rows in col.rows.items():
+        if not rows:
             continue
         recv = np.asarray(col.logtimes[topic], dtype=np.int64)
-        hdr = header_stamps_ns(msgs)
-        if hdr is None:
-            stamps_ns[topic] = recv
-            continue
+        hdr, signals[topic], extract_notes = rows_to_signals(wanted[topic], rows, topic)
+        notes += extract_notes
         missing = hdr <= 0
-        if missing.any():
+        # an unset (zero) header stamp matters only where the receive time differs
+        replaced = int(np.count_nonzero(missing & (recv != hdr)))
+        if replaced:
             notes.append(
-                f"{topic}: {int(missing.sum())} of {len(msgs)} messages have no header "
+                f"{topic}: {replaced} of {len(rows)} messages have no header "
                 "stamp; their log receive time is used"
             )
         stamps_ns[topic] = np.where(missing, recv, hdr)
@@ -283,9 +298,7 @@ def _assemble(path: Path, fmt: str, names: Mapping[str, str], col: _Collected) -
     series: dict[str, RawSeries] = {}
     for topic, st in stamps_ns.items():
         rel = (st - t0_ns) / 1e9
-        signals, extract_notes = extract_signals(wanted[topic], col.msgs[topic], topic)
-        notes += extract_notes
-        for role, values in signals.items():
+        for role, values in signals[topic].items():
             series[role] = RawSeries(stamps=rel, values=values)
 
     topics = []
@@ -296,9 +309,12 @@ def _assemble(path: Path, fmt: str, names: Mapping[str, str], col: _Collected) -
             st = np.asarray(col.logtimes.get(topic, []), dtype=np.int64)
         topics.append(topic_info(topic, col.msgtypes.get(topic, "?"), (st - t0_ns) / 1e9))
 
-    absent = [name for name in names.values() if name not in stamps_ns]
+    absent = [name for name in names.values() if name not in col.msgtypes]
     if absent:
         notes.append(f"contract topics not in the log: {', '.join(absent)}")
+    empty = [n for n in names.values() if n in col.msgtypes and not col.logtimes.get(n)]
+    if empty:
+        notes.append(f"contract topics without messages: {', '.join(empty)}")
     return RawLog(
         path=path,
         format=fmt,
@@ -310,10 +326,19 @@ def _assemble(path: Path, fmt: str, names: Mapping[str, str], col: _Collected) -
     )
 
 
-def _read(path: str | Path, topics: Mapping[str, str] | None, strict: bool) -> RawLog:
+def _read(
+    path: str | Path,
+    topics: Mapping[str, str] | None,
+    strict: bool,
+    columns: Mapping[str, Any] | None = None,
+) -> RawLog:
     p = Path(path)
     kind = detect_format(p)
     if kind == "csv":
+        if columns:
+            from omavctl.logs.columnmap import read_mapped_csv
+
+            return read_mapped_csv(p, columns).raw
         from omavctl.logs.csvlog import read_csv
 
         return read_csv(p, strict=strict).raw
@@ -323,13 +348,20 @@ def _read(path: str | Path, topics: Mapping[str, str] | None, strict: bool) -> R
     return _read_rosbag(p, kind, names, strict)
 
 
-def read_raw(path: str | Path, topics: Mapping[str, str] | None = None) -> RawLog:
+def read_raw(
+    path: str | Path,
+    topics: Mapping[str, str] | None = None,
+    columns: Mapping[str, Any] | None = None,
+) -> RawLog:
     """Read a flight log as recorded (no resampling).
 
     Args:
         path: a ROS 2 bag directory, a ``.bag``, ``.mcap``, ``.db3`` or ``.csv`` file.
         topics: topic role -> topic name, over :data:`DEFAULT_TOPICS` (e.g. a
             vehicle's ``topics``); ignored for CSV.
+        columns: for a CSV of another layout, a column map (contract column ->
+            source column with scale/offset, see :mod:`omavctl.logs.columnmap`);
+            ignored for bags.
 
     Returns:
         A :class:`RawLog`: per signal role a :class:`RawSeries` (stamps shape (n,)
@@ -340,5 +372,6 @@ def read_raw(path: str | Path, topics: Mapping[str, str] | None = None) -> RawLo
     Raises:
         LogError: missing or unreadable file, corrupt/truncated bag, contract
             topic of the wrong message type, bad CSV.
+        ConfigError: invalid ``topics`` or ``columns``.
     """
-    return _read(path, topics, strict=True)
+    return _read(path, topics, strict=True, columns=columns)

@@ -12,7 +12,7 @@ import numpy as np
 
 from omavctl.logs.types import TopicInfo
 
-__all__ = ["GAP_FACTOR", "MIN_GAP", "StampStats", "stamp_stats", "topic_info"]
+__all__ = ["GAP_FACTOR", "MIN_GAP", "StampStats", "find_gaps", "stamp_stats", "topic_info"]
 
 #: A step between consecutive stamps is a gap when it exceeds
 #: ``max(GAP_FACTOR * median step, MIN_GAP)``.
@@ -43,6 +43,21 @@ class StampStats:
         return 1.0 / self.median_dt if self.median_dt > 0 else 0.0
 
 
+def _median_dt(u: np.ndarray) -> float:
+    return float(np.median(np.diff(u))) if u.size > 1 else 0.0
+
+
+def find_gaps(u: np.ndarray, median_dt: float | None = None) -> list[tuple[float, float]]:
+    """``(start, end)`` of the steps of sorted distinct stamps ``u`` shape (n,)
+    longer than ``max(GAP_FACTOR * median step, MIN_GAP)``."""
+    if u.size < 2:
+        return []
+    dt = np.diff(u)
+    med = float(np.median(dt)) if median_dt is None else median_dt
+    idx = np.flatnonzero(dt > max(GAP_FACTOR * med, MIN_GAP))
+    return [(float(u[i]), float(u[i + 1])) for i in idx]
+
+
 def stamp_stats(stamps: np.ndarray) -> StampStats:
     """Sort, deduplicate and find gaps in ``stamps`` shape (n,) (s, as recorded).
 
@@ -62,14 +77,8 @@ def stamp_stats(stamps: np.ndarray) -> StampStats:
         keep = np.arange(n)
     duplicates = n - int(keep.size)
     u = s[keep]
-    gaps: list[tuple[float, float]] = []
-    median_dt = 0.0
-    if u.size > 1:
-        dt = np.diff(u)
-        median_dt = float(np.median(dt))
-        threshold = max(GAP_FACTOR * median_dt, MIN_GAP)
-        idx = np.flatnonzero(dt > threshold)
-        gaps = [(float(u[i]), float(u[i + 1])) for i in idx]
+    median_dt = _median_dt(u)
+    gaps = find_gaps(u, median_dt)
     return StampStats(n, out_of_order, duplicates, median_dt, order, keep, gaps)
 
 

@@ -1,0 +1,195 @@
+"""Put every signal role of a :class:`RawLog` on one uniform time grid.
+
+Per role: stamps are sorted (out-of-order stamps counted), exact duplicates
+dropped (the last one kept) and gaps found (a step longer than
+``max(5 x median step, 0.05 s)``). The grid runs from the latest first stamp
+to the earliest last stamp over the roles present, at ``start + k / rate``;
+each column is linearly interpolated (angles unwrapped first and wrapped to
+(-pi, pi] after). Grid points inside any role's gap are marked invalid.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from omavctl.errors import LogError
+from omavctl.logs.contract import DEFAULT_TOPICS, wrap_angle
+from omavctl.logs.stats import find_gaps, stamp_stats
+from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, ROLE_TOPIC, FlightLog, RawLog
+
+__all__ = ["DEFAULT_REQUIRED", "MIN_SAMPLES", "align", "interpolate", "segments_of"]
+
+#: Roles ``fit`` and ``evaluate`` cannot do without.
+DEFAULT_REQUIRED: tuple[str, ...] = ("body_rate", "attitude", "force_command", "torque_command")
+
+#: Fewest grid samples an aligned log may have.
+MIN_SAMPLES = 10
+
+
+def interpolate(stamps: np.ndarray, values: np.ndarray, t: np.ndarray, angle: bool) -> np.ndarray:
+    """Linear interpolation of ``values`` shape (n, k) at stamps shape (n,)
+    (sorted, distinct) onto ``t`` shape (m,); returns shape (m, k).
+
+    Outside the stamps the end values are held. With ``angle`` the columns are
+    unwrapped before and wrapped to (-pi, pi] after.
+    """
+    v = np.unwrap(values, axis=0) if angle else values
+    out = np.empty((t.size, v.shape[1]))
+    for j in range(v.shape[1]):
+        out[:, j] = np.interp(t, stamps, v[:, j])
+    return wrap_angle(out) if angle else out
+
+
+def segments_of(valid: np.ndarray) -> list[tuple[int, int]]:
+    """Half-open index ranges ``[start, stop)`` of the runs of True in ``valid`` shape (n,)."""
+    padded = np.concatenate([[False], np.asarray(valid, dtype=bool), [False]])
+    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def _label(raw: RawLog, role: str) -> str:
+    """Where a role came from, for messages: its topic name, or "CSV" for CSV."""
+    if raw.format == "csv":
+        return "CSV"
+    names = raw.topic_names or DEFAULT_TOPICS
+    return names.get(ROLE_TOPIC[role], ROLE_TOPIC[role])
+
+
+def _missing_error(raw: RawLog, role: str) -> LogError:
+    if raw.format == "csv":
+        cols = ", ".join(f"{role}_{c}" for c in ROLE_COLUMNS[role])
+        return LogError(f"missing columns for {role}: {cols}", raw.path)
+    return LogError(f"missing topic '{_label(raw, role)}' (role {role})", raw.path)
+
+
+def align(
+    raw: RawLog,
+    rate: float = 100.0,
+    required: Sequence[str] = DEFAULT_REQUIRED,
+) -> FlightLog:
+    """Resample every role of ``raw`` onto one uniform grid.
+
+    Args:
+        raw: the log as read (:func:`read_raw`).
+        rate: grid rate (Hz).
+        required: roles that must be present and finite; other roles are
+            optional (non-finite samples of an optional role are dropped with a
+            note; a role with fewer than 2 usable samples is dropped).
+
+    Returns:
+        A :class:`FlightLog`: ``t`` shape (N,) from 0 at step ``1/rate``,
+        ``signals[role]`` shape (N, k), ``valid`` shape (N,), ``segments``, and
+        ``notes`` with everything the reader and the aligner found.
+
+    Raises:
+        LogError: a required role is missing, has non-finite values or too few
+            samples; the signals overlap on fewer than 10 grid samples.
+    """
+    if not (math.isfinite(rate) and rate > 0):
+        raise LogError(f"grid rate must be a positive number of Hz, got {rate}", raw.path)
+    unknown = [r for r in required if r not in ROLE_COLUMNS]
+    if unknown:
+        raise ValueError(f"unknown signal roles in required: {', '.join(unknown)}")
+    for role in required:
+        if role not in raw.series:
+            raise _missing_error(raw, role)
+
+    notes: list[str] = []
+
+    def note(text: str) -> None:
+        if text not in notes:
+            notes.append(text)
+
+    clean: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    gaps: dict[str, list[tuple[float, float]]] = {}
+    for role, series in raw.series.items():
+        if role not in ROLE_COLUMNS:
+            note(f"unknown signal role '{role}' ignored")
+            continue
+        label = _label(raw, role)
+        stamps = np.asarray(series.stamps, dtype=float).reshape(-1)
+        values = np.asarray(series.values, dtype=float).reshape(stamps.size, -1)
+        st = stamp_stats(stamps)
+        if st.out_of_order:
+            note(f"{label}: {st.out_of_order} out-of-order stamps (sorted)")
+        if st.duplicates:
+            note(f"{label}: {st.duplicates} duplicated stamps dropped (last kept)")
+        idx = st.order[st.keep]
+        s, v = stamps[idx], values[idx]
+        ok = np.isfinite(v).all(axis=1) & np.isfinite(s)
+        if not ok.all():
+            first = int(np.flatnonzero(~ok)[0])
+            if role in required:
+                raise LogError(
+                    f"non-finite value in {label} (role {role}) at t={s[first]:.3f} s",
+                    raw.path,
+                )
+            note(f"{label}: {int((~ok).sum())} samples of {role} with non-finite values dropped")
+            s, v = s[ok], v[ok]
+        if s.size < 2:
+            if role in required:
+                raise LogError(
+                    f"too few samples in {label} (role {role}): {s.size}, need at least 2",
+                    raw.path,
+                )
+            note(f"{label}: {role} has {s.size} usable samples; not used")
+            continue
+        clean[role] = (s, v)
+        gaps[role] = find_gaps(s)
+
+    if not clean:
+        raise LogError("no usable signals in the log", raw.path)
+    start = max(s[0] for s, _ in clean.values())
+    end = min(s[-1] for s, _ in clean.values())
+    # tolerance: a span of 3 s read as 2.99999999999997 s still has its last sample
+    n = math.floor((end - start) * rate + 1e-6) + 1 if end >= start else 0
+    if n < MIN_SAMPLES:
+        span = max(end - start, 0.0)
+        raise LogError(
+            f"too little data: the signals overlap for {span:.3f} s, {max(n, 0)} samples "
+            f"at {rate:g} Hz (need at least {MIN_SAMPLES})",
+            raw.path,
+        )
+    k = np.arange(n)
+    t = k / rate
+    grid = start + t
+
+    signals: dict[str, np.ndarray] = {}
+    # +1 where an invalid run starts, -1 where it ends; cumsum > 0 is invalid
+    marks = np.zeros(n + 1, dtype=np.int64)
+    for role, (s, v) in clean.items():
+        signals[role] = interpolate(s, v, grid, role in ANGLE_ROLES)
+        if not gaps[role]:
+            continue
+        a, b = np.array(gaps[role]).T
+        # grid points strictly inside (a, b): indices [lo, hi)
+        lo = np.searchsorted(grid, a, side="right")
+        hi = np.searchsorted(grid, b, side="left")
+        for ga, gb, i0, i1 in zip(a, b, lo, hi, strict=True):
+            if i1 <= i0:
+                continue
+            marks[i0] += 1
+            marks[i1] -= 1
+            note(
+                f"gap of {gb - ga:.2f} s at t={ga - start:.2f} s in {_label(raw, role)}: "
+                f"samples {i0}-{i1 - 1} excluded"
+            )
+    valid = np.cumsum(marks[:n]) == 0
+    invalid = int(n - valid.sum())
+    if invalid:
+        note(f"{invalid} of {n} grid samples inside gaps marked invalid")
+
+    return FlightLog(
+        path=raw.path,
+        format=raw.format,
+        t=t,
+        signals=signals,
+        valid=valid,
+        segments=segments_of(valid),
+        rate=float(rate),
+        topics=list(raw.topics),
+        notes=list(raw.notes) + notes,
+    )

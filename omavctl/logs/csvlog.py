@@ -1,0 +1,228 @@
+"""The wide CSV log of DESIGN.md section 3: ``t`` then ``<role>_<suffix>`` columns.
+
+One row per sample, ``t`` in s from the log start, SI units. A role is read
+when all of its columns are present; columns that belong to no role are
+ignored (and noted). Values are written with ``repr`` (shortest exact form),
+so a CSV round trip keeps every float bit for bit.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from omavctl.atomic import atomic_path
+from omavctl.errors import LogError
+from omavctl.logs.stats import topic_info
+from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog, RawSeries
+
+__all__ = ["CsvRead", "csv_columns", "read_csv", "write_csv"]
+
+
+def csv_columns(role: str) -> list[str]:
+    """Wide-CSV column names of a signal role, e.g. ``body_rate_x``."""
+    return [f"{role}_{suffix}" for suffix in ROLE_COLUMNS[role]]
+
+
+@dataclass
+class CsvRead:
+    """A CSV log as read, plus per-column (min, max) of the columns used."""
+
+    raw: RawLog
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+
+def _first_bad_cell(text: str, header: list[str], usecols: list[int]) -> str | None:
+    """Describe the first row of the wrong width or non-numeric used cell (slow scan)."""
+    rows = csv.reader(io.StringIO(text))
+    next(rows, None)
+    row_no = 0
+    for row in rows:
+        if not row or all(not c.strip() for c in row):
+            continue
+        row_no += 1
+        where = f"row {row_no} (line {rows.line_num})"
+        if len(row) != len(header):
+            return f"{where} has {len(row)} cells, the header has {len(header)}"
+        for j in usecols:
+            cell = row[j].strip()
+            try:
+                float(cell)
+            except ValueError:
+                if not cell:
+                    return f"empty cell in column '{header[j]}' at {where}"
+                shown = cell if len(cell) <= 20 else cell[:17] + "..."
+                return f"non-numeric value '{shown}' in column '{header[j]}' at {where}"
+    return None
+
+
+def read_csv(path: Path, strict: bool = True) -> CsvRead:
+    """Read a wide CSV log.
+
+    ``t0`` is the earliest ``t`` and stamps count from it. With ``strict``
+    (the default) a role with only some of its columns, a non-numeric cell or
+    a NaN/inf cell is a :class:`LogError`; otherwise (for ``inspect``) they
+    become notes, bad cells NaN.
+    """
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise LogError("not a CSV file: it is not UTF-8 text", path) from None
+    except OSError as err:
+        raise LogError(f"cannot read: {err.strerror or err}", path) from err
+    first = text.split("\n", 1)[0].strip()
+    if not first:
+        raise LogError("not a CSV log: the first line must be a header starting with 't'", path)
+    header = [h.strip() for h in next(csv.reader([first]))]
+    seen: set[str] = set()
+    for name in header:
+        if name in seen:
+            raise LogError(f"duplicate column '{name}'", path)
+        seen.add(name)
+    if "t" not in header:
+        raise LogError("missing column 't' (time in s)", path)
+
+    notes: list[str] = []
+    roles: list[str] = []
+    used = {"t"}
+    for role in ROLE_COLUMNS:
+        cols = csv_columns(role)
+        present = [c for c in cols if c in seen]
+        if not present:
+            continue
+        if len(present) < len(cols):
+            missing = [c for c in cols if c not in seen]
+            msg = f"missing column '{missing[0]}' (role {role} needs {', '.join(cols)})"
+            if strict:
+                raise LogError(msg, path)
+            notes.append(msg + f"; {role} not read")
+            continue
+        roles.append(role)
+        used.update(cols)
+    contract = {c for role in ROLE_COLUMNS for c in csv_columns(role)}
+    ignored = [h for h in header if h not in used and h not in contract]
+    if ignored:
+        notes.append(f"columns not in the contract ignored: {', '.join(ignored)}")
+
+    names = ["t"] + [c for role in roles for c in csv_columns(role)]
+    usecols = [header.index(c) for c in names]
+    lines = text.splitlines()
+    data_lines = [i + 1 for i, line in enumerate(lines) if i > 0 and line.strip()]
+    if not data_lines:
+        raise LogError("no data rows below the header", path)
+    try:
+        data = np.loadtxt(
+            io.StringIO(text),
+            delimiter=",",
+            skiprows=1,
+            usecols=usecols,
+            ndmin=2,
+            dtype=float,
+            comments=None,
+        )
+    except ValueError as err:
+        msg = _first_bad_cell(text, header, usecols) or f"malformed rows ({_first_line(err)})"
+        if strict:
+            raise LogError(msg, path) from None
+        data = _lenient_parse(text, usecols)
+        notes.append(f"{msg}; unreadable cells read as NaN")
+
+    bad_cells = ~np.isfinite(data)
+    if bad_cells.any():
+        r, c = (int(x) for x in np.argwhere(bad_cells)[0])
+        value = "NaN" if np.isnan(data[r, c]) else "inf"
+        msg = f"{value} in column '{names[c]}' at row {r + 1} (line {data_lines[r]})"
+        if strict:
+            raise LogError(msg, path)
+        notes.append(f"{msg}; {int(bad_cells.sum())} non-finite cells in all")
+
+    finite_t = np.isfinite(data[:, 0])
+    if not finite_t.any():
+        raise LogError("column 't' has no numeric value", path)
+    data = data[finite_t]  # (lenient mode) rows without a time cannot be placed
+    t = data[:, 0]
+    t0 = float(t.min())
+    stamps = t - t0
+    series = {}
+    topics = []
+    col = 1
+    for role in roles:
+        k = len(ROLE_COLUMNS[role])
+        series[role] = RawSeries(stamps=stamps, values=data[:, col : col + k].copy())
+        topics.append(topic_info(role, "csv columns", stamps))
+        col += k
+    ranges = {}
+    for j, name in enumerate(names):
+        column = data[:, j][np.isfinite(data[:, j])]
+        if column.size:
+            ranges[name] = (float(column.min()), float(column.max()))
+    raw = RawLog(path=path, format="csv", t0=t0, series=series, topics=topics, notes=notes)
+    return CsvRead(raw=raw, ranges=ranges)
+
+
+def _first_line(err: BaseException) -> str:
+    lines = str(err).strip().splitlines()
+    return lines[0] if lines else type(err).__name__
+
+
+def _lenient_parse(text: str, usecols: list[int]) -> np.ndarray:
+    """Parse the used columns with NaN for any cell that is not a number."""
+    rows = csv.reader(io.StringIO(text))
+    next(rows, None)
+    out = []
+    for row in rows:
+        if not row or all(not c.strip() for c in row):
+            continue
+        values = []
+        for j in usecols:
+            try:
+                values.append(float(row[j]))
+            except (ValueError, IndexError):
+                values.append(float("nan"))
+        out.append(values)
+    return np.array(out, dtype=float).reshape(-1, len(usecols))
+
+
+def write_csv(path: Path, raw: RawLog) -> None:
+    """Write ``raw`` as a wide CSV atomically.
+
+    One row per sample of the ``force_command`` series (the controller's
+    rate; else the first role present) within the span every role covers;
+    each other role is linearly interpolated there (angles through unwrap and
+    wrap). ``t`` is in s since ``raw.t0``.
+    """
+    from omavctl.logs.align import interpolate
+    from omavctl.logs.stats import stamp_stats
+
+    roles = [r for r in ROLE_COLUMNS if r in raw.series]
+    clean = {}
+    for role in roles:
+        s = raw.series[role]
+        stamps = np.asarray(s.stamps, dtype=float)
+        st = stamp_stats(stamps)
+        idx = st.order[st.keep]
+        clean[role] = (stamps[idx], np.asarray(s.values, dtype=float)[idx])
+    base = "force_command" if "force_command" in clean else roles[0]
+    lo = max(s[0] for s, _ in clean.values())
+    hi = min(s[-1] for s, _ in clean.values())
+    t = clean[base][0]
+    t = t[(t >= lo) & (t <= hi)]
+    if t.size == 0:
+        raise LogError("nothing to write: the signals do not overlap in time", path)
+    columns = [t[:, None]]
+    header = ["t"]
+    for role in roles:
+        s, v = clean[role]
+        if role == base or (s.size == t.size and np.array_equal(s, t)):
+            columns.append(v[np.searchsorted(s, t)] if role == base else v)
+        else:
+            columns.append(interpolate(s, v, t, role in ANGLE_ROLES))
+        header += csv_columns(role)
+    table = np.hstack(columns)
+    body = "\n".join(",".join(map(repr, row)) for row in table.tolist())
+    with atomic_path(path) as tmp:
+        tmp.write_text(",".join(header) + "\n" + body + "\n")

@@ -1,0 +1,160 @@
+"""What is in a flight log: topics, rates, problems, which contract roles it has.
+
+Inspection is lenient: a contract topic of the wrong type, a CSV role with
+missing columns or bad cells are reported as notes instead of errors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from omavctl.logs.align import DEFAULT_REQUIRED
+from omavctl.logs.contract import merge_topics
+from omavctl.logs.read import detect_format
+from omavctl.logs.types import ROLE_COLUMNS, ROLE_TOPIC, RawLog, TopicInfo
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+__all__ = ["Inspection", "inspect_log", "render_inspect"]
+
+_FORMAT_TITLES = {
+    "ros1": "ROS 1 bag",
+    "ros2-sqlite3": "ROS 2 bag (sqlite3 storage)",
+    "ros2-mcap": "ROS 2 bag (mcap storage)",
+    "mcap": "MCAP file",
+    "csv": "CSV",
+}
+
+
+@dataclass
+class Inspection:
+    """Summary of one log.
+
+    ``roles_found`` maps each contract signal role present to where it came
+    from (topic name, or ``"CSV columns"``); ``roles_missing`` maps each absent
+    role to the topic (or columns) it would come from. ``column_ranges`` gives
+    (min, max) per CSV column (CSV only).
+    """
+
+    path: Path
+    format: str
+    duration: float  # s
+    t0: float  # s, absolute time of the first stamp
+    topics: list[TopicInfo]
+    roles_found: dict[str, str]
+    roles_missing: dict[str, str]
+    notes: list[str] = field(default_factory=list)
+    column_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def required_missing(self) -> list[str]:
+        """Roles that ``fit``/``evaluate`` need but the log lacks."""
+        return [r for r in DEFAULT_REQUIRED if r in self.roles_missing]
+
+
+def _duration(raw: RawLog) -> float:
+    spans = [
+        (float(s.stamps.min()), float(s.stamps.max())) for s in raw.series.values() if s.stamps.size
+    ]
+    if spans:
+        return max(b for _, b in spans) - min(a for a, _ in spans)
+    return max((t.duration for t in raw.topics), default=0.0)
+
+
+def inspect_log(
+    path: str | Path,
+    topics: Mapping[str, str] | None = None,
+    columns: Mapping[str, Any] | None = None,
+) -> Inspection:
+    """Inspect a log (any format :func:`read_raw` reads) without aligning it.
+
+    ``topics`` and ``columns`` are as for :func:`read_raw`.
+
+    Raises:
+        LogError: the file is missing or unreadable.
+    """
+    from omavctl.logs.read import _read
+
+    p = Path(path)
+    ranges: dict[str, tuple[float, float]] = {}
+    if detect_format(p) == "csv":
+        if columns:
+            from omavctl.logs.columnmap import read_mapped_csv
+
+            result = read_mapped_csv(p, columns)
+        else:
+            from omavctl.logs.csvlog import read_csv
+
+            result = read_csv(p, strict=False)
+        raw, ranges = result.raw, result.ranges
+    else:
+        raw = _read(p, topics, strict=False)
+    names = raw.topic_names or merge_topics(topics)
+    found: dict[str, str] = {}
+    missing: dict[str, str] = {}
+    for role in ROLE_COLUMNS:
+        if raw.format == "csv":
+            where = f"CSV columns {role}_*"
+        else:
+            where = names[ROLE_TOPIC[role]]
+        (found if role in raw.series else missing)[role] = where
+    return Inspection(
+        path=p,
+        format=raw.format,
+        duration=_duration(raw),
+        t0=raw.t0,
+        topics=list(raw.topics),
+        roles_found=found,
+        roles_missing=missing,
+        notes=list(raw.notes),
+        column_ranges=ranges,
+    )
+
+
+def render_inspect(ins: Inspection, console: Console) -> None:
+    """Print an :class:`Inspection` to a rich console: topic table, roles, notes."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    console.print(
+        f"[bold]{escape(str(ins.path))}[/bold]: {_FORMAT_TITLES.get(ins.format, ins.format)}, "
+        f"{ins.duration:.2f} s"
+    )
+    table = Table(title="Topics" if ins.format != "csv" else "Column groups")
+    table.add_column("name")
+    table.add_column("type")
+    for name in ("count", "rate Hz", "gaps", "duplicates", "out-of-order"):
+        table.add_column(name, justify="right")
+    for t in ins.topics:
+        table.add_row(
+            t.name,
+            t.msgtype,
+            str(t.count),
+            f"{t.rate:.1f}",
+            str(len(t.gaps)),
+            str(t.duplicates),
+            str(t.out_of_order),
+        )
+    console.print(table)
+    if ins.column_ranges:
+        ranges = Table(title="Columns")
+        ranges.add_column("column")
+        ranges.add_column("min", justify="right")
+        ranges.add_column("max", justify="right")
+        for name, (lo, hi) in ins.column_ranges.items():
+            ranges.add_row(name, f"{lo:.6g}", f"{hi:.6g}")
+        console.print(ranges)
+    if ins.roles_found:
+        found = ", ".join(ins.roles_found)
+        console.print(f"[green]roles found[/green]: {found}")
+    if ins.roles_missing:
+        missing = escape(", ".join(f"{r} ({w})" for r, w in ins.roles_missing.items()))
+        console.print(f"[yellow]roles missing[/yellow]: {missing}", soft_wrap=True)
+    if ins.required_missing:
+        console.print("[red]fit and evaluate need[/red]: " + ", ".join(ins.required_missing))
+    for note in ins.notes:
+        console.print(f"note: {note}", markup=False, highlight=False)
