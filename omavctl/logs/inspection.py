@@ -125,9 +125,10 @@ def render_inspect(ins: Inspection, console: Console) -> None:
         f"{ins.duration:.2f} s"
     )
     table = Table(title="Topics" if ins.format != "csv" else "Column groups")
-    table.add_column("name")
-    table.add_column("type")
-    for name in ("count", "rate Hz", "gaps", "duplicates", "out-of-order"):
+    # full topic and type names matter more than column widths: fold, never elide
+    table.add_column("name", overflow="fold")
+    table.add_column("type", overflow="fold")
+    for name in ("count", "rate Hz", "gaps", "dup.", "unordered"):
         table.add_column(name, justify="right")
     for t in ins.topics:
         table.add_row(
@@ -142,7 +143,7 @@ def render_inspect(ins: Inspection, console: Console) -> None:
     console.print(table)
     if ins.column_ranges:
         ranges = Table(title="Columns")
-        ranges.add_column("column")
+        ranges.add_column("column", overflow="fold")
         ranges.add_column("min", justify="right")
         ranges.add_column("max", justify="right")
         for name, (lo, hi) in ins.column_ranges.items():
