@@ -1,8 +1,9 @@
-"""Vehicle description: mass, inertia, geometry, limits, controller gains, topics.
+"""Vehicle description: mass, inertia, geometry, limits, controller gains, topics, log layout.
 
 A vehicle YAML overrides the built-in default omav (``omavctl/data/default_vehicle.yaml``,
 whose comments give the source of every value) key by key: a file holding only
 ``mass`` and ``inertia`` is valid. Unknown keys are errors naming the key.
+``columns`` (CSV column map) and ``effects`` are replaced as a whole, not merged.
 """
 
 from __future__ import annotations
@@ -35,6 +36,10 @@ TOPIC_ROLES = (
     "reference",
     "actuators",
 )
+
+
+#: Top-level keys whose value replaces the default's instead of being merged.
+_FREE_FORM = ("effects", "columns")
 
 
 def _default_tree() -> dict[str, Any]:
@@ -70,8 +75,8 @@ def _merge(base: dict[str, Any], override: dict[str, Any], path: Path, prefix: s
         name = f"{prefix}{key}"
         if key not in base:
             raise ConfigError(f"unknown key '{name}'", path)
-        # Free-form sections: replaced or merged without a schema below them.
-        if isinstance(base[key], dict) and key not in ("effects",):
+        # Free-form sections: replaced without a schema below them.
+        if isinstance(base[key], dict) and key not in _FREE_FORM:
             if not isinstance(value, dict):
                 raise ConfigError(f"key '{name}' must be a mapping", path)
             _merge(base[key], value, path, f"{name}.")
@@ -121,7 +126,10 @@ class Vehicle:
 
     ``inertia`` is a (3, 3) matrix in kg m^2 (body FLU frame); ``arm_angles`` in
     rad, shape (6,). ``effects`` are the names of physical effects that ``fit``
-    estimates for this vehicle.
+    estimates for this vehicle. ``columns`` is the CSV column map of its logs
+    (role-based or flat, see :mod:`omavctl.logs.columnmap`; empty: wide
+    contract CSV) and ``frame`` the frame its logs are in (``"FLU"`` or
+    ``"FRD"``, see :mod:`omavctl.logs.frames`).
     """
 
     mass: float
@@ -137,6 +145,8 @@ class Vehicle:
     gains: ControllerGains
     topics: dict[str, str]
     effects: tuple[str, ...] = ()
+    columns: dict[str, Any] = field(default_factory=dict)
+    frame: str = "FLU"
     source: str = "built-in default omav"
     tree: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -183,6 +193,7 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
         if not isinstance(topic, str) or not topic:
             raise ConfigError(f"key 'topics.{role}' must be a topic name", path)
     effects = _effect_names(tree.get("effects"), path)
+    columns, frame = _log_layout(tree, path)
     max_thrust = _positive(rot["max_thrust"], "rotor.max_thrust", path)
     min_thrust = _positive(rot["min_thrust"], "rotor.min_thrust", path, allow_zero=True)
     if min_thrust >= max_thrust:
@@ -201,9 +212,33 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
         gains=gains,
         topics=dict(topics),
         effects=effects,
+        columns=columns,
+        frame=frame,
         source=source,
         tree=tree,
     )
+
+
+def _log_layout(tree: dict[str, Any], path: Path | None) -> tuple[dict[str, Any], str]:
+    """Validated ``columns`` (column map, may be empty) and ``frame`` of a vehicle tree.
+
+    Trees written before these keys existed (model artifacts) give ``{}`` and ``"FLU"``.
+    """
+    from omavctl.logs.columnmap import parse_column_map
+    from omavctl.logs.frames import check_frame
+
+    columns = tree.get("columns")
+    if columns is None:
+        columns = {}
+    if not isinstance(columns, dict):
+        raise ConfigError("key 'columns' must be a mapping of roles to columns", path)
+    try:
+        if columns:
+            parse_column_map(columns)
+        frame = check_frame(tree.get("frame", "FLU"))
+    except ConfigError as err:
+        raise ConfigError(err.message, path) from None
+    return dict(columns), frame
 
 
 def _effect_names(value: Any, path: Path | None) -> tuple[str, ...]:

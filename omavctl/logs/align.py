@@ -59,6 +59,10 @@ def _label(raw: RawLog, role: str) -> str:
 
 
 def _missing_error(raw: RawLog, role: str) -> LogError:
+    if raw.mapped:  # a CSV read through a column map
+        if role in raw.mapped:
+            return LogError(f"no usable values for {role} in {raw.mapped[role]}", raw.path)
+        return LogError(f"the column map has no entry for {role} (columns.{role})", raw.path)
     if raw.format == "csv":
         cols = ", ".join(f"{role}_{c}" for c in ROLE_COLUMNS[role])
         return LogError(f"missing columns for {role}: {cols}", raw.path)

@@ -1,7 +1,10 @@
 """What is in a flight log: topics, rates, problems, which contract roles it has.
 
 Inspection is lenient: a contract topic of the wrong type, a CSV role with
-missing columns or bad cells are reported as notes instead of errors.
+missing columns or bad cells are reported as notes instead of errors. A CSV
+of another layout (no contract columns) read without a column map gets its
+numeric columns listed with ranges and a suggested column map
+(:mod:`omavctl.logs.suggest`).
 """
 
 from __future__ import annotations
@@ -37,7 +40,9 @@ class Inspection:
     ``roles_found`` maps each contract signal role present to where it came
     from (topic name, or ``"CSV columns"``); ``roles_missing`` maps each absent
     role to the topic (or columns) it would come from. ``column_ranges`` gives
-    (min, max) per CSV column (CSV only).
+    (min, max) per CSV column (CSV only). For a CSV of another layout read
+    without a column map, ``suggested_columns`` is the guessed role-based map
+    and ``suggestion`` its YAML text (to paste into a vehicle file).
     """
 
     path: Path
@@ -49,6 +54,8 @@ class Inspection:
     roles_missing: dict[str, str]
     notes: list[str] = field(default_factory=list)
     column_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    suggested_columns: dict[str, Any] | None = None
+    suggestion: str | None = None
 
     @property
     def required_missing(self) -> list[str]:
@@ -82,6 +89,8 @@ def inspect_log(
     p = Path(path)
     ranges: dict[str, tuple[float, float]] = {}
     if detect_format(p) == "csv":
+        if not columns and _is_foreign_csv(p):
+            return _inspect_foreign_csv(p)
         if columns:
             from omavctl.logs.columnmap import read_mapped_csv
 
@@ -115,6 +124,51 @@ def inspect_log(
     )
 
 
+def _is_foreign_csv(path: Path) -> bool:
+    """Whether a CSV is not a wide contract CSV: no ``t`` or no contract column."""
+    import csv
+
+    from omavctl.logs.csvlog import csv_columns
+
+    try:
+        with path.open(encoding="utf-8-sig", newline="") as f:
+            header = {h.strip() for h in next(csv.reader(f), [])}
+    except (OSError, UnicodeDecodeError):
+        return False  # the wide-CSV reader reports it
+    contract = {c for role in ROLE_COLUMNS for c in csv_columns(role)}
+    return "t" not in header or not header & contract
+
+
+def _inspect_foreign_csv(path: Path) -> Inspection:
+    """Inspection of a CSV of another layout: column ranges and a suggested column map."""
+    from omavctl.logs.suggest import scan_csv, suggest_column_map, suggestion_yaml
+
+    scan = scan_csv(path)
+    guess = suggest_column_map(scan)
+    notes = [
+        f"not a wide contract CSV: {len(scan.header)} columns, {len(scan.values)} numeric "
+        "with values; a column map (vehicle 'columns:') is needed to read it"
+    ]
+    if scan.empty:
+        shown = ", ".join(scan.empty[:12]) + (", ..." if len(scan.empty) > 12 else "")
+        notes.append(f"{len(scan.empty)} all-empty columns skipped: {shown}")
+    if scan.non_numeric:
+        notes.append(f"non-numeric columns skipped: {', '.join(scan.non_numeric)}")
+    return Inspection(
+        path=path,
+        format="csv",
+        duration=guess.duration,
+        t0=guess.t0,
+        topics=[],
+        roles_found={},
+        roles_missing={},
+        notes=notes,
+        column_ranges=scan.ranges(),
+        suggested_columns=guess.columns,
+        suggestion=suggestion_yaml(guess, path.name),
+    )
+
+
 def render_inspect(ins: Inspection, console: Console) -> None:
     """Print an :class:`Inspection` to a rich console: topic table, roles, notes."""
     from rich.markup import escape
@@ -140,7 +194,8 @@ def render_inspect(ins: Inspection, console: Console) -> None:
             str(t.duplicates),
             str(t.out_of_order),
         )
-    console.print(table)
+    if ins.topics or ins.format != "csv":
+        console.print(table)
     if ins.column_ranges:
         ranges = Table(title="Columns")
         ranges.add_column("column", overflow="fold")
@@ -159,3 +214,6 @@ def render_inspect(ins: Inspection, console: Console) -> None:
         console.print("[red]fit and evaluate need[/red]: " + ", ".join(ins.required_missing))
     for note in ins.notes:
         console.print(f"note: {note}", markup=False, highlight=False)
+    if ins.suggestion:
+        console.print("\nsuggested column map (paste into the vehicle YAML, then check it):")
+        console.print(ins.suggestion, markup=False, highlight=False, soft_wrap=True, end="")

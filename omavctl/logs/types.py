@@ -94,6 +94,9 @@ class RawLog:
     ``t0`` is the absolute time (s, e.g. ROS epoch) that series stamps count from.
     ``topic_names`` maps topic roles (vehicle ``topics:`` keys) to the topic
     names the reader looked for (empty for CSV): errors and notes name them.
+    ``mapped`` maps each signal role of a CSV read through a column map to its
+    source columns (e.g. ``"columns IMU_GyroX, IMU_GyroY, IMU_GyroZ"``), whether
+    or not it had usable rows; empty otherwise.
     """
 
     path: Path
@@ -103,6 +106,7 @@ class RawLog:
     topics: list[TopicInfo] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     topic_names: dict[str, str] = field(default_factory=dict)
+    mapped: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -110,8 +114,11 @@ class FlightLog:
     """Signals of one log on a uniform time grid.
 
     ``t`` shape (N,) in s from the grid start; ``signals[role]`` shape (N, k);
-    ``valid`` shape (N,) is False at grid points inside a gap of any role;
-    ``segments`` are half-open index ranges ``[start, stop)`` of valid runs.
+    ``valid`` shape (N,) is False at grid points inside a gap of any role and,
+    when :func:`omavctl.logs.read_vehicle_log` trims or windows the log, on
+    the ground / motors idle and outside the time window; ``segments`` are
+    half-open index ranges ``[start, stop)`` of valid runs. Vectors are in
+    the contract frames (body FLU, world z up) whatever the log's frame.
     """
 
     path: Path
