@@ -184,11 +184,21 @@ def simulate(
     vehicle: VehicleOpt = None,
     seed: Annotated[
         int | None,
-        typer.Option(help="Random seed (rotor spread, sensor noise); overrides the truth file's."),
+        typer.Option(
+            help="Sensor-noise seed (default: the truth file's seed, which also draws the vehicle's rotor thrust spread)."
+        ),
     ] = None,
     physics_rate: Annotated[
         float, typer.Option(help="Integration rate of the truth plant, Hz.")
     ] = 1000.0,
+    model: Annotated[
+        Path | None,
+        typer.Option(
+            "--model",
+            help="Residual model (.npz written by fit) that the controller inverts, "
+            "u + mu(u) = a* (default: the nominal model, mu = 0).",
+        ),
+    ] = None,
     quiet: Quiet = False,
 ) -> None:
     """Fly a reference in closed loop through the truth plant and write a flight log."""
@@ -201,6 +211,12 @@ def simulate(
     veh = load_vehicle(vehicle)
     ref = read_trajectory(reference)
     plant = load_truth(truth, veh)
+    residual = None
+    if model is not None:
+        from omavctl.model import check_vehicle, load_model
+
+        residual = load_model(model)
+        check_vehicle(residual, veh, model)
     if physics_rate < 1000.0:
         raise OmavctlError(f"--physics-rate must be at least 1000 Hz, got {physics_rate:g}")
     con = _console(quiet)
@@ -212,6 +228,7 @@ def simulate(
             ref,
             veh,
             plant,
+            model=residual,
             seed=seed,
             physics_rate=physics_rate,
             progress=lambda f: bar.update(job, completed=f),
@@ -228,6 +245,140 @@ def simulate(
         con.print("[bold red]warning:[/] the vehicle diverged; the log ends where it did")
 
 
+# ---------------------------------------------------------------------------- fit
+@app.command()
+@_reports_errors
+def fit(
+    logs: Annotated[
+        list[Path],
+        typer.Argument(help="Flight logs: ROS 1 .bag, ROS 2 bag directories, .mcap or wide .csv."),
+    ],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output model file (.npz, schema omavctl.model/1).")
+    ],
+    vehicle: VehicleOpt = None,
+    effects: Annotated[
+        str | None,
+        typer.Option(
+            help="Physical effects to estimate by least squares and subtract before the GP: "
+            "comma-separated registry names, e.g. rotational_drag,com_offset (an unknown name "
+            "lists the known ones). Default: the vehicle YAML's 'effects:' list.",
+        ),
+    ] = None,
+    points: Annotated[
+        int, typer.Option(help="GP training points chosen from the new logs by k-medoids.")
+    ] = 200,
+    prior: Annotated[
+        Path | None,
+        typer.Option(
+            help="Earlier model (.npz): its training points are kept and the new ones added "
+            "(hyperparameters are re-fitted). Needs the same --features and effects.",
+        ),
+    ] = None,
+    sg_window: Annotated[
+        int,
+        typer.Option(
+            help="Savitzky-Golay window for the body-rate derivative, samples at the "
+            "controller rate (odd; window//2 samples are dropped at each segment edge).",
+        ),
+    ] = 11,
+    sg_order: Annotated[int, typer.Option(help="Savitzky-Golay polynomial order.")] = 2,
+    features: Annotated[
+        str,
+        typer.Option(
+            help="GP inputs: 'wrench' (scaled commanded wrench [f/m, I^-1 tau], 6-D) or "
+            "'wrench+rate' (adds body rates, 9-D).",
+        ),
+    ] = "wrench",
+    restarts: Annotated[
+        int, typer.Option(help="Extra starts of the marginal-likelihood optimiser per axis.")
+    ] = 3,
+    seed: Annotated[
+        int, typer.Option(help="Random seed (k-medoids subsampling, optimiser restarts).")
+    ] = 0,
+    quiet: Quiet = False,
+) -> None:
+    """Learn the residual model (effects + one GP per body axis) from flight logs."""
+    from rich.progress import Progress
+
+    from omavctl.fit import fit_model
+    from omavctl.model import save_model
+    from omavctl.vehicle import load_vehicle
+
+    veh = load_vehicle(vehicle)
+    names = None if effects is None else [e.strip() for e in effects.split(",") if e.strip()]
+    con = _console(quiet)
+    with Progress(console=con, transient=True, disable=quiet) as bar:
+        job = bar.add_task("fitting", total=1.0)
+        result = fit_model(
+            logs,
+            vehicle=veh,
+            effects=names,
+            points=points,
+            prior=prior,
+            sg_window=sg_window,
+            sg_order=sg_order,
+            features=features,
+            seed=seed,
+            restarts=restarts,
+            progress=lambda stage, f: bar.update(job, description=stage, completed=f),
+        )
+    save_model(out, result.model)
+    _render_fit(con, result.summary, out)
+
+
+def _render_fit(con: Any, summary: Any, out: Path) -> None:
+    """Print the fit summary: data used, effects, GP hyperparameters, training fit."""
+    from rich.table import Table
+
+    from omavctl.physics.effects import get_effect
+
+    for log in summary.logs:
+        dropped = log.edge_dropped + log.short_dropped
+        con.print(
+            f"{log.path}: {log.used} of {log.samples} samples used "
+            f"({log.in_gaps} in gaps, {dropped} at segment edges or in short segments)"
+        )
+        for note in log.notes:
+            con.print(f"  note: {note}")
+    prior = f" + {summary.points_prior} from the prior" if summary.points_prior else ""
+    con.print(
+        f"training points: {summary.points_new} new{prior} ({summary.kmedoids}); "
+        f"Savitzky-Golay window {summary.sg_window}, order {summary.sg_order}"
+    )
+    if summary.effects:
+        eff = Table(title="effects (least squares, value ± standard error)", title_justify="left")
+        for col in ("effect", "parameter", "value ± std. error", "unit"):
+            eff.add_column(col)
+        for name, est in summary.effects.items():
+            for p in get_effect(name).parameters:
+                labels = "xyz" if p.size == 3 else [str(i) for i in range(p.size)]
+                for i, (v, e) in enumerate(
+                    zip(est.values[p.name], est.stderr[p.name], strict=True)
+                ):
+                    label = p.name if p.size == 1 else f"{p.name}_{labels[i]}"
+                    eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", p.unit)
+        con.print(eff)
+    gp = Table(title=f"GP per axis (inputs: {summary.features})", title_justify="left")
+    gp.add_column("")
+    for axis in "xyz":
+        gp.add_column(axis, justify="right")
+    gp.add_row("signal std, rad/s^2", *(f"{a.signal_std:.4g}" for a in summary.axes))
+    gp.add_row("noise std, rad/s^2", *(f"{a.noise_std:.4g}" for a in summary.axes))
+    for j, name in enumerate(summary.input_names):
+        gp.add_row(
+            f"length scale {name} (normalised)",
+            *(f"{a.length_scales[j]:.3g}" for a in summary.axes),
+        )
+    gp.add_row("training R^2", *(f"{a.r2:.3f}" for a in summary.axes))
+    gp.add_row("training RMSE, rad/s^2", *(f"{a.rmse:.4g}" for a in summary.axes))
+    gp.add_row("RMS without model, rad/s^2", *(f"{a.rmse_nominal:.4g}" for a in summary.axes))
+    con.print(gp)
+    for note in summary.notes:
+        con.print(f"note: {note}")
+    con.print(f"wrote {out} ({summary.points} training points, {summary.samples} samples)")
+
+
 # ------------------------------------------------------------------------ inspect
 @app.command()
 @_reports_errors
@@ -237,14 +388,19 @@ def inspect(
     ],
     vehicle: VehicleOpt = None,
 ) -> None:
-    """List topics, types, counts, rates, duration, gaps and contract roles of a log."""
+    """List topics, types, counts, rates, duration, gaps and contract roles of a log.
+
+    A CSV of another layout without a column map in --vehicle: list its columns with
+    ranges and suggest a column map.
+    """
     from rich.console import Console
 
     from omavctl.logs import inspect_log, render_inspect
     from omavctl.vehicle import load_vehicle
 
     veh = load_vehicle(vehicle)
-    render_inspect(inspect_log(log, topics=veh.topics), Console(highlight=False))
+    ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
+    render_inspect(ins, Console(highlight=False))
 
 
 def main() -> None:

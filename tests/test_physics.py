@@ -127,7 +127,7 @@ class _Affine:
         self.b = 0.1 * rng.normal(size=(3, 3))
         self.c = np.array([0.2, -0.1, 0.05])
 
-    def mean(self, u):
+    def mean(self, u, omega=None):
         return u[..., 3:] @ self.a.T + u[..., :3] @ self.b.T + self.c + 0.05 * np.sin(u[..., 3:])
 
 

@@ -9,9 +9,9 @@ rotation vector; equal to the Euler-angle error for small errors).
 
 Model inversion: with ``u = [f/m, I^-1 tau]`` and the nominal
 ``omega_dot = l(x) + u_tau`` (``l(x) = -I^-1 (omega x I omega)``), find
-``u_tau`` such that ``u_tau + mu(u) = a* - l(x)`` where ``mu`` is the residual
-model's mean (zero by default). Solved by Newton's method with a
-finite-difference Jacobian, batched.
+``u_tau`` such that ``u_tau + mu(u, omega) = a* - l(x)`` where ``mu`` is the
+residual model's mean at the measured body rate (zero by default). Solved by
+Newton's method with a finite-difference Jacobian, batched.
 
 All arrays carry a leading batch dimension B.
 """
@@ -40,17 +40,21 @@ _INTEGRAL_LIMIT = np.array([0.5, 0.5, 0.5])
 
 
 class ResidualModel(Protocol):
-    """Anything that predicts the angular-acceleration residual from inputs."""
+    """Anything that predicts the angular-acceleration residual from inputs.
 
-    def mean(self, u: np.ndarray) -> np.ndarray:
-        """Residual mean (B, 3) rad/s^2 for scaled wrenches u (B, 6)."""
+    :class:`omavctl.model.ResidualGP` (the output of ``fit``) is one.
+    """
+
+    def mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+        """Residual mean (B, 3) rad/s^2 for scaled wrenches u (B, 6) at body rates
+        omega (B, 3) rad/s (models that do not depend on the state ignore omega)."""
         ...
 
 
 class ZeroResidual:
     """The nominal model: no residual."""
 
-    def mean(self, u: np.ndarray) -> np.ndarray:
+    def mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
         return np.zeros((*u.shape[:-1], 3))
 
 
@@ -58,19 +62,21 @@ def invert_residual(
     target: np.ndarray,
     u_force: np.ndarray,
     model: ResidualModel,
+    omega: np.ndarray | None = None,
     iterations: int = 6,
     tol: float = 1e-10,
     step: float = 1e-5,
 ) -> np.ndarray:
-    """Solve ``x + mu([u_force, x]) = target`` for x, batched (B, 3).
+    """Solve ``x + mu([u_force, x], omega) = target`` for x, batched (B, 3).
 
+    omega (B, 3) is the measured body rate the model is evaluated at.
     Newton's method with a forward-difference Jacobian of ``mu``; rows that
     have converged are not updated further.
     """
-    x = target - model.mean(np.concatenate([u_force, target], axis=-1))
+    x = target - model.mean(np.concatenate([u_force, target], axis=-1), omega)
     for _ in range(iterations):
         u = np.concatenate([u_force, x], axis=-1)
-        mu = model.mean(u)
+        mu = model.mean(u, omega)
         r = x + mu - target
         if np.max(np.abs(r)) < tol:
             break
@@ -78,7 +84,7 @@ def invert_residual(
         for j in range(3):
             up = u.copy()
             up[..., 3 + j] += step
-            jac[..., :, j] = (model.mean(up) - mu) / step
+            jac[..., :, j] = (model.mean(up, omega) - mu) / step
         jac += np.eye(3)
         x = x - np.linalg.solve(jac, r[..., None])[..., 0]
     return x
@@ -157,13 +163,13 @@ class Controller:
             dw_ref + g.att_kd * (w_ref - omega) + g.att_kp * e_att + g.att_ki * state.att_integral
         )
 
-        # model inversion: u_tau + mu(u) = a* - l(x)
+        # model inversion: u_tau + mu(u, omega) = a* - l(x)
         inertia = v.inertia
         l_x = -cross(omega, omega @ inertia.T) @ v.inertia_inv.T
         u_force = force / v.mass
         target = a_star - l_x
         if self._has_model:
-            u_tau = invert_residual(target, u_force, self.residual)
+            u_tau = invert_residual(target, u_force, self.residual, omega)
         else:
             u_tau = target
         torque = u_tau @ inertia.T

@@ -1,0 +1,658 @@
+"""``omavctl fit``: learn the residual model from flight logs.
+
+Pipeline (each step a function; :func:`fit_model` runs them in order):
+
+1. :func:`read_flights` reads and aligns every log on the controller-rate grid.
+2. :func:`omavctl.signal.residual_samples` differentiates the body rate with
+   the Savitzky-Golay filter per valid segment (dropping ``window // 2``
+   samples at every segment edge and segments shorter than the window) and
+   subtracts the nominal model, commands filtered like the derivative.
+3. :func:`estimate_effects` fits the named physical effects by least squares on
+   their registry regressors (standard errors from the residual variance) and
+   subtracts them.
+4. :func:`select_points` picks the GP training points by k-medoids on the
+   normalised inputs (squared Euclidean distance); ``--prior`` adds the prior
+   model's training points.
+5. :func:`fit_hyperparameters` maximises the marginal likelihood of one GP per
+   axis (scikit-learn, squared-exponential ARD kernel plus white noise, restarts).
+6. The result is a :class:`omavctl.model.ResidualGP`; :func:`omavctl.model.save_model`
+   writes it.
+
+Defaults and how they were chosen: ``docs/fit.md``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from omavctl import __version__
+from omavctl.errors import ConfigError, LogError, ModelError
+from omavctl.logs.types import FlightLog
+from omavctl.model import EffectEstimate, ResidualGP, check_vehicle, load_model
+from omavctl.physics.effects import get_effect
+from omavctl.signal import (
+    DEFAULT_SG_ORDER,
+    DEFAULT_SG_WINDOW,
+    FEATURES,
+    ResidualSamples,
+    SavitzkyGolay,
+    feature_names,
+    residual_samples,
+)
+from omavctl.vehicle import Vehicle, default_vehicle
+
+__all__ = [
+    "DEFAULT_POINTS",
+    "DEFAULT_RESTARTS",
+    "KMEDOIDS_MAX_DIRECT",
+    "KMEDOIDS_SUBSAMPLE",
+    "AxisFit",
+    "EffectFit",
+    "FitResult",
+    "FitSummary",
+    "LogSummary",
+    "estimate_effects",
+    "fit_hyperparameters",
+    "fit_model",
+    "read_flights",
+    "select_points",
+]
+
+#: Training points selected from the new logs (the paper used 20-100 per flight).
+DEFAULT_POINTS = 200
+#: Restarts of the marginal-likelihood optimiser per axis (besides the first run).
+DEFAULT_RESTARTS = 3
+#: Above this many samples k-medoids runs on seeded subsamples (CLARA-style):
+#: the n x n float64 distance matrix of 3000 samples is 72 MB.
+KMEDOIDS_MAX_DIRECT = 3000
+#: Size of each subsample, and how many subsamples are tried.
+KMEDOIDS_SUBSAMPLE = 2000
+KMEDOIDS_DRAWS = 3
+#: Roles fit needs from every log.
+REQUIRED_ROLES = ("body_rate", "force_command", "torque_command")
+
+Progress = Callable[[str, float], None]
+
+
+# ------------------------------------------------------------------ results
+@dataclass
+class LogSummary:
+    """What one log contributed: grid samples, samples used, and what was dropped."""
+
+    path: Path
+    samples: int
+    used: int
+    in_gaps: int
+    edge_dropped: int
+    short_dropped: int
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class EffectFit:
+    """Least-squares estimate of the stacked effect parameters.
+
+    theta (p,), cov (p, p); estimates by effect name; residual_std (3,) per axis
+    after subtracting the effects; explained (3,) fraction of residual variance
+    the effects explain per axis.
+    """
+
+    theta: np.ndarray
+    cov: np.ndarray
+    estimates: dict[str, EffectEstimate]
+    residual_std: np.ndarray
+    explained: np.ndarray
+
+
+@dataclass
+class AxisFit:
+    """Fitted GP of one axis: hyperparameters (physical units) and training fit.
+
+    signal_std and noise_std in rad/s^2; length_scales (d,) in normalised input
+    units; r2 and rmse of the model (effects + GP) on every sample of the new
+    logs; rmse_nominal: RMS of the residual without any model.
+    """
+
+    signal_std: float
+    noise_std: float
+    length_scales: np.ndarray
+    log_marginal_likelihood: float
+    r2: float = float("nan")
+    rmse: float = float("nan")
+    rmse_nominal: float = float("nan")
+
+
+@dataclass
+class FitSummary:
+    """Everything the CLI prints after a fit."""
+
+    logs: list[LogSummary]
+    samples: int
+    points_new: int
+    points_prior: int
+    features: str
+    input_names: tuple[str, ...]
+    sg_window: int
+    sg_order: int
+    kmedoids: str
+    axes: list[AxisFit]
+    effects: dict[str, EffectEstimate]
+    timings: dict[str, float]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def points(self) -> int:
+        return self.points_new + self.points_prior
+
+
+@dataclass
+class FitResult:
+    """The fitted model and a summary of how it was obtained."""
+
+    model: ResidualGP
+    summary: FitSummary
+
+
+# ------------------------------------------------------------------- steps
+def read_flights(logs: Sequence[str | Path | FlightLog], vehicle: Vehicle) -> list[FlightLog]:
+    """Read and align every log on the controller-rate grid (``read_vehicle_log``:
+    the vehicle's topics, column map and frame; ground and idle time excluded).
+
+    Already aligned :class:`FlightLog` objects are passed through. Raises
+    LogError for an unreadable log or one lacking the body rate or the wrench
+    command.
+    """
+    from omavctl.logs import read_vehicle_log
+
+    out = []
+    for item in logs:
+        if isinstance(item, FlightLog):
+            out.append(item)
+            continue
+        out.append(
+            read_vehicle_log(item, vehicle, rate=vehicle.gains.rate_hz, required=REQUIRED_ROLES)
+        )
+    return out
+
+
+def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str]) -> EffectFit:
+    """Least squares of the residual on the stacked held regressors of ``effects``.
+
+    ``residual ~= sum_e X_e theta_e`` over every axis and sample (3n equations);
+    covariance ``s^2 (X^T X)^+`` with ``s^2`` the residual variance (the samples
+    are autocorrelated by the filter, so these standard errors are optimistic).
+    """
+    residual = np.concatenate([s.residual for s in samples])
+    n = residual.shape[0]
+    sizes = [get_effect(name).n_theta for name in effects]
+    p = sum(sizes)
+    if p == 0:
+        std = residual.std(axis=0)
+        return EffectFit(np.empty(0), np.empty((0, 0)), {}, std, np.zeros(3))
+    x = np.concatenate(
+        [np.concatenate([s.regressors[name] for s in samples]) for name in effects], axis=-1
+    )  # (n, 3, p)
+    a = x.reshape(3 * n, p)
+    b = residual.reshape(3 * n)
+    theta, *_ = np.linalg.lstsq(a, b, rcond=None)
+    fitted = (x @ theta).reshape(n, 3)
+    rest = residual - fitted
+    dof = max(3 * n - p, 1)
+    s2 = float(np.sum(rest**2) / dof)
+    cov = s2 * np.linalg.pinv(a.T @ a)
+    estimates: dict[str, EffectEstimate] = {}
+    i = 0
+    for name, size in zip(effects, sizes, strict=True):
+        effect = get_effect(name)
+        params = effect.to_parameters(theta[i : i + size], cov[i : i + size, i : i + size])
+        estimates[name] = EffectEstimate(
+            name, {k: v for k, (v, _) in params.items()}, {k: se for k, (_, se) in params.items()}
+        )
+        i += size
+    var = residual.var(axis=0)
+    explained = np.where(var > 0, 1.0 - rest.var(axis=0) / np.where(var > 0, var, 1.0), 0.0)
+    return EffectFit(theta, cov, estimates, rest.std(axis=0), explained)
+
+
+def _sq_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Squared Euclidean distances (n, m) between rows of a (n, d) and b (m, d)."""
+    d2 = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * a @ b.T
+    return np.maximum(d2, 0.0)
+
+
+def _kmedoids(x: np.ndarray, k: int) -> np.ndarray:
+    """Indices (k,) of k-medoids of x (n, d) (alternate method, BUILD init, sq. Euclidean)."""
+    with warnings.catch_warnings():
+        # scikit-learn-extra 0.3.0 uses distutils' LooseVersion on import
+        warnings.simplefilter("ignore", DeprecationWarning)
+        from sklearn_extra.cluster import KMedoids
+
+    with warnings.catch_warnings():
+        # identical samples can leave a cluster empty; the medoids are still valid
+        warnings.simplefilter("ignore")
+        km = KMedoids(
+            n_clusters=k, metric="precomputed", method="alternate", init="build", max_iter=300
+        ).fit(_sq_dist(x, x))
+    return np.asarray(km.medoid_indices_, dtype=np.int64)
+
+
+def _cost(x: np.ndarray, medoids: np.ndarray, chunk: int = 20000) -> float:
+    """Sum over samples of the squared distance to the nearest medoid, in chunks (n x k)."""
+    total = 0.0
+    for start in range(0, x.shape[0], chunk):
+        total += float(_sq_dist(x[start : start + chunk], medoids).min(axis=1).sum())
+    return total
+
+
+def select_points(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str]:
+    """Pick k training points among the rows of x (n, d) (normalised inputs) by k-medoids.
+
+    Squared Euclidean distance (as in the paper); scikit-learn-extra
+    ``KMedoids(method="alternate", init="build")`` on a precomputed matrix.
+    Above :data:`KMEDOIDS_MAX_DIRECT` samples no n x n matrix is built: like
+    CLARA, :data:`KMEDOIDS_DRAWS` seeded subsamples of
+    ``max(KMEDOIDS_SUBSAMPLE, 4 k)`` samples (each holding the best medoids so
+    far) are clustered and the medoids with the lowest cost over all samples
+    kept. Returns sorted indices (k,) and a description of the method.
+    """
+    n = x.shape[0]
+    if not 1 <= k <= n:
+        raise ValueError(f"cannot select {k} points from {n} samples")
+    if k == n:
+        return np.arange(n), "all samples"
+    if n <= KMEDOIDS_MAX_DIRECT:
+        return np.sort(_kmedoids(x, k)), f"k-medoids on all {n} samples"
+    size = min(n, max(KMEDOIDS_SUBSAMPLE, 4 * k))
+    rng = np.random.default_rng(seed)
+    best: np.ndarray | None = None
+    best_cost = np.inf
+    for _ in range(KMEDOIDS_DRAWS):
+        if best is None:
+            sub = np.sort(rng.choice(n, size=size, replace=False))
+        else:
+            rest = np.setdiff1d(np.arange(n), best)
+            sub = np.sort(np.concatenate([best, rng.choice(rest, size=size - k, replace=False)]))
+        medoids = sub[_kmedoids(x[sub], k)]
+        cost = _cost(x, x[medoids])
+        if cost < best_cost:
+            best, best_cost = medoids, cost
+    assert best is not None
+    return np.sort(best), (
+        f"k-medoids on {KMEDOIDS_DRAWS} seeded subsamples of {size} of {n} samples"
+    )
+
+
+#: Hyperparameter bounds, for inputs normalised to unit std and targets scaled to unit std.
+_SIGNAL_BOUNDS = (1e-4, 1e3)
+_LENGTH_BOUNDS = (1e-2, 1e3)
+_NOISE_BOUNDS = (1e-6, 10.0)
+
+
+def fit_hyperparameters(
+    x: np.ndarray,
+    y: np.ndarray,
+    seed: int = 0,
+    restarts: int = DEFAULT_RESTARTS,
+    input_names: Sequence[str] | None = None,
+) -> tuple[list[AxisFit], np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Maximise the marginal likelihood of one GP per axis.
+
+    x (n, d) normalised inputs; y (n, 3) targets (rad/s^2). scikit-learn's
+    ``GaussianProcessRegressor`` with ``ConstantKernel * RBF(ones(d)) +
+    WhiteKernel`` on targets centred and scaled per axis, ``restarts`` extra
+    optimiser starts, ``random_state=seed``. Returns the per-axis fits, the
+    target means (3,), signal variances (3,), length scales (3, d) and notes
+    (hyperparameters at a bound).
+    """
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+    d = x.shape[1]
+    input_names = list(input_names) if input_names is not None else [str(j) for j in range(d)]
+    axes: list[AxisFit] = []
+    means, sv, ls = np.zeros(3), np.zeros(3), np.ones((3, d))
+    notes: list[str] = []
+    for a, name in enumerate("xyz"):
+        mu = float(y[:, a].mean())
+        std = float(y[:, a].std())
+        if not std > 1e-12:
+            std = 1.0
+        yn = (y[:, a] - mu) / std
+        kernel = ConstantKernel(1.0, _SIGNAL_BOUNDS) * RBF(
+            np.ones(d), _LENGTH_BOUNDS
+        ) + WhiteKernel(0.1, _NOISE_BOUNDS)
+        gpr = GaussianProcessRegressor(
+            kernel=kernel, alpha=1e-10, n_restarts_optimizer=restarts, random_state=seed
+        )
+        with warnings.catch_warnings():
+            # hyperparameters at a bound are reported below, in words
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            gpr.fit(x, yn)
+        k = gpr.kernel_
+        c = float(k.k1.k1.constant_value)
+        length = np.atleast_1d(np.asarray(k.k1.k2.length_scale, dtype=float))
+        noise = float(k.k2.noise_level) + 1e-10
+        flat = [input_names[j] for j in np.flatnonzero(length >= 0.99 * _LENGTH_BOUNDS[1])]
+        if flat:
+            notes.append(
+                f"axis {name}: the residual does not vary with {', '.join(flat)} "
+                "(length scale at its upper bound)"
+            )
+        sharp = [input_names[j] for j in np.flatnonzero(length <= 1.01 * _LENGTH_BOUNDS[0])]
+        if sharp:
+            notes.append(
+                f"axis {name}: length scale of {', '.join(sharp)} at its lower bound: "
+                "the GP may be fitting noise"
+            )
+        if k.k2.noise_level <= 1.01 * _NOISE_BOUNDS[0]:
+            notes.append(
+                f"axis {name}: noise variance at its lower bound: the GP interpolates its "
+                "training points"
+            )
+        means[a], sv[a], ls[a] = mu, c * std**2, length
+        axes.append(
+            AxisFit(
+                signal_std=float(np.sqrt(c) * std),
+                noise_std=float(np.sqrt(noise) * std),
+                length_scales=length,
+                log_marginal_likelihood=float(gpr.log_marginal_likelihood_value_),
+            )
+        )
+    return axes, means, sv, ls, notes
+
+
+def _sha256(path: Path) -> str:
+    """sha256 of a file, or of a directory's files (relative names and contents, sorted)."""
+    h = hashlib.sha256()
+    if path.is_dir():
+        for f in sorted(p for p in path.rglob("*") if p.is_file()):
+            h.update(str(f.relative_to(path)).encode())
+            h.update(b"\0")
+            h.update(hashlib.sha256(f.read_bytes()).digest())
+        return h.hexdigest()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _source(item: str | Path | FlightLog) -> dict[str, Any]:
+    path = item.path if isinstance(item, FlightLog) else Path(item)
+    digest = _sha256(path) if path.exists() else None
+    return {"name": path.name, "sha256": digest}
+
+
+# ---------------------------------------------------------------- pipeline
+def fit_model(
+    logs: Sequence[str | Path | FlightLog],
+    vehicle: Vehicle | None = None,
+    effects: Sequence[str] | None = None,
+    points: int = DEFAULT_POINTS,
+    prior: ResidualGP | str | Path | None = None,
+    sg_window: int = DEFAULT_SG_WINDOW,
+    sg_order: int = DEFAULT_SG_ORDER,
+    features: str = "wrench",
+    seed: int = 0,
+    restarts: int = DEFAULT_RESTARTS,
+    progress: Progress | None = None,
+) -> FitResult:
+    """Fit effects and the residual GP from flight logs (see module docstring).
+
+    Args:
+        logs: log paths (any format ``read_vehicle_log`` reads) or aligned FlightLogs.
+        vehicle: the vehicle (mass, inertia, topics, controller rate); default omav.
+        effects: registry effect names to estimate; None: ``vehicle.effects``.
+        points: training points selected from the new logs.
+        prior: a model (or its path) whose training points are kept (augmented).
+        sg_window, sg_order: Savitzky-Golay window (odd, samples) and order.
+        features: "wrench" (6-D GP inputs) or "wrench+rate" (adds body rates, 9-D).
+        seed: seeds subsampling and optimiser restarts; same inputs and seed,
+            same model.
+        restarts: extra optimiser starts per axis.
+        progress: called with (stage description, fraction done in [0, 1]).
+
+    Raises:
+        LogError: unreadable logs, missing roles, NaNs, too few usable samples.
+        ConfigError: invalid options. ModelError: an unusable prior.
+    """
+    t_start = time.perf_counter()
+    timings: dict[str, float] = {}
+
+    def report(stage: str, fraction: float) -> None:
+        if progress is not None:
+            progress(stage, fraction)
+
+    vehicle = vehicle if vehicle is not None else default_vehicle()
+    if not logs:
+        raise ConfigError("no logs given")
+    if features not in FEATURES:
+        raise ConfigError(f"unknown --features '{features}' (known: {', '.join(FEATURES)})")
+    if points < 1:
+        raise ConfigError(f"--points must be at least 1, got {points}")
+    if restarts < 0:
+        raise ConfigError(f"--restarts must be >= 0, got {restarts}")
+    names = list(vehicle.effects if effects is None else effects)
+    for name in names:
+        get_effect(name)
+    if len(set(names)) != len(names):
+        raise ConfigError(f"effect named twice in --effects: {', '.join(names)}")
+    sg = SavitzkyGolay(sg_window, sg_order, 1.0 / vehicle.gains.rate_hz)
+
+    prior_model: ResidualGP | None = None
+    prior_source: dict[str, Any] | None = None
+    if prior is not None:
+        if isinstance(prior, ResidualGP):
+            prior_model = prior
+            prior_source = {"name": "<in memory>", "sha256": None}
+        else:
+            prior_model = load_model(prior)
+            prior_source = _source(prior)
+        ppath = None if isinstance(prior, ResidualGP) else prior
+        check_vehicle(prior_model, vehicle, ppath)
+        if prior_model.features != features:
+            raise ModelError(
+                f"prior model uses --features {prior_model.features}, this fit {features}", ppath
+            )
+        if sorted(prior_model.effects) != sorted(names):
+            raise ModelError(
+                f"prior model was fitted with effects [{', '.join(sorted(prior_model.effects))}]"
+                f", this fit with [{', '.join(sorted(names))}]: use the same --effects",
+                ppath,
+            )
+
+    # 1-2. read, align, differentiate, residual
+    report("reading logs", 0.0)
+    t0 = time.perf_counter()
+    flights: list[FlightLog] = []
+    samples: list[ResidualSamples] = []
+    summaries: list[LogSummary] = []
+    for i, item in enumerate(logs):
+        flight = read_flights([item], vehicle)[0]
+        flights.append(flight)
+        s = residual_samples(flight, vehicle, sg, names)
+        if s.n == 0:
+            longest = max((b - a for a, b in flight.segments), default=0)
+            raise LogError(
+                f"no usable samples: --sg-window {sg.window} needs a valid segment of at "
+                f"least {sg.window} samples, the longest has {longest}",
+                flight.path,
+            )
+        arrays = [s.residual, s.u, s.omega, *s.regressors.values()]
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            raise LogError("non-finite values in the residual or the wrench command", flight.path)
+        samples.append(s)
+        summaries.append(
+            LogSummary(
+                flight.path,
+                s.total,
+                s.n,
+                s.in_gaps,
+                s.edge_dropped,
+                s.short_dropped,
+                list(flight.notes),
+            )
+        )
+        report("reading logs", (i + 1) / len(logs))
+    timings["read"] = time.perf_counter() - t0
+    n_total = sum(s.n for s in samples)
+    if n_total < points:
+        where = flights[0].path if len(flights) == 1 else None
+        raise LogError(
+            f"too few samples for --points {points}: {n_total} usable "
+            f"sample{'s' if n_total != 1 else ''} after dropping gaps and filter edges",
+            where,
+        )
+
+    # 3. effects
+    t0 = time.perf_counter()
+    report("estimating effects", 0.0)
+    eff = estimate_effects(samples, names)
+    residual = np.concatenate([s.residual for s in samples])
+    targets_all = residual.copy()
+    if names:
+        x_eff = np.concatenate(
+            [np.concatenate([s.regressors[nm] for s in samples]) for nm in names], axis=-1
+        )
+        targets_all -= x_eff @ eff.theta
+    timings["effects"] = time.perf_counter() - t0
+    notes = _effect_notes(eff)
+
+    # 4. training points
+    t0 = time.perf_counter()
+    report("selecting training points (k-medoids)", 0.0)
+    inputs_all = np.concatenate([s.inputs(features) for s in samples])
+    mean_all, scale_all = _normalisation(inputs_all)
+    idx, kmethod = select_points((inputs_all - mean_all) / scale_all, points, seed)
+    train_x = inputs_all[idx]
+    train_y = targets_all[idx]
+    n_prior = 0
+    if prior_model is not None:
+        n_prior = prior_model.n_train
+        train_x = np.concatenate([prior_model.inputs, train_x])
+        train_y = np.concatenate([prior_model.targets, train_y])
+    timings["kmedoids"] = time.perf_counter() - t0
+
+    # 5. GP hyperparameters
+    t0 = time.perf_counter()
+    report("fitting GP hyperparameters", 0.0)
+    in_mean, in_scale = _normalisation(train_x)
+    axes, t_mean, sv, ls, gp_notes = fit_hyperparameters(
+        (train_x - in_mean) / in_scale,
+        train_y,
+        seed=seed,
+        restarts=restarts,
+        input_names=feature_names(features),
+    )
+    timings["gp"] = time.perf_counter() - t0
+
+    provenance = {
+        "omavctl_version": __version__,
+        "sources": [_source(item) for item in logs],
+        "prior": prior_source,
+        "grid_rate_hz": vehicle.gains.rate_hz,
+        "savitzky_golay": {
+            "window": sg.window,
+            "order": sg.order,
+            "command_alignment": "hold kernel matching the derivative (docs/fit.md)",
+        },
+        "kmedoids": {
+            "points": points,
+            "metric": "sqeuclidean",
+            "method": "alternate",
+            "init": "build",
+            "selection": kmethod,
+            "max_direct": KMEDOIDS_MAX_DIRECT,
+        },
+        "gp": {
+            "kernel": "ConstantKernel * RBF(ARD) + WhiteKernel on normalised inputs",
+            "restarts": restarts,
+            "log_marginal_likelihood": [a.log_marginal_likelihood for a in axes],
+        },
+        "effects_explained_variance": [float(v) for v in eff.explained],
+        "samples": n_total,
+        "seed": seed,
+    }
+    model = ResidualGP(
+        vehicle=vehicle,
+        features=features,
+        input_names=feature_names(features),
+        inputs=train_x,
+        targets=train_y,
+        input_mean=in_mean,
+        input_scale=in_scale,
+        target_mean=t_mean,
+        signal_variance=sv,
+        length_scales=ls,
+        noise_variance=np.array([a.noise_std**2 for a in axes]),
+        effects=eff.estimates,
+        provenance=provenance,
+    )
+
+    # training fit on every new sample
+    t0 = time.perf_counter()
+    pred = np.concatenate([model.predict_samples(s, variance=False)[0] for s in samples])
+    err = residual - pred
+    var = residual.var(axis=0)
+    for a, axis in enumerate(axes):
+        axis.rmse = float(np.sqrt(np.mean(err[:, a] ** 2)))
+        axis.rmse_nominal = float(np.sqrt(np.mean(residual[:, a] ** 2)))
+        axis.r2 = float(1.0 - np.mean(err[:, a] ** 2) / var[a]) if var[a] > 0 else float("nan")
+    timings["evaluate"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    report("done", 1.0)
+
+    summary = FitSummary(
+        logs=summaries,
+        samples=n_total,
+        points_new=points,
+        points_prior=n_prior,
+        features=features,
+        input_names=feature_names(features),
+        sg_window=sg.window,
+        sg_order=sg.order,
+        kmedoids=kmethod,
+        axes=axes,
+        effects=eff.estimates,
+        timings=timings,
+        notes=notes + gp_notes,
+    )
+    return FitResult(model, summary)
+
+
+def _effect_notes(eff: EffectFit) -> list[str]:
+    """Warnings about effect parameters the logs do not determine."""
+    notes = []
+    for name, est in eff.estimates.items():
+        effect = get_effect(name)
+        if not effect.identifiable:
+            notes.append(
+                f"{name} is not identifiable from angular accelerations (see its docs): "
+                "its estimate is unreliable"
+            )
+            continue
+        for p in effect.parameters:
+            weak = np.flatnonzero(np.abs(est.values[p.name]) < 2.0 * est.stderr[p.name])
+            if weak.size:
+                which = ", ".join(f"{p.name}[{i}]" for i in weak)
+                notes.append(
+                    f"{name}: {which} within 2 standard errors of zero: the logs barely excite "
+                    "it or the effect is absent"
+                )
+    return notes
+
+
+def _normalisation(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-column mean (d,) and scale (d,) of x (n, d); a constant column gets scale 1."""
+    mean = x.mean(axis=0)
+    std = x.std(axis=0)
+    scale = np.where(std > 1e-9 * np.maximum(1.0, np.abs(mean)), std, 1.0)
+    return mean, scale

@@ -1,0 +1,580 @@
+"""The residual model artifact: physical effects plus one GP per body axis.
+
+The model predicts the angular-acceleration residual ``omega_dot_measured -
+I^-1 (tau_cmd - omega x I omega)`` (rad/s^2, body frame) as
+
+    residual(u, omega) = sum_e X_e(u, omega) theta_e  +  GP(z)
+
+with ``u = [f/m, I^-1 tau]`` (B, 6) the scaled commanded wrench, ``X_e`` the
+registry regressor of each fitted effect (:mod:`omavctl.physics.effects`) and
+``z`` the GP input: ``u`` (6-D, features "wrench") or ``[u, omega]`` (9-D,
+"wrench+rate"). Each axis has an independent GP with a squared-exponential ARD
+kernel on normalised inputs ``zn = (z - input_mean) / input_scale``::
+
+    k(a, b) = s^2 exp(-1/2 sum_j ((a_j - b_j) / l_j)^2),   y ~ GP(c, k) + N(0, sigma^2)
+
+Predictions are computed here in numpy (Cholesky of ``K + sigma^2 I``), so
+loading and using a model never needs scikit-learn.
+
+File format (``.npz``, schema ``omavctl.model/1``; loadable with
+``numpy.load(allow_pickle=False)``; strings are numpy unicode scalars, JSON for
+structured data):
+
+=================  ==========  ==================================================
+key                shape       meaning
+=================  ==========  ==================================================
+schema             ()          ``"omavctl.model/1"``
+features           ()          ``"wrench"`` or ``"wrench+rate"``
+input_names        (d,)        GP input columns (``fx/m`` ... ``wz``)
+train_inputs       (n, d)      training inputs z, physical units
+train_targets      (n, 3)      residual minus effects at the inputs, rad/s^2
+input_mean         (d,)        input normalisation: zn = (z - mean) / scale
+input_scale        (d,)
+target_mean        (3,)        constant prior mean per axis, rad/s^2
+signal_variance    (3,)        s^2 per axis, (rad/s^2)^2
+length_scales      (3, d)      l per axis and input, in normalised input units
+noise_variance     (3,)        sigma^2 per axis, (rad/s^2)^2
+effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..]}}``
+vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
+provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
+                               GP fitting settings, seed, omavctl version
+=================  ==========  ==================================================
+
+Files are written deterministically (fixed zip timestamps, sorted JSON):
+the same inputs give the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import re
+import zipfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.linalg import cho_solve, cholesky, solve_triangular
+
+from omavctl.atomic import atomic_path
+from omavctl.errors import ModelError
+from omavctl.physics.effects import Effect, EffectContext, get_effect
+from omavctl.physics.rigid_body import cross
+from omavctl.vehicle import Vehicle
+
+__all__ = [
+    "SCHEMA",
+    "EffectEstimate",
+    "ResidualGP",
+    "check_vehicle",
+    "load_model",
+    "save_model",
+]
+
+SCHEMA_NAME = "omavctl.model"
+SCHEMA_VERSION = 1
+SCHEMA = f"{SCHEMA_NAME}/{SCHEMA_VERSION}"
+
+#: Keys of the model file, in the order they are written.
+_KEYS = (
+    "schema",
+    "features",
+    "input_names",
+    "train_inputs",
+    "train_targets",
+    "input_mean",
+    "input_scale",
+    "target_mean",
+    "signal_variance",
+    "length_scales",
+    "noise_variance",
+    "effects",
+    "vehicle",
+    "provenance",
+)
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+#: Query rows per block in predictions (bounds the (B, n) kernel matrix).
+_CHUNK = 4096
+
+
+@dataclass(frozen=True)
+class EffectEstimate:
+    """Fitted parameters of one registry effect.
+
+    ``values[p]`` and ``stderr[p]`` have shape (size,) per parameter name ``p``
+    of the effect, in the registry's units.
+    """
+
+    name: str
+    values: dict[str, np.ndarray]
+    stderr: dict[str, np.ndarray]
+
+    @property
+    def effect(self) -> Effect:
+        return get_effect(self.name)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Regression coefficients (p,) of the effect's regressor."""
+        return self.effect.to_theta(self.values)
+
+    def to_json(self) -> dict[str, list[float]]:
+        out: dict[str, list[float]] = {}
+        for p in self.effect.parameters:
+            out[p.name] = [float(x) for x in self.values[p.name]]
+            out[f"{p.name}_stderr"] = [float(x) for x in self.stderr[p.name]]
+        return out
+
+
+def _vehicle_from_json(text: str, source: str) -> Vehicle:
+    """The vehicle stored in a model (its merged YAML tree as JSON)."""
+    # vehicle.py has no public "vehicle from a tree" yet; _build validates the tree.
+    from omavctl.vehicle import _build
+
+    tree = json.loads(text)
+    if not isinstance(tree, dict):
+        raise ValueError("vehicle is not a mapping")
+    return _build(tree, None, source)
+
+
+class ResidualGP:
+    """Effects plus an independent GP per body axis (see module docstring).
+
+    Built by :func:`omavctl.fit.fit_model` or :func:`load_model`; the Cholesky
+    factors and weights are computed once, at construction. Attributes (read-only by
+    convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
+    (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,),
+    ``target_mean`` (3,), ``signal_variance`` (3,), ``length_scales`` (3, d),
+    ``noise_variance`` (3,), ``effects`` (name -> :class:`EffectEstimate`),
+    ``provenance`` (dict).
+    """
+
+    def __init__(
+        self,
+        *,
+        vehicle: Vehicle,
+        features: str,
+        input_names: tuple[str, ...],
+        inputs: np.ndarray,
+        targets: np.ndarray,
+        input_mean: np.ndarray,
+        input_scale: np.ndarray,
+        target_mean: np.ndarray,
+        signal_variance: np.ndarray,
+        length_scales: np.ndarray,
+        noise_variance: np.ndarray,
+        effects: Mapping[str, EffectEstimate] | None = None,
+        provenance: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.vehicle = vehicle
+        self.features = features
+        self.input_names = tuple(input_names)
+        self.inputs = np.asarray(inputs, dtype=float)
+        self.targets = np.asarray(targets, dtype=float)
+        self.input_mean = np.asarray(input_mean, dtype=float)
+        self.input_scale = np.asarray(input_scale, dtype=float)
+        self.target_mean = np.asarray(target_mean, dtype=float)
+        self.signal_variance = np.asarray(signal_variance, dtype=float)
+        self.length_scales = np.asarray(length_scales, dtype=float)
+        self.noise_variance = np.asarray(noise_variance, dtype=float)
+        self.effects: dict[str, EffectEstimate] = dict(effects or {})
+        self.provenance: dict[str, Any] = dict(provenance or {})
+        n, d = self.inputs.shape
+        if d != len(self.input_names):
+            raise ValueError(f"inputs have {d} columns, input_names {len(self.input_names)}")
+        if self.targets.shape != (n, 3) or self.length_scales.shape != (3, d):
+            raise ValueError("targets must be (n, 3) and length_scales (3, d)")
+        self._allocation: Any = None
+        # per axis: inputs scaled by the length scales, Cholesky factor, weights
+        zn = self.normalise(self.inputs)
+        self._z = zn[None, :, :] / self.length_scales[:, None, :]  # (3, n, d)
+        self._z_sq = np.einsum("and,and->an", self._z, self._z)  # (3, n)
+        self._chol = np.empty((3, n, n))
+        self._alpha = np.empty((3, n))
+        for a in range(3):
+            k = self._kernel(a, self._z[a], self._z_sq[a])
+            k[np.diag_indices(n)] += self.noise_variance[a]
+            self._chol[a] = cholesky(k, lower=True)
+            self._alpha[a] = cho_solve(
+                (self._chol[a], True), self.targets[:, a] - self.target_mean[a]
+            )
+
+    # --------------------------------------------------------------- basics
+    @property
+    def n_train(self) -> int:
+        """Number of training points."""
+        return int(self.inputs.shape[0])
+
+    @property
+    def n_inputs(self) -> int:
+        """GP input dimension d (6 or 9)."""
+        return int(self.inputs.shape[1])
+
+    @property
+    def uses_rate(self) -> bool:
+        """Whether predictions need body rates (rate features or any effect)."""
+        return self.features == "wrench+rate" or bool(self.effects)
+
+    def normalise(self, z: np.ndarray) -> np.ndarray:
+        """Normalised GP inputs (..., d) from physical inputs (..., d)."""
+        return (z - self.input_mean) / self.input_scale
+
+    def gp_inputs(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+        """GP inputs z (B, d) from u (B, 6) and, for "wrench+rate", omega (B, 3)."""
+        u = np.asarray(u, dtype=float)
+        if u.shape[-1] != 6:
+            raise ValueError(f"u must have 6 columns [f/m, I^-1 tau], got shape {u.shape}")
+        if self.features == "wrench":
+            return u
+        if omega is None:
+            raise ValueError("this model uses body rates: pass omega (B, 3)")
+        return np.concatenate([u, np.broadcast_to(omega, (*u.shape[:-1], 3))], axis=-1)
+
+    def _kernel(self, axis: int, zq: np.ndarray, zq_sq: np.ndarray) -> np.ndarray:
+        """k(zq, Z) (B, n) for length-scaled queries zq (B, d) with squared norms (B,)."""
+        d2 = zq_sq[:, None] + self._z_sq[axis][None, :] - 2.0 * zq @ self._z[axis].T
+        return self.signal_variance[axis] * np.exp(-0.5 * np.maximum(d2, 0.0))
+
+    # ----------------------------------------------------------- prediction
+    def gp_predict(
+        self, z: np.ndarray, noise: bool = False, variance: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """GP mean (B, 3) and variance (B, 3) (rad/s^2, (rad/s^2)^2) at inputs z (B, d).
+
+        ``noise`` adds the noise variance sigma^2 (variance of a new measurement
+        instead of the latent function); ``variance=False`` skips it (None).
+        """
+        z = np.atleast_2d(np.asarray(z, dtype=float))
+        zn = self.normalise(z)
+        mean = np.empty((z.shape[0], 3))
+        var = np.empty((z.shape[0], 3)) if variance else None
+        # rows in chunks: the (B, n) kernel matrix of a long log would not fit otherwise
+        for start in range(0, max(z.shape[0], 1), _CHUNK):
+            rows = slice(start, start + _CHUNK)
+            for a in range(3):
+                zq = zn[rows] / self.length_scales[a]
+                k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
+                mean[rows, a] = self.target_mean[a] + k @ self._alpha[a]
+                if var is not None:
+                    v = solve_triangular(self._chol[a], k.T, lower=True, check_finite=False)
+                    var[rows, a] = np.maximum(
+                        self.signal_variance[a] - np.einsum("nb,nb->b", v, v), 0.0
+                    )
+                    if noise:
+                        var[rows, a] += self.noise_variance[a]
+        return mean, var
+
+    def predict(
+        self, u: np.ndarray, omega: np.ndarray | None = None, noise: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Residual mean (B, 3) rad/s^2 and variance (B, 3) at scaled wrenches u (B, 6).
+
+        omega (B, 3) body rates in rad/s, needed when :attr:`uses_rate`. The mean
+        includes the static effects (:meth:`effects_mean`); the variance is the
+        GP's (latent function, plus sigma^2 with ``noise``).
+        """
+        u = np.atleast_2d(np.asarray(u, dtype=float))
+        mean, var = self.gp_predict(self.gp_inputs(u, omega), noise=noise)
+        assert var is not None
+        if self.effects:
+            mean = mean + self.effects_mean(u, omega)
+        return mean, var
+
+    def mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+        """Residual mean (B, 3) rad/s^2 at u (B, 6), omega (B, 3): the controller's ``mu``."""
+        u = np.atleast_2d(np.asarray(u, dtype=float))
+        mean, _ = self.gp_predict(self.gp_inputs(u, omega), variance=False)
+        if self.effects:
+            mean = mean + self.effects_mean(u, omega)
+        return mean
+
+    # --------------------------------------------------------------- effects
+    @property
+    def allocation(self) -> Any:
+        """The vehicle's :class:`~omavctl.physics.allocation.Allocation` (built on demand)."""
+        if self._allocation is None:
+            from omavctl.physics.allocation import Allocation
+
+            self._allocation = Allocation(self.vehicle)
+        return self._allocation
+
+    def effects_residual(self, ctx: EffectContext) -> np.ndarray:
+        """Residual (N, 3) rad/s^2 the fitted effects cause on a time series ``ctx``.
+
+        Per sample, not filtered: for a log use
+        :func:`omavctl.signal.residual_samples` (its held regressors) and
+        :meth:`predict_samples`.
+        """
+        out = np.zeros((ctx.omega.shape[0], 3))
+        for est in self.effects.values():
+            out += est.effect.regressor(ctx) @ est.theta
+        return out
+
+    def effects_mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+        """Static part of the effects (B, 3) at single instants u (B, 6), omega (B, 3).
+
+        Effects that act through time derivatives of the commands (servo and
+        motor lag) contribute nothing here: an instant has no history.
+        """
+        u = np.atleast_2d(np.asarray(u, dtype=float))
+        if not self.effects:
+            return np.zeros((u.shape[0], 3))
+        if omega is None:
+            raise ValueError("this model has physical effects: pass omega (B, 3)")
+        v = self.vehicle
+        omega = np.broadcast_to(np.asarray(omega, dtype=float), (u.shape[0], 3))
+        torque = u[:, 3:] @ v.inertia.T
+        nominal = u[:, 3:] - cross(omega, omega @ v.inertia.T) @ v.inertia_inv.T
+        ctx = EffectContext(
+            omega=omega,
+            force=u[:, :3] * v.mass,
+            torque=torque,
+            omega_dot_nominal=nominal,
+            inertia=v.inertia,
+            dt=1.0 / v.gains.rate_hz,
+            allocation=self.allocation,
+            derivative=np.zeros_like,
+        )
+        return self.effects_residual(ctx)
+
+    def predict_samples(
+        self, samples: Any, noise: bool = False, variance: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Prediction (mean (n, 3), variance (n, 3)) for the residual of a log.
+
+        ``samples``: :class:`omavctl.signal.ResidualSamples` built with
+        ``effects=`` this model's effect names (held regressors, held inputs),
+        so that the prediction is filtered like the measured residual.
+        ``variance=False`` skips the variance (None).
+        """
+        mean, var = self.gp_predict(samples.inputs(self.features), noise=noise, variance=variance)
+        for name, est in self.effects.items():
+            if name not in samples.regressors:
+                raise ValueError(f"samples lack the regressor of effect '{name}'")
+            mean = mean + samples.regressors[name] @ est.theta
+        return mean, var
+
+    # ----------------------------------------------------------- persistence
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The file's arrays by key (see module docstring)."""
+        effects = {name: est.to_json() for name, est in sorted(self.effects.items())}
+        return {
+            "schema": np.array(SCHEMA),
+            "features": np.array(self.features),
+            "input_names": np.array(self.input_names),
+            "train_inputs": self.inputs,
+            "train_targets": self.targets,
+            "input_mean": self.input_mean,
+            "input_scale": self.input_scale,
+            "target_mean": self.target_mean,
+            "signal_variance": self.signal_variance,
+            "length_scales": self.length_scales,
+            "noise_variance": self.noise_variance,
+            "effects": np.array(json.dumps(effects, sort_keys=True)),
+            "vehicle": np.array(self.vehicle.to_json()),
+            "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
+        }
+
+
+# ---------------------------------------------------------------- save / load
+def save_model(path: str | Path, model: ResidualGP) -> None:
+    """Write ``model`` to ``path`` (.npz) atomically and deterministically."""
+    arrays = model.to_arrays()
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED) as zf:
+        for key in _KEYS:
+            arr = np.asarray(arrays[key])
+            if arr.dtype.hasobject:  # pragma: no cover - guarded by construction
+                raise ModelError(f"refusing to write object array '{key}'", path)
+            buf = io.BytesIO()
+            np.lib.format.write_array(buf, arr, allow_pickle=False)
+            info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_DATE)
+            info.external_attr = 0o644 << 16
+            info.compress_type = zipfile.ZIP_STORED
+            zf.writestr(info, buf.getvalue())
+
+
+def _check_schema(value: str, path: Path) -> None:
+    m = re.fullmatch(r"(.+)/(\d+)", value)
+    if m is None or m.group(1) != SCHEMA_NAME:
+        raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
+    version = int(m.group(2))
+    if version > SCHEMA_VERSION:
+        raise ModelError(f"schema '{value}' is newer than this omavctl supports ({SCHEMA})", path)
+    if version < 1:
+        raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
+
+
+def _read_members(path: Path) -> dict[str, np.ndarray]:
+    """Every array of the npz, refusing pickles and object arrays."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(4)
+    except IsADirectoryError:
+        raise ModelError("is a directory, not a model file (.npz)", path) from None
+    except OSError as err:
+        raise ModelError(f"cannot read: {err.strerror or err}", path) from None
+    if head[:1] == b"\x80":
+        raise ModelError("contains pickled data; refusing to load", path)
+    if not zipfile.is_zipfile(path):
+        raise ModelError("not an omavctl model: expected an .npz (zip) file", path)
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                if not info.filename.endswith(".npy"):
+                    raise ModelError(
+                        f"unexpected member '{info.filename}': not an omavctl model", path
+                    )
+                with zf.open(info) as f:
+                    version = np.lib.format.read_magic(f)
+                    if version == (1, 0):
+                        _, _, dtype = np.lib.format.read_array_header_1_0(f)
+                    else:
+                        _, _, dtype = np.lib.format.read_array_header_2_0(f)
+                if dtype.hasobject:
+                    raise ModelError("contains pickled data; refusing to load", path)
+        out: dict[str, np.ndarray] = {}
+        with np.load(path, allow_pickle=False) as npz:
+            for key in npz.files:
+                out[key] = np.asarray(npz[key])
+        return out
+    except ModelError:
+        raise
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as err:
+        text = str(err)
+        if "pickle" in text:
+            raise ModelError("contains pickled data; refusing to load", path) from None
+        raise ModelError(f"corrupt model file: {text}", path) from None
+
+
+def _text(arrays: Mapping[str, np.ndarray], key: str, path: Path) -> str:
+    arr = arrays[key]
+    if arr.shape != () or arr.dtype.kind != "U":
+        raise ModelError(f"key '{key}' must be a string", path)
+    return str(arr)
+
+
+def _json(arrays: Mapping[str, np.ndarray], key: str, path: Path) -> Any:
+    try:
+        return json.loads(_text(arrays, key, path))
+    except json.JSONDecodeError as err:
+        raise ModelError(f"key '{key}' is not valid JSON: {err.msg}", path) from None
+
+
+def _float(
+    arrays: Mapping[str, np.ndarray], key: str, shape: tuple[int, ...], path: Path
+) -> np.ndarray:
+    arr = arrays[key]
+    if arr.dtype.kind not in "fi" or arr.shape != shape:
+        raise ModelError(f"key '{key}' must be numbers of shape {shape}, got {arr.shape}", path)
+    arr = arr.astype(float)
+    if not np.all(np.isfinite(arr)):
+        raise ModelError(f"key '{key}' has non-finite values", path)
+    return arr
+
+
+def _effects_from_json(tree: Any, path: Path) -> dict[str, EffectEstimate]:
+    if not isinstance(tree, dict):
+        raise ModelError("key 'effects' must map effect names to parameters", path)
+    out: dict[str, EffectEstimate] = {}
+    for name, params in tree.items():
+        try:
+            effect = get_effect(name)
+        except Exception:
+            raise ModelError(f"unknown effect '{name}' in the model", path) from None
+        values, stderr = {}, {}
+        for p in effect.parameters:
+            try:
+                values[p.name] = np.asarray(params[p.name], dtype=float).reshape(p.size)
+                stderr[p.name] = np.asarray(params[f"{p.name}_stderr"], dtype=float).reshape(p.size)
+            except (KeyError, TypeError, ValueError):
+                raise ModelError(
+                    f"effect '{name}': parameter '{p.name}' missing or not {p.size} number(s)",
+                    path,
+                ) from None
+        out[name] = EffectEstimate(name, values, stderr)
+    return out
+
+
+def load_model(path: str | Path) -> ResidualGP:
+    """Read a model file; :class:`ModelError` for anything but a valid ``omavctl.model/1``.
+
+    Refuses: a missing file, a file that is not an npz, pickled data or object
+    arrays, a missing or unknown schema, a newer schema, missing keys, wrong
+    shapes, non-finite values.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise ModelError("file not found", p)
+    arrays = _read_members(p)
+    if "schema" not in arrays:
+        raise ModelError("no 'schema' key: not an omavctl model", p)
+    _check_schema(_text(arrays, "schema", p), p)
+    missing = [k for k in _KEYS if k not in arrays]
+    if missing:
+        raise ModelError(f"missing keys: {', '.join(missing)}", p)
+    features = _text(arrays, "features", p)
+    names_arr = arrays["input_names"]
+    if names_arr.ndim != 1 or names_arr.dtype.kind != "U":
+        raise ModelError("key 'input_names' must be a list of strings", p)
+    names = tuple(str(x) for x in names_arr)
+    d = len(names)
+    expected_d = {"wrench": 6, "wrench+rate": 9}.get(features)
+    if expected_d != d:
+        raise ModelError(f"features '{features}' do not match {d} input names", p)
+    n = arrays["train_inputs"].shape[0] if arrays["train_inputs"].ndim == 2 else -1
+    if n < 1:
+        raise ModelError("key 'train_inputs' must be a non-empty (n, d) array", p)
+    inputs = _float(arrays, "train_inputs", (n, d), p)
+    targets = _float(arrays, "train_targets", (n, 3), p)
+    scale = _float(arrays, "input_scale", (d,), p)
+    sv = _float(arrays, "signal_variance", (3,), p)
+    ls = _float(arrays, "length_scales", (3, d), p)
+    nv = _float(arrays, "noise_variance", (3,), p)
+    if np.any(scale <= 0) or np.any(sv <= 0) or np.any(ls <= 0) or np.any(nv < 0):
+        raise ModelError("scales, variances and length scales must be positive", p)
+    try:
+        vehicle = _vehicle_from_json(_text(arrays, "vehicle", p), f"model {p.name}")
+    except ModelError:
+        raise
+    except (ValueError, KeyError, TypeError) as err:  # includes ConfigError, JSON errors
+        raise ModelError(f"key 'vehicle' is not a valid vehicle: {err}", p) from None
+    provenance = _json(arrays, "provenance", p)
+    if not isinstance(provenance, dict):
+        raise ModelError("key 'provenance' must be a JSON object", p)
+    try:
+        return ResidualGP(
+            vehicle=vehicle,
+            features=features,
+            input_names=names,
+            inputs=inputs,
+            targets=targets,
+            input_mean=_float(arrays, "input_mean", (d,), p),
+            input_scale=scale,
+            target_mean=_float(arrays, "target_mean", (3,), p),
+            signal_variance=sv,
+            length_scales=ls,
+            noise_variance=nv,
+            effects=_effects_from_json(_json(arrays, "effects", p), p),
+            provenance=provenance,
+        )
+    except (np.linalg.LinAlgError, ValueError) as err:
+        raise ModelError(f"inconsistent model: {err}", p) from None
+
+
+def check_vehicle(model: ResidualGP, vehicle: Vehicle, path: str | Path | None = None) -> None:
+    """ModelError unless ``vehicle`` has the mass and inertia the model was fitted for
+    (the inputs u = [f/m, I^-1 tau] depend on them)."""
+    mv = model.vehicle
+    if not (
+        math.isclose(mv.mass, vehicle.mass, rel_tol=1e-9)
+        and np.allclose(mv.inertia, vehicle.inertia, rtol=1e-9, atol=0)
+    ):
+        raise ModelError(
+            f"model was fitted for a vehicle of mass {mv.mass:g} kg and inertia diagonal "
+            f"{np.round(np.diag(mv.inertia), 6).tolist()} kg m^2; this vehicle has "
+            f"{vehicle.mass:g} kg and {np.round(np.diag(vehicle.inertia), 6).tolist()} kg m^2",
+            path,
+        )

@@ -1,0 +1,327 @@
+"""Angular accelerations from body rates, and the residual the GP learns.
+
+Two rules, used by every command that builds the residual (``fit``,
+``evaluate``), so that the measured and the modelled accelerations are always
+filtered alike:
+
+1. **Measured angular acceleration** = Savitzky-Golay derivative of the body
+   rate on the uniform grid (``scipy.signal.savgol_filter(deriv=1)``), computed
+   per valid segment of a log; the ``window // 2`` samples at both ends of each
+   segment (where the filter would extrapolate) are dropped.
+
+2. **Held commands are filtered like the derivative** (:meth:`SavitzkyGolay.hold`).
+   The controller holds each command over its period ``[t_k, t_k+1)``. The SG
+   derivative at ``t_k`` is a weighted sum of the rate samples
+   ``sum_j h_j w_{k+j}`` (``j = -m..m``, ``m = window // 2``); writing the rate
+   differences as integrals of the acceleration gives exactly::
+
+       d_k = sum_{i=-m}^{m-1} g_i  abar_{k+i},   g_i = dt * sum_{j>i} h_j,   sum g_i = 1
+
+   where ``abar_i`` is the mean acceleration over the period ``[t_i, t_i+1)``
+   in which command ``i`` is held. So the measured derivative is compared with
+   ``sum g_i nominal_{k+i}``: the same kernel applied to the per-period nominal
+   accelerations. For a 3-sample window this is the average of the periods
+   before and after ``t_k`` (the command "at t - dt/2"); longer windows give a
+   parabolic weighting (order 2 or 3). Without it the residual of an ideal plant
+   is 0.03-0.06 rad/s^2 RMS at 100 Hz (half-sample delay); with it, only the
+   gyro noise through the derivative filter remains (see ``docs/fit.md``).
+   GP inputs (the commanded wrench) and effect regressors go through the same
+   kernel, and so do desired accelerations when tracking errors are computed.
+
+Arrays are time-major: shape (N, k) for N grid samples of a k-vector.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import savgol_coeffs, savgol_filter
+
+from omavctl.errors import ConfigError, LogError
+from omavctl.logs.types import FlightLog
+from omavctl.physics.allocation import Allocation
+from omavctl.physics.effects import EffectContext, get_effect
+from omavctl.physics.rigid_body import angular_acceleration
+from omavctl.vehicle import Vehicle
+
+__all__ = [
+    "DEFAULT_SG_ORDER",
+    "DEFAULT_SG_WINDOW",
+    "FEATURES",
+    "ResidualSamples",
+    "SavitzkyGolay",
+    "feature_names",
+    "residual_samples",
+    "scaled_wrench",
+    "usable_segments",
+]
+
+#: Default Savitzky-Golay window (samples at the grid rate) and polynomial order.
+#: Chosen by measurement on simulated 100 Hz logs (``benchmarks/sg_window.py``,
+#: ``docs/fit.md``).
+DEFAULT_SG_WINDOW = 11
+DEFAULT_SG_ORDER = 2
+
+#: GP input feature sets: the scaled commanded wrench, optionally with body rates.
+FEATURES = ("wrench", "wrench+rate")
+
+
+@dataclass(frozen=True)
+class SavitzkyGolay:
+    """Savitzky-Golay derivative filter and its matching kernel for held commands.
+
+    window: odd number of samples (>= 3); order: polynomial order (1 <= order < window);
+    dt: grid step in s.
+    """
+
+    window: int
+    order: int
+    dt: float
+
+    def __post_init__(self) -> None:
+        if self.window < 3 or self.window % 2 == 0:
+            raise ConfigError(f"--sg-window must be an odd number >= 3, got {self.window}")
+        if not 1 <= self.order < self.window:
+            raise ConfigError(
+                f"--sg-order must be at least 1 and below --sg-window ({self.window}), "
+                f"got {self.order}"
+            )
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ConfigError(f"grid step must be > 0 s, got {self.dt}")
+
+    @property
+    def half(self) -> int:
+        """Samples dropped at each end of a segment: ``window // 2``."""
+        return self.window // 2
+
+    @cached_property
+    def derivative_coefficients(self) -> np.ndarray:
+        """``h`` shape (window,): ``d_k = sum_j h[j] y[k - m + j]`` (1/s)."""
+        return np.asarray(
+            savgol_coeffs(self.window, self.order, deriv=1, delta=self.dt, use="dot"), float
+        )
+
+    @cached_property
+    def hold_kernel(self) -> np.ndarray:
+        """``g`` shape (window - 1,): weights of the held periods ``k-m .. k+m-1``; sums to 1."""
+        h = self.derivative_coefficients
+        # g_i = dt * sum_{j > i} h_j for i = -m .. m-1 (index i + m)
+        tail = np.cumsum(h[::-1])[::-1]  # tail[j] = sum_{l >= j} h_l
+        return self.dt * tail[1:]
+
+    @property
+    def noise_gain(self) -> float:
+        """RMS of the derivative per unit of white rate noise (1/s): ``||h||``."""
+        return float(np.linalg.norm(self.derivative_coefficients))
+
+    def derivative(self, y: np.ndarray) -> np.ndarray:
+        """SG derivative along time of ``y`` shape (N, k) (or (N,)); same shape, units/s.
+
+        Needs ``N >= window``; the first and last ``half`` values are polynomial
+        extrapolations and should be dropped (:func:`usable_segments`).
+        """
+        y = np.asarray(y, dtype=float)
+        if y.shape[0] < self.window:
+            raise ValueError(f"{y.shape[0]} samples, fewer than the window {self.window}")
+        return np.asarray(
+            savgol_filter(y, self.window, self.order, deriv=1, delta=self.dt, axis=0, mode="interp")
+        )
+
+    def hold(self, x: np.ndarray) -> np.ndarray:
+        """Held per-period values ``x`` shape (N, ...) seen at the grid times like the derivative.
+
+        ``out_k = sum_{i=-m}^{m-1} g_i x_{k+i}``; the ends are padded with the edge
+        values (those samples are dropped anyway). Same shape as ``x``.
+        """
+        x = np.asarray(x, dtype=float)
+        g = self.hold_kernel
+        m = self.half
+        n = x.shape[0]
+        pad = [(m, m)] + [(0, 0)] * (x.ndim - 1)
+        xp = np.pad(x, pad, mode="edge")  # xp[k + m] = x[k]
+        out = np.zeros_like(x)
+        for tap, weight in enumerate(g):  # offset i = tap - m
+            out += weight * xp[tap : tap + n]
+        return out
+
+
+def usable_segments(
+    segments: Sequence[tuple[int, int]], window: int
+) -> tuple[list[tuple[int, int, int, int]], int, int]:
+    """Which samples of each valid segment the SG filter covers.
+
+    segments: half-open ``[start, stop)`` grid index ranges of valid runs.
+    Returns ``(kept, edge_dropped, short_dropped)``: ``kept`` lists
+    ``(start, stop, keep_start, keep_stop)`` for segments of at least ``window``
+    samples (keep = start + m .. stop - m); ``edge_dropped`` counts the samples
+    dropped at their ends; ``short_dropped`` the samples of shorter segments.
+    """
+    m = window // 2
+    kept: list[tuple[int, int, int, int]] = []
+    edge = short = 0
+    for a, b in segments:
+        if b - a < window:
+            short += b - a
+            continue
+        kept.append((a, b, a + m, b - m))
+        edge += 2 * m
+    return kept, edge, short
+
+
+def scaled_wrench(force: np.ndarray, torque: np.ndarray, vehicle: Vehicle) -> np.ndarray:
+    """``u = [f / m, I^-1 tau]`` shape (N, 6) from force and torque shape (N, 3) each."""
+    return np.concatenate([force / vehicle.mass, torque @ vehicle.inertia_inv.T], axis=-1)
+
+
+def feature_names(features: str) -> tuple[str, ...]:
+    """Names and units of the GP input columns for a feature set."""
+    names = ("fx/m", "fy/m", "fz/m", "(I^-1 tau)x", "(I^-1 tau)y", "(I^-1 tau)z")
+    if features == "wrench":
+        return names
+    if features == "wrench+rate":
+        return (*names, "wx", "wy", "wz")
+    raise ConfigError(f"unknown --features '{features}' (known: {', '.join(FEATURES)})")
+
+
+@dataclass
+class ResidualSamples:
+    """The residual of one log on the kept grid samples (n of them).
+
+    index (n,) grid indices into the log; t (n,) s; omega (n, 3) rad/s and
+    u (n, 6) scaled commanded wrench, both through :meth:`SavitzkyGolay.hold`;
+    omega_dot (n, 3) SG derivative of the body rate; nominal (n, 3) held
+    nominal acceleration ``I^-1 (tau - omega x I omega)``; residual (n, 3) =
+    omega_dot - nominal (rad/s^2); regressors: effect name -> (n, 3, p) held
+    effect regressors; held: name -> (n, k) further roles through the same
+    hold kernel (``extra`` of :func:`residual_samples`). Counts: total grid
+    samples, samples invalid in gaps, dropped at segment edges, dropped in
+    segments shorter than the window.
+    """
+
+    path: Path
+    index: np.ndarray
+    t: np.ndarray
+    omega: np.ndarray
+    u: np.ndarray
+    omega_dot: np.ndarray
+    nominal: np.ndarray
+    residual: np.ndarray
+    regressors: dict[str, np.ndarray] = field(default_factory=dict)
+    held: dict[str, np.ndarray] = field(default_factory=dict)
+    total: int = 0
+    in_gaps: int = 0
+    edge_dropped: int = 0
+    short_dropped: int = 0
+
+    @property
+    def n(self) -> int:
+        return int(self.index.size)
+
+    def inputs(self, features: str) -> np.ndarray:
+        """GP inputs (n, d): ``u`` for "wrench", ``[u, omega]`` for "wrench+rate"."""
+        feature_names(features)  # validates
+        if features == "wrench":
+            return self.u
+        return np.concatenate([self.u, self.omega], axis=-1)
+
+
+def residual_samples(
+    flight: FlightLog,
+    vehicle: Vehicle,
+    sg: SavitzkyGolay,
+    effects: Sequence[str] = (),
+    extra: Mapping[str, str] | None = None,
+    allocation: Allocation | None = None,
+) -> ResidualSamples:
+    """Build the angular-acceleration residual of one aligned log.
+
+    For each valid segment of ``flight`` with at least ``sg.window`` samples:
+    SG derivative of ``body_rate``, held nominal acceleration from
+    ``torque_command``, held scaled wrench, and the held regressors of the named
+    ``effects`` (their :class:`EffectContext` gets the per-sample signals and
+    ``sg.derivative``). ``extra`` maps output names to further roles to pass
+    through :meth:`SavitzkyGolay.hold` (e.g. ``{"desired": "desired_acceleration"}``);
+    they are stored in ``held`` under that name with shape (n, k).
+
+    Raises LogError if the log lacks body_rate, force_command or torque_command
+    (``read_log(..., required=...)`` already refuses such logs).
+    """
+    for role in ("body_rate", "force_command", "torque_command", *(extra or {}).values()):
+        if not flight.has(role):
+            raise LogError(f"the log has no {role} signal, needed for the residual", flight.path)
+    kept, edge, short = usable_segments(flight.segments, sg.window)
+    eff = [get_effect(name) for name in effects]
+    alloc = allocation
+    if eff and alloc is None:
+        alloc = Allocation(vehicle)
+    inertia, inertia_inv = vehicle.inertia, vehicle.inertia_inv
+
+    parts: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("index", "omega", "u", "omega_dot", "nominal", "residual")
+    }
+    reg_parts: dict[str, list[np.ndarray]] = {name: [] for name in effects}
+    extra = dict(extra or {})
+    held_parts: dict[str, list[np.ndarray]] = {name: [] for name in extra}
+    for a, b, ka, kb in kept:
+        omega = flight.signals["body_rate"][a:b]
+        force = flight.signals["force_command"][a:b]
+        torque = flight.signals["torque_command"][a:b]
+        keep = slice(ka - a, kb - a)
+        nominal = angular_acceleration(omega, torque, inertia, inertia_inv)
+        omega_dot = sg.derivative(omega)
+        held_nominal = sg.hold(nominal)
+        parts["index"].append(np.arange(ka, kb))
+        parts["omega"].append(sg.hold(omega)[keep])
+        parts["u"].append(sg.hold(scaled_wrench(force, torque, vehicle))[keep])
+        parts["omega_dot"].append(omega_dot[keep])
+        parts["nominal"].append(held_nominal[keep])
+        parts["residual"].append((omega_dot - held_nominal)[keep])
+        if eff:
+            assert alloc is not None
+            ctx = EffectContext(
+                omega=omega,
+                force=force,
+                torque=torque,
+                omega_dot_nominal=nominal,
+                inertia=inertia,
+                dt=sg.dt,
+                allocation=alloc,
+                derivative=sg.derivative,
+            )
+            for e in eff:
+                reg_parts[e.name].append(sg.hold(e.regressor(ctx))[keep])
+        for name, role in extra.items():
+            held_parts[name].append(sg.hold(flight.signals[role][a:b])[keep])
+
+    def cat(chunks: list[np.ndarray], tail: tuple[int, ...]) -> np.ndarray:
+        return np.concatenate(chunks) if chunks else np.empty((0, *tail))
+
+    index = cat(parts["index"], ()).astype(np.int64)
+    regressors = {
+        name: cat(chunks, (3, get_effect(name).n_theta)) for name, chunks in reg_parts.items()
+    }
+    held = {
+        name: cat(held_parts[name], (flight.signals[role].shape[1],))
+        for name, role in extra.items()
+    }
+    return ResidualSamples(
+        path=flight.path,
+        index=index,
+        t=flight.t[index],
+        omega=cat(parts["omega"], (3,)),
+        u=cat(parts["u"], (6,)),
+        omega_dot=cat(parts["omega_dot"], (3,)),
+        nominal=cat(parts["nominal"], (3,)),
+        residual=cat(parts["residual"], (3,)),
+        regressors=regressors,
+        held=held,
+        total=int(flight.t.size),
+        in_gaps=int((~flight.valid).sum()),
+        edge_dropped=edge,
+        short_dropped=short,
+    )

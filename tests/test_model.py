@@ -1,0 +1,265 @@
+"""Model artifact: numpy predictions, file round trip, refusals, controller use; the SG rule."""
+
+from __future__ import annotations
+
+import json
+import pickle
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.signal import savgol_filter
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.errors import ModelError
+from omavctl.model import SCHEMA, EffectEstimate, ResidualGP, load_model, save_model
+from omavctl.physics.controller import Controller, ControllerState
+from omavctl.signal import SavitzkyGolay, feature_names, usable_segments
+
+runner = CliRunner()
+
+
+def make_model(
+    vehicle, features: str = "wrench", effects: bool = False, n: int = 40, seed: int = 0
+):
+    """A small model with known hyperparameters on synthetic data."""
+    rng = np.random.default_rng(seed)
+    d = 6 if features == "wrench" else 9
+    z = rng.normal(size=(n, d)) * np.r_[2.0, 2.0, 1.0, 3.0, 3.0, 1.0, 0.5, 0.5, 0.5][:d]
+    z[:, 2] += 9.81
+    y = np.column_stack([np.sin(z[:, 3]), 0.5 * np.cos(z[:, 4]) * z[:, 0], 0.2 * z[:, 5]])
+    y += 0.01 * rng.normal(size=y.shape)
+    est = {}
+    if effects:
+        est["rotational_drag"] = EffectEstimate(
+            "rotational_drag", {"D": np.array([0.03, 0.02, 0.01])}, {"D": np.full(3, 1e-3)}
+        )
+    return ResidualGP(
+        vehicle=vehicle,
+        features=features,
+        input_names=feature_names(features),
+        inputs=z,
+        targets=y,
+        input_mean=z.mean(0),
+        input_scale=z.std(0),
+        target_mean=y.mean(0),
+        signal_variance=np.array([0.5, 0.3, 0.2]),
+        length_scales=np.linspace(0.8, 3.0, 3 * d).reshape(3, d),
+        noise_variance=np.array([1e-4, 2e-4, 3e-4]),
+        effects=est,
+        provenance={"seed": seed, "sources": [{"name": "synthetic", "sha256": None}]},
+    )
+
+
+# ------------------------------------------------------------------ numerics
+def test_predictions_match_scikit_learn(vehicle):
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+    model = make_model(vehicle)
+    rng = np.random.default_rng(1)
+    u = model.inputs[:5] + 0.3 * rng.normal(size=(5, 6))
+    mean, var = model.predict(u)
+    _, var_noisy = model.predict(u, noise=True)
+    assert mean.shape == var.shape == (5, 3)
+    zn = model.normalise(model.inputs)
+    for a in range(3):
+        kernel = ConstantKernel(model.signal_variance[a], "fixed") * RBF(
+            model.length_scales[a], "fixed"
+        ) + WhiteKernel(model.noise_variance[a], "fixed")
+        gpr = GaussianProcessRegressor(kernel, optimizer=None, alpha=0.0)
+        gpr.fit(zn, model.targets[:, a] - model.target_mean[a])
+        m, s = gpr.predict(model.normalise(u), return_std=True)
+        np.testing.assert_allclose(mean[:, a], m + model.target_mean[a], rtol=1e-8, atol=1e-10)
+        # sklearn's std includes the white-noise kernel
+        np.testing.assert_allclose(var_noisy[:, a], s**2, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(var[:, a], s**2 - model.noise_variance[a], rtol=1e-6, atol=1e-10)
+    np.testing.assert_allclose(model.mean(u), mean)
+
+
+def test_batched_prediction_equals_row_by_row(vehicle):
+    model = make_model(vehicle, features="wrench+rate", effects=True)
+    rng = np.random.default_rng(2)
+    u = rng.normal(size=(7, 6))
+    omega = rng.normal(size=(7, 3))
+    mean, var = model.predict(u, omega)
+    for i in range(7):
+        m, v = model.predict(u[i : i + 1], omega[i : i + 1])
+        np.testing.assert_allclose(m[0], mean[i], rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(v[0], var[i], rtol=1e-10, atol=1e-14)
+    # the drag effect is part of the mean: -I^-1 D omega |omega|
+    drag = -(np.array([0.03, 0.02, 0.01]) * omega * np.abs(omega)) @ vehicle.inertia_inv.T
+    np.testing.assert_allclose(model.effects_mean(u, omega), drag, atol=1e-12)
+    with pytest.raises(ValueError, match="pass omega"):
+        model.mean(u)
+
+
+def test_controller_inverts_the_model(vehicle):
+    model = make_model(vehicle, features="wrench+rate", effects=True)
+    ctrl = Controller(vehicle, model)
+    x = np.zeros((3, 12))
+    x[:, 9:12] = [[0.5, -0.3, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.5, 0.2]]
+    ref = np.zeros((3, 19))
+    ref[:, 16:19] = [[1.0, -1.0, 0.5], [0.0, 2.0, 0.0], [0.3, 0.3, -0.3]]
+    out = ctrl.step(ControllerState.zeros(3), x, ref, 0.01)
+    achieved = out.u[:, 3:] + model.mean(out.u, x[:, 9:12])
+    l_x = -np.cross(x[:, 9:12], x[:, 9:12] @ vehicle.inertia.T) @ vehicle.inertia_inv.T
+    np.testing.assert_allclose(achieved + l_x, out.desired_angular, atol=1e-8)
+
+
+# ----------------------------------------------------------------- the file
+def test_round_trip_and_plain_numpy_load(vehicle, tmp_path):
+    model = make_model(vehicle, features="wrench+rate", effects=True)
+    path = tmp_path / "m.npz"
+    save_model(path, model)
+    with np.load(path, allow_pickle=False) as npz:
+        assert str(npz["schema"]) == SCHEMA == "omavctl.model/1"
+        assert npz["train_inputs"].shape == (40, 9) and npz["length_scales"].shape == (3, 9)
+        effects = json.loads(str(npz["effects"]))
+        assert effects == {
+            "rotational_drag": {"D": [0.03, 0.02, 0.01], "D_stderr": [0.001, 0.001, 0.001]}
+        }
+        assert json.loads(str(npz["vehicle"]))["mass"] == vehicle.mass
+        assert all(not npz[k].dtype.hasobject for k in npz.files)
+    back = load_model(path)
+    for key, arr in model.to_arrays().items():
+        assert np.array_equal(back.to_arrays()[key], arr), key
+    u = np.random.default_rng(3).normal(size=(4, 6))
+    omega = np.ones((4, 3))
+    np.testing.assert_array_equal(back.predict(u, omega)[0], model.predict(u, omega)[0])
+    # same model, same bytes; no wall-clock time inside
+    save_model(tmp_path / "again.npz", back)
+    assert (tmp_path / "again.npz").read_bytes() == path.read_bytes()
+    with zipfile.ZipFile(path) as zf:
+        assert {i.date_time for i in zf.infolist()} == {(1980, 1, 1, 0, 0, 0)}
+
+
+def _rewrite(src: Path, dst: Path, **changes: np.ndarray) -> None:
+    with np.load(src, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    arrays.update(changes)
+    np.savez(dst, **arrays)
+
+
+def _refused(path: Path) -> str:
+    with pytest.raises(ModelError) as err:
+        load_model(path)
+    assert err.value.path == path
+    return str(err.value)
+
+
+def test_newer_and_unknown_schemas_are_refused(vehicle, tmp_path):
+    good = tmp_path / "good.npz"
+    save_model(good, make_model(vehicle))
+    newer = tmp_path / "newer.npz"
+    _rewrite(good, newer, schema=np.array("omavctl.model/2"))
+    assert _refused(newer) == (
+        f"{newer}: schema 'omavctl.model/2' is newer than this omavctl supports (omavctl.model/1)"
+    )
+    other = tmp_path / "other.npz"
+    _rewrite(good, other, schema=np.array("somebody.gp/1"))
+    assert _refused(other) == (
+        f"{other}: unknown schema 'somebody.gp/1' (this omavctl reads omavctl.model/1)"
+    )
+    bare = tmp_path / "bare.npz"
+    np.savez(bare, x=np.zeros(3))
+    assert _refused(bare) == f"{bare}: no 'schema' key: not an omavctl model"
+
+
+def test_pickles_are_refused(vehicle, tmp_path):
+    good = tmp_path / "good.npz"
+    save_model(good, make_model(vehicle))
+    inside = tmp_path / "inside.npz"
+    _rewrite(good, inside, provenance=np.array([{"evil": 1}], dtype=object))
+    assert _refused(inside) == f"{inside}: contains pickled data; refusing to load"
+    whole = tmp_path / "whole.npz"
+    whole.write_bytes(pickle.dumps({"schema": SCHEMA}))
+    assert _refused(whole) == f"{whole}: contains pickled data; refusing to load"
+
+
+def test_other_bad_files_are_one_clear_error(vehicle, tmp_path):
+    assert _refused(tmp_path / "none.npz") == f"{tmp_path / 'none.npz'}: file not found"
+    text = tmp_path / "text.npz"
+    text.write_text("hello")
+    assert "expected an .npz (zip) file" in _refused(text)
+    good = tmp_path / "good.npz"
+    save_model(good, make_model(vehicle))
+    broken = tmp_path / "broken.npz"
+    _rewrite(good, broken, length_scales=np.ones((3, 4)))
+    assert "key 'length_scales' must be numbers of shape (3, 6)" in _refused(broken)
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good.read_bytes()[:-200])
+    assert _refused(truncated).startswith(f"{truncated}: ")
+
+
+# ------------------------------------------------------------- simulate --model
+def test_simulate_with_model_and_vehicle_mismatch(vehicle, tmp_path):
+    from omavctl.tasks import fig8
+    from omavctl.trajectory import write_trajectory
+
+    ref = tmp_path / "ref.csv"
+    write_trajectory(ref, fig8(roll_deg=10, pitch_deg=10, period=2.0, duration=2.0, ramp=1.0))
+    model = tmp_path / "m.npz"
+    save_model(model, make_model(vehicle, effects=True))
+    out = tmp_path / "flight.csv"
+    args = ["simulate", "-r", str(ref), "-o", str(out), "--model", str(model), "-q"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert out.exists()
+    heavy = tmp_path / "heavy.yaml"
+    heavy.write_text("mass: 5.0\n")
+    out2 = tmp_path / "flight2.csv"
+    result = runner.invoke(
+        app,
+        [
+            "simulate",
+            "-r",
+            str(ref),
+            "-o",
+            str(out2),
+            "--model",
+            str(model),
+            "--vehicle",
+            str(heavy),
+        ],
+    )
+    assert result.exit_code == 1
+    assert result.output.startswith(f"error: {model}: model was fitted for a vehicle of mass 4 kg")
+    assert not out2.exists()
+
+
+# ------------------------------------------------------------------- signal
+def test_hold_kernel_reproduces_the_derivative_of_held_accelerations():
+    """The SG derivative of a rate driven by held accelerations equals the hold
+    kernel applied to those accelerations (exactly, for any window and order)."""
+    dt = 0.01
+    rng = np.random.default_rng(4)
+    acc = np.cumsum(rng.normal(size=(300, 2)), axis=0) * 0.1 + rng.normal(size=(300, 2))
+    rate = np.concatenate([np.zeros((1, 2)), np.cumsum(acc[:-1] * dt, axis=0)])  # w_k at t_k
+    for window, order in [(3, 2), (5, 2), (11, 2), (11, 3), (15, 4)]:
+        sg = SavitzkyGolay(window, order, dt)
+        g = sg.hold_kernel
+        assert g.shape == (window - 1,) and g.sum() == pytest.approx(1.0)
+        m = window // 2
+        deriv = sg.derivative(rate)
+        np.testing.assert_allclose(
+            deriv[m:-m], savgol_filter(rate, window, order, deriv=1, delta=dt, axis=0)[m:-m]
+        )
+        np.testing.assert_allclose(deriv[m:-m], sg.hold(acc)[m:-m], atol=1e-9)
+    np.testing.assert_allclose(SavitzkyGolay(3, 2, dt).hold_kernel, [0.5, 0.5])
+
+
+def test_usable_segments_drop_edges_and_short_runs():
+    kept, edge, short = usable_segments([(0, 100), (110, 115), (120, 131)], 11)
+    assert kept == [(0, 100, 5, 95), (120, 131, 125, 126)]
+    assert edge == 20 and short == 5
+
+
+@pytest.mark.parametrize(("window", "order"), [(4, 2), (1, 0), (11, 11), (11, 0)])
+def test_bad_filter_settings(window, order):
+    from omavctl.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="--sg-"):
+        SavitzkyGolay(window, order, 0.01)
