@@ -4,7 +4,7 @@ Commanded wrench -> allocation -> actuator setpoints -> actuator dynamics and
 imperfections -> actual wrench -> rigid body, plus hidden effects and sensor
 noise from a truth YAML::
 
-    seed: 3                      # draws of rotor spread and sensor noise
+    seed: 3                      # the vehicle's rotor thrust spread (and default noise seed)
     ideal: false                 # true: no actuator imperfections at all
     actuators:
       servo_time_constant: 0.01  # s, first-order tilt servo lag
@@ -304,13 +304,16 @@ def simulate(
 ) -> SimulationResult:
     """Fly ``reference`` in closed loop through the truth plant.
 
-    ``seed`` overrides the truth file's seed (rotor spread and sensor noise).
+    The rotor thrust spread is a property of the simulated vehicle: it is drawn
+    from the truth file's ``seed``. ``seed`` (default: the truth file's) draws
+    the sensor noise, so flights with different seeds are different flights of
+    the same vehicle.
     Returns the log with every contract role (stamps from 0 at the first
     controller step, ``t0`` = :data:`LOG_EPOCH`).
     """
-    rng = np.random.default_rng(truth.seed if seed is None else seed)
     alloc = Allocation(vehicle)
-    act = _Actuators(vehicle, truth, alloc, rng)
+    act = _Actuators(vehicle, truth, alloc, np.random.default_rng([truth.seed, 0x5EED]))
+    rng = np.random.default_rng(truth.seed if seed is None else seed)
     ctrl = Controller(vehicle, model)
     state = ControllerState.zeros(1)
     body = _Body(vehicle.mass, truth.inertia, vehicle.gravity)

@@ -16,11 +16,11 @@ from omavctl.errors import ConfigError
 from omavctl.physics.rigid_body import euler_rates_to_body
 from omavctl.trajectory import Trajectory
 
-__all__ = ["TASKS", "circle", "fig8", "pitch"]
+__all__ = ["TASKS", "Envelope", "circle", "fig8", "pitch"]
 
 
 @dataclass(frozen=True)
-class _Envelope:
+class Envelope:
     """Smooth 0 -> 1 -> 0 window: quintic ramps of ``ramp`` s at both ends of ``duration``."""
 
     duration: float
@@ -66,7 +66,7 @@ def _grid(duration: float, rate: float) -> np.ndarray:
 
 
 def _windowed_sine(
-    t: np.ndarray, env: _Envelope, amp: float, omega: float
+    t: np.ndarray, env: Envelope, amp: float, omega: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``amp * e(t) * sin(omega t)`` and its first two derivatives."""
     e, de, dde, _ = env(t)
@@ -106,7 +106,7 @@ def fig8(
     if period <= 0:
         raise ConfigError(f"--period must be > 0, got {period}")
     t = _grid(duration, rate)
-    env = _Envelope(duration, ramp)
+    env = Envelope(duration, ramp)
     w0 = 2 * np.pi / period
     r = _windowed_sine(t, env, np.deg2rad(roll_deg), w0)
     p = _windowed_sine(t, env, np.deg2rad(pitch_deg), 2 * w0)
@@ -135,7 +135,7 @@ def pitch(
     if amp >= np.pi / 2:
         raise ConfigError("--amplitude must be below 90 deg (Euler-angle singularity)")
     t = _grid(duration, rate)
-    env = _Envelope(duration, ramp)
+    env = Envelope(duration, ramp)
     p = _windowed_sine(t, env, amp, float(np.sqrt(max_acceleration / amp)))
     z = np.zeros_like(t)
     eta = np.column_stack([z, p[0], z])
@@ -161,7 +161,7 @@ def circle(
     if radius <= 0 or period <= 0:
         raise ConfigError("--radius and --period must be > 0")
     t = _grid(duration, rate)
-    e, de, _, ie = _Envelope(duration, ramp)(t)
+    e, de, _, ie = Envelope(duration, ramp)(t)
     w0 = 2 * np.pi / period
     phi, dphi, ddphi = w0 * ie, w0 * e, w0 * de
     s, c = np.sin(phi), np.cos(phi)
