@@ -37,7 +37,7 @@ from omavctl import __version__
 from omavctl.errors import ConfigError, LogError, ModelError
 from omavctl.logs.types import FlightLog
 from omavctl.model import EffectEstimate, ResidualGP, check_vehicle, load_model
-from omavctl.physics.effects import get_effect
+from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.signal import (
     DEFAULT_SG_ORDER,
     DEFAULT_SG_WINDOW,
@@ -370,6 +370,79 @@ def fit_hyperparameters(
     return axes, means, sv, ls, notes
 
 
+#: Prior standard deviation of each effect's estimation parameters in the joint
+#: fit: wide for what is physically plausible, so that a parameter the data do
+#: not excite stays near 0 instead of absorbing whatever correlates with it.
+PRIOR_STD = {
+    "rotational_drag": 0.1,  # N m s^2
+    "com_offset": 0.05,  # m
+    "inertia_error": 0.5,  # theta = 1/scale - 1
+    "servo_lag": 0.05,  # s
+    "motor_lag": 0.05,  # s
+    "gyro_bias": 0.05,  # rad/s
+}
+
+
+def joint_effects(
+    z: np.ndarray,
+    y: np.ndarray,
+    x: np.ndarray,
+    mean: np.ndarray,
+    signal_variance: np.ndarray,
+    length_scales: np.ndarray,
+    noise_variance: np.ndarray,
+    prior_std: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Effect parameters as explicit basis functions of the per-axis GPs.
+
+    z (n, d) normalised training inputs; y (n, 3) residual at them (effects not
+    removed); x (n, 3, p) effect regressors there; GP hyperparameters per axis.
+    With ``K_a = s_a^2 k(z, z) + sigma_a^2 I`` and a Gaussian prior N(0, diag
+    prior_std^2) on theta::
+
+        theta = (sum_a X_a^T K_a^-1 X_a + B^-1)^-1 sum_a X_a^T K_a^-1 (y_a - c_a)
+
+    which credits to the effects only what the GP (a smooth function of the
+    inputs) would not explain as well: the effects no longer absorb input-
+    dependent residuals that merely correlate with their regressors. Returns
+    theta (p,) and its posterior covariance (p, p).
+    """
+    from scipy.linalg import cho_factor, cho_solve
+
+    p = x.shape[2]
+    a_mat = np.diag(1.0 / prior_std**2)
+    b_vec = np.zeros(p)
+    for a in range(3):
+        zl = z / length_scales[a]
+        sq = (zl * zl).sum(1)
+        k = signal_variance[a] * np.exp(
+            -0.5 * np.maximum(sq[:, None] + sq[None] - 2 * zl @ zl.T, 0)
+        )
+        k[np.diag_indices_from(k)] += noise_variance[a]
+        c = cho_factor(k, lower=True)
+        a_mat += x[:, a, :].T @ cho_solve(c, x[:, a, :])
+        b_vec += x[:, a, :].T @ cho_solve(c, y[:, a] - mean[a])
+    cov = np.linalg.inv(a_mat)
+    return cov @ b_vec, cov
+
+
+def _estimates(
+    names: Sequence[str], theta: np.ndarray, cov: np.ndarray, old: EffectFit
+) -> EffectFit:
+    """An :class:`EffectFit` with new parameters (explained variances kept from ``old``)."""
+    estimates: dict[str, EffectEstimate] = {}
+    i = 0
+    for name in names:
+        effect = get_effect(name)
+        size = effect.n_theta
+        params = effect.to_parameters(theta[i : i + size], cov[i : i + size, i : i + size])
+        estimates[name] = EffectEstimate(
+            name, {k: v for k, (v, _) in params.items()}, {k: se for k, (_, se) in params.items()}
+        )
+        i += size
+    return EffectFit(theta, cov, estimates, old.residual_std, old.explained)
+
+
 def _sha256(path: Path) -> str:
     """sha256 of a file, or of a directory's files (relative names and contents, sorted)."""
     h = hashlib.sha256()
@@ -478,7 +551,9 @@ def fit_model(
     for i, item in enumerate(logs):
         flight = read_flights([item], vehicle)[0]
         flights.append(flight)
-        s = residual_samples(flight, vehicle, sg, names)
+        # every registered effect's regressor: the fitted ones are estimated, all are
+        # stored at the training points for evaluate's diagnosis
+        s = residual_samples(flight, vehicle, sg, tuple(EFFECTS))
         if s.n == 0:
             longest = max((b - a for a, b in flight.segments), default=0)
             raise LogError(
@@ -534,11 +609,17 @@ def fit_model(
     idx, kmethod = select_points((inputs_all - mean_all) / scale_all, points, seed)
     train_x = inputs_all[idx]
     train_y = targets_all[idx]
+    train_reg = {nm: np.concatenate([s.regressors[nm] for s in samples])[idx] for nm in EFFECTS}
     n_prior = 0
     if prior_model is not None:
         n_prior = prior_model.n_train
         train_x = np.concatenate([prior_model.inputs, train_x])
         train_y = np.concatenate([prior_model.targets, train_y])
+        train_reg = {
+            nm: np.concatenate([prior_model.train_regressors[nm], reg])
+            for nm, reg in train_reg.items()
+            if nm in prior_model.train_regressors
+        }
     timings["kmedoids"] = time.perf_counter() - t0
 
     # 5. GP hyperparameters
@@ -553,6 +634,33 @@ def fit_model(
         input_names=feature_names(features),
     )
     timings["gp"] = time.perf_counter() - t0
+
+    # 6. effects jointly with the GP (explicit basis functions, R&W 2.7)
+    if names:
+        theta_used = np.tile(eff.theta, (train_x.shape[0], 1))
+        if prior_model is not None:
+            theta_used[:n_prior] = np.concatenate(
+                [get_effect(nm).to_theta(prior_model.effects[nm].values) for nm in names]
+            )
+        x_tr = np.concatenate([train_reg[nm] for nm in names], axis=-1)
+        y_raw = train_y + np.einsum("nap,np->na", x_tr, theta_used)
+        theta, cov = joint_effects(
+            (train_x - in_mean) / in_scale,
+            y_raw,
+            x_tr,
+            t_mean,
+            sv,
+            ls,
+            np.array([a.noise_std**2 for a in axes]),
+            np.concatenate([np.full(get_effect(nm).n_theta, PRIOR_STD[nm]) for nm in names]),
+        )
+        train_y = y_raw - x_tr @ theta
+        eff = _estimates(names, theta, cov, eff)
+        notes = _effect_notes(eff)
+        notes.append(
+            "effects estimated jointly with the GP (generalised least squares at the "
+            "training points, hyperparameters from the first pass)"
+        )
 
     provenance = {
         "omavctl_version": __version__,
@@ -595,6 +703,7 @@ def fit_model(
         noise_variance=np.array([a.noise_std**2 for a in axes]),
         effects=eff.estimates,
         provenance=provenance,
+        train_regressors=train_reg,
     )
 
     # training fit on every new sample

@@ -38,7 +38,16 @@ effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..]}}``
 vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
 provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
                                GP fitting settings, seed, omavctl version
+regressor_<name>   (n, 3, p)   optional, one per registered effect: its regressor
+                               at the training points (held like the residual);
+                               ``evaluate`` uses them to score effects the GP may
+                               have partly absorbed
 =================  ==========  ==================================================
+
+Version history: ``omavctl.model/1`` (omavctl 0.1); the optional
+``regressor_<name>`` keys were added within version 1 (readers that do not
+know them ignore them; files without them load, their diagnosis then ignores
+what the GP absorbed).
 
 Files are written deterministically (fixed zip timestamps, sorted JSON):
 the same inputs give the same bytes.
@@ -61,7 +70,7 @@ from scipy.linalg import cho_solve, cholesky, solve_triangular
 
 from omavctl.atomic import atomic_path
 from omavctl.errors import ModelError
-from omavctl.physics.effects import Effect, EffectContext, get_effect
+from omavctl.physics.effects import EFFECTS, Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
 
@@ -168,6 +177,7 @@ class ResidualGP:
         noise_variance: np.ndarray,
         effects: Mapping[str, EffectEstimate] | None = None,
         provenance: Mapping[str, Any] | None = None,
+        train_regressors: Mapping[str, np.ndarray] | None = None,
     ) -> None:
         self.vehicle = vehicle
         self.features = features
@@ -182,7 +192,14 @@ class ResidualGP:
         self.noise_variance = np.asarray(noise_variance, dtype=float)
         self.effects: dict[str, EffectEstimate] = dict(effects or {})
         self.provenance: dict[str, Any] = dict(provenance or {})
+        #: effect name -> regressor (n, 3, p) at the training points (may be empty)
+        self.train_regressors: dict[str, np.ndarray] = {
+            k: np.asarray(v, dtype=float) for k, v in (train_regressors or {}).items()
+        }
         n, d = self.inputs.shape
+        for name, reg in self.train_regressors.items():
+            if reg.ndim != 3 or reg.shape[:2] != (n, 3):
+                raise ValueError(f"regressor of '{name}' must be (n, 3, p), got {reg.shape}")
         if d != len(self.input_names):
             raise ValueError(f"inputs have {d} columns, input_names {len(self.input_names)}")
         if self.targets.shape != (n, 3) or self.length_scales.shape != (3, d):
@@ -266,6 +283,23 @@ class ResidualGP:
                     if noise:
                         var[rows, a] += self.noise_variance[a]
         return mean, var
+
+    def smooth(self, z: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """What the GP mean would predict at z (B, d) from training targets ``values``.
+
+        values (n, 3, p): p alternative target columns per axis at the training
+        points; returns (B, 3, p) = ``k(z, Z) (K + sigma^2 I)^-1 values`` per axis
+        (the GP posterior mean is linear in its targets). ``evaluate`` uses it to
+        know how much of an effect the GP has absorbed from its training data.
+        """
+        z = np.atleast_2d(np.asarray(z, dtype=float))
+        zn = self.normalise(z)
+        out = np.empty((z.shape[0], 3, values.shape[2]))
+        for a in range(3):
+            zq = zn / self.length_scales[a]
+            k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
+            out[:, a, :] = k @ cho_solve((self._chol[a], True), values[:, a, :])
+        return out
 
     def predict(
         self, u: np.ndarray, omega: np.ndarray | None = None, noise: bool = False
@@ -376,6 +410,7 @@ class ResidualGP:
             "effects": np.array(json.dumps(effects, sort_keys=True)),
             "vehicle": np.array(self.vehicle.to_json()),
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
+            **{f"regressor_{k}": v for k, v in sorted(self.train_regressors.items())},
         }
 
 
@@ -383,8 +418,9 @@ class ResidualGP:
 def save_model(path: str | Path, model: ResidualGP) -> None:
     """Write ``model`` to ``path`` (.npz) atomically and deterministically."""
     arrays = model.to_arrays()
+    keys = [*_KEYS, *sorted(k for k in arrays if k not in _KEYS)]
     with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED) as zf:
-        for key in _KEYS:
+        for key in keys:
             arr = np.asarray(arrays[key])
             if arr.dtype.hasobject:  # pragma: no cover - guarded by construction
                 raise ModelError(f"refusing to write object array '{key}'", path)
@@ -544,6 +580,15 @@ def load_model(path: str | Path) -> ResidualGP:
     provenance = _json(arrays, "provenance", p)
     if not isinstance(provenance, dict):
         raise ModelError("key 'provenance' must be a JSON object", p)
+    regressors = {}
+    for key in sorted(arrays):
+        if not key.startswith("regressor_"):
+            continue
+        name = key[len("regressor_") :]
+        if name not in EFFECTS:
+            continue  # an effect this omavctl does not know: its regressor is unused
+        size = get_effect(name).n_theta
+        regressors[name] = _float(arrays, key, (n, 3, size), p)
     try:
         return ResidualGP(
             vehicle=vehicle,
@@ -559,6 +604,7 @@ def load_model(path: str | Path) -> ResidualGP:
             noise_variance=nv,
             effects=_effects_from_json(_json(arrays, "effects", p), p),
             provenance=provenance,
+            train_regressors=regressors,
         )
     except (np.linalg.LinAlgError, ValueError) as err:
         raise ModelError(f"inconsistent model: {err}", p) from None
