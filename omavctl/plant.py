@@ -7,9 +7,9 @@ noise from a truth YAML::
     seed: 3                      # the vehicle's rotor thrust spread (and default noise seed)
     ideal: false                 # true: no actuator imperfections at all
     actuators:
-      servo_time_constant: 0.01  # s, first-order tilt servo lag
+      servo_time_constant: 0.005 # s, first-order tilt servo lag (servo_lag sets slower)
       servo_backlash_deg: 0.3    # deg, dead band between servo and arm
-      motor_time_constant: 0.02  # s, first-order rotor thrust lag
+      motor_time_constant: 0.005 # s, first-order rotor thrust lag (motor_lag sets slower)
       thrust_spread: 0.03        # std of per-rotor thrust-coefficient error (fraction)
       interference:
         rotor_rotor: 0.25        # max thrust loss when a pair blows onto a neighbour
@@ -70,9 +70,9 @@ __all__ = [
 LOG_EPOCH = 1_700_000_000.0
 
 _ACTUATOR_DEFAULTS: dict[str, Any] = {
-    "servo_time_constant": 0.01,
+    "servo_time_constant": 0.005,
     "servo_backlash_deg": 0.3,
-    "motor_time_constant": 0.02,
+    "motor_time_constant": 0.005,
     "thrust_spread": 0.03,
     "interference": {"rotor_rotor": 0.25, "rotor_arm": 0.04},
 }
@@ -84,9 +84,9 @@ class TruthParameters:
     """Constants of the truth plant (after hidden effects were applied)."""
 
     inertia: np.ndarray
-    servo_time_constant: float = 0.01
+    servo_time_constant: float = 0.005
     servo_backlash: float = np.deg2rad(0.3)
-    motor_time_constant: float = 0.02
+    motor_time_constant: float = 0.005
     thrust_spread: float = 0.03
     rotor_rotor: float = 0.25
     rotor_arm: float = 0.04
