@@ -1,0 +1,126 @@
+"""omavctl plan: informative references from a fitted model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.fit import fit_model
+from omavctl.logs import align
+from omavctl.model import SCHEMA, load_model, save_model
+from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
+from omavctl.planning.planner import PlanSettings, _test_points, plan, rollout
+from omavctl.plant import simulate, truth_from_tree
+from omavctl.tasks import fig8
+from omavctl.trajectory import read_trajectory, write_trajectory
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory, vehicle):
+    """A task (8 s figure-8), a model fitted on one flight of it, both as files."""
+    tmp = tmp_path_factory.mktemp("plan")
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
+    task_path = tmp / "task.csv"
+    write_trajectory(task_path, task)
+    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
+    model = fit_model([flight], vehicle, points=40, restarts=0).model
+    model_path = tmp / "model.npz"
+    save_model(model_path, model)
+    return tmp, task_path, model_path
+
+
+def test_covering_the_task_region_scores_lower_than_staying_away(setup):
+    _, task_path, model_path = setup
+    model, task = load_model(model_path), read_trajectory(task_path)
+    settings = PlanSettings(sims=2, test_points=200, points=20)
+    rng = np.random.default_rng(0)
+    gp = GPAxes.from_model(model)
+    samples = PathwiseSamples(gp, settings.sims, rng)
+    roll = rollout(model, samples, task.data[None], task.t, settings.sims, settings)
+    visited = roll.inputs.reshape(-1, gp.d)
+    test = _test_points(visited, float(roll.gap.mean()), settings.test_points, rng)
+    inside = visited[rng.choice(visited.shape[0], size=20, replace=False)]
+    # the same points moved well outside the task region (3 std of every input)
+    away = inside + 3.0 * np.sign(inside.mean(axis=0) + 1e-9)
+    var = posterior_variance_with_data(gp, np.stack([inside, away]), test).mean(axis=(1, 2))
+    prior = gp.posterior_variance(test).mean()
+    assert var[0] < var[1] <= prior + 1e-12
+    assert var[0] < 0.9 * prior
+
+
+def test_plan_scores_candidates_and_picks_the_lowest_cost(setup):
+    _, task_path, model_path = setup
+    model, task = load_model(model_path), read_trajectory(task_path)
+    result = plan(model, task, PlanSettings(candidates=4, sims=2, test_points=100, points=15))
+    assert result.coefficients.shape == (4, 3, 2, 2)
+    feasible = result.feasible
+    assert feasible.any()
+    assert result.best == int(np.argmin(np.where(feasible, result.cost, np.inf)))
+    assert np.all(result.cost[feasible] < result.prior_variance)
+    best = result.best_trajectory()
+    assert best.data.shape == task.data.shape
+    np.testing.assert_allclose(best.data[[0, -1]], task.data[[0, -1]], atol=1e-9)
+
+
+def test_cli_plan_is_deterministic_and_writes_scores(setup):
+    tmp, task_path, model_path = setup
+    outs = []
+    for name in ("a", "b"):
+        out, scores = tmp / f"{name}.csv", tmp / f"{name}-scores.csv"
+        args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
+        args += ["--candidates", "3", "--sims", "2", "--test-points", "80", "--points", "10"]
+        result = runner.invoke(app, [*args, "--scores", str(scores), "--seed", "5", "-q"])
+        assert result.exit_code == 0, result.output
+        outs.append((out.read_bytes(), scores.read_bytes()))
+    assert outs[0] == outs[1]
+    header = outs[0][1].decode().splitlines()[0].split(",")
+    assert header[0] == "candidate" and len(header) == 1 + 12 + 4
+    assert len(outs[0][1].decode().splitlines()) == 4
+    read_trajectory(tmp / "a.csv")
+
+
+def test_cli_plan_one_candidate_one_simulation(setup):
+    tmp, task_path, model_path = setup
+    out = tmp / "one.csv"
+    args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
+    result = runner.invoke(app, [*args, "--candidates", "1", "--sims", "1", "--points", "5", "-q"])
+    assert result.exit_code == 0, result.output
+    assert read_trajectory(out).data.shape[1] == 19
+
+
+def _one_error_line(result) -> str:
+    text = result.output.strip()
+    assert result.exit_code == 1 and "Traceback" not in text
+    assert len(text.splitlines()) == 1, text
+    return text
+
+
+def test_cli_plan_refuses_bad_inputs(setup, tmp_path):
+    _, task_path, model_path = setup
+    lines = task_path.read_text().splitlines()
+    missing = tmp_path / "missing.csv"
+    missing.write_text("\n".join(",".join(r.split(",")[:-1]) for r in lines) + "\n")
+    nonuniform = tmp_path / "nonuniform.csv"
+    rows = [r.split(",") for r in lines]
+    rows[3][0] = str(float(rows[3][0]) + 0.004)
+    nonuniform.write_text("\n".join(",".join(r) for r in rows) + "\n")
+    other = tmp_path / "other.npz"
+    with np.load(model_path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["schema"] = np.array(SCHEMA.replace("/1", "/2"))
+    np.savez(other, **arrays)
+    out = tmp_path / "out.csv"
+    base = ["plan", "--out", str(out), "--candidates", "1", "--sims", "1"]
+    r = runner.invoke(app, [*base, "--task", str(missing), "--model", str(model_path)])
+    assert _one_error_line(r) == f"error: {missing}: missing columns: dwz"
+    r = runner.invoke(app, [*base, "--task", str(nonuniform), "--model", str(model_path)])
+    assert _one_error_line(r).startswith(f"error: {nonuniform}: non-uniform time grid")
+    r = runner.invoke(app, [*base, "--task", str(task_path), "--model", str(other)])
+    assert _one_error_line(r) == (
+        f"error: {other}: schema 'omavctl.model/2' is newer than this omavctl supports ({SCHEMA})"
+    )
+    assert not out.exists()
