@@ -461,7 +461,9 @@ def _sha256(path: Path) -> str:
 def _source(item: str | Path | FlightLog) -> dict[str, Any]:
     path = item.path if isinstance(item, FlightLog) else Path(item)
     digest = _sha256(path) if path.exists() else None
-    return {"name": path.name, "sha256": digest}
+    # the path as given (relative paths stay relative): evaluate prints the fit
+    # command that refits with another effect from the same logs
+    return {"name": path.name, "path": str(path), "sha256": digest}
 
 
 # ---------------------------------------------------------------- pipeline

@@ -115,7 +115,9 @@ class Effect:
 
     def to_theta(self, params: dict[str, np.ndarray]) -> np.ndarray:
         """Inverse of :meth:`to_parameters` (values only)."""
-        return np.concatenate([np.asarray(params[p.name], float) for p in self.parameters])
+        return np.concatenate(
+            [np.atleast_1d(np.asarray(params[p.name], float)) for p in self.parameters]
+        )
 
     # --- simulation (truth plant) -----------------------------------------
     def validate(self, params: Any, where: str = "effects") -> dict[str, np.ndarray]:

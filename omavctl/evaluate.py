@@ -1,0 +1,801 @@
+"""Compare models with measurements, find where they fail, name what is missing.
+
+For every log (aligned on the model's grid, Savitzky-Golay settings of the
+model, commands held like the derivative: :mod:`omavctl.signal`), the measured
+angular acceleration is compared with three predictions:
+
+- ``nominal``: rigid body only (residual 0);
+- ``effects``: nominal + the model's fitted physical effects;
+- ``model``: nominal + effects + GP mean, with the GP's predictive std.
+
+Metrics per axis (rad/s^2): RMSE, MAE, R^2 of the residual (1 - SSE / SS of
+the nominal residual about its mean: the fraction of the nominal model's
+error the prediction explains), mean predicted std, fraction of samples
+within 2 sigma, and negative log predictive density. The nominal and effects
+predictions carry the GP *prior* predictive std ``sqrt(s^2 + sigma^2)`` (what
+is known without data), the model its posterior predictive std.
+
+Diagnosis: every registered effect not in the model is fitted by weighted
+least squares to the model's remaining error on alternate time blocks and
+scored on the other blocks (held-out explained variance); standard errors by
+a delete-one-block jackknife (robust to the correlation the derivative filter
+puts between neighbouring samples). An effect is reported *missing* when its
+held-out explained variance exceeds :data:`MIN_EXPLAINED` and its estimate is
+significant (|value| > :data:`MIN_T` standard errors) and physically
+plausible. Candidates whose fitted contributions correlate strongly are
+flagged ambiguous. Structure left after the best effect (correlation with an
+input or state feature, a spectral peak) is reported as unexplained. The same
+ranking on the nominal residual says what the GP (with the effects) has
+learned, in physical terms.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from omavctl import __version__
+from omavctl.atomic import atomic_path
+from omavctl.errors import LogError, ModelError, OmavctlError
+from omavctl.logs.types import FlightLog
+from omavctl.model import ResidualGP
+from omavctl.physics.effects import EFFECTS, get_effect
+from omavctl.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
+
+__all__ = [
+    "MIN_EXPLAINED",
+    "MIN_T",
+    "SCHEMA",
+    "EvalResult",
+    "diagnose",
+    "evaluate",
+    "write_evaluation",
+]
+
+SCHEMA = "omavctl.eval/1"
+AXES = ("x", "y", "z")
+#: Held-out explained variance above which a candidate effect counts as missing.
+MIN_EXPLAINED = 0.15
+#: Estimate / standard error above which a candidate effect counts as significant.
+MIN_T = 4.0
+#: A missing effect's contribution (RMS) must exceed this multiple of the
+#: model's own noise estimate (median GP noise std): below it the "effect" is
+#: shaping noise and filter error, whatever fraction of it it explains.
+MIN_NOISE_RATIO = 1.0
+#: Alternating train/test blocks of the diagnosis, s.
+BLOCK_SECONDS = 2.0
+#: Candidates whose fitted contributions correlate above this are ambiguous.
+AMBIGUOUS_CORRELATION = 0.8
+#: Sliding window of the worst-segment search, s; segments reported.
+WORST_WINDOW_SECONDS = 1.0
+WORST_COUNT = 5
+#: Quantile bins of the residual-vs-feature tables.
+BINS = 10
+
+Progress = Callable[[str, float], None]
+
+
+# ------------------------------------------------------------------ metrics
+def axis_metrics(
+    measured: np.ndarray, predicted: np.ndarray, std: np.ndarray, reference: np.ndarray
+) -> dict[str, dict[str, float]]:
+    """Per-axis metrics of a prediction.
+
+    measured, predicted (n, 3) angular accelerations; std (n, 3) predictive std;
+    reference (n, 3) the nominal residual (for R^2). Returns
+    ``{metric: {"x": .., "y": .., "z": ..}}``.
+    """
+    err = measured - predicted
+    sse = (err**2).sum(axis=0)
+    sst = ((reference - reference.mean(axis=0)) ** 2).sum(axis=0)
+    var = np.maximum(std, 1e-12) ** 2
+    nlpd = 0.5 * np.log(2 * np.pi * var) + err**2 / (2 * var)
+    out = {
+        "rmse": np.sqrt((err**2).mean(axis=0)),
+        "mae": np.abs(err).mean(axis=0),
+        "r2": 1.0 - sse / np.maximum(sst, 1e-300),
+        "mean_std": std.mean(axis=0),
+        "coverage_2sigma": (np.abs(err) <= 2 * std).mean(axis=0),
+        "nlpd": nlpd.mean(axis=0),
+    }
+    return {k: {a: float(v[i]) for i, a in enumerate(AXES)} for k, v in out.items()}
+
+
+# ---------------------------------------------------------------- diagnosis
+def _blocks(t: np.ndarray, log_id: np.ndarray, seconds: float) -> np.ndarray:
+    """Block number (n,) of each sample: consecutive ``seconds`` windows per log."""
+    out = np.empty(t.size, dtype=np.int64)
+    offset = 0
+    for lid in np.unique(log_id):
+        sel = log_id == lid
+        b = np.floor((t[sel] - t[sel].min()) / seconds).astype(np.int64)
+        out[sel] = b + offset
+        offset = int(out[sel].max()) + 1
+    return out
+
+
+@dataclass
+class EffectScore:
+    """One candidate effect fitted to a residual (see module docstring)."""
+
+    name: str
+    explained_variance: float
+    explained_per_axis: dict[str, float]
+    parameters: dict[str, list[float]]
+    units: dict[str, str]
+    t_value: float
+    significant: bool
+    plausible: bool
+    contribution: np.ndarray = field(repr=False)
+    #: RMS (rad/s^2) of the contribution, unweighted over all samples and axes
+    contribution_rms: float = 0.0
+    above_noise: bool = True
+    ambiguous_with: list[str] = field(default_factory=list)
+
+    @property
+    def missing(self) -> bool:
+        return (
+            self.significant
+            and self.plausible
+            and self.above_noise
+            and self.explained_variance >= MIN_EXPLAINED
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "explained_variance": self.explained_variance,
+            "explained_variance_per_axis": self.explained_per_axis,
+            "parameters": self.parameters,
+            "units": self.units,
+            "t_value": self.t_value,
+            "contribution_rms": self.contribution_rms,
+            "above_noise": self.above_noise,
+            "significant": self.significant,
+            "plausible": self.plausible,
+            "missing": self.missing,
+            "ambiguous_with": self.ambiguous_with,
+            "identifiable": get_effect(self.name).identifiable,
+        }
+
+
+#: Physically plausible range of each effect's estimation parameters theta (the
+#: registry's linear parameters): drag and lags are not negative, a centre of
+#: mass lies within 0.2 m, the true inertia within half and twice the nominal
+#: (theta = 1/scale - 1), a gyro bias below 0.2 rad/s. The diagnosis fits
+#: within these bounds (bounded least squares): a missing effect must explain
+#: the error with physically possible values.
+THETA_RANGE: dict[str, tuple[float, float]] = {
+    "rotational_drag": (0.0, 1.0),
+    "com_offset": (-0.2, 0.2),
+    "inertia_error": (-0.5, 1.0),
+    "servo_lag": (0.0, 0.5),
+    "motor_lag": (0.0, 0.5),
+    "gyro_bias": (-0.2, 0.2),
+}
+
+
+def _bounded_lstsq(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """argmin |a x - b| subject to lo <= x <= hi (scipy's bounded least squares)."""
+    from scipy.optimize import lsq_linear
+
+    if a.shape[0] == 0:
+        return np.zeros(a.shape[1])
+    return np.asarray(lsq_linear(a, b, bounds=(lo, hi), method="bvls").x)
+
+
+def score_effects(
+    residual: np.ndarray,
+    regressors: dict[str, np.ndarray],
+    blocks: np.ndarray,
+    std: np.ndarray | None = None,
+    noise_floor: float = 0.0,
+) -> list[EffectScore]:
+    """Fit each candidate to ``residual`` (n, 3) on even blocks, score on odd ones.
+
+    regressors: name -> (n, 3, p). Samples are weighted by ``1 / std^2`` (n, 3),
+    the predictive variance of the model whose error ``residual`` is, so that
+    where the model knows it is extrapolating its error counts less; then each
+    axis is scaled so that it counts alike. Parameters are bounded to their
+    plausible ranges (:data:`THETA_RANGE`); a parameter whose regressor could
+    not explain 0.1 % of the residual even at the edge of its range is not
+    excited by the data and stays 0. Ranked best first.
+    """
+    if std is None:
+        std = np.ones_like(residual)
+    w = 1.0 / np.maximum(std, 1e-9) ** 2  # (n, 3)
+    w = w / np.maximum((w * residual**2).mean(axis=0), 1e-300)
+    train = blocks % 2 == 0
+    test = ~train
+    if not train.any() or not test.any():  # too short for two blocks: halves
+        half = residual.shape[0] // 2
+        train = np.arange(residual.shape[0]) < half
+        test = ~train
+    ublocks = np.unique(blocks)
+    rw = residual * np.sqrt(w)
+    total = float((rw**2).sum())
+    scores = []
+    for name, x in regressors.items():
+        effect = get_effect(name)
+        p = x.shape[2]
+        lo_b, hi_b = THETA_RANGE.get(name, (-np.inf, np.inf))
+        xw = x * np.sqrt(w)[:, :, None]
+        energy = np.einsum("nap,nap->p", xw, xw)
+        reach = max(abs(lo_b), abs(hi_b))
+        excited = energy * reach**2 >= 1e-3 * total
+        if not excited.any():
+            continue
+        cols = np.flatnonzero(excited)
+        lo = np.full(cols.size, lo_b)
+        hi = np.full(cols.size, hi_b)
+
+        def solve(rows: np.ndarray, xw=xw, cols=cols, p=p, lo=lo, hi=hi) -> np.ndarray:
+            a = xw[rows][:, :, cols].reshape(-1, cols.size)
+            out = np.zeros(p)
+            out[cols] = _bounded_lstsq(a, rw[rows].reshape(-1), lo, hi)
+            return out
+
+        theta = solve(train)
+        theta_all = solve(np.ones(residual.shape[0], dtype=bool))
+        if len(ublocks) >= 3:
+            jk = np.stack([solve(blocks != b) for b in ublocks])
+            k = len(ublocks)
+            cov = (k - 1) / k * (jk - jk.mean(0)).T @ (jk - jk.mean(0))
+        else:
+            cov = np.full((p, p), np.inf)
+        pred = x @ theta  # (n, 3)
+        sse0 = (w[test] * residual[test] ** 2).sum(axis=0)
+        sse1 = (w[test] * (residual[test] - pred[test]) ** 2).sum(axis=0)
+        ev = 1.0 - float(sse1.sum() / max(sse0.sum(), 1e-300))
+        ev_axis = {a: float(1.0 - sse1[i] / max(sse0[i], 1e-300)) for i, a in enumerate(AXES)}
+        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        # t values of components strictly inside their range (at a bound the
+        # jackknife spread collapses and says nothing), capped for the JSON
+        inside = excited & (theta_all > lo_b + 1e-12) & (theta_all < hi_b - 1e-12)
+        tv = np.abs(theta_all) / np.maximum(se, 1e-12 * np.maximum(np.abs(theta_all), 1e-300))
+        tval = float(min(np.max(np.where(inside, tv, 0.0), initial=0.0), 1e6))
+        at_outer = excited & (
+            (np.isclose(theta_all, hi_b) & (hi_b != 0))
+            | (np.isclose(theta_all, lo_b) & (lo_b != 0))
+        )
+        cov[~excited, :] = 0.0
+        cov[:, ~excited] = 0.0
+        phys = effect.to_parameters(theta_all, cov)
+        params: dict[str, Any] = {k: v.tolist() for k, (v, _) in phys.items()}
+        params.update({f"{k}_stderr": s.tolist() for k, (_, s) in phys.items()})
+        params["excited"] = excited.tolist()
+        scores.append(
+            EffectScore(
+                name=name,
+                explained_variance=ev,
+                explained_per_axis=ev_axis,
+                parameters=params,
+                units={prm.name: prm.unit for prm in effect.parameters},
+                t_value=tval,
+                significant=bool(tval >= MIN_T),
+                plausible=not bool(at_outer.any()),
+                contribution=x @ theta_all,
+                contribution_rms=float(np.sqrt(((x @ theta_all) ** 2).mean())),
+                above_noise=bool(np.sqrt(((x @ theta_all) ** 2).mean()) >= noise_floor),
+            )
+        )
+    scores.sort(key=lambda s: (not s.missing, -s.explained_variance))
+    for i, s in enumerate(scores):
+        for other in scores[i + 1 :]:
+            c = _corr(s.contribution, other.contribution)
+            if abs(c) >= AMBIGUOUS_CORRELATION and (s.missing or other.missing):
+                s.ambiguous_with.append(other.name)
+                other.ambiguous_with.append(s.name)
+    return scores
+
+
+def _corr(a: np.ndarray, b: np.ndarray) -> float:
+    a, b = a.reshape(-1) - a.mean(), b.reshape(-1) - b.mean()
+    den = math.sqrt(float((a * a).sum() * (b * b).sum()))
+    return float((a * b).sum() / den) if den > 0 else 0.0
+
+
+def unexplained_structure(
+    residual: np.ndarray, features: dict[str, np.ndarray], dt: float, min_corr: float = 0.3
+) -> list[dict[str, Any]]:
+    """Structure in a residual (n, 3) that remains: feature correlations and spectral peaks.
+
+    features: name -> (n,) values. A correlation counts when |r| >= min_corr;
+    a spectral peak when a Welch periodogram bin above 0.2 Hz holds more than
+    10x the median power and more than 10% of the total.
+    """
+    from scipy.signal import welch
+
+    out: list[dict[str, Any]] = []
+    for i, axis in enumerate(AXES):
+        r = residual[:, i]
+        if r.std() == 0:
+            continue
+        for name, f in features.items():
+            if f.std() == 0:
+                continue
+            c = float(np.corrcoef(r, f)[0, 1])
+            if abs(c) >= min_corr:
+                out.append(
+                    {"kind": "feature correlation", "axis": axis, "feature": name, "correlation": c}
+                )
+        nper = min(r.size, 512)
+        if nper >= 64:
+            freq, power = welch(r - r.mean(), fs=1.0 / dt, nperseg=nper)
+            keep = freq > 0.2
+            if keep.any():
+                j = int(np.argmax(np.where(keep, power, -np.inf)))
+                ratio = float(power[j] / max(np.median(power[keep]), 1e-300))
+                share = float(power[j] / max(power.sum(), 1e-300))
+                if ratio > 10 and share > 0.1:
+                    out.append(
+                        {
+                            "kind": "spectral peak",
+                            "axis": axis,
+                            "frequency_hz": float(freq[j]),
+                            "power_ratio": ratio,
+                            "power_share": share,
+                        }
+                    )
+    out.sort(key=lambda d: -abs(d.get("correlation", 0.0)))
+    return out
+
+
+# ------------------------------------------------------------------ result
+@dataclass
+class EvalResult:
+    """Everything ``evaluate`` found: the JSON tree and the time series."""
+
+    tree: dict[str, Any]
+    series: dict[str, np.ndarray]
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    if path.is_dir():
+        for p in sorted(path.rglob("*")):
+            if p.is_file():
+                h.update(p.name.encode())
+                h.update(p.read_bytes())
+    else:
+        with path.open("rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()
+
+
+def _check_models(models: Sequence[ResidualGP], paths: Sequence[str]) -> None:
+    ref = models[0].vehicle
+    for m, p in zip(models[1:], paths[1:], strict=True):
+        v = m.vehicle
+        same = (
+            np.isclose(v.mass, ref.mass)
+            and np.allclose(v.inertia, ref.inertia)
+            and v.topics == ref.topics
+            and v.columns == ref.columns
+            and v.frame == ref.frame
+        )
+        if not same:
+            raise ModelError(
+                f"fit for another vehicle than {paths[0]} (mass, inertia, topics or columns "
+                "differ): evaluate them separately",
+                p,
+            )
+
+
+def _grid(model: ResidualGP) -> tuple[float, SavitzkyGolay]:
+    prov = model.provenance
+    rate = float(prov.get("grid_rate_hz", model.vehicle.gains.rate_hz))
+    sg_cfg = prov.get("savitzky_golay", {})
+    from omavctl.signal import DEFAULT_SG_ORDER, DEFAULT_SG_WINDOW
+
+    sg = SavitzkyGolay(
+        int(sg_cfg.get("window", DEFAULT_SG_WINDOW)),
+        int(sg_cfg.get("order", DEFAULT_SG_ORDER)),
+        1.0 / rate,
+    )
+    return rate, sg
+
+
+def _check_rate(flight: FlightLog, rate: float) -> None:
+    for info in flight.topics:
+        roles = ("body_rate", "imu")
+        if any(r in info.name for r in roles) or info.name.endswith("/imu"):
+            if 0 < info.rate < 0.5 * rate:
+                raise LogError(
+                    f"body rate logged at {info.rate:.1f} Hz, below half the model's grid rate "
+                    f"({rate:g} Hz): its Savitzky-Golay settings do not apply",
+                    flight.path,
+                )
+
+
+def _worst_segments(
+    t: np.ndarray,
+    log_id: np.ndarray,
+    err: np.ndarray,
+    context: dict[str, np.ndarray],
+    log_names: Sequence[str],
+    dt: float,
+) -> list[dict[str, Any]]:
+    """Top non-overlapping sliding windows by RMSE of err (n, 3)."""
+    width = max(round(WORST_WINDOW_SECONDS / dt), 3)
+    cands: list[tuple[float, int, int]] = []
+    sq = (err**2).mean(axis=1)
+    for lid in np.unique(log_id):
+        idx = np.flatnonzero(log_id == lid)
+        # contiguous runs (kept samples are consecutive grid indices within segments)
+        breaks = np.flatnonzero(np.diff(t[idx]) > 1.5 * dt) + 1
+        for run in np.split(idx, breaks):
+            if run.size < width:
+                continue
+            c = np.concatenate([[0.0], np.cumsum(sq[run])])
+            mse = (c[width:] - c[:-width]) / width
+            for s in np.argsort(-mse)[: 20 * WORST_COUNT]:
+                cands.append((float(mse[s]), int(run[s]), int(run[s + width - 1])))
+    cands.sort(reverse=True)
+    chosen: list[tuple[float, int, int]] = []
+    for mse, a, b in cands:
+        if all(b < ca or a > cb for _, ca, cb in chosen):
+            chosen.append((mse, a, b))
+        if len(chosen) == WORST_COUNT:
+            break
+    out = []
+    for _, a, b in chosen:
+        sel = slice(a, b + 1)
+        seg: dict[str, Any] = {
+            "log": log_names[int(log_id[a])],
+            "start": float(t[a]),
+            "end": float(t[b]),
+            "rmse": {ax: float(np.sqrt((err[sel, i] ** 2).mean())) for i, ax in enumerate(AXES)},
+        }
+        for name, values in context.items():
+            seg[name] = [float(v) for v in np.abs(values[sel]).mean(axis=0)]
+        out.append(seg)
+    return out
+
+
+def _binned(
+    err: np.ndarray, nominal_err: np.ndarray, features: dict[str, np.ndarray]
+) -> dict[str, Any]:
+    """Error of the model and of the nominal model in quantile bins of each feature."""
+    out: dict[str, Any] = {}
+    for name, f in features.items():
+        edges = np.unique(np.quantile(f, np.linspace(0, 1, BINS + 1)))
+        if edges.size < 3:
+            continue
+        which = np.clip(np.searchsorted(edges, f, side="right") - 1, 0, edges.size - 2)
+        nb = edges.size - 1
+        count = np.bincount(which, minlength=nb)
+        entry: dict[str, Any] = {
+            "edges": edges.tolist(),
+            "centers": ((edges[:-1] + edges[1:]) / 2).tolist(),
+            "count": count.tolist(),
+        }
+        for label, e in (("model", err), ("nominal", nominal_err)):
+            mean = np.stack([np.bincount(which, e[:, i], nb) for i in range(3)]) / np.maximum(
+                count, 1
+            )
+            ms = np.stack([np.bincount(which, e[:, i] ** 2, nb) for i in range(3)]) / np.maximum(
+                count, 1
+            )
+            entry[f"{label}_mean"] = {a: mean[i].tolist() for i, a in enumerate(AXES)}
+            entry[f"{label}_rms"] = {a: np.sqrt(ms[i]).tolist() for i, a in enumerate(AXES)}
+        out[name] = entry
+    return out
+
+
+def diagnose(
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    model_mean: np.ndarray,
+    model_std: np.ndarray,
+    features: dict[str, np.ndarray],
+    dt: float,
+) -> dict[str, Any]:
+    """The ``diagnosis`` section (see module docstring).
+
+    samples: the residual samples of every log built with every registry
+    effect's regressor; model_mean (n, 3) the model's residual prediction on
+    the concatenated samples and model_std (n, 3) its predictive std.
+    """
+    residual = np.concatenate([s.residual for s in samples])
+    t = np.concatenate([s.t for s in samples])
+    log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
+    blocks = _blocks(t, log_id, BLOCK_SECONDS)
+    regs = {n: np.concatenate([s.regressors[n] for s in samples]) for n in EFFECTS}
+    # The GP was trained on data that contained any missing effect: on this data
+    # it predicts k(z, Z) (K + s^2 I)^-1 X_train theta of it. The model's error is
+    # therefore linear in theta through X - smooth(X_train) (exact for the GP
+    # mean with fixed hyperparameters).
+    z = np.concatenate([s.inputs(model.features) for s in samples])
+    candidates = {}
+    for n, r in regs.items():
+        if n in model.effects:
+            continue
+        if n in model.train_regressors:
+            r = r - model.smooth(z, model.train_regressors[n])
+        candidates[n] = r
+    remaining = residual - model_mean
+    floor = MIN_NOISE_RATIO * float(np.median(np.sqrt(model.noise_variance)))
+    missing = score_effects(remaining, candidates, blocks, model_std, floor)
+    # forward selection: accept the best missing effect, remove what it explains,
+    # rescore the others on what is left (so one cause is not reported thrice)
+    accepted: list[dict[str, Any]] = []
+    after = remaining
+    pool = dict(candidates)
+    ranking = missing
+    while ranking and ranking[0].missing and len(accepted) < 3:
+        best = ranking[0]
+        accepted.append({"name": best.name, "explained_variance": best.explained_variance})
+        after = after - best.contribution
+        pool.pop(best.name)
+        ranking = score_effects(after, pool, blocks, model_std, floor)
+    learned = score_effects(residual, regs, blocks)
+    unexplained = unexplained_structure(after, features, dt)
+    return {
+        "method": {
+            "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
+            "standard_errors": "delete-one-block jackknife",
+            "min_explained_variance": MIN_EXPLAINED,
+            "min_t_value": MIN_T,
+            "min_contribution_rms": floor,
+            "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
+            "selection": "forward: best missing effect removed, others rescored, up to 3",
+        },
+        "missing_effects": [s.to_json() for s in missing],
+        "missing": [a["name"] for a in accepted],
+        "missing_steps": accepted,
+        "unexplained": unexplained,
+        "learned": [s.to_json() for s in learned],
+    }
+
+
+def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
+    """The ``omavctl fit`` command that refits ``model`` with ``effect`` added."""
+    prov = model.provenance
+    sources = [s.get("path") or s.get("name") for s in prov.get("sources", [])]
+    effects = [*model.effects, effect]
+    stem = Path(model_path).with_suffix("")
+    parts = ["omavctl", "fit", *[str(s) for s in sources if s]]
+    parts += ["--effects", ",".join(effects), "--out", f"{stem}+{effect}.npz"]
+    kmed = prov.get("kmedoids", {})
+    if "points" in kmed:
+        parts += ["--points", str(kmed["points"])]
+    sg = prov.get("savitzky_golay", {})
+    if sg:
+        parts += ["--sg-window", str(sg.get("window")), "--sg-order", str(sg.get("order"))]
+    if model.features != "wrench":
+        parts += ["--features", model.features]
+    if "seed" in prov:
+        parts += ["--seed", str(prov["seed"])]
+    if prov.get("vehicle_path"):
+        parts += ["--vehicle", str(prov["vehicle_path"])]
+    return " ".join(parts)
+
+
+# ----------------------------------------------------------------- evaluate
+def evaluate(
+    model_paths: Sequence[str | Path],
+    log_paths: Sequence[str | Path],
+    time_window: tuple[float | None, float | None] | None = None,
+    progress: Progress | None = None,
+) -> EvalResult:
+    """Evaluate one or more models on one or more logs (see module docstring)."""
+    from omavctl.logs import read_vehicle_log
+    from omavctl.model import load_model
+
+    if not model_paths:
+        raise OmavctlError("give at least one --model")
+    if not log_paths:
+        raise OmavctlError("give at least one log")
+    mpaths = [str(p) for p in model_paths]
+    models = [load_model(p) for p in mpaths]
+    _check_models(models, mpaths)
+    model = models[0]
+    vehicle = model.vehicle
+    rate, sg = _grid(model)
+    samples: list[ResidualSamples] = []
+    attitudes: list[np.ndarray] = []
+    logs_json = []
+    for i, path in enumerate(log_paths):
+        flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
+        _check_rate(flight, rate)
+        extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
+        s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
+        if s.n < 10 * sg.window:
+            raise LogError(
+                f"only {s.n} usable samples after gaps, edges and ground time "
+                f"(need at least {10 * sg.window})",
+                flight.path,
+            )
+        samples.append(s)
+        attitudes.append(
+            flight.signals["attitude"][s.index] if flight.has("attitude") else np.zeros((s.n, 3))
+        )
+        p = Path(path)
+        logs_json.append(
+            {
+                "path": str(p),
+                "name": p.name,
+                "sha256": _sha256(p),
+                "format": flight.format,
+                "duration": float(flight.t[-1] - flight.t[0]),
+                "samples": s.n,
+                "samples_total": s.total,
+                "notes": list(flight.notes),
+            }
+        )
+        if progress is not None:
+            progress("reading logs", (i + 1) / len(log_paths))
+    measured = np.concatenate([s.omega_dot for s in samples])
+    nominal = np.concatenate([s.nominal for s in samples])
+    residual = measured - nominal
+    t = np.concatenate([s.t for s in samples])
+    log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
+    u = np.concatenate([s.u for s in samples])
+    omega = np.concatenate([s.omega for s in samples])
+    attitude = np.concatenate(attitudes)
+
+    per_model = []
+    series: dict[str, np.ndarray] = {
+        "t": t,
+        "log": log_id,
+        "measured": measured,
+        "nominal": nominal,
+        "u": u,
+        "omega": omega,
+        "attitude": attitude,
+    }
+    for j, m in enumerate(models):
+        eff_pred = np.zeros_like(residual)
+        for name, est in m.effects.items():
+            eff_pred += np.concatenate([s.regressors[name] for s in samples]) @ est.theta
+        gp_mean, gp_var = m.gp_predict(
+            np.concatenate([s.inputs(m.features) for s in samples]), noise=True
+        )
+        assert gp_var is not None
+        mean = eff_pred + gp_mean
+        std = np.sqrt(gp_var)
+        prior_std = np.broadcast_to(np.sqrt(m.signal_variance + m.noise_variance), std.shape)
+        metrics = {
+            "nominal": axis_metrics(measured, nominal, prior_std, residual),
+            "effects": axis_metrics(measured, nominal + eff_pred, prior_std, residual),
+            "model": axis_metrics(measured, nominal + mean, std, residual),
+        }
+        by_log = []
+        for i in range(len(samples)):
+            sel = log_id == i
+            by_log.append(
+                {
+                    "log": logs_json[i]["name"],
+                    "nominal": axis_metrics(
+                        measured[sel], nominal[sel], prior_std[sel], residual[sel]
+                    ),
+                    "model": axis_metrics(
+                        measured[sel], nominal[sel] + mean[sel], std[sel], residual[sel]
+                    ),
+                }
+            )
+        per_model.append(
+            {
+                "path": mpaths[j],
+                "name": Path(mpaths[j]).name,
+                "effects": {n: e.to_json() for n, e in m.effects.items()},
+                "features": m.features,
+                "n_train": m.n_train,
+                "metrics": metrics,
+                "metrics_by_log": by_log,
+            }
+        )
+        series[f"effects_{j}"] = eff_pred
+        series[f"mean_{j}"] = mean
+        series[f"std_{j}"] = std
+        if progress is not None:
+            progress("predicting", (j + 1) / len(models))
+
+    mean0 = series["mean_0"]
+    err = residual - mean0
+    names = feature_names("wrench")
+    features = {names[k]: u[:, k] for k in range(6)}
+    features.update({f"w{a}": omega[:, i] for i, a in enumerate(AXES)})
+    features.update({"roll": attitude[:, 0], "pitch": attitude[:, 1]})
+    tracking = None
+    if all("desired" in s.held for s in samples):
+        desired = np.concatenate([s.held["desired"] for s in samples])
+        series["desired"] = desired
+        terr = np.abs(desired - measured).mean(axis=0)
+        tracking = {a: float(terr[i]) for i, a in enumerate(AXES)}
+        tracking["mean"] = float(terr.mean())
+    diagnosis = diagnose(samples, model, mean0, series["std_0"], features, sg.dt)
+    if diagnosis["missing"]:
+        top = diagnosis["missing"][0]
+        diagnosis["fit_command"] = fit_command(mpaths[0], model, top)
+    else:
+        diagnosis["fit_command"] = None
+    torque_units_known = not bool(vehicle.tree.get("columns")) or "inertia_error" in model.effects
+    tree = {
+        "schema": SCHEMA,
+        "omavctl_version": __version__,
+        "models": [
+            {k: v for k, v in pm.items() if k not in ("metrics", "metrics_by_log")}
+            for pm in per_model
+        ],
+        "logs": logs_json,
+        "grid_rate_hz": rate,
+        "savitzky_golay": {"window": sg.window, "order": sg.order},
+        "units": {"acceleration": "rad/s^2", "torque": "N m" if torque_units_known else "unknown"},
+        "metrics": per_model[0]["metrics"],
+        "metrics_by_log": per_model[0]["metrics_by_log"],
+        "metrics_by_model": [pm["metrics"] for pm in per_model],
+        "tracking": tracking,
+        "worst_segments": _worst_segments(
+            t,
+            log_id,
+            err,
+            {"attitude_deg": np.rad2deg(attitude), "rate": omega, "u": u},
+            [str(lj["name"]) for lj in logs_json],
+            sg.dt,
+        ),
+        "binned": _binned(err, residual, features),
+        "diagnosis": diagnosis,
+    }
+    return EvalResult(tree=tree, series=series)
+
+
+def series_path(out: str | Path) -> Path:
+    """Where the time series of ``out`` (eval JSON) are stored: ``<stem>.series.npz``."""
+    out = Path(out)
+    return out.with_name(out.stem + ".series.npz")
+
+
+def write_evaluation(out: str | Path, result: EvalResult) -> None:
+    """Write the JSON and its sibling series ``.npz`` atomically (series first)."""
+    out = Path(out)
+    spath = series_path(out)
+    tree = dict(result.tree)
+    tree["series"] = {"file": spath.name, "keys": sorted(result.series)}
+    with atomic_path(spath) as tmp:
+        with tmp.open("wb") as fh:
+            np.savez(fh, **result.series)
+    text = json.dumps(tree, indent=1, sort_keys=False, allow_nan=False, default=_json_default)
+    with atomic_path(out) as tmp:
+        tmp.write_text(text + "\n")
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def load_evaluation(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Read an evaluation JSON and its series; refuses other schemas."""
+    p = Path(path)
+    try:
+        tree = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise OmavctlError("file not found", p) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise OmavctlError(f"not an evaluation JSON: {err}", p) from None
+    if not isinstance(tree, dict) or "schema" not in tree:
+        raise OmavctlError("not an evaluation JSON: no 'schema' key", p)
+    if tree["schema"] != SCHEMA:
+        raise OmavctlError(f"schema '{tree['schema']}' is not supported (expected {SCHEMA})", p)
+    spath = p.with_name(tree.get("series", {}).get("file", series_path(p).name))
+    try:
+        with np.load(spath, allow_pickle=False) as data:
+            series = {k: data[k] for k in data.files}
+    except FileNotFoundError:
+        raise OmavctlError(f"its time series file {spath.name} is missing", p) from None
+    except (OSError, ValueError) as err:
+        raise OmavctlError(f"unreadable time series {spath.name}: {err}", p) from None
+    return tree, series

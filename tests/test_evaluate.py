@@ -1,0 +1,157 @@
+"""evaluate: metrics, where the model fails, and the diagnosis of missing physics.
+
+Each case flies a figure-8 (fit flight, wide CSV) and a different figure-8
+(held-out flight: other amplitudes and period, ROS 1 bag) through the default
+truth plant plus one hidden effect.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.evaluate import MIN_EXPLAINED, evaluate, load_evaluation, write_evaluation
+from omavctl.fit import fit_model
+from omavctl.logs import read_vehicle_log, write_log
+from omavctl.model import save_model
+from omavctl.physics.effects import get_effect
+from omavctl.plant import simulate, truth_from_tree
+from omavctl.signal import SavitzkyGolay, residual_samples
+from omavctl.tasks import fig8
+
+runner = CliRunner()
+DURATION = 16.0
+CASES = {
+    "none": {},
+    "rotational_drag": {"D": [0.05, 0.05, 0.03]},
+    "motor_lag": {"T_m": 0.05},
+}
+
+
+def _flights(tmp, vehicle, name):
+    effects = {name: CASES[name]} if CASES[name] else {}
+    truth = truth_from_tree({"seed": 1, "effects": effects}, vehicle)
+    fit_task = fig8(duration=DURATION, ramp=2.0)
+    eval_task = fig8(roll_deg=20, pitch_deg=30, period=6.0, duration=DURATION, ramp=2.0)
+    fit_log, eval_log = tmp / f"{name}-fit.csv", tmp / f"{name}-eval.bag"
+    write_log(fit_log, simulate(fit_task, vehicle, truth, seed=1).log)
+    write_log(eval_log, simulate(eval_task, vehicle, truth, seed=2).log)
+    return fit_log, eval_log
+
+
+@pytest.fixture(scope="module")
+def cases(tmp_path_factory, vehicle):
+    tmp = tmp_path_factory.mktemp("evaluate")
+    out = {}
+    for name in CASES:
+        fit_log, eval_log = _flights(tmp, vehicle, name)
+        model = tmp / f"{name}.npz"
+        save_model(model, fit_model([fit_log], vehicle, points=100, restarts=0).model)
+        out[name] = (fit_log, eval_log, model)
+    return tmp, out
+
+
+def test_no_hidden_effect_nothing_is_missing(cases):
+    _, c = cases
+    _, eval_log, model = c["none"]
+    tree = evaluate([model], [eval_log]).tree
+    assert tree["diagnosis"]["missing"] == []
+    assert tree["diagnosis"]["fit_command"] is None
+    for entry in tree["diagnosis"]["missing_effects"]:
+        assert not entry["missing"]
+        assert not (entry["explained_variance"] >= MIN_EXPLAINED and entry["significant"])
+
+
+@pytest.mark.parametrize("name", ["rotational_drag", "motor_lag"])
+def test_missing_effect_is_named_and_adding_it_halves_the_error(cases, vehicle, name):
+    tmp, c = cases
+    fit_log, eval_log, model = c[name]
+    before = evaluate([model], [eval_log]).tree
+    diag = before["diagnosis"]
+    assert diag["missing"][0] == name
+    assert diag["missing_effects"][0]["name"] == name
+    assert f"--effects {name}" in diag["fit_command"]
+    assert str(fit_log) in diag["fit_command"]
+
+    refit = tmp / f"{name}-refit.npz"
+    save_model(refit, fit_model([fit_log], vehicle, effects=[name], points=100, restarts=0).model)
+    after = evaluate([refit], [eval_log]).tree
+    assert name not in after["diagnosis"]["missing"]
+
+    # the axes the effect drives on the held-out flight: where its true
+    # contribution is at least half of its largest (on the other axes it is
+    # below the filter-noise floor of the measured acceleration)
+    flight = read_vehicle_log(eval_log, vehicle)
+    s = residual_samples(flight, vehicle, SavitzkyGolay(11, 2, 0.01), effects=[name])
+    effect = get_effect(name)
+    theta = effect.to_theta(
+        {effect.parameters[0].name: np.asarray(CASES[name][effect.parameters[0].name])}
+    )
+    true_rms = np.sqrt(((s.regressors[name] @ theta) ** 2).mean(axis=0))
+    rmse0 = np.array([before["metrics"]["model"]["rmse"][a] for a in "xyz"])
+    rmse1 = np.array([after["metrics"]["model"]["rmse"][a] for a in "xyz"])
+    driven = true_rms >= 0.5 * true_rms.max()
+    assert driven.any()
+    print(name, "RMSE before", rmse0.round(3), "after", rmse1.round(3), "effect", true_rms.round(3))
+    assert np.all(rmse1[driven] <= 0.5 * rmse0[driven])
+
+
+def test_evaluation_json_contract_and_round_trip(cases, tmp_path):
+    _, c = cases
+    _, eval_log, model = c["rotational_drag"]
+    out = tmp_path / "eval.json"
+    result = runner.invoke(
+        app, ["evaluate", str(eval_log), "--model", str(model), "--out", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    tree = json.loads(out.read_text())
+    assert tree["schema"] == "omavctl.eval/1"
+    for label in ("nominal", "effects", "model"):
+        for metric in ("rmse", "mae", "r2", "mean_std", "coverage_2sigma", "nlpd"):
+            assert set(tree["metrics"][label][metric]) == {"x", "y", "z"}
+    m = tree["metrics"]
+    assert all(m["model"]["rmse"][a] < m["nominal"]["rmse"][a] for a in "xyz")
+    assert 0.5 < np.mean(list(m["model"]["coverage_2sigma"].values())) <= 1.0
+    assert set(tree["tracking"]) == {"x", "y", "z", "mean"}
+    seg = tree["worst_segments"][0]
+    assert seg["end"] > seg["start"] and set(seg["rmse"]) == {"x", "y", "z"}
+    assert {"fx/m", "wy", "pitch"} <= set(tree["binned"])
+    top = tree["diagnosis"]["missing_effects"][0]
+    assert {"name", "explained_variance", "parameters", "units"} <= set(top)
+    assert top["units"] == {"D": "N m s^2"}
+    tree2, series = load_evaluation(out)
+    assert tree2 == tree and tree["series"]["file"] == "eval.series.npz"
+    n = series["t"].size
+    assert series["measured"].shape == (n, 3) and series["std_0"].shape == (n, 3)
+    write_evaluation(tmp_path / "again.json", evaluate([model], [eval_log]))
+    again = json.loads((tmp_path / "again.json").read_text())
+    assert again.pop("series") != tree.pop("series") and again == tree  # deterministic
+
+
+def test_two_models_are_compared_on_the_same_samples(cases):
+    _, c = cases
+    _, eval_log, model = c["motor_lag"]
+    _, _, other = c["none"]
+    tree = evaluate([model, other], [eval_log]).tree
+    assert len(tree["metrics_by_model"]) == 2
+    assert tree["metrics_by_model"][0] == tree["metrics"]
+
+
+def test_evaluate_refuses_unusable_input(cases, tmp_path):
+    _, c = cases
+    _, eval_log, model = c["none"]
+    bad = tmp_path / "notes.csv"
+    bad.write_text("t,body_rate_x\n0,1\n")
+    out = tmp_path / "e.json"
+    r = runner.invoke(app, ["evaluate", str(bad), "--model", str(model), "--out", str(out)])
+    assert r.exit_code == 1 and "Traceback" not in r.output
+    assert r.output.strip().startswith(f"error: {bad}: ")
+    r = runner.invoke(
+        app, ["evaluate", str(eval_log), "--model", str(tmp_path / "no.npz"), "--out", str(out)]
+    )
+    assert r.output.strip() == f"error: {tmp_path / 'no.npz'}: file not found"
+    assert not out.exists()
