@@ -185,7 +185,8 @@ def simulate(
     seed: Annotated[
         int | None,
         typer.Option(
-            help="Sensor-noise seed (default: the truth file's seed, which also draws the vehicle's rotor thrust spread)."
+            help="Sensor-noise seed (default: the truth file's seed, which also draws "
+            "the vehicle's rotor thrust spread)."
         ),
     ] = None,
     physics_rate: Annotated[
@@ -379,6 +380,178 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
     con.print(f"wrote {out} ({summary.points} training points, {summary.samples} samples)")
 
 
+# ----------------------------------------------------------------------- evaluate
+@app.command()
+@_reports_errors
+def evaluate(
+    logs: Annotated[list[Path], typer.Argument(help="Flight logs to compare the model with.")],
+    model: Annotated[
+        list[Path],
+        typer.Option("--model", "-m", help="Model .npz (repeat to compare several models)."),
+    ],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Evaluation JSON (schema omavctl.eval/1); time series go to <stem>.series.npz.",
+        ),
+    ],
+    time_window: Annotated[
+        str | None,
+        typer.Option(help="Only samples with START <= t < END (s from log start), as START:END."),
+    ] = None,
+    quiet: Quiet = False,
+) -> None:
+    """Compare models with measured angular accelerations, find where they fail, and
+    diagnose which physical effect is missing."""
+    from rich.table import Table
+
+    from omavctl.evaluate import evaluate as run
+    from omavctl.evaluate import write_evaluation
+    from omavctl.logs import parse_time_window
+
+    window = parse_time_window(time_window) if time_window else None
+    result = run(model, logs, time_window=window)
+    write_evaluation(out, result)
+    con = _console(quiet)
+    tree = result.tree
+    table = Table(title="RMSE of the angular acceleration, rad/s^2")
+    table.add_column("prediction")
+    for axis in "xyz":
+        table.add_column(axis, justify="right")
+    for label in ("nominal", "effects", "model"):
+        rmse = tree["metrics"][label]["rmse"]
+        table.add_row(label, *(f"{rmse[a]:.4g}" for a in "xyz"))
+    con.print(table)
+    if tree["tracking"]:
+        tr = tree["tracking"]
+        con.print("tracking |a* - w_dot|: " + ", ".join(f"{a} {tr[a]:.3g}" for a in "xyz"))
+    diag = tree["diagnosis"]
+    if diag["missing"]:
+        con.print(f"missing physics, best first: {', '.join(diag['missing'])}", markup=False)
+        con.print(f"add it with: {diag['fit_command']}", markup=False)
+    else:
+        con.print("no registered effect is missing with meaningful explained variance")
+    con.print(f"wrote {out}")
+
+
+# --------------------------------------------------------------------------- plan
+@app.command()
+@_reports_errors
+def plan(
+    task: Annotated[Path, typer.Option("--task", help="Task trajectory CSV to learn for.")],
+    model: Annotated[Path, typer.Option("--model", help="Current model (.npz from fit).")],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Most informative reference, trajectory CSV.")
+    ],
+    vehicle: VehicleOpt = None,
+    candidates: Annotated[int, typer.Option(help="Candidate references K.")] = 20,
+    sims: Annotated[
+        int, typer.Option(help="Simulations M per candidate (one GP posterior sample each).")
+    ] = 8,
+    frequencies: Annotated[int, typer.Option(help="Frequencies P per axis.")] = 2,
+    max_freq: Annotated[float, typer.Option(help="Highest deviation frequency, Hz.")] = 2.0,
+    amplitude: Annotated[
+        float, typer.Option(help="Largest angular-acceleration deviation, rad/s^2.")
+    ] = 1.0,
+    epsilon: Annotated[
+        float | None,
+        typer.Option(
+            help="Radius of the task region around visited inputs, normalised input units "
+            "(default: mean distance between commanded and achieved input, the paper's heuristic)."
+        ),
+    ] = None,
+    test_points: Annotated[int, typer.Option(help="Test points S in the task region.")] = 500,
+    points: Annotated[
+        int, typer.Option(help="Training points a flight would add (k-medoids per simulation).")
+    ] = 40,
+    scores: Annotated[
+        Path | None,
+        typer.Option(help="Write every candidate's coefficients, cost and feasibility as CSV."),
+    ] = None,
+    seed: Annotated[
+        int, typer.Option(help="Random seed (deviations, GP samples, test points).")
+    ] = 0,
+    quiet: Quiet = False,
+) -> None:
+    """Plan the most informative next reference: task + sampled Fourier deviation."""
+    from rich.progress import Progress
+    from rich.table import Table
+
+    from omavctl.model import check_vehicle, load_model
+    from omavctl.planning import PlanSettings
+    from omavctl.planning import plan as run
+    from omavctl.planning.report import format_scores
+    from omavctl.trajectory import read_trajectory, write_trajectory
+    from omavctl.vehicle import load_vehicle
+
+    for name, value in (
+        ("--candidates", candidates),
+        ("--sims", sims),
+        ("--points", points),
+        ("--test-points", test_points),
+        ("--frequencies", frequencies),
+    ):
+        if value < 1:
+            raise OmavctlError(f"{name} must be at least 1, got {value}")
+    if max_freq <= 0.1 or amplitude <= 0:
+        raise OmavctlError("--max-freq must be above 0.1 Hz and --amplitude above 0")
+    if epsilon is not None and epsilon <= 0:
+        raise OmavctlError(f"--epsilon must be > 0, got {epsilon}")
+    mdl = load_model(model)
+    if vehicle is not None:
+        check_vehicle(mdl, load_vehicle(vehicle), vehicle)
+    ref = read_trajectory(task)
+    settings = PlanSettings(
+        candidates=candidates,
+        sims=sims,
+        frequencies=frequencies,
+        max_freq=max_freq,
+        amplitude=amplitude,
+        epsilon=epsilon,
+        test_points=test_points,
+        points=points,
+        seed=seed,
+    )
+    con = _console(quiet)
+    with Progress(console=con, transient=True, disable=quiet) as bar:
+        jobs: dict[str, Any] = {}
+
+        def progress(stage: str, fraction: float) -> None:
+            if stage not in jobs:
+                jobs[stage] = bar.add_task(stage, total=1.0)
+            bar.update(jobs[stage], completed=fraction)
+
+        result = run(mdl, ref, settings, progress)
+    best = result.best_trajectory()
+    if scores is not None:
+        from omavctl.atomic import write_text_atomic
+
+        write_text_atomic(scores, format_scores(result))
+    write_trajectory(out, best)
+    table = Table(title="most informative candidates (lower cost = more informative)")
+    for col in ("id", "cost", "vs task", "tracking rad/s^2"):
+        table.add_column(col, justify="right")
+    order = [int(k) for k in result.cost.argsort() if result.feasible[k]][:5]
+    for k in order:
+        table.add_row(
+            str(k),
+            f"{result.cost[k]:.4g}",
+            f"{100 * (result.cost[k] / result.task_cost - 1):+.1f}%",
+            f"{result.tracking[k]:.3f}",
+        )
+    con.print(table)
+    rejected = int((~result.feasible).sum())
+    con.print(
+        f"task cost {result.task_cost:.4g} (prior {result.prior_variance:.4g}), "
+        f"epsilon {result.epsilon:.3g}; {rejected}/{candidates} candidates rejected"
+    )
+    for note in result.notes:
+        con.print(f"note: {note}", markup=False)
+    con.print(f"wrote {out} (candidate {result.best})")
+
+
 # ------------------------------------------------------------------------ inspect
 @app.command()
 @_reports_errors
@@ -401,6 +574,68 @@ def inspect(
     veh = load_vehicle(vehicle)
     ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
     render_inspect(ins, Console(highlight=False))
+
+
+# ------------------------------------------------------------------------- report
+@app.command()
+@_reports_errors
+def report(
+    evaluations: Annotated[
+        list[Path],
+        typer.Argument(
+            help="Evaluation files (.json written by evaluate, with their .series.npz next "
+            "to them); with several, the report compares them, relative to the first.",
+        ),
+    ],
+    out: Annotated[
+        Path,
+        typer.Option("--out", "-o", help="Output report (one self-contained .html, or .md)."),
+    ],
+    fmt: Annotated[
+        str | None,
+        typer.Option(
+            "--format",
+            help="'html' (figures embedded, no network) or 'md' (tables only, no figures). "
+            "Default: from --out's suffix (.md -> md, else html).",
+        ),
+    ] = None,
+    quiet: Quiet = False,
+) -> None:
+    """Render evaluation files as a report: summary, measured vs predicted, residual vs
+    feature, worst segments, diagnosis with the fit command, before/after comparison."""
+    from rich.table import Table
+    from rich.text import Text
+
+    from omavctl.report import write_report
+
+    con = _console(quiet)
+    with con.status("rendering report"):
+        summary = write_report(evaluations, out, fmt)
+    table = Table(title="model RMSE per axis, rad/s^2", title_justify="left")
+    table.add_column("evaluation")
+    for axis in "xyz":
+        table.add_column(axis, justify="right")
+    table.add_column("top missing effect")
+    for ev in summary.evaluations:
+        table.add_row(
+            Text(ev.label),
+            *(f"{ev.model_rmse[a]:.4g}" for a in "xyz"),
+            Text(ev.missing[0] if ev.missing else "none"),
+        )
+    con.print(table)
+    if len(summary.evaluations) > 1:
+        change = summary.change()
+        con.print(
+            f"change {summary.evaluations[0].label} -> {summary.evaluations[-1].label}: "
+            + ", ".join(f"{a} {change[a]}" for a in "xyz"),
+            markup=False,
+        )
+    last = summary.evaluations[-1]
+    if last.missing and last.fit_command:
+        con.print(f"to add {last.missing[0]} to {last.label}'s model:", markup=False)
+        con.print(f"  {last.fit_command}", markup=False)
+    figures = f", {summary.figures} figures" if summary.fmt == "html" else ""
+    con.print(f"wrote {out} ({summary.fmt}{figures})", markup=False)
 
 
 def main() -> None:

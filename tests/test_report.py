@@ -1,0 +1,253 @@
+"""omavctl report: a self-contained HTML report (and Markdown) of evaluation files, made
+here from short simulated flights: valid HTML with embedded figures and no network
+references, the summary and diagnosis tables, the before/after comparison, determinism,
+the CLI and its one-line errors."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.errors import OmavctlError
+from omavctl.evaluate import evaluate, write_evaluation
+from omavctl.fit import fit_model
+from omavctl.logs import write_log
+from omavctl.model import save_model
+from omavctl.plant import simulate, truth_from_tree
+from omavctl.report import render_report, write_report
+from omavctl.tasks import fig8
+
+runner = CliRunner()
+
+#: A hidden effect in the truth plant; the first model lacks it, the second has it.
+HIDDEN = {"rotational_drag": {"D": [0.03, 0.03, 0.02]}}
+VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "wbr"}
+
+
+@pytest.fixture(scope="module")
+def evals(tmp_path_factory, vehicle) -> Path:
+    """Two evaluation files of one held-out flight: a model without the hidden effect
+    (before.json) and one that estimates it (after.json)."""
+    d = tmp_path_factory.mktemp("report")
+    truth = truth_from_tree({"seed": 1, "effects": HIDDEN}, vehicle)
+    train = simulate(fig8(20, 20, 4.0, 8.0, ramp=1.0), vehicle, truth, seed=0).log
+    held = simulate(fig8(15, 25, 5.0, 8.0, ramp=1.0), vehicle, truth, seed=1).log
+    write_log(d / "train.csv", train, topics=vehicle.topics)
+    write_log(d / "held <out>.mcap", held, topics=vehicle.topics)
+    for name, effects in (("before", []), ("after", ["rotational_drag"])):
+        fit = fit_model([d / "train.csv"], vehicle, effects=effects, points=40, restarts=0)
+        save_model(d / f"{name}.npz", fit.model)
+        write_evaluation(d / f"{name}.json", evaluate([d / f"{name}.npz"], [d / "held <out>.mcap"]))
+    return d
+
+
+class Structure(HTMLParser):
+    """Collects start tags and the errors of an unbalanced document."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.stack: list[str] = []
+        self.tags: list[str] = []
+        self.errors: list[str] = []
+        self.srcs: list[str] = []
+        self.ids: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.tags.append(tag)
+        a = dict(attrs)
+        if a.get("src") is not None:
+            self.srcs.append(a["src"] or "")
+        if a.get("id"):
+            self.ids.append(a["id"] or "")
+        if tag not in VOID:
+            self.stack.append(tag)
+
+    def handle_startendtag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.tags.append(tag)
+
+    def handle_endtag(self, tag: str) -> None:
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes <{self.stack[-1] if self.stack else None}>")
+        else:
+            self.stack.pop()
+
+
+def parse(text: str) -> Structure:
+    p = Structure()
+    p.feed(text)
+    p.close()
+    return p
+
+
+def table_after(text: str, anchor: str) -> str:
+    """The first <table> after the element with id ``anchor``."""
+    start = text.index(f'id="{anchor}"')
+    return text[text.index("<table>", start) : text.index("</table>", start)]
+
+
+def test_single_report_is_valid_self_contained_html(evals, tmp_path):
+    out = tmp_path / "report.html"
+    summary = write_report([evals / "before.json"], out)
+    text = out.read_text(encoding="utf-8")
+    doc = parse(text)
+    assert doc.errors == [] and doc.stack == []
+    assert doc.tags.count("html") == 1 and doc.tags.count("body") == 1
+    assert text.startswith("<!DOCTYPE html>")
+    # figures: one time plot for the one log, model and nominal residual vs feature
+    pngs = [s for s in doc.srcs if s.startswith("data:image/png;base64,")]
+    assert len(pngs) == len(doc.srcs) == summary.figures == 3
+    assert text.count("data:image/png;base64,") == 3
+    assert base64.b64decode(pngs[0].split(",", 1)[1]).startswith(b"\x89PNG\r\n\x1a\n")
+    # nothing fetched from anywhere
+    for bad in ("http://", "https://", 'src="//', "<script", "<link", "@import", "url("):
+        assert bad not in text.lower(), bad
+    # the summary: model RMSE of the JSON, logs and units
+    tree = json.loads((evals / "before.json").read_text())
+    summary_table = table_after(text, "summary")
+    for axis in "xyz":
+        assert f"{tree['metrics']['model']['rmse'][axis]:.4g}" in summary_table
+    assert "held &lt;out&gt;.mcap" in text and "held <out>" not in text  # escaped
+    assert "torques in N·m" in text or "torques are in unknown units" in text
+    assert {"summary", "time", "binned", "worst", "diagnosis"} <= set(doc.ids)
+    assert "comparison" not in doc.ids
+    # the diagnosis ranking: every candidate effect, the hidden one first and missing
+    diag = tree["diagnosis"]
+    ranking = table_after(text, "diagnosis-0")
+    assert len(re.findall(r"<tr>", ranking)) == 1 + len(diag["missing_effects"])
+    for entry in diag["missing_effects"]:
+        assert f"<code>{entry['name']}</code>" in ranking
+    assert diag["missing"][:1] == ["rotational_drag"]
+    assert "MISSING" in ranking and "D_x = " in ranking
+    import html
+
+    assert f"<pre><code>{html.escape(diag['fit_command'])}</code></pre>" in text
+    assert "What the GP has learned" in text
+
+
+def test_two_file_report_compares(evals, tmp_path):
+    out = tmp_path / "both.html"
+    files = [evals / "before.json", evals / "after.json"]
+    summary = write_report(files, out)
+    text = out.read_text(encoding="utf-8")
+    assert parse(text).errors == []
+    assert 'id="comparison"' in text
+    comparison = text[text.index('id="comparison"') :]
+    assert "data:image/png;base64," in comparison  # the bar figure
+    table = comparison[comparison.index("<table>") : comparison.index("</table>")]
+    before, after = (json.loads(f.read_text())["metrics"]["model"]["rmse"] for f in files)
+    for axis in "xyz":
+        change = 100 * (after[axis] - before[axis]) / before[axis]
+        assert f"{change:+.1f} %" in table
+        assert summary.change()[axis] == f"{change:+.1f} %"
+    # the hidden effect drives x and y: adding it makes the error fall there
+    assert after["x"] < before["x"] and after["y"] < before["y"]
+    # 2 evaluations x (1 time + 2 binned) + the comparison bars
+    assert summary.figures == 7
+
+
+def test_markdown_and_determinism(evals, tmp_path):
+    write_report([evals / "after.json"], tmp_path / "a.html")
+    write_report([evals / "after.json"], tmp_path / "b.html")
+    assert (tmp_path / "a.html").read_bytes() == (tmp_path / "b.html").read_bytes()
+    files = [evals / "before.json", evals / "after.json"]
+    summary = write_report(files, tmp_path / "r.md")
+    assert summary.fmt == "md" and summary.figures == 0
+    md = (tmp_path / "r.md").read_text(encoding="utf-8")
+    write_report(files, tmp_path / "r2.txt", fmt="md")
+    assert (tmp_path / "r2.txt").read_text(encoding="utf-8") == md
+    assert "data:image" not in md and "<table" not in md
+    assert "Figure not available in Markdown" in md
+    assert "| evaluation | logs |" in md and "`rotational_drag`" in md
+    assert "## 6. Before/after comparison" in md
+    tree = json.loads(files[0].read_text())
+    assert f"```\n{tree['diagnosis']['fit_command']}\n```" in md
+    assert "held &lt;out&gt;.mcap" in md
+
+
+def test_render_report_escapes_and_handles_unknown_torque_units(evals):
+    from omavctl.evaluate import load_evaluation
+
+    tree, series = load_evaluation(evals / "before.json")
+    tree["units"]["torque"] = "unknown"
+    tree["logs"][0]["name"] = '<img src="https://x">'
+    text = render_report([(tree, series, "a<b>")], "html")
+    assert '<img src="https' not in text and "a&lt;b&gt;" in text
+    assert "&lt;img src=&quot;https://x&quot;&gt;" in text
+    assert "torques are in unknown units" in text
+    with pytest.raises(OmavctlError, match="unknown report format"):
+        render_report([(tree, series, "a")], "pdf")
+
+
+def _error_line(result) -> str:
+    text = result.output.strip()
+    assert result.exit_code == 1, text
+    assert "Traceback" not in text and len(text.splitlines()) == 1, text
+    return text
+
+
+def test_cli(evals, tmp_path):
+    out = tmp_path / "cli.html"
+    ok = runner.invoke(
+        app, ["report", str(evals / "before.json"), str(evals / "after.json"), "--out", str(out)]
+    )
+    assert ok.exit_code == 0, ok.output
+    assert out.is_file() and "wrote" in ok.output and "change" in ok.output
+    assert "top missing effect" in ok.output
+    # before.json lacks the hidden effect: the summary gives the command that adds it
+    md = tmp_path / "cli.md"
+    ok = runner.invoke(app, ["report", str(evals / "before.json"), "--out", str(md)])
+    assert ok.exit_code == 0, ok.output
+    assert "to add rotational_drag" in ok.output and "omavctl fit" in ok.output
+    assert md.read_text(encoding="utf-8").startswith("# omavctl report")
+    quiet = runner.invoke(
+        app, ["report", str(evals / "after.json"), "--out", str(out), "--format", "md", "-q"]
+    )
+    assert quiet.exit_code == 0 and quiet.output == ""
+    assert out.read_text(encoding="utf-8").startswith("# omavctl report")
+
+    bad = tmp_path / "bad.html"
+    missing = tmp_path / "nothere.json"
+    line = _error_line(runner.invoke(app, ["report", str(missing), "--out", str(bad)]))
+    assert line == f"error: {missing}: file not found"
+    other = tmp_path / "model.json"
+    other.write_text(json.dumps({"schema": "omavctl.model/1"}))
+    line = _error_line(runner.invoke(app, ["report", str(other), "--out", str(bad)]))
+    assert line == (
+        f"error: {other}: schema 'omavctl.model/1' is not supported (expected omavctl.eval/1)"
+    )
+    # right schema, wrong content; and a JSON whose series file is gone
+    broken = tmp_path / "broken.json"
+    broken.write_text(json.dumps({"schema": "omavctl.eval/1", "series": {"file": "x.npz"}}))
+    line = _error_line(runner.invoke(app, ["report", str(broken), "--out", str(bad)]))
+    assert line == f"error: {broken}: its time series file x.npz is missing"
+    tree = json.loads((evals / "before.json").read_text())
+    tree["series"]["file"] = "before.series.npz"
+    moved = tmp_path / "moved.json"
+    moved.write_text(json.dumps(tree))
+    line = _error_line(runner.invoke(app, ["report", str(moved), "--out", str(bad)]))
+    assert line == f"error: {moved}: its time series file before.series.npz is missing"
+    (tmp_path / "moved.series.npz").write_bytes((evals / "before.series.npz").read_bytes())
+    tree["series"]["file"] = "moved.series.npz"
+    del tree["metrics"]["model"]
+    moved.write_text(json.dumps(tree))
+    line = _error_line(runner.invoke(app, ["report", str(moved), "--out", str(bad)]))
+    assert line == f"error: {moved}: not an evaluation JSON: no number at 'metrics.model.rmse.x'"
+    # the report never overwrites its inputs
+    before = (evals / "before.json").read_bytes()
+    line = _error_line(
+        runner.invoke(
+            app, ["report", str(evals / "before.json"), "--out", str(evals / "before.json")]
+        )
+    )
+    assert line.endswith("the report would overwrite one of its inputs")
+    assert (evals / "before.json").read_bytes() == before
+    # no output (nor temporary file) left behind by any failure
+    assert not bad.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
