@@ -14,6 +14,7 @@ for each effect ``residual ~= X(theta)`` with ``X = regressor(ctx)`` of shape
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -82,8 +83,9 @@ class EffectContext:
         return wrench_delta[..., 3:] @ self.inertia_inv.T
 
 
-class Effect:
-    """Base class. Subclasses set ``name``, ``summary``, ``parameters``."""
+class Effect(ABC):
+    """Base class. Subclasses set ``name``, ``summary``, ``parameters`` and
+    implement :meth:`regressor`."""
 
     name: ClassVar[str]
     summary: ClassVar[str]
@@ -96,9 +98,9 @@ class Effect:
     def n_theta(self) -> int:
         return sum(p.size for p in self.parameters)
 
+    @abstractmethod
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         """Regressor X, shape (N, 3, n_theta): residual ~= X @ theta."""
-        raise NotImplementedError
 
     def to_parameters(
         self, theta: np.ndarray, cov: np.ndarray
@@ -151,7 +153,9 @@ class Effect:
         """Extra torque (..., 3) N m on the true body; None if the effect adds none."""
         return None
 
-    def configure_truth(self, params: dict[str, np.ndarray], truth: TruthParameters) -> None:
+    def configure_truth(  # noqa: B027 - optional hook, a no-op for most effects
+        self, params: dict[str, np.ndarray], truth: TruthParameters
+    ) -> None:
         """Change constants of the truth plant (inertia, actuator time constants)."""
 
     def gyro_offset(self, params: dict[str, np.ndarray]) -> np.ndarray | None:
