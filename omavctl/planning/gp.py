@@ -134,6 +134,10 @@ class PathwiseSamples:
         """Random Fourier features (B, D) of axis ``axis`` at normalised z (B, d)."""
         return self.scale[axis] * np.cos(z @ self.omega[axis] + self.phase[axis])
 
+    def mean(self, z: np.ndarray) -> np.ndarray:
+        """Posterior mean (B, 3) at z (B, d) (no sample: skips the features)."""
+        return self.gp.posterior_mean(z)
+
     def evaluate(self, z: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(sample (B, 3), posterior mean (B, 3)) at z (B, d) for samples idx (B,)."""
         gp = self.gp

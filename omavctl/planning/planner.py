@@ -145,7 +145,7 @@ def rollout(
         u = out.u.copy()
         for _ in range(2):  # fixed-point inversion of u_tau + mu(u) = target
             z = model.normalise(model.gp_inputs(u, omega))
-            _, mu = samples.evaluate(z, sample_idx)
+            mu = samples.mean(z)
             if model.effects:
                 mu = mu + model.effects_mean(u, omega)
             u[:, 3:] = target - mu
