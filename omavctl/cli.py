@@ -297,15 +297,24 @@ def fit(
     seed: Annotated[
         int, typer.Option(help="Random seed (k-medoids subsampling, optimiser restarts).")
     ] = 0,
+    time_window: Annotated[
+        str | None,
+        typer.Option(
+            help="Only samples with START <= t < END (s from each log's start), as START:END "
+            "(either may be empty, e.g. 6.5:15 or 15:). Default: the whole flight.",
+        ),
+    ] = None,
     quiet: Quiet = False,
 ) -> None:
     """Learn the residual model (effects + one GP per body axis) from flight logs."""
     from rich.progress import Progress
 
     from omavctl.fit import fit_model
+    from omavctl.logs import parse_time_window
     from omavctl.model import save_model
     from omavctl.vehicle import load_vehicle
 
+    window = parse_time_window(time_window) if time_window else None
     veh = load_vehicle(vehicle)
     names = None if effects is None else [e.strip() for e in effects.split(",") if e.strip()]
     con = _console(quiet)
@@ -323,6 +332,7 @@ def fit(
             seed=seed,
             restarts=restarts,
             progress=lambda stage, f: bar.update(job, description=stage, completed=f),
+            time_window=window,
         )
     save_model(out, result.model)
     _render_fit(con, result.summary, out)
@@ -331,17 +341,21 @@ def fit(
 def _render_fit(con: Any, summary: Any, out: Path) -> None:
     """Print the fit summary: data used, effects, GP hyperparameters, training fit."""
     from rich.table import Table
+    from rich.text import Text
 
+    from omavctl.fit import effect_unit
     from omavctl.physics.effects import get_effect
 
+    units = summary.command_units
     for log in summary.logs:
         dropped = log.edge_dropped + log.short_dropped
         con.print(
             f"{log.path}: {log.used} of {log.samples} samples used "
-            f"({log.in_gaps} in gaps, {dropped} at segment edges or in short segments)"
+            f"({log.in_gaps} invalid: in gaps, on the ground or outside the time window; "
+            f"{dropped} at segment edges or in short segments)"
         )
         for note in log.notes:
-            con.print(f"  note: {note}")
+            con.print(f"  note: {note}", markup=False)
     prior = f" + {summary.points_prior} from the prior" if summary.points_prior else ""
     con.print(
         f"training points: {summary.points_new} new{prior} ({summary.kmedoids}); "
@@ -358,7 +372,17 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
                     zip(est.values[p.name], est.stderr[p.name], strict=True)
                 ):
                     label = p.name if p.size == 1 else f"{p.name}_{labels[i]}"
-                    eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", p.unit)
+                    unit = effect_unit(name, p.unit, units)
+                    eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", Text(unit))
+        if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
+            gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
+            for axis, g, e in gains:
+                eff.add_row(
+                    "torque command gain",
+                    f"gain_{axis} = 1/scale_{axis}",
+                    f"{g:.4g} ± {e:.2g}",
+                    Text("N m per command unit (assumed inertia)"),
+                )
         con.print(eff)
     gp = Table(title=f"GP per axis (inputs: {summary.features})", title_justify="left")
     gp.add_column("")
@@ -376,7 +400,7 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
     gp.add_row("RMS without model, rad/s^2", *(f"{a.rmse_nominal:.4g}" for a in summary.axes))
     con.print(gp)
     for note in summary.notes:
-        con.print(f"note: {note}")
+        con.print(f"note: {note}", markup=False)
     con.print(f"wrote {out} ({summary.points} training points, {summary.samples} samples)")
 
 

@@ -381,11 +381,12 @@ def _check_models(models: Sequence[ResidualGP], paths: Sequence[str]) -> None:
             and v.topics == ref.topics
             and v.columns == ref.columns
             and v.frame == ref.frame
+            and v.command_units == ref.command_units
         )
         if not same:
             raise ModelError(
-                f"fit for another vehicle than {paths[0]} (mass, inertia, topics or columns "
-                "differ): evaluate them separately",
+                f"fit for another vehicle than {paths[0]} (mass, inertia, topics, columns or "
+                "command units differ): evaluate them separately",
                 p,
             )
 
@@ -575,6 +576,13 @@ def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
         parts += ["--features", model.features]
     if "seed" in prov:
         parts += ["--seed", str(prov["seed"])]
+    window = prov.get("time_window")
+    if window and any(w is not None for w in window):
+        lo, hi = window
+        parts += [
+            "--time-window",
+            f"{'' if lo is None else f'{lo:g}'}:{'' if hi is None else f'{hi:g}'}",
+        ]
     if prov.get("vehicle_path"):
         parts += ["--vehicle", str(prov["vehicle_path"])]
     return " ".join(parts)
@@ -719,7 +727,7 @@ def evaluate(
         diagnosis["fit_command"] = fit_command(mpaths[0], model, top)
     else:
         diagnosis["fit_command"] = None
-    torque_units_known = not bool(vehicle.tree.get("columns")) or "inertia_error" in model.effects
+    torque_units_known = not vehicle.torque_normalised  # command_units.torque of the vehicle
     tree = {
         "schema": SCHEMA,
         "omavctl_version": __version__,

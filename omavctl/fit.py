@@ -2,7 +2,9 @@
 
 Pipeline (each step a function; :func:`fit_model` runs them in order):
 
-1. :func:`read_flights` reads and aligns every log on the controller-rate grid.
+1. :func:`read_flights` reads and aligns every log on the controller-rate grid
+   (optionally restricted to a time window; a note when the body rate was
+   logged slower than the grid).
 2. :func:`omavctl.signal.residual_samples` differentiates the body rate with
    the Savitzky-Golay filter per valid segment (dropping ``window // 2``
    samples at every segment edge and segments shorter than the window) and
@@ -18,16 +20,23 @@ Pipeline (each step a function; :func:`fit_model` runs them in order):
 6. The result is a :class:`omavctl.model.ResidualGP`; :func:`omavctl.model.save_model`
    writes it.
 
+A vehicle whose torque command is normalised (``command_units.torque:
+normalised``) always gets ``inertia_error``: its ``scale`` is then the inverse
+of the per-axis command gain (:func:`torque_gain`), its regressor ``I^-1 tau``
+(no gyroscopic term), and its joint-fit prior is centred on and scaled to the
+least-squares gain (:func:`effect_prior`).
+
 Defaults and how they were chosen: ``docs/fit.md``.
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 import time
 import warnings
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -47,23 +56,32 @@ from omavctl.signal import (
     feature_names,
     residual_samples,
 )
-from omavctl.vehicle import Vehicle, default_vehicle
+from omavctl.vehicle import NORMALISED, Vehicle, default_vehicle
 
 __all__ = [
     "DEFAULT_POINTS",
     "DEFAULT_RESTARTS",
+    "GAIN_EFFECT",
+    "GAIN_PRIOR_FACTOR",
     "KMEDOIDS_MAX_DIRECT",
     "KMEDOIDS_SUBSAMPLE",
+    "PRIOR_STD",
+    "RATE_TOLERANCE",
     "AxisFit",
     "EffectFit",
     "FitResult",
     "FitSummary",
     "LogSummary",
+    "body_rate_rate",
+    "effect_prior",
+    "effect_unit",
     "estimate_effects",
     "fit_hyperparameters",
     "fit_model",
     "read_flights",
     "select_points",
+    "torque_gain",
+    "upsampling_note",
 ]
 
 #: Training points selected from the new logs (the paper used 20-100 per flight).
@@ -78,6 +96,11 @@ KMEDOIDS_SUBSAMPLE = 2000
 KMEDOIDS_DRAWS = 3
 #: Roles fit needs from every log.
 REQUIRED_ROLES = ("body_rate", "force_command", "torque_command")
+#: The effect that estimates the gain of a normalised torque command.
+GAIN_EFFECT = "inertia_error"
+#: A body rate logged below this fraction of the grid rate is noted as upsampled
+#: (the tolerance absorbs jitter in the median step).
+RATE_TOLERANCE = 0.95
 
 Progress = Callable[[str, float], None]
 
@@ -147,10 +170,23 @@ class FitSummary:
     effects: dict[str, EffectEstimate]
     timings: dict[str, float]
     notes: list[str] = field(default_factory=list)
+    #: Units of the logged commands (the vehicle's ``command_units``).
+    command_units: dict[str, str] = field(default_factory=lambda: {"torque": "N m", "force": "N"})
+    #: Effects added because the vehicle requires them (``inertia_error`` for a
+    #: normalised torque command), not named by the user.
+    added_effects: tuple[str, ...] = ()
+    #: Per-axis gain (3,) of a normalised torque command and its standard error
+    #: (3,): torque [N m with the assumed inertia] = gain x command. None for SI.
+    torque_gain: np.ndarray | None = None
+    torque_gain_stderr: np.ndarray | None = None
 
     @property
     def points(self) -> int:
         return self.points_new + self.points_prior
+
+    @property
+    def torque_normalised(self) -> bool:
+        return self.command_units.get("torque") == NORMALISED
 
 
 @dataclass
@@ -162,25 +198,73 @@ class FitResult:
 
 
 # ------------------------------------------------------------------- steps
-def read_flights(logs: Sequence[str | Path | FlightLog], vehicle: Vehicle) -> list[FlightLog]:
+def read_flights(
+    logs: Sequence[str | Path | FlightLog],
+    vehicle: Vehicle,
+    time_window: tuple[float | None, float | None] | None = None,
+) -> list[FlightLog]:
     """Read and align every log on the controller-rate grid (``read_vehicle_log``:
-    the vehicle's topics, column map and frame; ground and idle time excluded).
+    the vehicle's topics, column map and frame; ground and idle time excluded;
+    only ``start <= t < end`` s from each log's start with ``time_window``).
 
-    Already aligned :class:`FlightLog` objects are passed through. Raises
-    LogError for an unreadable log or one lacking the body rate or the wrench
-    command.
+    A log whose body rate was recorded below the grid rate gets a note (its grid
+    samples are interpolated, see :func:`upsampling_note`). Already aligned
+    :class:`FlightLog` objects are passed through (the window still applies).
+    Raises LogError for an unreadable log, one lacking the body rate or the
+    wrench command, or an empty window.
     """
-    from omavctl.logs import read_vehicle_log
+    from omavctl.logs import read_vehicle_log, restrict_window
 
     out = []
     for item in logs:
         if isinstance(item, FlightLog):
-            out.append(item)
-            continue
-        out.append(
-            read_vehicle_log(item, vehicle, rate=vehicle.gains.rate_hz, required=REQUIRED_ROLES)
-        )
+            flight = item if time_window is None else restrict_window(item, time_window)
+        else:
+            flight = read_vehicle_log(
+                item,
+                vehicle,
+                rate=vehicle.gains.rate_hz,
+                required=REQUIRED_ROLES,
+                time_window=time_window,
+            )
+        note = upsampling_note(flight, vehicle)
+        if note is not None:
+            flight = replace(flight, notes=[*flight.notes, note])
+        out.append(flight)
     return out
+
+
+def body_rate_rate(flight: FlightLog, vehicle: Vehicle) -> float | None:
+    """Median rate (Hz) at which the log recorded the body rate, if the reader saw it.
+
+    The source is the ``body_rate`` column group of a CSV or the vehicle's
+    ``imu`` topic of a bag (:attr:`FlightLog.topics`).
+    """
+    names = {"body_rate", vehicle.topics.get("imu", "")}
+    rates = [info.rate for info in flight.topics if info.name in names and info.rate > 0]
+    return min(rates) if rates else None
+
+
+def upsampling_note(flight: FlightLog, vehicle: Vehicle) -> str | None:
+    """A note when the body rate was logged below the grid rate, else None.
+
+    Below :data:`RATE_TOLERANCE` x the grid rate the aligned body rate is
+    mostly linear interpolation between logged samples: the Savitzky-Golay
+    derivative then differentiates the interpolant (piecewise constant slopes),
+    the window spans fewer real samples than it says, and the residual's noise
+    level is not the one the defaults were chosen for (docs/fit.md).
+    """
+    rate = body_rate_rate(flight, vehicle)
+    grid = flight.rate
+    if rate is None or rate >= RATE_TOLERANCE * grid:
+        return None
+    return (
+        f"body rate logged at {rate:.1f} Hz (median step), below the {grid:g} Hz grid "
+        f"(controller.rate_hz): {1 - rate / grid:.0%} of the grid samples are interpolated "
+        "between logged samples and the Savitzky-Golay derivative sees the interpolation; "
+        f"set controller.rate_hz to at most {math.floor(rate):d} Hz in the vehicle YAML to "
+        "fit at the log's own rate"
+    )
 
 
 def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str]) -> EffectFit:
@@ -381,6 +465,82 @@ PRIOR_STD = {
     "motor_lag": 0.05,  # s
     "gyro_bias": 0.05,  # rad/s
 }
+#: With a normalised torque command, the joint-fit prior of ``inertia_error``'s
+#: theta (= gain - 1) per axis is centred on the first-pass least-squares value
+#: (gain_LS - 1) with std ``GAIN_PRIOR_FACTOR x |gain_LS|``: scaled to the gain,
+#: so gains of 1e-3 .. 1e3 are held alike (``PRIOR_STD`` = 0.5 around gain 1
+#: would pull a gain of 100 to a few and is meaningless for a gain of 1e-3).
+#: The centre matters because the gain's regressor ``I^-1 tau`` is a GP input:
+#: where the GP could explain the same linear trend the data do not decide
+#: between them, and the prior keeps the least-squares (physical) gain instead
+#: of an arbitrary split; where they do decide, a factor 3 lets the data move
+#: the gain freely.
+GAIN_PRIOR_FACTOR = 3.0
+_GAIN_PRIOR_FLOOR = 1e-9
+
+
+def effect_prior(
+    names: Sequence[str], first_pass: EffectFit, vehicle: Vehicle
+) -> tuple[np.ndarray, np.ndarray]:
+    """Prior mean (p,) and std (p,) of the stacked theta of ``names`` in the joint fit.
+
+    Mean 0 and std :data:`PRIOR_STD` per effect; for ``inertia_error`` of a
+    vehicle with a normalised torque command, per axis mean ``theta_LS`` (the
+    first-pass least-squares estimate in ``first_pass``) and std
+    ``GAIN_PRIOR_FACTOR |1 + theta_LS|`` (:data:`GAIN_PRIOR_FACTOR`).
+    """
+    means, stds = [], []
+    for name in names:
+        std = np.full(get_effect(name).n_theta, PRIOR_STD[name])
+        mean = np.zeros_like(std)
+        if name == GAIN_EFFECT and vehicle.torque_normalised and name in first_pass.estimates:
+            theta = get_effect(name).to_theta(first_pass.estimates[name].values)
+            mean = np.where(np.isfinite(theta), theta, 0.0)
+            std = np.maximum(GAIN_PRIOR_FACTOR * np.abs(1.0 + mean), _GAIN_PRIOR_FLOOR)
+        means.append(mean)
+        stds.append(std)
+    if not names:
+        return np.empty(0), np.empty(0)
+    return np.concatenate(means), np.concatenate(stds)
+
+
+def torque_gain(estimate: EffectEstimate) -> tuple[np.ndarray, np.ndarray]:
+    """Per-axis gain (3,) of a normalised torque command and its standard error (3,)
+    from the ``inertia_error`` estimate: ``gain = 1 / scale`` (= 1 + theta).
+
+    ``torque = gain x command`` in N m *with the vehicle's assumed inertia*: what
+    the log determines is ``gain / I`` (rad/s^2 per command unit).
+    """
+    scale = np.asarray(estimate.values["scale"], float)
+    se = np.asarray(estimate.stderr["scale"], float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 1.0 / scale, se / scale**2
+
+
+#: Effects whose regressor is a lag of the commanded wrench: with a normalised
+#: torque their time constant is estimated times the command gain.
+_COMMAND_LAGS = ("servo_lag", "motor_lag")
+
+
+def effect_unit(name: str, unit: str, command_units: Mapping[str, str]) -> str:
+    """The unit of a parameter of effect ``name`` for display, given the command units.
+
+    With a normalised torque command, ``N m`` becomes ``[torque unit]`` (as in
+    the report); ``com_offset``'s ``r`` (a torque per force) becomes
+    ``[torque unit]/N``, ``N m/[force unit]`` or ``[torque unit]/[force unit]``;
+    the lags of effects that act through the commanded wrench (``servo_lag``,
+    ``motor_lag``) come out multiplied by the unknown gain: ``s (x torque gain)``.
+    """
+    torque = command_units.get("torque") == NORMALISED
+    force = command_units.get("force") == NORMALISED
+    if name == "com_offset" and unit == "m" and (torque or force):
+        num = "[torque unit]" if torque else "N m"
+        return f"{num}/{'[force unit]' if force else 'N'}"
+    if name in _COMMAND_LAGS and torque:
+        return f"{unit} (x torque gain)"
+    if torque:
+        return unit.replace("N m", "[torque unit]")
+    return unit
 
 
 def joint_effects(
@@ -392,6 +552,7 @@ def joint_effects(
     length_scales: np.ndarray,
     noise_variance: np.ndarray,
     prior_std: np.ndarray,
+    prior_mean: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Effect parameters as explicit basis functions of the per-axis GPs.
 
@@ -404,14 +565,15 @@ def joint_effects(
 
     which credits to the effects only what the GP (a smooth function of the
     inputs) would not explain as well: the effects no longer absorb input-
-    dependent residuals that merely correlate with their regressors. Returns
+    dependent residuals that merely correlate with their regressors. A prior
+    mean ``m`` (p,) (default 0) adds ``B^-1 m`` to the right-hand sum. Returns
     theta (p,) and its posterior covariance (p, p).
     """
     from scipy.linalg import cho_factor, cho_solve
 
     p = x.shape[2]
     a_mat = np.diag(1.0 / prior_std**2)
-    b_vec = np.zeros(p)
+    b_vec = np.zeros(p) if prior_mean is None else prior_mean / prior_std**2
     for a in range(3):
         zl = z / length_scales[a]
         sq = (zl * zl).sum(1)
@@ -479,13 +641,17 @@ def fit_model(
     seed: int = 0,
     restarts: int = DEFAULT_RESTARTS,
     progress: Progress | None = None,
+    time_window: tuple[float | None, float | None] | None = None,
 ) -> FitResult:
     """Fit effects and the residual GP from flight logs (see module docstring).
 
     Args:
         logs: log paths (any format ``read_vehicle_log`` reads) or aligned FlightLogs.
-        vehicle: the vehicle (mass, inertia, topics, controller rate); default omav.
+        vehicle: the vehicle (mass, inertia, topics, column map, frame, command
+            units, controller rate); default omav.
         effects: registry effect names to estimate; None: ``vehicle.effects``.
+            With a normalised torque command ``inertia_error`` is added when
+            not named (it estimates the command gain; noted in the summary).
         points: training points selected from the new logs.
         prior: a model (or its path) whose training points are kept (augmented).
         sg_window, sg_order: Savitzky-Golay window (odd, samples) and order.
@@ -494,6 +660,9 @@ def fit_model(
             same model.
         restarts: extra optimiser starts per axis.
         progress: called with (stage description, fraction done in [0, 1]).
+        time_window: ``(start, end)`` in s from each log's start (``None`` = open
+            end; :func:`omavctl.logs.parse_time_window` parses ``START:END``):
+            only samples with ``start <= t < end`` are used.
 
     Raises:
         LogError: unreadable logs, missing roles, NaNs, too few usable samples.
@@ -520,6 +689,10 @@ def fit_model(
         get_effect(name)
     if len(set(names)) != len(names):
         raise ConfigError(f"effect named twice in --effects: {', '.join(names)}")
+    added: tuple[str, ...] = ()
+    if vehicle.torque_normalised and GAIN_EFFECT not in names:
+        names.append(GAIN_EFFECT)
+        added = (GAIN_EFFECT,)
     sg = SavitzkyGolay(sg_window, sg_order, 1.0 / vehicle.gains.rate_hz)
 
     prior_model: ResidualGP | None = None
@@ -551,7 +724,7 @@ def fit_model(
     samples: list[ResidualSamples] = []
     summaries: list[LogSummary] = []
     for i, item in enumerate(logs):
-        flight = read_flights([item], vehicle)[0]
+        flight = read_flights([item], vehicle, time_window)[0]
         flights.append(flight)
         # every registered effect's regressor: the fitted ones are estimated, all are
         # stored at the training points for evaluate's diagnosis
@@ -601,7 +774,8 @@ def fit_model(
         )
         targets_all -= x_eff @ eff.theta
     timings["effects"] = time.perf_counter() - t0
-    notes = _effect_notes(eff)
+    first_pass = eff
+    notes = _effect_notes(eff, vehicle.torque_normalised)
 
     # 4. training points
     t0 = time.perf_counter()
@@ -646,6 +820,7 @@ def fit_model(
             )
         x_tr = np.concatenate([train_reg[nm] for nm in names], axis=-1)
         y_raw = train_y + np.einsum("nap,np->na", x_tr, theta_used)
+        p_mean, p_std = effect_prior(names, first_pass, vehicle)
         theta, cov = joint_effects(
             (train_x - in_mean) / in_scale,
             y_raw,
@@ -654,15 +829,24 @@ def fit_model(
             sv,
             ls,
             np.array([a.noise_std**2 for a in axes]),
-            np.concatenate([np.full(get_effect(nm).n_theta, PRIOR_STD[nm]) for nm in names]),
+            p_std,
+            p_mean,
         )
         train_y = y_raw - x_tr @ theta
         eff = _estimates(names, theta, cov, eff)
-        notes = _effect_notes(eff)
+        notes = _effect_notes(eff, vehicle.torque_normalised)
         notes.append(
             "effects estimated jointly with the GP (generalised least squares at the "
             "training points, hyperparameters from the first pass)"
         )
+
+    gain: np.ndarray | None = None
+    gain_se: np.ndarray | None = None
+    if vehicle.torque_normalised and GAIN_EFFECT in eff.estimates:
+        gain, gain_se = torque_gain(eff.estimates[GAIN_EFFECT])
+        notes = [*_unit_notes(vehicle, added, gain, gain_se), *notes]
+    elif vehicle.force_normalised:
+        notes = [*_unit_notes(vehicle, added, None, None), *notes]
 
     provenance = {
         "omavctl_version": __version__,
@@ -690,7 +874,22 @@ def fit_model(
         "effects_explained_variance": [float(v) for v in eff.explained],
         "samples": n_total,
         "seed": seed,
+        "time_window": None if time_window is None else list(time_window),
+        # evaluate's suggested refit command passes it as --vehicle
+        "vehicle_path": vehicle.source if Path(vehicle.source).is_file() else None,
+        "command_units": dict(vehicle.command_units),
     }
+    if gain is not None and gain_se is not None:
+        ls_gain, ls_se = torque_gain(first_pass.estimates[GAIN_EFFECT])
+        provenance["torque_gain"] = {
+            "effect": GAIN_EFFECT,
+            "values": [float(g) for g in gain],
+            "stderr": [float(g) for g in gain_se],
+            "first_pass_least_squares": [float(g) for g in ls_gain],
+            "first_pass_stderr": [float(g) for g in ls_se],
+            "prior": f"theta = gain - 1 ~ N(gain_LS - 1, ({GAIN_PRIOR_FACTOR:g} gain_LS)^2) "
+            "per axis, gain_LS the first-pass least-squares gain",
+        }
     model = ResidualGP(
         vehicle=vehicle,
         features=features,
@@ -735,15 +934,73 @@ def fit_model(
         effects=eff.estimates,
         timings=timings,
         notes=notes + gp_notes,
+        command_units=dict(vehicle.command_units),
+        added_effects=added,
+        torque_gain=gain,
+        torque_gain_stderr=gain_se,
     )
     return FitResult(model, summary)
 
 
-def _effect_notes(eff: EffectFit) -> list[str]:
-    """Warnings about effect parameters the logs do not determine."""
+def _unit_notes(
+    vehicle: Vehicle,
+    added: Sequence[str],
+    gain: np.ndarray | None,
+    gain_se: np.ndarray | None,
+) -> list[str]:
+    """What the summary says about normalised commands and the fitted gain."""
+    notes = []
+    if added:
+        notes.append(
+            f"torque command is normalised (command_units.torque): {', '.join(added)} added "
+            "to estimate its per-axis gain (torque = gain x command)"
+        )
+    if gain is not None and gain_se is not None:
+        diag = np.diag(vehicle.inertia)
+        shown = ", ".join(
+            f"{a} {g:.4g} ± {e:.2g} ({g / i:.4g} rad/s^2 per unit)"
+            for a, g, e, i in zip("xyz", gain, gain_se, diag, strict=True)
+        )
+        notes.append(
+            f"torque command gain (N m per command unit with the assumed inertia; the log "
+            f"determines only gain / inertia): {shown}"
+        )
+        bad = [a for a, g in zip("xyz", gain, strict=True) if not (np.isfinite(g) and g > 0)]
+        if bad:
+            notes.append(
+                f"torque command gain not positive on axis {', '.join(bad)}: check the sign "
+                "of the torque columns and the frame (FLU/FRD) in the vehicle YAML"
+            )
+        notes.append(
+            "torque units are unknown: parameters in N m are shown in [torque unit] "
+            "(relative to the assumed inertia)"
+        )
+    if vehicle.force_normalised:
+        notes.append(
+            "force command is normalised (command_units.force): the GP inputs f/m are a "
+            "scaled thrust feature, not an acceleration in m/s^2"
+        )
+    return notes
+
+
+def _effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
+    """Warnings about effect parameters the logs do not determine.
+
+    With ``torque_normalised`` ``inertia_error`` is the command gain: the
+    warning is about a gain within two standard errors of zero.
+    """
     notes = []
     for name, est in eff.estimates.items():
         effect = get_effect(name)
+        if name == GAIN_EFFECT and torque_normalised:
+            gain, se = torque_gain(est)
+            axes = [a for a, g, e in zip("xyz", gain, se, strict=True) if not abs(g) >= 2 * e]
+            if axes:
+                notes.append(
+                    f"torque command gain on axis {', '.join(axes)} within 2 standard errors "
+                    "of zero: the logs barely excite it (or the GP explains the same trend)"
+                )
+            continue
         if not effect.identifiable:
             notes.append(
                 f"{name} is not identifiable from angular accelerations (see its docs): "

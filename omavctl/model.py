@@ -371,6 +371,7 @@ class ResidualGP:
             dt=1.0 / v.gains.rate_hz,
             allocation=self.allocation,
             derivative=np.zeros_like,
+            torque_normalised=v.torque_normalised,
         )
         return self.effects_residual(ctx)
 
@@ -611,8 +612,8 @@ def load_model(path: str | Path) -> ResidualGP:
 
 
 def check_vehicle(model: ResidualGP, vehicle: Vehicle, path: str | Path | None = None) -> None:
-    """ModelError unless ``vehicle`` has the mass and inertia the model was fitted for
-    (the inputs u = [f/m, I^-1 tau] depend on them)."""
+    """ModelError unless ``vehicle`` has the mass, inertia and command units the model
+    was fitted for (the inputs u = [f/m, I^-1 tau] depend on them)."""
     mv = model.vehicle
     if not (
         math.isclose(mv.mass, vehicle.mass, rel_tol=1e-9)
@@ -624,3 +625,14 @@ def check_vehicle(model: ResidualGP, vehicle: Vehicle, path: str | Path | None =
             f"{vehicle.mass:g} kg and {np.round(np.diag(vehicle.inertia), 6).tolist()} kg m^2",
             path,
         )
+    if mv.command_units != vehicle.command_units:
+        raise ModelError(
+            f"model was fitted for commands in {_units(mv.command_units)}; this vehicle's "
+            f"commands are in {_units(vehicle.command_units)} (command_units)",
+            path,
+        )
+
+
+def _units(units: Mapping[str, str]) -> str:
+    """``"torque N m, force N"``: command units for messages."""
+    return ", ".join(f"{k} {units.get(k, '?')}" for k in ("torque", "force"))

@@ -292,6 +292,7 @@ def residual_samples(
                 dt=sg.dt,
                 allocation=alloc,
                 derivative=sg.derivative,
+                torque_normalised=vehicle.torque_normalised,
             )
             for e in eff:
                 reg_parts[e.name].append(sg.hold(e.regressor(ctx))[keep])

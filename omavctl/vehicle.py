@@ -4,6 +4,13 @@ A vehicle YAML overrides the built-in default omav (``omavctl/data/default_vehic
 whose comments give the source of every value) key by key: a file holding only
 ``mass`` and ``inertia`` is valid. Unknown keys are errors naming the key.
 ``columns`` (CSV column map) and ``effects`` are replaced as a whole, not merged.
+
+``command_units`` says in which units the logs' commands are: ``torque: "N m"``
+(default) or ``normalised`` (a dimensionless controller output such as PX4's
+``actuator_controls`` or ArduPilot's ``RATE.*Out``), ``force: "N"`` (default)
+or ``normalised`` (a throttle 0..1). With a normalised torque, ``fit``
+estimates the per-axis gain through the ``inertia_error`` effect and every
+torque unit it reports is unknown (see ``docs/logs.md``).
 """
 
 from __future__ import annotations
@@ -11,6 +18,7 @@ from __future__ import annotations
 import copy
 import json
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -21,6 +29,9 @@ import yaml
 from omavctl.errors import ConfigError
 
 __all__ = [
+    "FORCE_UNITS",
+    "NORMALISED",
+    "TORQUE_UNITS",
     "ControllerGains",
     "Vehicle",
     "default_vehicle",
@@ -36,6 +47,24 @@ TOPIC_ROLES = (
     "reference",
     "actuators",
 )
+
+
+#: Value of ``command_units.torque`` / ``.force`` for dimensionless commands.
+NORMALISED = "normalised"
+#: Accepted values of ``command_units.torque`` and ``command_units.force``
+#: (the SI unit first: the default).
+TORQUE_UNITS = ("N m", NORMALISED)
+FORCE_UNITS = ("N", NORMALISED)
+#: Other spellings accepted in a vehicle YAML, mapped to the canonical values.
+_UNIT_ALIASES = {
+    "n m": "N m",
+    "nm": "N m",
+    "n*m": "N m",
+    "n·m": "N m",
+    "n": "N",
+    "normalised": NORMALISED,
+    "normalized": NORMALISED,
+}
 
 
 #: Top-level keys whose value replaces the default's instead of being merged.
@@ -129,7 +158,9 @@ class Vehicle:
     estimates for this vehicle. ``columns`` is the CSV column map of its logs
     (role-based or flat, see :mod:`omavctl.logs.columnmap`; empty: wide
     contract CSV) and ``frame`` the frame its logs are in (``"FLU"`` or
-    ``"FRD"``, see :mod:`omavctl.logs.frames`).
+    ``"FRD"``, see :mod:`omavctl.logs.frames`). ``command_units`` maps
+    ``"torque"`` to ``"N m"`` or ``"normalised"`` and ``"force"`` to ``"N"`` or
+    ``"normalised"`` (units of the logged commands).
     """
 
     mass: float
@@ -147,17 +178,30 @@ class Vehicle:
     effects: tuple[str, ...] = ()
     columns: dict[str, Any] = field(default_factory=dict)
     frame: str = "FLU"
+    command_units: dict[str, str] = field(
+        default_factory=lambda: {"torque": TORQUE_UNITS[0], "force": FORCE_UNITS[0]}
+    )
     source: str = "built-in default omav"
     tree: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
-    @property
+    @cached_property
     def inertia_inv(self) -> np.ndarray:
-        """Inverse inertia, shape (3, 3)."""
+        """Inverse inertia, shape (3, 3) (computed once: it sits on hot paths)."""
         return np.linalg.inv(self.inertia)
 
     @property
     def n_arms(self) -> int:
         return int(self.arm_angles.size)
+
+    @property
+    def torque_normalised(self) -> bool:
+        """Whether the logged torque command is normalised (units unknown)."""
+        return self.command_units.get("torque") == NORMALISED
+
+    @property
+    def force_normalised(self) -> bool:
+        """Whether the logged force (thrust) command is normalised (units unknown)."""
+        return self.command_units.get("force") == NORMALISED
 
     def to_json(self) -> str:
         """The merged YAML tree as canonical JSON (stored in model artifacts)."""
@@ -194,6 +238,7 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
             raise ConfigError(f"key 'topics.{role}' must be a topic name", path)
     effects = _effect_names(tree.get("effects"), path)
     columns, frame = _log_layout(tree, path)
+    command_units = _command_units(tree, path)
     max_thrust = _positive(rot["max_thrust"], "rotor.max_thrust", path)
     min_thrust = _positive(rot["min_thrust"], "rotor.min_thrust", path, allow_zero=True)
     if min_thrust >= max_thrust:
@@ -214,6 +259,7 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
         effects=effects,
         columns=columns,
         frame=frame,
+        command_units=command_units,
         source=source,
         tree=tree,
     )
@@ -239,6 +285,32 @@ def _log_layout(tree: dict[str, Any], path: Path | None) -> tuple[dict[str, Any]
     except ConfigError as err:
         raise ConfigError(err.message, path) from None
     return dict(columns), frame
+
+
+def _command_units(tree: dict[str, Any], path: Path | None) -> dict[str, str]:
+    """Validated ``command_units`` of a vehicle tree, canonical spellings.
+
+    Trees written before the key existed (model artifacts) give SI units.
+    """
+    value = tree.get("command_units")
+    if value is None:
+        value = {}
+    if not isinstance(value, dict):
+        raise ConfigError("key 'command_units' must be a mapping {torque: ..., force: ...}", path)
+    out = {"torque": TORQUE_UNITS[0], "force": FORCE_UNITS[0]}
+    for key, allowed in (("torque", TORQUE_UNITS), ("force", FORCE_UNITS)):
+        if value.get(key) is None:
+            continue
+        raw = value[key]
+        unit = _UNIT_ALIASES.get(str(raw).strip().lower()) if isinstance(raw, str) else None
+        if unit not in allowed:
+            choices = " or ".join(f"'{a}'" for a in allowed)
+            raise ConfigError(f"key 'command_units.{key}' must be {choices}, got {raw!r}", path)
+        out[key] = unit
+    for key in value:
+        if key not in out:
+            raise ConfigError(f"unknown key 'command_units.{key}' (expected: torque, force)", path)
+    return out
 
 
 def _effect_names(value: Any, path: Path | None) -> tuple[str, ...]:

@@ -55,7 +55,9 @@ class EffectContext:
     dt grid step s; ``allocation`` the vehicle's allocation;
     ``derivative`` a callable differentiating (N, k) arrays along time
     (``fit`` passes its Savitzky-Golay derivative so that every signal is
-    filtered alike).
+    filtered alike). ``torque_normalised``: the torque command is in unknown
+    units (vehicle ``command_units.torque: normalised``); ``torque`` is then
+    that command, and ``inertia_error`` estimates its per-axis gain.
     """
 
     omega: np.ndarray
@@ -66,6 +68,7 @@ class EffectContext:
     dt: float
     allocation: Allocation
     derivative: Any
+    torque_normalised: bool = False
 
     @property
     def inertia_inv(self) -> np.ndarray:
@@ -211,8 +214,13 @@ class InertiaError(Effect):
     ``omega_dot_k = (tau - omega x I_true omega)_k / (scale_k I_k)``. To first
     order the residual is ``theta_k * omega_dot_nominal_k`` with
     ``theta_k = 1/scale_k - 1`` (estimated linearly; ``scale = 1/(1+theta)``,
-    standard error by the delta method). Also estimates the gain of a
-    normalised torque command (units unknown).
+    standard error by the delta method).
+
+    It also estimates the gain of a normalised torque command (units unknown,
+    ``ctx.torque_normalised``): the body torque is ``diag(g) tau_cmd``, so the
+    residual is ``I^-1 diag(theta) tau_cmd`` with ``g = 1 + theta = 1/scale``.
+    The regressor is then ``I^-1 e_k tau_k`` without the gyroscopic term, which
+    is in physical units whatever the command's.
     """
 
     name = "inertia_error"
@@ -220,6 +228,9 @@ class InertiaError(Effect):
     parameters = (Parameter("scale", 3, "1", "true/nominal inertia per axis"),)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.torque_normalised:
+            # column k: I^-1 e_k tau_k
+            return ctx.inertia_inv[None, :, :] * ctx.torque[:, None, :]
         return np.eye(3)[None, :, :] * ctx.omega_dot_nominal[:, None, :]
 
     def to_parameters(self, theta, cov):

@@ -1,0 +1,283 @@
+"""Real and real-like logs end to end: the px4tools octocopter flight through fit,
+evaluate and report; one simulated flight written in FRD and in FLU gives the same
+model; a normalised torque command's gain is recovered; command units and rates."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.errors import ConfigError, ModelError
+from omavctl.fit import GAIN_EFFECT, fit_model, torque_gain, upsampling_note
+from omavctl.logs import RawLog, RawSeries, align, read_vehicle_log, write_log
+from omavctl.logs.contract import quaternion_from_euler
+from omavctl.logs.frames import FRD_TO_FLU
+from omavctl.model import check_vehicle, load_model
+from omavctl.plant import simulate, truth_from_tree
+from omavctl.tasks import fig8
+from omavctl.vehicle import default_vehicle, load_vehicle
+
+REPO = Path(__file__).parents[1]
+PX4_CSV = Path(__file__).parents[2] / "shared/data/real/px4tools_octocopter/01_07_59.csv"
+PX4_VEHICLE = REPO / "examples/px4tools-octocopter.yaml"
+needs_px4 = pytest.mark.skipif(
+    not PX4_CSV.exists(),
+    reason=f"real PX4 log not available at {PX4_CSV} (shared test data not mounted)",
+)
+runner = CliRunner()
+#: Small fits keep this file fast; the example (examples/Makefile) uses the defaults.
+SMALL_FIT = ["--points", "60", "--restarts", "0"]
+
+
+def _ok(result: Any) -> str:
+    assert result.exit_code == 0, result.output
+    return str(result.output)
+
+
+# --- the real px4tools octocopter ----------------------------------------------------
+
+
+@needs_px4
+def test_px4tools_column_map_and_in_flight_detection() -> None:
+    vehicle = load_vehicle(PX4_VEHICLE)
+    assert vehicle.command_units == {"torque": "normalised", "force": "normalised"}
+    log = read_vehicle_log(PX4_CSV, vehicle, rate=vehicle.gains.rate_hz)
+    assert set(log.signals) >= {"body_rate", "attitude", "force_command", "torque_command"}
+    # normalised commands: thrust 0..~0.5 (up after FRD -> FLU), torques within -1..1
+    f, tau = log.signals["force_command"], log.signals["torque_command"]
+    assert 0.0 <= f[:, 2].min() and f[:, 2].max() < 0.6 and np.abs(tau).max() <= 1.0
+    # the ground segment (idle, then spool-up below hover thrust) is excluded: one
+    # in-flight segment from ~5.3 s to the end of the log
+    ((a, b),) = log.segments
+    assert 5.0 < log.t[a] < 5.6 and b == log.t.size
+    assert not log.valid[log.t < 5.0].any() and log.valid[log.t >= 5.6].all()
+    hover = np.median(f[a:b, 2])
+    assert 0.40 < hover < 0.45
+    assert np.all(f[: a - 30, 2] < 0.9 * hover)  # before take-off thrust (0.2 s margin)
+    assert any(n.startswith("ground/idle: 0.00-") for n in log.notes)
+    # 83 Hz body rate on the 100 Hz grid: fit notes the upsampling
+    note = upsampling_note(log, vehicle)
+    assert note is not None and note.startswith("body rate logged at 83.3 Hz")
+    assert "controller.rate_hz to at most 83 Hz" in note
+
+
+@needs_px4
+def test_px4tools_fit_evaluate_report_through_the_cli(tmp_path: Path) -> None:
+    model, ev, rep = tmp_path / "gp.npz", tmp_path / "eval.json", tmp_path / "report.md"
+    before = PX4_CSV.stat().st_mtime_ns
+    args = ["fit", str(PX4_CSV), "--vehicle", str(PX4_VEHICLE), "--time-window", "6.5:15"]
+    args += ["--effects", "rotational_drag", *SMALL_FIT, "--out", str(model)]
+    out = _ok(runner.invoke(app, args))
+    text = " ".join(out.split())
+    # inertia_error added for the normalised torque, said so; units unknown, not N m
+    assert "inertia_error added to estimate its per-axis gain" in text
+    assert "torque command gain" in text and "[torque unit] s^2" in text
+    assert "N m s^2" not in text
+    assert "body rate logged at 83.3 Hz" in text
+    assert "time window 6.5:15 s" in text
+
+    m = load_model(model)
+    assert sorted(m.effects) == [GAIN_EFFECT, "rotational_drag"]
+    assert m.vehicle.torque_normalised and m.provenance["command_units"]["torque"] == "normalised"
+    assert m.provenance["time_window"] == [6.5, 15.0]
+    assert m.provenance["vehicle_path"] == str(PX4_VEHICLE)
+    gain, se = torque_gain(m.effects[GAIN_EFFECT])
+    assert np.all(np.isfinite(gain)) and np.all(np.isfinite(se))
+    np.testing.assert_allclose(m.provenance["torque_gain"]["values"], gain)
+    # roll and pitch gains: positive, of the order found on this flight (docs/logs.md)
+    assert np.all((gain[:2] > 0.02) & (gain[:2] < 1.0)), gain
+    assert m.n_train == 60
+
+    out = _ok(
+        runner.invoke(
+            app, ["evaluate", str(PX4_CSV), "-m", str(model), "--time-window", "15:", "-o", str(ev)]
+        )
+    )
+    tree = json.loads(ev.read_text())
+    assert tree["units"] == {"acceleration": "rad/s^2", "torque": "unknown"}
+    (log,) = tree["logs"]
+    assert 600 < log["samples"] < 650  # 15 <= t < 21.44 s at 100 Hz, minus filter edges
+    for pred in ("nominal", "effects", "model"):
+        for metric in ("rmse", "mae", "r2", "coverage_2sigma"):
+            values = tree["metrics"][pred][metric].values()
+            assert all(math.isfinite(v) for v in values), (pred, metric)
+    # the fitted gain explains part of the nominal model's error on the held-out part
+    for axis in "xyz":
+        assert tree["metrics"]["effects"]["rmse"][axis] < tree["metrics"]["nominal"]["rmse"][axis]
+
+    _ok(runner.invoke(app, ["report", str(ev), "--out", str(rep), "-q"]))
+    assert "torques are in unknown units" in rep.read_text()
+    assert PX4_CSV.stat().st_mtime_ns == before
+
+
+# --- one simulated flight, FRD and FLU -----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def flight(vehicle) -> dict[str, np.ndarray]:
+    """A short simulated figure-8 (default imperfections) on the 100 Hz grid: ``t``
+    shape (n,) and the contract roles in FLU, shape (n, 3) each."""
+    ref = fig8(roll_deg=20, pitch_deg=20, period=3.0, duration=5.0, ramp=1.0)
+    log = align(simulate(ref, vehicle, truth_from_tree({}, vehicle), seed=0).log)
+    assert log.valid.all()
+    return {"t": log.t, **log.signals}
+
+
+def _write_rows(path: Path, header: list[str], columns: list[np.ndarray]) -> Path:
+    rows = np.column_stack(columns)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows([[repr(float(x)) for x in row] for row in rows])
+    return path
+
+
+def test_frd_and_flu_csvs_of_one_flight_give_the_same_model(tmp_path: Path, flight) -> None:
+    roles = ("body_rate", "attitude", "position", "force_command", "torque_command")
+    # FLU: the wide contract CSV, read without a column map
+    t = flight["t"]
+    flu_raw = RawLog(
+        path=Path("sim"),
+        format="synthetic",
+        t0=0.0,
+        series={r: RawSeries(t, flight[r]) for r in roles},
+    )
+    flu_path = tmp_path / "flu.csv"
+    write_log(flu_path, flu_raw)
+    # FRD: body FRD / world NED, another layout, time in ms, attitude as a quaternion,
+    # thrust logged as a positive magnitude, torques in N cm
+    frd = {r: flight[r] * FRD_TO_FLU for r in roles}
+    q = quaternion_from_euler(frd["attitude"])  # (x, y, z, w)
+    assert (frd["force_command"][:, 2] < 0).all()
+    frd_path = _write_rows(
+        tmp_path / "frd.csv",
+        "time_ms gx gy gz qw qx qy qz n e d fx fy thrust mx my mz".split(),
+        [
+            t * 1e3 + 2.5e4,
+            *frd["body_rate"].T,
+            q[:, 3],
+            *q[:, :3].T,
+            *frd["position"].T,
+            frd["force_command"][:, 0],
+            frd["force_command"][:, 1],
+            -frd["force_command"][:, 2],
+            *(frd["torque_command"] * 100.0).T,
+        ],
+    )
+    frd_vehicle = tmp_path / "frd.yaml"
+    frd_vehicle.write_text(
+        yaml.safe_dump(
+            {
+                "frame": "FRD",
+                "columns": {
+                    "time": {"column": "time_ms", "scale": 1e-3},
+                    "body_rate": {"x": "gx", "y": "gy", "z": "gz"},
+                    "attitude": {"quaternion": {a: f"q{a}" for a in "wxyz"}},
+                    "position": {"x": "n", "y": "e", "z": "d"},
+                    "force_command": {"x": "fx", "y": "fy", "z": {"column": "thrust", "scale": -1}},
+                    "torque_command": {"x": "mx", "y": "my", "z": "mz", "scale": 0.01},
+                },
+            }
+        )
+    )
+    common = ["--effects", "rotational_drag", "--points", "50", "--restarts", "0", "-q"]
+    outs = {}
+    for name, path, extra in (
+        ("flu", flu_path, []),
+        ("frd", frd_path, ["--vehicle", str(frd_vehicle)]),
+    ):
+        outs[name] = tmp_path / f"{name}.npz"
+        _ok(runner.invoke(app, ["fit", str(path), *extra, *common, "--out", str(outs[name])]))
+    a, b = load_model(outs["flu"]), load_model(outs["frd"])
+    # the same training points, targets, hyperparameters and effects (FLU inputs)
+    np.testing.assert_allclose(b.inputs, a.inputs, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(b.targets, a.targets, rtol=1e-6, atol=1e-7)
+    for key in ("signal_variance", "noise_variance", "length_scales", "target_mean"):
+        np.testing.assert_allclose(getattr(b, key), getattr(a, key), rtol=1e-5, err_msg=key)
+    d_a, d_b = a.effects["rotational_drag"].values["D"], b.effects["rotational_drag"].values["D"]
+    np.testing.assert_allclose(d_b, d_a, rtol=1e-6, atol=1e-12)
+    # and the same predictions anywhere near the flight
+    rng = np.random.default_rng(0)
+    u = a.inputs[rng.integers(0, a.n_train, 40)] + 0.1 * rng.standard_normal((40, 6))
+    omega = 0.3 * rng.standard_normal((40, 3))
+    np.testing.assert_allclose(b.predict(u, omega)[0], a.predict(u, omega)[0], rtol=1e-5, atol=1e-8)
+    # a 100 Hz log on the 100 Hz grid: no upsampling note
+    assert upsampling_note(read_vehicle_log(frd_path, load_vehicle(frd_vehicle)), a.vehicle) is None
+
+
+# --- normalised torque command -------------------------------------------------------
+
+
+def test_gain_of_a_normalised_torque_command_is_recovered(tmp_path: Path, vehicle) -> None:
+    """Ideal actuators, default sensor noise; the logged torque is tau / c per axis."""
+    from test_fit import attitude_sines
+
+    ref = attitude_sines((20, 20, 30), (2, 2.6, 3), duration=8.0)
+    log = simulate(ref, vehicle, truth_from_tree({"ideal": True}, vehicle), seed=0).log
+    gains = np.array([0.002, 25.0, 800.0])  # N m per command unit: 1e-3 .. 1e3
+    torque = log.series["torque_command"]
+    log.series["torque_command"] = RawSeries(torque.stamps, torque.values / gains)
+    path = tmp_path / "normalised.csv"
+    write_log(path, log)
+    vfile = tmp_path / "v.yaml"
+    vfile.write_text("command_units: {torque: normalised}\n")
+    veh = load_vehicle(vfile)
+    assert veh.torque_normalised and not veh.force_normalised
+
+    # effects named without inertia_error: it is added, and said so
+    result = fit_model([path], veh, effects=["rotational_drag"], points=40, restarts=0)
+    assert result.summary.added_effects == (GAIN_EFFECT,)
+    assert list(result.model.effects) == ["rotational_drag", GAIN_EFFECT]
+    assert any("inertia_error added" in n for n in result.summary.notes)
+    gain = result.summary.torque_gain
+    assert gain is not None and result.summary.torque_gain_stderr is not None
+    print(f"gain {gain}, true {gains}, ratio {gain / gains}")
+    np.testing.assert_allclose(gain, gains, rtol=0.10)
+    assert np.all(result.summary.torque_gain_stderr < 0.1 * gains)
+    first = np.array(result.model.provenance["torque_gain"]["first_pass_least_squares"])
+    np.testing.assert_allclose(first, gains, rtol=0.10)
+
+    # the model's pointwise prediction uses the gain regressor (no unit mixing)
+    model = result.model
+    u = np.zeros((1, 6))
+    u[0, 3:] = np.linalg.solve(vehicle.inertia, [1.0, 0.0, 0.0])  # I^-1 tau for tau_x = 1
+    eff = model.effects_mean(u, np.zeros((1, 3)))
+    np.testing.assert_allclose(eff[0, 0], (gain[0] - 1.0) / vehicle.inertia[0, 0], rtol=1e-9)
+
+    # a model for normalised commands is refused for a vehicle with N m commands
+    with pytest.raises(ModelError, match=r"commands in torque normalised, force N; this"):
+        check_vehicle(model, default_vehicle())
+
+
+# --- vehicle key ---------------------------------------------------------------------
+
+
+def test_command_units_key(tmp_path: Path) -> None:
+    assert default_vehicle().command_units == {"torque": "N m", "force": "N"}
+    path = tmp_path / "v.yaml"
+    path.write_text("command_units: {torque: Normalized, force: N}\n")
+    assert load_vehicle(path).command_units == {"torque": "normalised", "force": "N"}
+    cases = {
+        "command_units: {torque: percent}\n": (
+            "key 'command_units.torque' must be 'N m' or 'normalised', got 'percent'"
+        ),
+        "command_units: {force: 1.0}\n": (
+            "key 'command_units.force' must be 'N' or 'normalised', got 1.0"
+        ),
+        "command_units: {thrust: normalised}\n": "unknown key 'command_units.thrust'",
+        "command_units: normalised\n": "key 'command_units' must be a mapping",
+    }
+    for text, message in cases.items():
+        path.write_text(text)
+        with pytest.raises(ConfigError) as err:
+            load_vehicle(path)
+        assert str(err.value) == f"{path}: {message}"
