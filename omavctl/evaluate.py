@@ -31,7 +31,6 @@ learned, in physical terms.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from collections.abc import Callable, Sequence
@@ -44,10 +43,12 @@ import numpy as np
 from omavctl import __version__
 from omavctl.atomic import atomic_path
 from omavctl.errors import LogError, ModelError, OmavctlError
+from omavctl.fit import body_rate_rate, sha256_of
 from omavctl.logs.types import FlightLog
 from omavctl.model import ResidualGP
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
+from omavctl.vehicle import Vehicle
 
 __all__ = [
     "MIN_EXPLAINED",
@@ -357,20 +358,6 @@ class EvalResult:
     series: dict[str, np.ndarray]
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    if path.is_dir():
-        for p in sorted(path.rglob("*")):
-            if p.is_file():
-                h.update(p.name.encode())
-                h.update(p.read_bytes())
-    else:
-        with path.open("rb") as fh:
-            for chunk in iter(lambda: fh.read(1 << 20), b""):
-                h.update(chunk)
-    return h.hexdigest()
-
-
 def _check_models(models: Sequence[ResidualGP], paths: Sequence[str]) -> None:
     ref = models[0].vehicle
     for m, p in zip(models[1:], paths[1:], strict=True):
@@ -405,16 +392,15 @@ def _grid(model: ResidualGP) -> tuple[float, SavitzkyGolay]:
     return rate, sg
 
 
-def _check_rate(flight: FlightLog, rate: float) -> None:
-    for info in flight.topics:
-        roles = ("body_rate", "imu")
-        if any(r in info.name for r in roles) or info.name.endswith("/imu"):
-            if 0 < info.rate < 0.5 * rate:
-                raise LogError(
-                    f"body rate logged at {info.rate:.1f} Hz, below half the model's grid rate "
-                    f"({rate:g} Hz): its Savitzky-Golay settings do not apply",
-                    flight.path,
-                )
+def _check_rate(flight: FlightLog, vehicle: Vehicle, rate: float) -> None:
+    """Refuse a log whose body rate was recorded at less than half the grid rate."""
+    logged = body_rate_rate(flight, vehicle)
+    if logged is not None and logged < 0.5 * rate:
+        raise LogError(
+            f"body rate logged at {logged:.1f} Hz, below half the model's grid rate "
+            f"({rate:g} Hz): its Savitzky-Golay settings do not apply",
+            flight.path,
+        )
 
 
 def _worst_segments(
@@ -614,7 +600,7 @@ def evaluate(
     logs_json = []
     for i, path in enumerate(log_paths):
         flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
-        _check_rate(flight, rate)
+        _check_rate(flight, vehicle, rate)
         extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
         s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
         if s.n < 10 * sg.window:
@@ -632,7 +618,7 @@ def evaluate(
             {
                 "path": str(p),
                 "name": p.name,
-                "sha256": _sha256(p),
+                "sha256": sha256_of(p),
                 "format": flight.format,
                 "duration": float(flight.t[-1] - flight.t[0]),
                 "samples": s.n,

@@ -80,6 +80,7 @@ __all__ = [
     "fit_model",
     "read_flights",
     "select_points",
+    "sha256_of",
     "torque_gain",
     "upsampling_note",
 ]
@@ -605,7 +606,7 @@ def _estimates(
     return EffectFit(theta, cov, estimates, old.residual_std, old.explained)
 
 
-def _sha256(path: Path) -> str:
+def sha256_of(path: Path) -> str:
     """sha256 of a file, or of a directory's files (relative names and contents, sorted)."""
     h = hashlib.sha256()
     if path.is_dir():
@@ -622,7 +623,7 @@ def _sha256(path: Path) -> str:
 
 def _source(item: str | Path | FlightLog) -> dict[str, Any]:
     path = item.path if isinstance(item, FlightLog) else Path(item)
-    digest = _sha256(path) if path.exists() else None
+    digest = sha256_of(path) if path.exists() else None
     # the path as given (relative paths stay relative): evaluate prints the fit
     # command that refits with another effect from the same logs
     return {"name": path.name, "path": str(path), "sha256": digest}
