@@ -20,8 +20,8 @@ demo: $(STAMP)
 	$(MAKE) -C examples demo OMAVCTL=$(abspath $(BIN))/omavctl
 
 lint: $(STAMP)
-	$(BIN)/ruff check omavctl tests benchmarks
-	$(BIN)/ruff format --check omavctl tests benchmarks
+	$(BIN)/ruff check omavctl tests benchmarks tools
+	$(BIN)/ruff format --check omavctl tests benchmarks tools
 	$(BIN)/mypy omavctl
 
 test: lint

@@ -1,0 +1,90 @@
+"""The docs stay in step with the code: CLI reference, effects reference, links."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+
+from omavctl.physics.effects import EFFECTS
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+
+
+def _load_tool(name: str):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tools" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_cli_reference_is_up_to_date():
+    expected = _load_tool("gen_cli_docs").render()
+    current = (DOCS / "cli.md").read_text() if (DOCS / "cli.md").exists() else ""
+    assert current == expected, "docs/cli.md is stale: run python tools/gen_cli_docs.py"
+
+
+def _effect_sections() -> dict[str, str]:
+    """Sections of docs/effects.md by effect name (headings ``## `name` ``)."""
+    text = (DOCS / "effects.md").read_text()
+    parts = re.split(r"^## `([a-z0-9_]+)`\s*$", text, flags=re.MULTILINE)
+    return {parts[i]: parts[i + 1] for i in range(1, len(parts), 2)}
+
+
+@pytest.mark.parametrize("name", sorted(EFFECTS))
+def test_every_effect_is_documented(name):
+    sections = _effect_sections()
+    assert name in sections, (
+        f"docs/effects.md has no entry for the registered effect '{name}': "
+        f"add a section '## `{name}`' (see docs/adding-an-effect.md)"
+    )
+    body = sections[name]
+    for p in EFFECTS[name].parameters:
+        assert f"`{p.name}`" in body, f"docs/effects.md, {name}: parameter '{p.name}' missing"
+        unit = p.unit.replace("^2", "²")
+        assert unit in body or p.unit in body, (
+            f"docs/effects.md, {name}: unit '{p.unit}' of '{p.name}' missing"
+        )
+    for part in ("**Meaning.**", "**Formula.**", "**Simulation form.**"):
+        assert part in body, f"docs/effects.md, {name}: no {part} paragraph"
+
+
+def test_effects_reference_lists_only_registered_effects():
+    unknown = sorted(set(_effect_sections()) - set(EFFECTS))
+    assert not unknown, f"docs/effects.md documents unregistered effects: {unknown}"
+
+
+def _anchors(page: Path) -> set[str]:
+    """GitHub-style anchors of a Markdown page's headings (outside code blocks)."""
+    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.MULTILINE | re.DOTALL)
+    out = set()
+    for heading in re.findall(r"^#+\s+(.+?)\s*$", text, flags=re.MULTILINE):
+        slug = re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+        out.add(slug)
+    return out
+
+
+def test_relative_links_in_docs_resolve():
+    bad = []
+    for page in sorted([*DOCS.glob("*.md"), ROOT / "README.md"]):
+        text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.MULTILINE | re.DOTALL)
+        for target, anchor in re.findall(r"\]\(([^)#\s]*)(?:#([^)\s]*))?\)", text):
+            if "://" in target:
+                continue
+            path = page.parent / target if target else page
+            if not path.exists():
+                bad.append(f"{page.relative_to(ROOT)} -> {target}")
+            elif anchor and path.suffix == ".md" and anchor not in _anchors(path):
+                bad.append(f"{page.relative_to(ROOT)} -> {target}#{anchor}")
+    assert not bad, "broken links: " + ", ".join(bad)
+
+
+def test_index_lists_every_page():
+    index = (DOCS / "index.md").read_text()
+    missing = [p.name for p in sorted(DOCS.glob("*.md")) if p.name != "index.md"]
+    missing = [name for name in missing if f"({name})" not in index]
+    assert not missing, f"docs/index.md does not link to: {', '.join(missing)}"
