@@ -167,19 +167,14 @@ class EffectScore:
         }
 
 
-#: Physically plausible range of each effect's estimation parameters theta (the
-#: registry's linear parameters): drag and lags are not negative, a centre of
+#: Physically plausible range of each effect's estimation parameters theta (each
+#: effect's ``theta_range``): drag and lags are not negative, a centre of
 #: mass lies within 0.2 m, the true inertia within half and twice the nominal
 #: (theta = 1/scale - 1), a gyro bias below 0.2 rad/s. The diagnosis fits
 #: within these bounds (bounded least squares): a missing effect must explain
 #: the error with physically possible values.
 THETA_RANGE: dict[str, tuple[float, float]] = {
-    "rotational_drag": (0.0, 1.0),
-    "com_offset": (-0.2, 0.2),
-    "inertia_error": (-0.5, 1.0),
-    "servo_lag": (0.0, 0.5),
-    "motor_lag": (0.0, 0.5),
-    "gyro_bias": (-0.2, 0.2),
+    name: effect.theta_range for name, effect in EFFECTS.items()
 }
 
 
@@ -226,7 +221,7 @@ def score_effects(
     for name, x in regressors.items():
         effect = get_effect(name)
         p = x.shape[2]
-        lo_b, hi_b = THETA_RANGE.get(name, (-np.inf, np.inf))
+        lo_b, hi_b = effect.theta_range
         xw = x * np.sqrt(w)[:, :, None]
         energy = np.einsum("nap,nap->p", xw, xw)
         reach = max(abs(lo_b), abs(hi_b))

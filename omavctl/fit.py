@@ -456,16 +456,10 @@ def fit_hyperparameters(
 
 
 #: Prior standard deviation of each effect's estimation parameters in the joint
-#: fit: wide for what is physically plausible, so that a parameter the data do
-#: not excite stays near 0 instead of absorbing whatever correlates with it.
-PRIOR_STD = {
-    "rotational_drag": 0.1,  # N m s^2
-    "com_offset": 0.05,  # m
-    "inertia_error": 0.5,  # theta = 1/scale - 1
-    "servo_lag": 0.05,  # s
-    "motor_lag": 0.05,  # s
-    "gyro_bias": 0.05,  # rad/s
-}
+#: fit (each effect's ``prior_std``): wide for what is physically plausible, so
+#: that a parameter the data do not excite stays near 0 instead of absorbing
+#: whatever correlates with it.
+PRIOR_STD = {name: effect.prior_std for name, effect in EFFECTS.items()}
 #: With a normalised torque command, the joint-fit prior of ``inertia_error``'s
 #: theta (= gain - 1) per axis is centred on the first-pass least-squares value
 #: (gain_LS - 1) with std ``GAIN_PRIOR_FACTOR x |gain_LS|``: scaled to the gain,
@@ -492,7 +486,7 @@ def effect_prior(
     """
     means, stds = [], []
     for name in names:
-        std = np.full(get_effect(name).n_theta, PRIOR_STD[name])
+        std = np.full(get_effect(name).n_theta, get_effect(name).prior_std)
         mean = np.zeros_like(std)
         if name == GAIN_EFFECT and vehicle.torque_normalised and name in first_pass.estimates:
             theta = get_effect(name).to_theta(first_pass.estimates[name].values)

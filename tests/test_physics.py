@@ -223,6 +223,8 @@ def test_every_effect_has_formula_units_and_regressor(vehicle):
         assert all(p.unit for p in effect.parameters)
         x = effect.regressor(ctx)
         assert x.shape == (400, 3, effect.n_theta) and np.all(np.isfinite(x))
+        lo, hi = effect.theta_range
+        assert effect.prior_std > 0 and lo < hi
     assert {
         "rotational_drag",
         "com_offset",

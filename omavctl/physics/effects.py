@@ -95,6 +95,13 @@ class Effect(ABC):
     parameters: ClassVar[tuple[Parameter, ...]]
     #: Whether its parameters can be recovered from angular accelerations alone.
     identifiable: ClassVar[bool] = True
+    #: Prior standard deviation of each estimation parameter theta in ``fit``'s
+    #: joint effects + GP estimate: wide for what is physically plausible, so
+    #: that a parameter the data do not excite stays near 0.
+    prior_std: ClassVar[float]
+    #: Physically plausible range of theta, used as bounds by ``evaluate``'s
+    #: diagnosis (a missing effect must explain the error with possible values).
+    theta_range: ClassVar[tuple[float, float]] = (-np.inf, np.inf)
 
     # --- estimation --------------------------------------------------------
     @property
@@ -176,6 +183,8 @@ class RotationalDrag(Effect):
     name = "rotational_drag"
     summary = "aerodynamic drag torque -D omega|omega|"
     parameters = (Parameter("D", 3, "N m s^2", "diagonal drag coefficients"),)
+    prior_std = 0.1  # N m s^2
+    theta_range = (0.0, 1.0)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         q = ctx.omega * np.abs(ctx.omega)  # (N, 3)
@@ -197,6 +206,8 @@ class ComOffset(Effect):
     name = "com_offset"
     summary = "centre of mass offset r: extra torque r x f"
     parameters = (Parameter("r", 3, "m", "centre-of-mass offset, body frame"),)
+    prior_std = 0.05  # m
+    theta_range = (-0.2, 0.2)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         eye = np.eye(3)
@@ -226,6 +237,8 @@ class InertiaError(Effect):
     name = "inertia_error"
     summary = "true/nominal inertia scale per axis"
     parameters = (Parameter("scale", 3, "1", "true/nominal inertia per axis"),)
+    prior_std = 0.5  # theta = 1/scale - 1
+    theta_range = (-0.5, 1.0)  # true inertia within half and twice the nominal
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         if ctx.torque_normalised:
@@ -260,6 +273,8 @@ class ServoLag(Effect):
     name = "servo_lag"
     summary = "first-order tilt-servo lag T_s"
     parameters = (Parameter("T_s", 1, "s", "servo time constant"),)
+    prior_std = 0.05  # s
+    theta_range = (0.0, 0.5)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         tilt, thrust = ctx.allocated
@@ -283,6 +298,8 @@ class MotorLag(Effect):
     name = "motor_lag"
     summary = "first-order rotor-thrust lag T_m"
     parameters = (Parameter("T_m", 1, "s", "motor time constant"),)
+    prior_std = 0.05  # s
+    theta_range = (0.0, 0.5)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         tilt, thrust = ctx.allocated
@@ -308,6 +325,8 @@ class GyroBias(Effect):
     name = "gyro_bias"
     summary = "constant gyro bias b"
     parameters = (Parameter("b", 3, "rad/s", "gyro bias, body frame"),)
+    prior_std = 0.05  # rad/s
+    theta_range = (-0.2, 0.2)
     identifiable = False
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
