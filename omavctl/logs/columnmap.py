@@ -258,31 +258,15 @@ def parse_column_map(columns: Mapping[str, Any]) -> dict[str, ColumnSpec]:
     specs: dict[str, ColumnSpec] = {}
     for key, (entry, label) in flat.items():
         name = f"columns.{label}"
-        if isinstance(entry, str) and entry:
-            specs[key] = ColumnSpec(column=entry, label=label)
-            continue
-        if not isinstance(entry, Mapping):
-            raise ConfigError(f"key '{name}' must be a column name or a mapping")
-        extra = set(entry) - _SPEC_KEYS
-        if extra:
-            raise ConfigError(f"unknown key '{name}.{sorted(map(str, extra))[0]}'")
-        if "value" in entry:
-            if "column" in entry:
-                raise ConfigError(f"key '{name}' has both 'column' and 'value'")
+        spec = _axis_entry(entry, name, 1.0, 0.0)  # validates either spelling
+        if "value" in spec:
             if key == "t":
                 raise ConfigError(f"key '{name}' must name a column, not a value")
-            value = _number(entry["value"], f"{name}.value")
-            specs[key] = ColumnSpec(value=value, label=label)
-            continue
-        column = entry.get("column")
-        if not isinstance(column, str) or not column:
-            raise ConfigError(f"key '{name}.column' must be a column name")
-        specs[key] = ColumnSpec(
-            column=column,
-            scale=_number(entry.get("scale", 1.0), f"{name}.scale"),
-            offset=_number(entry.get("offset", 0.0), f"{name}.offset"),
-            label=label,
-        )
+            specs[key] = ColumnSpec(value=spec["value"], label=label)
+        else:
+            specs[key] = ColumnSpec(
+                column=spec["column"], scale=spec["scale"], offset=spec["offset"], label=label
+            )
     if "t" not in specs:
         key = TIME_ROLE if role_based else "t"
         raise ConfigError(
