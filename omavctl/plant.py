@@ -367,24 +367,20 @@ def simulate(
     infeasible, max_att_err, diverged = 0, 0.0, False
     prev_tilt_cmd = act.tilt.copy()
     gyro_meas = x[9:12] + gyro_bias + noise["gyro"] * rng.standard_normal(3)
-    i_imu = 0
+    imu_t[0], imu_v[0] = times[0], gyro_meas
+    i_imu = 1
 
     for k in range(n_ctrl):
         t = times[k]
-        if k == 0:
-            imu_t[0], imu_v[0] = t, gyro_meas
-            i_imu = 1
-        rot_free = x.copy()
+        # measured state; velocity in world frame for the controller, logged in body frame
         meas = np.concatenate(
             [
                 x[0:3] + noise["position"] * rng.standard_normal(3),
                 wrap_angle(x[3:6] + noise["attitude"] * rng.standard_normal(3)),
-                x[6:9],  # world velocity for the controller; logged in body frame below
+                x[6:9] + noise["velocity"] * rng.standard_normal(3),
                 gyro_meas,
             ]
         )
-        vel_noise = noise["velocity"] * rng.standard_normal(3)
-        meas[6:9] += vel_noise
         out = ctrl.step(state, meas[None, :], ref_rows[k : k + 1], dt_ctrl)
         wrench = np.concatenate([out.force[0], out.torque[0]])
         res = alloc.allocate(wrench[None, :], prev_tilt_cmd[None, :], dt_ctrl)
@@ -394,7 +390,7 @@ def simulate(
         thrust_cmd = np.clip(res.rotor_thrust[0], vehicle.min_thrust, vehicle.max_thrust)
         prev_tilt_cmd = tilt_cmd
 
-        r_wb = rotation_matrix(rot_free[3:6])
+        r_wb = rotation_matrix(x[3:6])
         rec["attitude"][k] = meas[3:6]
         rec["position"][k] = meas[0:3]
         rec["velocity"][k] = r_wb.T @ meas[6:9]

@@ -78,8 +78,17 @@ def _windowed_sine(
 
 
 def _attitude_task(
-    t: np.ndarray, eta: np.ndarray, deta: np.ndarray, ddeta: np.ndarray, height: float
+    t: np.ndarray,
+    roll: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+    pitch: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+    height: float,
 ) -> Trajectory:
+    """Constant-position task from roll and pitch (value, rate, acceleration) each (N,);
+    an axis given as None stays at 0; yaw is 0."""
+    z = np.zeros_like(t)
+    r = roll if roll is not None else (z, z, z)
+    p = pitch if pitch is not None else (z, z, z)
+    eta, deta, ddeta = (np.column_stack([r[i], p[i], z]) for i in range(3))
     w, dw = euler_rates_to_body(eta, deta, ddeta)
     assert dw is not None
     pos = np.zeros((t.size, 3))
@@ -110,11 +119,7 @@ def fig8(
     w0 = 2 * np.pi / period
     r = _windowed_sine(t, env, np.deg2rad(roll_deg), w0)
     p = _windowed_sine(t, env, np.deg2rad(pitch_deg), 2 * w0)
-    z = np.zeros_like(t)
-    eta = np.column_stack([r[0], p[0], z])
-    deta = np.column_stack([r[1], p[1], z])
-    ddeta = np.column_stack([r[2], p[2], z])
-    return _attitude_task(t, eta, deta, ddeta, height)
+    return _attitude_task(t, r, p, height)
 
 
 def pitch(
@@ -137,11 +142,7 @@ def pitch(
     t = _grid(duration, rate)
     env = Envelope(duration, ramp)
     p = _windowed_sine(t, env, amp, float(np.sqrt(max_acceleration / amp)))
-    z = np.zeros_like(t)
-    eta = np.column_stack([z, p[0], z])
-    deta = np.column_stack([z, p[1], z])
-    ddeta = np.column_stack([z, p[2], z])
-    return _attitude_task(t, eta, deta, ddeta, height)
+    return _attitude_task(t, None, p, height)
 
 
 def circle(

@@ -8,6 +8,7 @@ from conftest import NO_NOISE, fly, on_grid
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from omavctl.errors import ConfigError
+from omavctl.logs.types import ROLE_COLUMNS
 from omavctl.physics.allocation import Allocation
 from omavctl.physics.effects import EFFECTS, EffectContext
 from omavctl.physics.rigid_body import angular_acceleration
@@ -43,20 +44,7 @@ def test_closed_loop_tracks_the_task_through_imperfect_actuators(vehicle, short_
 
 def test_log_has_every_role_at_contract_rates(vehicle, short_fig8):
     log = fly(vehicle, short_fig8, {}).log
-    expected = {
-        "body_rate",
-        "attitude",
-        "position",
-        "velocity",
-        "force_command",
-        "torque_command",
-        "desired_acceleration",
-        "desired_linear_acceleration",
-        "reference_position",
-        "reference_attitude",
-        "tilt",
-        "rotor",
-    }
+    expected = set(ROLE_COLUMNS)  # every contract role, none left out
     assert set(log.series) == expected
     assert np.median(np.diff(log.series["body_rate"].stamps)) == pytest.approx(0.005)
     assert np.median(np.diff(log.series["attitude"].stamps)) == pytest.approx(0.01)
