@@ -159,6 +159,42 @@ def task_pitch(
     _write_task(pitch(amplitude, max_acceleration, duration, rate, ramp, height), out, quiet)
 
 
+@task_app.command("yaw")
+@_reports_errors
+def task_yaw(
+    out: Out,
+    amplitude: Annotated[float, typer.Option(help="Yaw amplitude, deg.")] = 30.0,
+    period: Annotated[float, typer.Option(help="Period of the oscillation, s.")] = 4.0,
+    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 20.0,
+    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+) -> None:
+    """Yaw oscillation at level attitude (identifies servo_lag: small tilts, fast tilt rates)."""
+    from omavctl.tasks import yaw
+
+    _write_task(yaw(amplitude, period, duration, rate, ramp, height), out, quiet)
+
+
+@task_app.command("heave")
+@_reports_errors
+def task_heave(
+    out: Out,
+    amplitude: Annotated[float, typer.Option(help="Vertical amplitude, m.")] = 0.2,
+    period: Annotated[float, typer.Option(help="Period of the oscillation, s.")] = 3.0,
+    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 20.0,
+    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+) -> None:
+    """Vertical oscillation at level attitude (identifies com_offset: thrust varies, no tilt)."""
+    from omavctl.tasks import heave
+
+    _write_task(heave(amplitude, period, duration, rate, ramp, height), out, quiet)
+
+
 # ----------------------------------------------------------------------- simulate
 @app.command()
 @_reports_errors

@@ -16,7 +16,7 @@ from omavctl.errors import ConfigError
 from omavctl.physics.rigid_body import euler_rates_to_body
 from omavctl.trajectory import Trajectory
 
-__all__ = ["TASKS", "Envelope", "circle", "fig8", "pitch"]
+__all__ = ["TASKS", "Envelope", "circle", "fig8", "heave", "pitch", "yaw"]
 
 
 @dataclass(frozen=True)
@@ -82,13 +82,15 @@ def _attitude_task(
     roll: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
     pitch: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
     height: float,
+    yaw: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> Trajectory:
-    """Constant-position task from roll and pitch (value, rate, acceleration) each (N,);
-    an axis given as None stays at 0; yaw is 0."""
+    """Constant-position task from roll, pitch and yaw (value, rate, acceleration)
+    each (N,); an axis given as None stays at 0."""
     z = np.zeros_like(t)
     r = roll if roll is not None else (z, z, z)
     p = pitch if pitch is not None else (z, z, z)
-    eta, deta, ddeta = (np.column_stack([r[i], p[i], z]) for i in range(3))
+    y = yaw if yaw is not None else (z, z, z)
+    eta, deta, ddeta = (np.column_stack([r[i], p[i], y[i]]) for i in range(3))
     w, dw = euler_rates_to_body(eta, deta, ddeta)
     assert dw is not None
     pos = np.zeros((t.size, 3))
@@ -179,5 +181,53 @@ def circle(
     return Trajectory.from_parts(t, pos, zeros, vel, zeros, acc, zeros)
 
 
+def yaw(
+    amplitude_deg: float = 30.0,
+    period: float = 4.0,
+    duration: float = 20.0,
+    rate: float = 100.0,
+    ramp: float = 2.0,
+    height: float = 1.0,
+) -> Trajectory:
+    """Yaw oscillation at level attitude and constant position:
+    ``yaw = A e(t) sin(2 pi t / period)``.
+
+    An omav makes yaw torque by tilting its arms together, at small tilt
+    angles: the manoeuvre that shows the tilt servos' dynamics (``servo_lag``)
+    without the tilt-dependent rotor interference of large attitudes.
+    """
+    _check(duration, ramp, rate)
+    if period <= 0 or amplitude_deg <= 0:
+        raise ConfigError("--amplitude and --period must be > 0")
+    t = _grid(duration, rate)
+    y = _windowed_sine(t, Envelope(duration, ramp), np.deg2rad(amplitude_deg), 2 * np.pi / period)
+    return _attitude_task(t, None, None, height, yaw=y)
+
+
+def heave(
+    amplitude: float = 0.2,
+    period: float = 3.0,
+    duration: float = 20.0,
+    rate: float = 100.0,
+    ramp: float = 2.0,
+    height: float = 1.0,
+) -> Trajectory:
+    """Vertical oscillation at level attitude: ``z = height + A e(t) sin(2 pi t / period)``.
+
+    The collective thrust varies (peak vertical acceleration ``A (2 pi / period)^2``)
+    with no tilt: torques proportional to thrust (``com_offset``) show without
+    tilt-dependent interference.
+    """
+    _check(duration, ramp, rate)
+    if period <= 0 or amplitude <= 0:
+        raise ConfigError("--amplitude and --period must be > 0")
+    t = _grid(duration, rate)
+    h, dh, ddh = _windowed_sine(t, Envelope(duration, ramp), amplitude, 2 * np.pi / period)
+    zeros = np.zeros((t.size, 3))
+    pos, vel, acc = zeros.copy(), zeros.copy(), zeros.copy()
+    pos[:, 2], vel[:, 2], acc[:, 2] = height + h, dh, ddh
+    return Trajectory.from_parts(t, pos, zeros, vel, zeros, acc, zeros)
+
+
 #: Task generators by name (CLI subcommands are derived from this).
-TASKS = {"fig8": fig8, "circle": circle, "pitch": pitch}
+TASKS = {"fig8": fig8, "circle": circle, "pitch": pitch, "yaw": yaw, "heave": heave}
