@@ -288,9 +288,12 @@ class ResidualGP:
         """What the GP mean would predict at z (B, d) from training targets ``values``.
 
         values (n, 3, p): p alternative target columns per axis at the training
-        points; returns (B, 3, p) = ``k(z, Z) (K + sigma^2 I)^-1 values`` per axis
-        (the GP posterior mean is linear in its targets). ``evaluate`` uses it to
-        know how much of an effect the GP has absorbed from its training data.
+        points; returns (B, 3, p) = ``c + k(z, Z) (K + sigma^2 I)^-1 (values - c)``
+        per axis with ``c`` the mean of ``values`` over the training points: the
+        GP posterior mean is linear in its targets, including the target mean
+        ``fit`` subtracts (a constant the GP carries everywhere, also where it
+        extrapolates). ``evaluate`` uses it to know how much of an effect the
+        GP has absorbed from its training data.
         """
         z = np.atleast_2d(np.asarray(z, dtype=float))
         zn = self.normalise(z)
@@ -298,8 +301,36 @@ class ResidualGP:
         for a in range(3):
             zq = zn / self.length_scales[a]
             k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
-            out[:, a, :] = k @ cho_solve((self._chol[a], True), values[:, a, :])
+            c = values[:, a, :].mean(axis=0)
+            out[:, a, :] = c + k @ cho_solve((self._chol[a], True), values[:, a, :] - c)
         return out
+
+    def basis_estimate(
+        self, values: np.ndarray, prior_std: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Parameters of an effect this model lacks, estimated as ``fit --effects`` would.
+
+        values (n, 3, p): the effect's regressor at the training points, whose
+        targets still contain the effect (the model was fitted without it).
+        Mirrors ``fit``: ordinary least squares first, the GP's target mean
+        taken after removing it, then the generalised least squares of the
+        joint step (:func:`omavctl.fit.joint_effects`) with this model's
+        hyperparameters and prior N(0, diag prior_std^2). Returns theta (p,)
+        and its covariance (p, p). ``fit`` also re-optimises the
+        hyperparameters and reselects its points from every sample: this is
+        the estimate from the same training points and kernel.
+        """
+        n, _, p = values.shape
+        ols, *_ = np.linalg.lstsq(values.reshape(3 * n, p), self.targets.reshape(3 * n), rcond=None)
+        centre = (self.targets - values @ ols).mean(axis=0)
+        a_mat = np.diag(1.0 / np.asarray(prior_std, dtype=float) ** 2)
+        b_vec = np.zeros(p)
+        for a in range(3):
+            c = (self._chol[a], True)
+            a_mat += values[:, a, :].T @ cho_solve(c, values[:, a, :])
+            b_vec += values[:, a, :].T @ cho_solve(c, self.targets[:, a] - centre[a])
+        cov = np.linalg.inv(a_mat)
+        return cov @ b_vec, cov
 
     def predict(
         self, u: np.ndarray, omega: np.ndarray | None = None, noise: bool = False

@@ -56,6 +56,7 @@ __all__ = [
     "ResidualSamples",
     "SavitzkyGolay",
     "feature_names",
+    "rate_noise",
     "residual_samples",
     "scaled_wrench",
     "usable_segments",
@@ -213,6 +214,9 @@ class ResidualSamples:
     residual: np.ndarray
     regressors: dict[str, np.ndarray] = field(default_factory=dict)
     held: dict[str, np.ndarray] = field(default_factory=dict)
+    #: white-noise std (3,) of the logged body rate (rad/s), robust estimate
+    #: from its second differences (:func:`rate_noise`)
+    rate_noise: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     total: int = 0
     in_gaps: int = 0
     edge_dropped: int = 0
@@ -228,6 +232,21 @@ class ResidualSamples:
         if features == "wrench":
             return self.u
         return np.concatenate([self.u, self.omega], axis=-1)
+
+
+def rate_noise(second_differences: np.ndarray) -> np.ndarray:
+    """White-noise std (3,) of a body rate from its second differences (m, 3).
+
+    For white noise of std s the second difference has std ``sqrt(6) s``; the
+    median absolute deviation (x 1.4826) ignores the few large differences of
+    manoeuvres. The motion's own second differences (``dt^2`` times the change
+    of angular acceleration) add to it: an upper estimate. NaN without data.
+    """
+    if second_differences.shape[0] == 0:
+        return np.full(3, np.nan)
+    d = second_differences
+    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    return np.asarray(1.4826 * mad / np.sqrt(6.0), dtype=float)
 
 
 def residual_samples(
@@ -265,6 +284,7 @@ def residual_samples(
         k: [] for k in ("index", "omega", "u", "omega_dot", "nominal", "residual")
     }
     reg_parts: dict[str, list[np.ndarray]] = {name: [] for name in effects}
+    second_differences: list[np.ndarray] = []
     extra = dict(extra or {})
     held_parts: dict[str, list[np.ndarray]] = {name: [] for name in extra}
     for a, b, ka, kb in kept:
@@ -275,6 +295,7 @@ def residual_samples(
         nominal = angular_acceleration(omega, torque, inertia, inertia_inv)
         omega_dot = sg.derivative(omega)
         held_nominal = sg.hold(nominal)
+        second_differences.append(np.diff(omega, 2, axis=0))
         parts["index"].append(np.arange(ka, kb))
         parts["omega"].append(sg.hold(omega)[keep])
         parts["u"].append(sg.hold(scaled_wrench(force, torque, vehicle))[keep])
@@ -321,6 +342,7 @@ def residual_samples(
         residual=cat(parts["residual"], (3,)),
         regressors=regressors,
         held=held,
+        rate_noise=rate_noise(cat(second_differences, (3,))),
         total=int(flight.t.size),
         in_gaps=int((~flight.valid).sum()),
         edge_dropped=edge,

@@ -96,6 +96,50 @@ def test_batched_prediction_equals_row_by_row(vehicle):
         model.mean(u)
 
 
+def _with_targets(model, targets):
+    """The same GP (inputs, hyperparameters) trained on other targets, mean fitted anew."""
+    return ResidualGP(
+        vehicle=model.vehicle,
+        features=model.features,
+        input_names=model.input_names,
+        inputs=model.inputs,
+        targets=targets,
+        input_mean=model.input_mean,
+        input_scale=model.input_scale,
+        target_mean=targets.mean(0),
+        signal_variance=model.signal_variance,
+        length_scales=model.length_scales,
+        noise_variance=model.noise_variance,
+    )
+
+
+def test_smooth_is_the_gp_mean_of_other_targets_including_its_mean(vehicle):
+    """smooth() must carry the target mean too: far from the data the GP keeps
+    predicting it (what evaluate's diagnosis relies on to know what it absorbed)."""
+    model = make_model(vehicle)
+    rng = np.random.default_rng(3)
+    values = 4.0 + rng.normal(size=(model.n_train, 3, 2))  # two columns with a large mean
+    z = np.concatenate([model.inputs[:4] + 0.2, model.inputs[:2] + 100.0])  # near and far
+    out = model.smooth(z, values)
+    for j in range(2):
+        expected = _with_targets(model, values[:, :, j]).gp_predict(z, variance=False)[0]
+        np.testing.assert_allclose(out[:, :, j], expected, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(out[-1], values.mean(0), rtol=1e-8)  # far: the mean
+
+
+def test_basis_estimate_recovers_an_effect_the_gp_was_fitted_without(vehicle):
+    """Targets = smooth function + X theta: the joint estimate from the training
+    points recovers theta (what evaluate predicts fit --effects would find)."""
+    model = make_model(vehicle, n=80)
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(model.n_train, 3, 2))
+    theta = np.array([0.7, -0.3])
+    fitted = _with_targets(model, model.targets + x @ theta)
+    est, cov = fitted.basis_estimate(x, np.array([10.0, 10.0]))
+    np.testing.assert_allclose(est, theta, atol=0.05)
+    assert np.all(np.sqrt(np.diag(cov)) < 0.05)
+
+
 def test_controller_inverts_the_model(vehicle):
     model = make_model(vehicle, features="wrench+rate", effects=True)
     ctrl = Controller(vehicle, model)
@@ -249,6 +293,18 @@ def test_hold_kernel_reproduces_the_derivative_of_held_accelerations():
         )
         np.testing.assert_allclose(deriv[m:-m], sg.hold(acc)[m:-m], atol=1e-9)
     np.testing.assert_allclose(SavitzkyGolay(3, 2, dt).hold_kernel, [0.5, 0.5])
+
+
+def test_rate_noise_is_recovered_from_second_differences():
+    from omavctl.signal import rate_noise
+
+    rng = np.random.default_rng(5)
+    t = np.arange(6000) * 0.01
+    motion = np.column_stack([np.sin(t), 0.5 * np.sin(2 * t), 0.1 * t])
+    noise = np.array([0.003, 0.01, 0.001])
+    rate = motion + noise * rng.normal(size=motion.shape)
+    np.testing.assert_allclose(rate_noise(np.diff(rate, 2, axis=0)), noise, rtol=0.05)
+    assert np.all(np.isnan(rate_noise(np.empty((0, 3)))))
 
 
 def test_usable_segments_drop_edges_and_short_runs():
