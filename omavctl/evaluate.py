@@ -490,7 +490,9 @@ def _binned(
     return out
 
 
-def measurement_noise(samples: Sequence[ResidualSamples], dt: float, model: ResidualGP) -> float:
+def measurement_noise(
+    samples: Sequence[ResidualSamples], sg: SavitzkyGolay, model: ResidualGP
+) -> float:
     """Noise std (rad/s^2) of the measured angular acceleration.
 
     The body-rate noise of the logs (:attr:`ResidualSamples.rate_noise`, from
@@ -501,12 +503,8 @@ def measurement_noise(samples: Sequence[ResidualSamples], dt: float, model: Resi
     flight was smooth enough for it to interpolate: the log's is the
     measurement's own.
     """
-    from omavctl.signal import SavitzkyGolay
-
     rates = np.array([s.rate_noise for s in samples], dtype=float)
     if np.isfinite(rates).any():
-        prov = model.provenance.get("savitzky_golay", {})
-        sg = SavitzkyGolay(int(prov.get("window", 11)), int(prov.get("order", 2)), dt)
         return float(np.nanmedian(rates)) * sg.noise_gain
     return float(np.median(np.sqrt(model.noise_variance)))
 
@@ -517,7 +515,7 @@ def diagnose(
     model_mean: np.ndarray,
     model_std: np.ndarray,
     features: dict[str, np.ndarray],
-    dt: float,
+    sg: SavitzkyGolay,
 ) -> dict[str, Any]:
     """The ``diagnosis`` section (see module docstring).
 
@@ -547,7 +545,7 @@ def diagnose(
             )[0]
         candidates[n] = r
     remaining = residual - model_mean
-    noise = measurement_noise(samples, dt, model)
+    noise = measurement_noise(samples, sg, model)
     floor = MIN_NOISE_RATIO * noise
     missing = score_effects(remaining, candidates, blocks, model_std, floor, refit)
     # forward selection: accept the best missing effect, remove what it explains,
@@ -563,7 +561,7 @@ def diagnose(
         pool.pop(best.name)
         ranking = score_effects(after, pool, blocks, model_std, floor, refit)
     learned = score_effects(residual, regs, blocks)
-    unexplained = unexplained_structure(after, features, dt)
+    unexplained = unexplained_structure(after, features, sg.dt)
     return {
         "method": {
             "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
@@ -748,7 +746,7 @@ def evaluate(
         terr = np.abs(desired - measured).mean(axis=0)
         tracking = {a: float(terr[i]) for i, a in enumerate(AXES)}
         tracking["mean"] = float(terr.mean())
-    diagnosis = diagnose(samples, model, mean0, series["std_0"], features, sg.dt)
+    diagnosis = diagnose(samples, model, mean0, series["std_0"], features, sg)
     if diagnosis["missing"]:
         top = diagnosis["missing"][0]
         diagnosis["fit_command"] = fit_command(mpaths[0], model, top)
