@@ -264,9 +264,8 @@ def score_effects(
         ev_axis = {a: float(1.0 - sse1[i] / max(sse0[i], 1e-300)) for i, a in enumerate(AXES)}
         refit_ev: float | None = None
         if refit is not None and name in refit:
-            sse_all = (w * residual**2).sum()
-            sse_refit = (w * (residual - x @ refit[name]) ** 2).sum()
-            refit_ev = 1.0 - float(sse_refit / max(sse_all, 1e-300))
+            sse_refit = float((w * (residual - x @ refit[name]) ** 2).sum())
+            refit_ev = 1.0 - sse_refit / max(total, 1e-300)
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         # t values of components strictly inside their range (at a bound the
         # jackknife spread collapses and says nothing), capped for the JSON
@@ -280,6 +279,8 @@ def score_effects(
         cov[~excited, :] = 0.0
         cov[:, ~excited] = 0.0
         phys = effect.to_parameters(theta_all, cov)
+        contribution = x @ theta_all  # (n, 3)
+        contribution_rms = float(np.sqrt((contribution**2).mean()))
         params: dict[str, Any] = {k: v.tolist() for k, (v, _) in phys.items()}
         params.update({f"{k}_stderr": s.tolist() for k, (_, s) in phys.items()})
         params["excited"] = excited.tolist()
@@ -293,9 +294,9 @@ def score_effects(
                 t_value=tval,
                 significant=bool(tval >= MIN_T),
                 plausible=not bool(at_outer.any()),
-                contribution=x @ theta_all,
-                contribution_rms=float(np.sqrt(((x @ theta_all) ** 2).mean())),
-                above_noise=bool(np.sqrt(((x @ theta_all) ** 2).mean()) >= noise_floor),
+                contribution=contribution,
+                contribution_rms=contribution_rms,
+                above_noise=contribution_rms >= noise_floor,
                 refit_explained_variance=refit_ev,
             )
         )
