@@ -34,6 +34,10 @@ target_mean        (3,)        constant prior mean per axis, rad/s^2
 signal_variance    (3,)        s^2 per axis, (rad/s^2)^2
 length_scales      (3, d)      l per axis and input, in normalised input units
 noise_variance     (3,)        sigma^2 per axis, (rad/s^2)^2
+latent_scale       (3,)        optional: factor on the posterior (latent) variance
+                               in predictions, fit's extrapolation calibration
+                               (absent: 1). An axis whose GP ``fit`` switched off
+                               has signal_variance 0 and target_mean 0.
 effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..]}}``
 vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
 provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
@@ -175,6 +179,7 @@ class ResidualGP:
         signal_variance: np.ndarray,
         length_scales: np.ndarray,
         noise_variance: np.ndarray,
+        latent_scale: np.ndarray | None = None,
         effects: Mapping[str, EffectEstimate] | None = None,
         provenance: Mapping[str, Any] | None = None,
         train_regressors: Mapping[str, np.ndarray] | None = None,
@@ -190,6 +195,11 @@ class ResidualGP:
         self.signal_variance = np.asarray(signal_variance, dtype=float)
         self.length_scales = np.asarray(length_scales, dtype=float)
         self.noise_variance = np.asarray(noise_variance, dtype=float)
+        #: factor (3,) on the latent (posterior) variance in predictions: fit's
+        #: calibration for extrapolation (1 = as the kernel says)
+        self.latent_scale = (
+            np.ones(3) if latent_scale is None else np.asarray(latent_scale, dtype=float)
+        )
         self.effects: dict[str, EffectEstimate] = dict(effects or {})
         self.provenance: dict[str, Any] = dict(provenance or {})
         #: effect name -> regressor (n, 3, p) at the training points (may be empty)
@@ -224,6 +234,12 @@ class ResidualGP:
     def n_train(self) -> int:
         """Number of training points."""
         return int(self.inputs.shape[0])
+
+    @property
+    def gp_enabled(self) -> np.ndarray:
+        """Per axis (3,) whether the GP is on; off (signal variance 0, ``fit``'s blocked
+        cross-validation found it did not help): mean 0, constant variance."""
+        return np.asarray(self.signal_variance > 0)
 
     @property
     def n_inputs(self) -> int:
@@ -277,7 +293,7 @@ class ResidualGP:
                 mean[rows, a] = self.target_mean[a] + k @ self._alpha[a]
                 if var is not None:
                     v = solve_triangular(self._chol[a], k.T, lower=True, check_finite=False)
-                    var[rows, a] = np.maximum(
+                    var[rows, a] = self.latent_scale[a] * np.maximum(
                         self.signal_variance[a] - np.einsum("nb,nb->b", v, v), 0.0
                     )
                     if noise:
@@ -299,6 +315,9 @@ class ResidualGP:
         zn = self.normalise(z)
         out = np.empty((z.shape[0], 3, values.shape[2]))
         for a in range(3):
+            if not self.signal_variance[a] > 0:  # GP off: it absorbed nothing
+                out[:, a, :] = 0.0
+                continue
             zq = zn / self.length_scales[a]
             k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
             c = values[:, a, :].mean(axis=0)
@@ -439,6 +458,7 @@ class ResidualGP:
             "signal_variance": self.signal_variance,
             "length_scales": self.length_scales,
             "noise_variance": self.noise_variance,
+            "latent_scale": self.latent_scale,
             "effects": np.array(json.dumps(effects, sort_keys=True)),
             "vehicle": np.array(self.vehicle.to_json()),
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
@@ -601,8 +621,13 @@ def load_model(path: str | Path) -> ResidualGP:
     sv = _float(arrays, "signal_variance", (3,), p)
     ls = _float(arrays, "length_scales", (3, d), p)
     nv = _float(arrays, "noise_variance", (3,), p)
-    if np.any(scale <= 0) or np.any(sv <= 0) or np.any(ls <= 0) or np.any(nv < 0):
+    if np.any(scale <= 0) or np.any(sv < 0) or np.any(ls <= 0) or np.any(nv < 0):
         raise ModelError("scales, variances and length scales must be positive", p)
+    if np.any((sv == 0) & (nv <= 0)):
+        raise ModelError("an axis with its GP off (signal variance 0) needs a noise variance", p)
+    latent = _float(arrays, "latent_scale", (3,), p) if "latent_scale" in arrays else None
+    if latent is not None and np.any(latent <= 0):
+        raise ModelError("key 'latent_scale' must be positive", p)
     try:
         vehicle = _vehicle_from_json(_text(arrays, "vehicle", p), f"model {p.name}")
     except ModelError:
@@ -634,6 +659,7 @@ def load_model(path: str | Path) -> ResidualGP:
             signal_variance=sv,
             length_scales=ls,
             noise_variance=nv,
+            latent_scale=latent,
             effects=_effects_from_json(_json(arrays, "effects", p), p),
             provenance=provenance,
             train_regressors=regressors,

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -225,6 +225,21 @@ class ResidualSamples:
     @property
     def n(self) -> int:
         return int(self.index.size)
+
+    def select(self, keep: np.ndarray) -> ResidualSamples:
+        """The samples where ``keep`` (n,) bool is True (counts and noise kept)."""
+        return replace(
+            self,
+            index=self.index[keep],
+            t=self.t[keep],
+            omega=self.omega[keep],
+            u=self.u[keep],
+            omega_dot=self.omega_dot[keep],
+            nominal=self.nominal[keep],
+            residual=self.residual[keep],
+            regressors={k: v[keep] for k, v in self.regressors.items()},
+            held={k: v[keep] for k, v in self.held.items()},
+        )
 
     def inputs(self, features: str) -> np.ndarray:
         """GP inputs (n, d): ``u`` for "wrench", ``[u, omega]`` for "wrench+rate"."""
