@@ -80,9 +80,7 @@ class Outcome:
 def fly_pair(workdir: Path, case: str, timing: str, duration: float = DURATION) -> dict[str, Path]:
     """Simulate both trajectories of a case; returns trajectory name -> log path (CSV)."""
     vehicle = default_vehicle()
-    truth = truth_from_tree(
-        {"effects": EFFECT_CASES[case], "timing": TIMINGS[timing]}, vehicle
-    )
+    truth = truth_from_tree({"effects": EFFECT_CASES[case], "timing": TIMINGS[timing]}, vehicle)
     out = {}
     for seed, (name, ref) in enumerate(trajectories(duration).items()):
         path = workdir / f"{case}-{timing}-{name}.csv"
@@ -114,7 +112,9 @@ def run_direction(
     mod = np.array([tree["metrics"]["model"]["rmse"][a] for a in "xyz"])
     cov = np.array([tree["metrics"]["model"]["coverage_2sigma"][a] for a in "xyz"])
     gp = [bool(v) for v in result.model.gp_enabled]
-    return Outcome(case, timing, fit_on, mod / phys, cov, phys, mod, gp, tree["diagnosis"]["missing"])
+    return Outcome(
+        case, timing, fit_on, mod / phys, cov, phys, mod, gp, tree["diagnosis"]["missing"]
+    )
 
 
 def _fmt(v: np.ndarray, digits: int = 2) -> str:
