@@ -33,6 +33,7 @@ from omavctl.fit import fit_model
 from omavctl.logs import write_log
 from omavctl.model import save_model
 from omavctl.plant import simulate, truth_from_tree
+from omavctl.signal import DEFAULT_FEATURES
 from omavctl.tasks import fig8, wobble
 from omavctl.vehicle import default_vehicle
 
@@ -58,7 +59,7 @@ def trajectories(duration: float = DURATION) -> dict[str, Any]:
     """The two trajectories of every case."""
     return {
         "fig8": fig8(roll_deg=20, pitch_deg=20, period=5.0, duration=duration, ramp=2.0),
-        "wobble": wobble(amplitude_deg=15, bandwidth=0.8, duration=duration, ramp=2.0),
+        "wobble": wobble(amplitude_deg=25, bandwidth=0.8, duration=duration, ramp=2.0),
     }
 
 
@@ -96,7 +97,7 @@ def run_direction(
     fit_on: str,
     case: str,
     timing: str,
-    features: str = "wrench",
+    features: str = DEFAULT_FEATURES,
     points: int = 100,
     effects: Iterable[str] = (),
 ) -> Outcome:
@@ -124,7 +125,7 @@ def _fmt(v: np.ndarray, digits: int = 2) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="8 s flights, 100 Hz timing only")
-    ap.add_argument("--features", default="wrench", help="comma-separated GP feature sets")
+    ap.add_argument("--features", default=DEFAULT_FEATURES, help="comma-separated GP feature sets")
     ap.add_argument("--cases", default=",".join(EFFECT_CASES))
     ap.add_argument("--timings", default=",".join(TIMINGS))
     ap.add_argument("--workdir", type=Path, default=None, help="keep the logs here")

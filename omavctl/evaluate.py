@@ -697,9 +697,7 @@ def evaluate(
         "attitude": attitude,
     }
     for j, m in enumerate(models):
-        eff_pred = np.zeros_like(residual)
-        for name, est in m.effects.items():
-            eff_pred += np.concatenate([s.regressors[name] for s in samples]) @ est.theta
+        eff_pred = np.concatenate([m.effects_samples(s) for s in samples])
         gp_mean, gp_var = m.gp_predict(
             np.concatenate([s.inputs(m.features) for s in samples]), noise=True
         )

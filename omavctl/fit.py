@@ -41,14 +41,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from omavctl import __version__
 from omavctl.control_loss import out_of_control
+from omavctl.effect_search import SearchResult, search_effects
 from omavctl.errors import ConfigError, LogError, ModelError
 from omavctl.logs.types import FlightLog
 from omavctl.model import EffectEstimate, ResidualGP, check_vehicle, load_model
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.signal import (
+    DEFAULT_FEATURES,
     DEFAULT_SG_ORDER,
     DEFAULT_SG_WINDOW,
     FEATURES,
@@ -395,7 +398,7 @@ def select_points(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str
 
 #: Hyperparameter bounds, for inputs normalised to unit std and targets scaled to unit std.
 _SIGNAL_BOUNDS = (1e-4, 1e3)
-_LENGTH_BOUNDS = (1e-2, 1e3)
+_LENGTH_BOUNDS = (1e-2, 5.0)
 _NOISE_BOUNDS = (1e-6, 10.0)
 
 
@@ -657,7 +660,7 @@ def fit_model(
     prior: ResidualGP | str | Path | None = None,
     sg_window: int = DEFAULT_SG_WINDOW,
     sg_order: int = DEFAULT_SG_ORDER,
-    features: str = "wrench",
+    features: str = DEFAULT_FEATURES,
     seed: int = 0,
     restarts: int = DEFAULT_RESTARTS,
     progress: Progress | None = None,
@@ -675,7 +678,9 @@ def fit_model(
         points: training points selected from the new logs.
         prior: a model (or its path) whose training points are kept (augmented).
         sg_window, sg_order: Savitzky-Golay window (odd, samples) and order.
-        features: "wrench" (6-D GP inputs) or "wrench+rate" (adds body rates, 9-D).
+        features: GP inputs: "wrench" (6-D scaled commanded wrench), "+rate" adds
+            body rates, "+dtorque" the torque command's rate of change
+            (default :data:`omavctl.signal.DEFAULT_FEATURES`, 12-D).
         seed: seeds subsampling and optimiser restarts; same inputs and seed,
             same model.
         restarts: extra optimiser starts per axis.
@@ -795,9 +800,14 @@ def fit_model(
             where,
         )
 
-    # 3. effects
+    # 3. effects: those nonlinear in their parameter by an exact 1-D search, then
+    # the linear ones by least squares on what remains
     t0 = time.perf_counter()
     report("estimating effects", 0.0)
+    all_names = list(names)
+    original = samples
+    samples, found = _search_step(samples, names)
+    names = [nm for nm in names if nm not in found]
     eff = estimate_effects(samples, names)
     residual = np.concatenate([s.residual for s in samples])
     targets_all = residual.copy()
@@ -836,14 +846,17 @@ def fit_model(
     report("fitting GP hyperparameters", 0.0)
     in_mean, in_scale = _normalisation(train_x)
     floor = measurement_noise_std(samples, sg)
-    axes, t_mean, sv, ls, gp_notes = fit_hyperparameters(
-        (train_x - in_mean) / in_scale,
-        train_y,
-        seed=seed,
-        restarts=restarts,
-        input_names=feature_names(features),
-        noise_floor=floor,
-    )
+    # one BLAS thread: the matrices are small (points x points) and threads
+    # fighting over 2 cores made fit time swing 2x (profiled)
+    with threadpool_limits(1):
+        axes, t_mean, sv, ls, gp_notes = fit_hyperparameters(
+            (train_x - in_mean) / in_scale,
+            train_y,
+            seed=seed,
+            restarts=restarts,
+            input_names=feature_names(features),
+            noise_floor=floor,
+        )
     timings["gp"] = time.perf_counter() - t0
 
     # 6. effects jointly with the GP (explicit basis functions, R&W 2.7)
@@ -972,14 +985,15 @@ def fit_model(
         length_scales=ls,
         noise_variance=nv,
         latent_scale=latent_scale,
-        effects=eff.estimates,
+        effects=_merged(all_names, eff.estimates, found),
         provenance=provenance,
         train_regressors=train_reg,
     )
 
     # training fit on every new sample
     t0 = time.perf_counter()
-    pred = np.concatenate([model.predict_samples(s, variance=False)[0] for s in samples])
+    residual = np.concatenate([s.residual for s in original])
+    pred = np.concatenate([model.predict_samples(s, variance=False)[0] for s in original])
     err = residual - pred
     var = residual.var(axis=0)
     for a, axis in enumerate(axes):
@@ -1001,9 +1015,9 @@ def fit_model(
         sg_order=sg.order,
         kmedoids=kmethod,
         axes=axes,
-        effects=eff.estimates,
+        effects=_merged(all_names, eff.estimates, found),
         timings=timings,
-        notes=notes + gp_notes,
+        notes=_search_notes(found) + notes + gp_notes,
         command_units=dict(vehicle.command_units),
         added_effects=added,
         torque_gain=gain,
@@ -1085,6 +1099,59 @@ def _effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
                     f"{name}: {which} within 2 standard errors of zero: the logs barely excite "
                     "it or the effect is absent"
                 )
+    return notes
+
+
+def _search_step(
+    samples: list[ResidualSamples], names: Sequence[str]
+) -> tuple[list[ResidualSamples], dict[str, SearchResult]]:
+    """Estimate the effects of ``names`` that need a 1-D search (:mod:`omavctl.effect_search`)
+    and return the samples with their exact residual removed, and the estimates."""
+    searched = [nm for nm in names if get_effect(nm).search is not None]
+    if not searched:
+        return samples, {}
+    linear = [nm for nm in names if nm not in searched]
+    found = search_effects(samples, searched, linear)
+    out = []
+    for s in samples:
+        rest = s.residual.copy()
+        for nm in searched:
+            rest -= s.exact(nm, found[nm].value)
+        out.append(replace(s, residual=rest))
+    return out, found
+
+
+def _merged(
+    names: Sequence[str], linear: Mapping[str, EffectEstimate], found: Mapping[str, SearchResult]
+) -> dict[str, EffectEstimate]:
+    """Every effect's estimate in the order of ``names``."""
+    out: dict[str, EffectEstimate] = {}
+    for nm in names:
+        if nm in found:
+            p = get_effect(nm).parameters[0].name
+            r = found[nm]
+            out[nm] = EffectEstimate(nm, {p: np.array([r.value])}, {p: np.array([r.stderr])})
+        else:
+            out[nm] = linear[nm]
+    return out
+
+
+def _search_notes(found: Mapping[str, SearchResult]) -> list[str]:
+    """What the summary says about effects estimated by a 1-D search."""
+    notes = []
+    for r in found.values():
+        p = get_effect(r.name).parameters[0]
+        notes.append(
+            f"{r.name}: {p.name} = {r.value * 1e3:.1f} ± {r.stderr * 1e3:.1f} ms "
+            "(exact form, 1-D search with the linear effects profiled out, jackknife error)"
+        )
+        if r.at_bound:
+            lo, hi = get_effect(r.name).search  # type: ignore[misc]
+            notes.append(
+                f"{r.name}: {p.name} at the edge of its search interval "
+                f"({lo * 1e3:g} to {hi * 1e3:g} ms): the logs do not determine it, or "
+                "the effect is absent"
+            )
     return notes
 
 

@@ -249,22 +249,36 @@ class ResidualGP:
     @property
     def uses_rate(self) -> bool:
         """Whether predictions need body rates (rate features or any effect)."""
-        return self.features == "wrench+rate" or bool(self.effects)
+        return "rate" in self.features.split("+") or bool(self.effects)
 
     def normalise(self, z: np.ndarray) -> np.ndarray:
         """Normalised GP inputs (..., d) from physical inputs (..., d)."""
         return (z - self.input_mean) / self.input_scale
 
-    def gp_inputs(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
-        """GP inputs z (B, d) from u (B, 6) and, for "wrench+rate", omega (B, 3)."""
+    @property
+    def uses_command_rate(self) -> bool:
+        """Whether the GP inputs include the command's rate of change (``dtorque``)."""
+        return "dtorque" in self.features.split("+")
+
+    def gp_inputs(
+        self, u: np.ndarray, omega: np.ndarray | None = None, du: np.ndarray | None = None
+    ) -> np.ndarray:
+        """GP inputs z (B, d) from u (B, 6), omega (B, 3) for the "rate" features and du
+        (B, 6) (rate of change of u, 1/s) for the "dtorque" features."""
         u = np.asarray(u, dtype=float)
         if u.shape[-1] != 6:
             raise ValueError(f"u must have 6 columns [f/m, I^-1 tau], got shape {u.shape}")
-        if self.features == "wrench":
-            return u
-        if omega is None:
-            raise ValueError("this model uses body rates: pass omega (B, 3)")
-        return np.concatenate([u, np.broadcast_to(omega, (*u.shape[:-1], 3))], axis=-1)
+        parts = [u]
+        names = self.features.split("+")
+        if "rate" in names:
+            if omega is None:
+                raise ValueError("this model uses body rates: pass omega (B, 3)")
+            parts.append(np.broadcast_to(omega, (*u.shape[:-1], 3)))
+        if "dtorque" in names:
+            if du is None:
+                raise ValueError("this model uses the command's rate of change: pass du (B, 6)")
+            parts.append(np.broadcast_to(np.asarray(du, dtype=float), u.shape)[..., 3:])
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
     def _kernel(self, axis: int, zq: np.ndarray, zq_sq: np.ndarray) -> np.ndarray:
         """k(zq, Z) (B, n) for length-scaled queries zq (B, d) with squared norms (B,)."""
@@ -352,7 +366,11 @@ class ResidualGP:
         return cov @ b_vec, cov
 
     def predict(
-        self, u: np.ndarray, omega: np.ndarray | None = None, noise: bool = False
+        self,
+        u: np.ndarray,
+        omega: np.ndarray | None = None,
+        noise: bool = False,
+        du: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residual mean (B, 3) rad/s^2 and variance (B, 3) at scaled wrenches u (B, 6).
 
@@ -361,16 +379,18 @@ class ResidualGP:
         GP's (latent function, plus sigma^2 with ``noise``).
         """
         u = np.atleast_2d(np.asarray(u, dtype=float))
-        mean, var = self.gp_predict(self.gp_inputs(u, omega), noise=noise)
+        mean, var = self.gp_predict(self.gp_inputs(u, omega, du), noise=noise)
         assert var is not None
         if self.effects:
             mean = mean + self.effects_mean(u, omega)
         return mean, var
 
-    def mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+    def mean(
+        self, u: np.ndarray, omega: np.ndarray | None = None, du: np.ndarray | None = None
+    ) -> np.ndarray:
         """Residual mean (B, 3) rad/s^2 at u (B, 6), omega (B, 3): the controller's ``mu``."""
         u = np.atleast_2d(np.asarray(u, dtype=float))
-        mean, _ = self.gp_predict(self.gp_inputs(u, omega), variance=False)
+        mean, _ = self.gp_predict(self.gp_inputs(u, omega, du), variance=False)
         if self.effects:
             mean = mean + self.effects_mean(u, omega)
         return mean
@@ -436,11 +456,24 @@ class ResidualGP:
         ``variance=False`` skips the variance (None).
         """
         mean, var = self.gp_predict(samples.inputs(self.features), noise=noise, variance=variance)
+        return mean + self.effects_samples(samples), var
+
+    def effects_samples(self, samples: Any) -> np.ndarray:
+        """Residual (n, 3) the fitted effects cause on a log's samples (held).
+
+        Linear effects through their held regressors; effects estimated by a
+        1-D search (lags, delay: :attr:`Effect.search`) through their exact form.
+        """
+        out = np.zeros((samples.n, 3))
         for name, est in self.effects.items():
+            if est.effect.search is not None:
+                value = float(est.values[est.effect.parameters[0].name][0])
+                out += samples.exact(name, value)
+                continue
             if name not in samples.regressors:
                 raise ValueError(f"samples lack the regressor of effect '{name}'")
-            mean = mean + samples.regressors[name] @ est.theta
-        return mean, var
+            out += samples.regressors[name] @ est.theta
+        return out
 
     # ----------------------------------------------------------- persistence
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -609,7 +642,12 @@ def load_model(path: str | Path) -> ResidualGP:
         raise ModelError("key 'input_names' must be a list of strings", p)
     names = tuple(str(x) for x in names_arr)
     d = len(names)
-    expected_d = {"wrench": 6, "wrench+rate": 9}.get(features)
+    expected_d = {
+        "wrench": 6,
+        "wrench+rate": 9,
+        "wrench+dtorque": 9,
+        "wrench+rate+dtorque": 12,
+    }.get(features)
     if expected_d != d:
         raise ModelError(f"features '{features}' do not match {d} input names", p)
     n = arrays["train_inputs"].shape[0] if arrays["train_inputs"].ndim == 2 else -1

@@ -27,8 +27,9 @@ Per axis (:func:`cross_validate`):
 Time blocks test the GP where the flight already went; a *new* trajectory
 also leaves the training envelope, where a GP with long length scales
 extrapolates confidently and wrongly. So the same is done with folds that are
-the outer quarter of the inputs (held out, predicting them from the inner
-three quarters is an extrapolation outwards), and the GP's *latent* variance gets its
+slabs at the ends of each input the GP uses (the samples beyond its 85th or
+below its 15th percentile, predicted from the others: an extrapolation in that
+input), and the GP's *latent* variance gets its
 own factor ``b`` (``var = c^2 (b^2 latent + noise)``) chosen so that the
 pooled held-out coverage of both kinds of fold reaches the target. The
 switch-off compares the pooled held-out errors.
@@ -66,8 +67,10 @@ KEEP_RATIO = 0.95
 TARGET_COVERAGE = 0.95
 #: Largest factor on the predictive std (a band 10x wider says "unknown").
 MAX_STD_FACTOR = 10.0
-#: Fraction of the samples (the outermost inputs) held out to test extrapolation.
-OUTER_FRACTION = 0.25
+#: Fraction of the samples at each end of an input held out to test extrapolation.
+SLAB_FRACTION = 0.15
+#: Inputs with a length scale below this (normalised units) on some axis are used.
+RELEVANT_LENGTH = 100.0
 #: Held-out samples used per fold at most (evenly spaced): bounds the cost.
 MAX_TEST = 4000
 
@@ -147,35 +150,43 @@ def _std_factor(z: np.ndarray) -> float:
     return float(np.clip(q / 2.0, 1.0, MAX_STD_FACTOR))
 
 
-def outer_fold(z: np.ndarray) -> np.ndarray:
-    """Fold (n,) that holds out the outer :data:`OUTER_FRACTION` of the inputs z (n, d).
+def slabs(z: np.ndarray, length_scales: np.ndarray) -> list[np.ndarray]:
+    """Held-out masks (n,) that each cut off one end of one input: extrapolations.
 
-    Fold 0: the samples farthest from the centre (largest norm of the
-    normalised input); fold 1: the rest. Held out, fold 0 is an
-    extrapolation outwards, the way a new, larger flight leaves the envelope.
+    For every input that some axis' GP uses (length scale below
+    :data:`RELEVANT_LENGTH`), the samples beyond its upper and below its lower
+    :data:`SLAB_FRACTION` quantile: predicted from the rest, they are what a new
+    flight that goes further in that input looks like.
     """
-    r = np.sqrt((z * z).sum(1))
-    cut = np.quantile(r, 1.0 - OUTER_FRACTION)
-    return np.where(r >= cut, 0, 1).astype(np.int64)
+    out = []
+    for j in np.flatnonzero((length_scales < RELEVANT_LENGTH).any(axis=0)):
+        lo, hi = np.quantile(z[:, j], [SLAB_FRACTION, 1.0 - SLAB_FRACTION])
+        for mask in (z[:, j] > hi, z[:, j] < lo):
+            if 0 < mask.sum() < z.shape[0]:
+                out.append(mask)
+    return out
 
 
 def _held_out(
     z_all: np.ndarray,
     y_all: np.ndarray,
-    fold: np.ndarray,
+    fold: np.ndarray | list[np.ndarray],
     train_index: np.ndarray,
     fixed: tuple[np.ndarray, np.ndarray],
     hyper: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    folds: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Held-out error, latent variance, noise variance and target, each (k, 3),
-    of the GP conditioned on the training points outside each fold (of ``folds``:
-    default all)."""
+    of the GP conditioned on the training points outside each held-out set.
+
+    fold: (n,) fold numbers, each held out in turn, or a list of (n,) masks of
+    held-out samples.
+    """
     mean, sv, ls, nv = hyper
     out: list[list[np.ndarray]] = [[], [], [], []]
-    for f in np.unique(fold) if folds is None else folds:
-        train = train_index[fold[train_index] != f]
-        test = np.flatnonzero(fold == f)
+    masks = [fold == f for f in np.unique(fold)] if isinstance(fold, np.ndarray) else fold
+    for held in masks:
+        train = train_index[~held[train_index]]
+        test = np.flatnonzero(held)
         if test.size > MAX_TEST:
             test = test[np.linspace(0, test.size - 1, MAX_TEST).astype(np.int64)]
         zt = np.concatenate([fixed[0], z_all[train]])
@@ -222,14 +233,13 @@ def cross_validate(
     hyper = (mean, signal_variance, length_scales, noise_variance)
     fixed = (z_fixed, y_fixed)
     time_cv = _held_out(z_all, y_all, fold, train_index, fixed, hyper)
-    region_cv = _held_out(
-        z_all, y_all, outer_fold(z_all), train_index, fixed, hyper, folds=np.array([0])
-    )
+    region_cv = _held_out(z_all, y_all, slabs(z_all, length_scales), train_index, fixed, hyper)
     return [
         _axis_verdict(
             tuple(c[:, a] for c in time_cv),  # type: ignore[arg-type]
             tuple(c[:, a] for c in region_cv),  # type: ignore[arg-type]
             y_all[:, a],
+            float(signal_variance[a]),
         )
         for a in range(3)
     ]
@@ -259,6 +269,7 @@ def _axis_verdict(
     time_cv: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     region_cv: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     y_all: np.ndarray,
+    signal_variance: float,
 ) -> AxisValidation:
     """Keep-or-switch-off and the calibration factors of one axis from held-out errors.
 
