@@ -1,12 +1,13 @@
 # Set-up and checks. Everything installs into a local virtual environment.
 #   make demo   install, then run the example pipeline on built-in data
 #   make test   install, then lint, type-check and run the test suite
+#   make generalise   the generalisation benchmark (docs/generalisation.md)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test lint bench clean
+.PHONY: install demo test lint bench generalise clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +27,11 @@ lint: $(STAMP)
 
 test: lint
 	$(BIN)/pytest -q
+
+# fit on one flight, evaluate on another: every hidden effect, two controller
+# timings, both directions, and the shared real log (about 6 minutes on 2 cores)
+generalise: $(STAMP)
+	$(BIN)/python benchmarks/generalise.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulate.py

@@ -42,7 +42,9 @@ def evals(tmp_path_factory, vehicle) -> Path:
     write_log(d / "train.csv", train, topics=vehicle.topics)
     write_log(d / "held <out>.mcap", held, topics=vehicle.topics)
     for name, effects in (("before", []), ("after", ["rotational_drag"])):
-        fit = fit_model([d / "train.csv"], vehicle, effects=effects, points=40, restarts=0)
+        fit = fit_model(
+            [d / "train.csv"], vehicle, effects=effects, points=40, restarts=0, features="wrench"
+        )
         save_model(d / f"{name}.npz", fit.model)
         write_evaluation(d / f"{name}.json", evaluate([d / f"{name}.npz"], [d / "held <out>.mcap"]))
     return d
