@@ -562,7 +562,9 @@ def diagnose(
         after = after - best.contribution
         pool.pop(best.name)
         ranking = score_effects(after, pool, blocks, model_std, floor, refit)
-    learned = score_effects(residual, regs, blocks)
+    # what the physics-free residual behaves like, with the same materiality: an
+    # "effect" below the measurement's own noise is not claimed as learned
+    learned = score_effects(residual, regs, blocks, noise_floor=floor)
     unexplained = unexplained_structure(after, features, sg.dt)
     return {
         "method": {

@@ -72,3 +72,31 @@ def test_a_clean_flight_of_an_ideal_plant_switches_the_gp_off(tmp_path):
     assert sum("GP switched off" in n for n in result.summary.notes) == 3
     std = np.sqrt(result.model.noise_variance)
     assert np.all(np.abs(std / floor - 1) < 0.2)
+
+
+@pytest.mark.parametrize("timing", [{}, {"controller_rate_hz": 1000}])
+def test_clean_flights_claim_nothing(tmp_path, timing):
+    """Ideal actuators, sensor noise only, a controller at the log rate (commands
+    held) or ten times faster (sampled: a sub-period lead the held-command model
+    does not know): fit on a figure-8, evaluate on a wobble. Nothing is missing,
+    nothing is claimed as learned."""
+    from omavctl.evaluate import evaluate
+    from omavctl.fit import fit_model
+    from omavctl.logs import write_log
+    from omavctl.model import save_model
+    from omavctl.plant import simulate, truth_from_tree
+    from omavctl.tasks import fig8, wobble
+    from omavctl.vehicle import default_vehicle
+
+    vehicle = default_vehicle()
+    truth = truth_from_tree({"ideal": True, "timing": timing}, vehicle)
+    fit_log, eval_log = tmp_path / "fit.csv", tmp_path / "eval.bag"
+    write_log(fit_log, simulate(fig8(20, 20, 5.0, 12.0), vehicle, truth, seed=1).log)
+    write_log(eval_log, simulate(wobble(25, duration=12.0), vehicle, truth, seed=2).log)
+    model = tmp_path / "m.npz"
+    save_model(model, fit_model([fit_log], vehicle, points=80, restarts=0).model)
+    tree = evaluate([model], [eval_log]).tree
+    diag = tree["diagnosis"]
+    assert diag["missing"] == [] and diag["fit_command"] is None
+    assert not any(e["missing"] for e in diag["learned"])
+    assert not [f for f in tree["flags"] if f["code"] == "worse_than_physics"]

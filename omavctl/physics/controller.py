@@ -80,6 +80,7 @@ def invert_residual(
     Newton's method with a forward-difference Jacobian of ``mu``; rows that
     have converged are not updated further.
     """
+
     def mean(u: np.ndarray) -> np.ndarray:
         # models that do not use the command's rate take (u, omega) only
         return model.mean(u, omega) if du is None else model.mean(u, omega, du)
