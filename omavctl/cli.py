@@ -18,6 +18,26 @@ import typer
 from omavctl import __version__
 from omavctl.errors import OmavctlError
 
+
+def _arguments_by_metavar() -> None:
+    """Show an argument with a metavar as just that, e.g. ``LOG...``: typer would add its
+    Python type (``LOG... <list[Path]>``) and wrap it in the usage line (``{LOG...}...``)."""
+    from typer.core import TyperArgument
+
+    type_rich = TyperArgument.display_type_rich
+    usage_name = TyperArgument._usage_display_name
+
+    def display_type_rich(self: TyperArgument, ctx: Any) -> str | None:
+        return None if self.metavar else type_rich(self, ctx)
+
+    def usage_display_name(self: TyperArgument) -> str:
+        return str(self.metavar) if self.metavar else usage_name(self)
+
+    TyperArgument.display_type_rich = display_type_rich  # type: ignore[method-assign,assignment]
+    TyperArgument._usage_display_name = usage_display_name  # type: ignore[method-assign]
+
+
+_arguments_by_metavar()
 app = typer.Typer(
     name="omavctl",
     help="Learn residual models of an omnidirectional aerial vehicle from flight logs, "

@@ -80,15 +80,18 @@ def display_path(path: str | Path, cwd: str | Path | None = None) -> str:
     """``path`` as the user in ``cwd`` (default: the current directory) should type it:
     relative when it lies below ``cwd`` or near it, else absolute."""
     p = Path(path)
-    base = Path(cwd) if cwd is not None else Path.cwd()
+    base = (Path(cwd) if cwd is not None else Path.cwd()).resolve()
     absolute = p if p.is_absolute() else (base / p)
     absolute = Path(os.path.normpath(absolute))
     try:
         rel = os.path.relpath(absolute, base)
+        common = Path(os.path.commonpath([absolute, base.resolve()]))
     except ValueError:  # another drive (Windows)
         return str(absolute)
-    # a few '..' are easier to read than a long absolute path; many are not
-    return rel if rel.count("..") <= 2 else str(absolute)
+    # a few '..' within one tree are easier to read than a long absolute path;
+    # climbing to the file-system root is not
+    near = rel.count("..") <= 2 and common != Path(common.anchor)
+    return rel if near else str(absolute)
 
 
 def shell_join(words: Sequence[str]) -> str:

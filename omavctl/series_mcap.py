@@ -84,7 +84,10 @@ def _messages(
     log_id = np.asarray(series["log"]).astype(int)
     logs = tree.get("logs") or []
     t0 = np.array([float(lg.get("t0", 0.0) or 0.0) for lg in logs] or [0.0])
-    stamp = t0[np.clip(log_id, 0, t0.size - 1)] + t
+    # nanoseconds: the log's start and the grid offset rounded separately (float
+    # seconds since the epoch hold only ~0.2 us)
+    base = np.array([round(v * 1e9) for v in t0], dtype=np.int64)
+    stamp = base[np.clip(log_id, 0, t0.size - 1)] + np.round(t * 1e9).astype(np.int64)
     nominal = np.asarray(series["nominal"], float)
     n_models = len(tree.get("models") or []) or 1
     per_topic: dict[str, np.ndarray] = {
@@ -104,7 +107,7 @@ def _messages(
         bands[f"{pre}/band_2sigma"] = np.stack([mean - 2 * std, mean + 2 * std], axis=-1)
     out: list[tuple[int, str, dict[str, Any]]] = []
     for topic, values in per_topic.items():
-        out += [(_ns(s), topic, _vec(v)) for s, v in zip(stamp, values, strict=True)]
+        out += [(int(s), topic, _vec(v)) for s, v in zip(stamp, values, strict=True)]
     for topic, band in bands.items():
         for s, row in zip(stamp, band, strict=True):
             band_msg = {
@@ -112,22 +115,23 @@ def _messages(
                 for i, a in enumerate(AXES)
                 for j, k in ((0, "low"), (1, "high"))
             }
-            out.append((_ns(s), topic, band_msg))
+            out.append((int(s), topic, band_msg))
     names = [str(lg.get("name", "")) for lg in logs]
     for rank, seg in enumerate(tree.get("worst_segments") or [], start=1):
         i = names.index(seg.get("log")) if seg.get("log") in names else 0
-        base = float(t0[min(i, t0.size - 1)])
+        origin = float(t0[min(i, t0.size - 1)])
         start, end = float(seg.get("start", 0.0)), float(seg.get("end", 0.0))
         rmse = seg.get("rmse") or {}
         msg: dict[str, Any] = {
             "rank": rank,
-            "start": base + start,
-            "end": base + end,
+            "start": origin + start,
+            "end": origin + end,
             **{f"rmse_{a}": float(rmse.get(a, 0.0)) for a in AXES},
             "activity": activity(seg),
         }
-        out.append((_ns(base + start), f"{PREFIX}/worst_segments", {**msg, "active": 1}))
-        out.append((_ns(base + end), f"{PREFIX}/worst_segments", {**msg, "active": 0}))
+        b = int(base[min(i, base.size - 1)])
+        out.append((b + _ns(start), f"{PREFIX}/worst_segments", {**msg, "active": 1}))
+        out.append((b + _ns(end), f"{PREFIX}/worst_segments", {**msg, "active": 0}))
     out.sort(key=lambda m: m[0])
     return out
 
