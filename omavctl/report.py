@@ -39,6 +39,7 @@ import numpy as np
 
 from omavctl.atomic import atomic_path
 from omavctl.errors import OmavctlError
+from omavctl.report_figures import AXIS_COLOURS
 from omavctl.report_figures import png as _png
 from omavctl.report_figures import runs as _runs
 from omavctl.report_figures import style as _style
@@ -368,7 +369,7 @@ def _binned_figure(binned: Mapping[str, Any], which: str, title: str) -> bytes |
             for i, axis in enumerate(AXES):
                 mean = np.asarray(_get(entry, f"{which}_mean", axis, default=[]), float)
                 if mean.shape == x.shape:
-                    ax.plot(x, mean, "-o", color=f"C{i}", ms=2.5, lw=1.0)
+                    ax.plot(x, mean, "-o", color=AXIS_COLOURS[i], ms=2.5, lw=1.0)
             ax.axhline(0.0, color="0.6", lw=0.5)
             unit = _feature_unit(name)
             ax.set_xlabel(f"{name}, {unit}" if unit else name, fontsize=8)
@@ -379,7 +380,8 @@ def _binned_figure(binned: Mapping[str, Any], which: str, title: str) -> bytes |
         for ax in axs[len(names) :]:
             ax.set_visible(False)
         handles = [
-            Line2D([], [], color=f"C{i}", lw=1.5, label=f"axis {a}") for i, a in enumerate(AXES)
+            Line2D([], [], color=AXIS_COLOURS[i], lw=1.5, label=f"axis {a}")
+            for i, a in enumerate(AXES)
         ]
         handles += [
             Line2D([], [], color="k", ls="-", marker="o", ms=2.5, label="mean per bin"),

@@ -40,6 +40,8 @@ AXES = ("x", "y", "z")
 DPI = 100
 #: Colours of the three body axes.
 AXIS_COLOURS = ("#1f77b4", "#d62728", "#2ca02c")
+#: Colour of an effect named missing (not an axis colour).
+MISSING_COLOUR = "#7b4fa6"
 
 
 def png(fig: Figure) -> bytes:
@@ -207,7 +209,7 @@ def candidates_figure(entries: Sequence[Mapping[str, Any]], threshold: float | N
             ax.barh(
                 y[k],
                 ev[k],
-                color="#d62728" if missing else "0.7",
+                color=MISSING_COLOUR if missing else "0.7",
                 hatch="//" if amb else None,
                 edgecolor="k" if amb else "none",
                 height=0.6,
@@ -232,7 +234,7 @@ def candidates_figure(entries: Sequence[Mapping[str, Any]], threshold: float | N
         from matplotlib.patches import Patch
 
         handles: list[Any] = [
-            Patch(color="#d62728", label="missing"),
+            Patch(color=MISSING_COLOUR, label="missing"),
             Patch(color="0.7", label="not missing"),
         ]
         handles += [

@@ -292,8 +292,10 @@ def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], a
     return f"{core}: the change comes from the refitted GP, not from the effect"
 
 
-def change_lines(scores: Sequence[ModelScore]) -> list[Line]:
-    """Before/after: the first score against the last, per axis, worse axes explained."""
+def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[Line]:
+    """Before/after: the first score against the last, per axis, worse axes explained;
+    ``name_after`` names the last one in the sentence (when the line does not say
+    which files it compares)."""
     if len(scores) < 2:
         return []
     before, after = scores[0], scores[-1]
@@ -307,7 +309,8 @@ def change_lines(scores: Sequence[ModelScore]) -> list[Line]:
     if not changes:
         return []
     what = "With " + ", ".join(added) + " added" if added else f"From {before.label} to"
-    what = f"{what} ({after.label})" if added else f"{what} {after.label}"
+    if name_after or not added:
+        what = f"{what} ({after.label})" if added else f"{what} {after.label}"
     if removed:
         what += f", {', '.join(removed)} removed"
     b0 = [v for a in AXES if (v := _num(before.rmse.get(a))) is not None]
@@ -343,7 +346,8 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
     head = verdict(first)[0]
     lines = [Line(head.key, head.text, label0, head.command)]
     lines += [
-        Line(ln.key, ln.text, f"{label0} → {label1}") for ln in change_lines(scores_of_files(evals))
+        Line(ln.key, ln.text, f"{label0} → {label1}")
+        for ln in change_lines(scores_of_files(evals), name_after=False)
     ]
     lines += [Line(ln.key, ln.text, label1, ln.command) for ln in verdict(last)]
     return lines
