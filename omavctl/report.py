@@ -473,9 +473,11 @@ def _param_lines(
                 skipped.append(labels[i])
                 continue
             err = f" ± {_g(errs[i], 2)}" if i < len(errs) else ""
+            note = ""
             if i < len(errs) and _finite(errs[i]) and errs[i] == 0 and _finite(v) and v != 0:
-                err = " (at its bound: no std. error)"
-            lines.append(f"{labels[i]} = {_g(v)}{err}{' ' + unit if unit else ''}".rstrip())
+                # the jackknife spread collapses at a bound of the plausible range
+                err, note = "", " (at its bound: no std. error)"
+            lines.append(f"{labels[i]} = {_g(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
         offset += len(vals)
     if skipped:
         lines.append(Span(f"not excited: {', '.join(skipped)}", "em"))
