@@ -659,47 +659,38 @@ def _binned_section(tree: Mapping[str, Any], k: int, label: str, figures: bool) 
 
 
 def _worst_section(tree: Mapping[str, Any], k: int, label: str) -> list[Block]:
+    from omavctl.verdict import activity
+
     blocks: list[Block] = [Heading(3, label, f"worst-{k}")]
     segs = tree.get("worst_segments") or []
     if not segs:
         return [*blocks, Para("No worst segments in this evaluation.", note=True)]
-    rows: list[list[Cell]] = []
-    for i, s in enumerate(segs):
-        start, end = s.get("start"), s.get("end")
-        rows.append(
-            [
-                str(i + 1),
-                str(s.get("log", "?")),
-                _g(start),
-                _g(end),
-                *(_g(v) for v in _axes_of(s.get("rmse"))),
-                ", ".join(_g(v, 3) for v in _as_list(s.get("attitude_deg", []))),
-                ", ".join(_g(v, 3) for v in _as_list(s.get("rate", []))),
-                ", ".join(_g(v, 3) for v in _as_list(s.get("u", []))),
-            ]
-        )
+    rows: list[list[Cell]] = [
+        [
+            str(i + 1),
+            str(s.get("log", "?")),
+            f"{_g(s.get('start'), 3)}–{_g(s.get('end'), 3)}",
+            *(_g(v, 3) for v in _axes_of(s.get("rmse"))),
+            activity(s),
+        ]
+        for i, s in enumerate(segs)
+        if isinstance(s, Mapping)
+    ]
     blocks.append(
         Para(
-            "Time windows where the model's error is largest (RMSE per axis, rad/s²), with "
-            "what the vehicle was doing there: mean |roll, pitch, yaw| in deg, mean |body "
-            "rate| in rad/s, and mean |scaled commanded wrench| (f/m in m/s², I⁻¹τ in rad/s²)."
+            "Time windows where the model's error is largest (RMSE per axis, rad/s²; numbered "
+            "as in the error-over-time figures), with what the vehicle was doing there: its "
+            "tilt (mean |roll|, |pitch|), its fastest rotation (mean |body rate|) and its "
+            "thrust when far from hover. The mean |attitude|, |rate| and |scaled wrench| "
+            "vectors are in the evaluation JSON ('worst_segments')."
         )
     )
     blocks.append(
         Table(
-            columns=[
-                "#",
-                "log",
-                "start, s",
-                "end, s",
-                *AXES,
-                "|attitude|, deg",
-                "|rate|, rad/s",
-                "|wrench|",
-            ],
-            groups=[("", 4), ("RMSE, rad/s²", 3), ("", 3)],
+            columns=["#", "log", "time, s", *AXES, "what the vehicle was doing"],
+            groups=[("", 3), ("RMSE, rad/s²", 3), ("", 1)],
             rows=rows,
-            align="rlrrrrrrrr",
+            align="rlrrrrl",
         )
     )
     return blocks
@@ -942,7 +933,7 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
     doc.add(Para(f"Evaluation files: {names}. Angular accelerations in rad/s²."))
     sections = [
         ("verdict", "Verdict"),
-        ("figures", "What the figures show"),
+        *([("figures", "What the figures show")] if figures else []),
         ("summary", "1. Summary"),
         ("time", "2. Measured vs predicted angular acceleration"),
         ("binned", "3. Residual vs feature"),
@@ -953,7 +944,7 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
         sections.append(("comparison", "6. Before/after comparison"))
     doc.add(Bullets([Span(f"#{anchor}|{title}", "link") for anchor, title in sections]))
     doc.add(*figure_sections(evals, figures))
-    sections = sections[2:]
+    sections = sections[2 if figures else 1 :]
 
     doc.add(Heading(2, sections[0][1], "summary"))
     doc.add(*_summary_overview(evals))
@@ -1155,7 +1146,8 @@ def _md(doc: Document) -> str:
         elif isinstance(b, Table):
             parts.append(_md_table(b))
         elif isinstance(b, FigureBlock):
-            parts.append(f"*Figure not available in Markdown: {_md_text(b.caption)}.*")
+            caption = _md_text(b.caption.rstrip("."))
+            parts.append(f"*Figure not available in Markdown: {caption}.*")
         elif isinstance(b, Code):
             fence = "````" if "```" in b.text else "```"
             parts.append(f"{fence}\n{b.text}\n{fence}")

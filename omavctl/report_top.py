@@ -22,7 +22,6 @@ from omavctl.report import (
     FigureBlock,
     Heading,
     Inline,
-    Para,
     Span,
 )
 from omavctl.verdict import report_verdict
@@ -43,8 +42,8 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
     }
     items: list[Content] = []
     for ln in lines:
-        title = titles.get(ln.key, ln.key)
-        head = f"{ln.who} — {title.lower()}" if ln.who else title
+        # the sentences say what they are about; the bold head says which file(s)
+        head = ln.who or titles.get(ln.key, ln.key)
         parts: tuple[Inline, ...] = (Span(f"{head}: ", "strong"), ln.text)
         if ln.command:
             parts = (*parts, " Add it with: ", Span(ln.command, "code"))
@@ -159,7 +158,9 @@ def _candidates_blocks(tree: Mapping[str, Any], label: str, figures: bool) -> li
 
 
 def figure_sections(evals: Sequence[Evaluation], figures: bool) -> list[Block]:
-    """The figures under the verdict."""
+    """The figures under the verdict (none for formats without figures)."""
+    if not figures:
+        return []
     blocks: list[Block] = [Heading(2, "What the figures show", "figures")]
     if len(evals) > 1:
         labels = [label for _, _, label in evals]
@@ -180,6 +181,4 @@ def figure_sections(evals: Sequence[Evaluation], figures: bool) -> list[Block]:
         blocks += _error_blocks(tree, series, label, figures)
         blocks += _signature_blocks(tree, series, label, figures)
         blocks += _candidates_blocks(tree, label, figures)
-    if not figures:
-        blocks.append(Para("Figures are in the HTML report.", note=True))
     return blocks
