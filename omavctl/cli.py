@@ -53,7 +53,9 @@ task_app = typer.Typer(
     no_args_is_help=True,
     rich_markup_mode=None,
 )
-app.add_typer(task_app, name="task")
+app.add_typer(
+    task_app, name="task", short_help="Write a task trajectory (fig8, circle, pitch, yaw, heave)."
+)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -119,6 +121,7 @@ VehicleOpt = Annotated[
     Path | None,
     typer.Option(
         "--vehicle",
+        metavar="VEHICLE.yaml",
         help="Vehicle YAML (mass, inertia, geometry, limits, gains, topics, effects); "
         "keys not given keep the built-in omav's values.",
     ),
@@ -148,7 +151,7 @@ def _write_task(traj: Any, out: Path, quiet: bool, as_json: bool = False, name: 
     )
 
 
-@task_app.command("fig8")
+@task_app.command("fig8", short_help="Attitude figure-8 at constant position (the paper's task).")
 @_reports_errors
 def task_fig8(
     out: Out,
@@ -170,7 +173,7 @@ def task_fig8(
     )
 
 
-@task_app.command("circle")
+@task_app.command("circle", short_help="Horizontal circle at level attitude, from rest to rest.")
 @_reports_errors
 def task_circle(
     out: Out,
@@ -189,7 +192,7 @@ def task_circle(
     _write_task(circle(radius, period, duration, rate, ramp, height), out, quiet, as_json, "circle")
 
 
-@task_app.command("pitch")
+@task_app.command("pitch", short_help="The paper's pitching manoeuvre (60 deg, 1 rad/s^2).")
 @_reports_errors
 def task_pitch(
     out: Out,
@@ -216,7 +219,7 @@ def task_pitch(
     )
 
 
-@task_app.command("yaw")
+@task_app.command("yaw", short_help="Yaw oscillation at level attitude (identifies servo_lag).")
 @_reports_errors
 def task_yaw(
     out: Out,
@@ -235,7 +238,9 @@ def task_yaw(
     _write_task(yaw(amplitude, period, duration, rate, ramp, height), out, quiet, as_json, "yaw")
 
 
-@task_app.command("heave")
+@task_app.command(
+    "heave", short_help="Vertical oscillation at level attitude (identifies com_offset)."
+)
 @_reports_errors
 def task_heave(
     out: Out,
@@ -257,15 +262,18 @@ def task_heave(
 
 
 # ----------------------------------------------------------------------- simulate
-@app.command()
+@app.command(short_help="Fly a reference through the truth plant, write a flight log.")
 @_reports_errors
 def simulate(
-    reference: Annotated[Path, typer.Option("--reference", "-r", help="Reference trajectory CSV.")],
+    reference: Annotated[
+        Path, typer.Option("--reference", "-r", metavar="CSV", help="Reference trajectory CSV.")
+    ],
     out: Annotated[
         Path,
         typer.Option(
             "--out",
             "-o",
+            metavar="LOG",
             help="Output log; its kind follows the name: a directory (no suffix) -> ROS 2 bag "
             "(mcap storage), .bag -> ROS 1 bag, .mcap -> standalone MCAP, .csv -> wide CSV.",
         ),
@@ -274,6 +282,7 @@ def simulate(
         Path | None,
         typer.Option(
             "--truth",
+            metavar="TRUTH.yaml",
             help="Truth YAML: actuator imperfections, hidden effects, sensor noise, seed "
             "(default: documented imperfections, no hidden effect).",
         ),
@@ -293,6 +302,7 @@ def simulate(
         Path | None,
         typer.Option(
             "--model",
+            metavar="MODEL.npz",
             help="Residual model (.npz written by fit) that the controller inverts, "
             "u + mu(u) = a* (default: the nominal model, mu = 0).",
         ),
@@ -357,7 +367,7 @@ def simulate(
 
 
 # ---------------------------------------------------------------------------- fit
-@app.command()
+@app.command(short_help="Learn a residual model (effects + GP) from flight logs.")
 @_reports_errors
 def fit(
     logs: Annotated[
@@ -368,7 +378,13 @@ def fit(
         ),
     ],
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="Output model file (.npz, schema omavctl.model/1).")
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="MODEL.npz",
+            help="Output model file (.npz, schema omavctl.model/1).",
+        ),
     ],
     vehicle: VehicleOpt = None,
     effects: Annotated[
@@ -560,7 +576,7 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
 
 
 # ----------------------------------------------------------------------- evaluate
-@app.command()
+@app.command(short_help="Compare models with a flight: verdict, errors, missing physics.")
 @_reports_errors
 def evaluate(
     logs: Annotated[
@@ -640,13 +656,20 @@ def evaluate(
 
 
 # --------------------------------------------------------------------------- plan
-@app.command()
+@app.command(short_help="Plan the most informative next reference for a task.")
 @_reports_errors
 def plan(
-    task: Annotated[Path, typer.Option("--task", help="Task trajectory CSV to learn for.")],
-    model: Annotated[Path, typer.Option("--model", help="Current model (.npz from fit).")],
+    task: Annotated[
+        Path, typer.Option("--task", metavar="CSV", help="Task trajectory CSV to learn for.")
+    ],
+    model: Annotated[
+        Path, typer.Option("--model", metavar="MODEL.npz", help="Current model (.npz from fit).")
+    ],
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="Most informative reference, trajectory CSV.")
+        Path,
+        typer.Option(
+            "--out", "-o", metavar="CSV", help="Most informative reference, trajectory CSV."
+        ),
     ],
     vehicle: VehicleOpt = None,
     candidates: Annotated[int, typer.Option(help="Candidate references K.")] = 20,
@@ -803,7 +826,7 @@ def plan(
 
 
 # ------------------------------------------------------------------------ inspect
-@app.command()
+@app.command(short_help="List a log's topics, rates, gaps and contract roles.")
 @_reports_errors
 def inspect(
     log: Annotated[
@@ -864,7 +887,7 @@ def _inspect_json(ins: Any) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------- report
-@app.command()
+@app.command(short_help="Render evaluations as one HTML/Markdown report, verdict first.")
 @_reports_errors
 def report(
     evaluations: Annotated[
@@ -877,7 +900,12 @@ def report(
     ],
     out: Annotated[
         Path,
-        typer.Option("--out", "-o", help="Output report (one self-contained .html, or .md)."),
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="REPORT",
+            help="Output report (one self-contained .html, or .md).",
+        ),
     ],
     fmt: Annotated[
         str | None,

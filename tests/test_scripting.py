@@ -243,3 +243,10 @@ def test_every_command_has_json_and_named_arguments():
         assert "<list[Path]>" not in text and "list[" not in text, path
     assert "LOG..." in runner.invoke(app, ["fit", "--help"]).output
     assert "EVAL.json..." in runner.invoke(app, ["report", "--help"]).output
+
+
+def test_command_lists_are_not_cut():
+    for path in ([], ["task"]):
+        text = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "80"}).output
+        commands = text[text.index("Commands:") :].splitlines()[1:]
+        assert commands and all(not line.rstrip().endswith("...") for line in commands), text
