@@ -172,14 +172,14 @@ def signature_figure(
             if spread[j] > 0:
                 slope = float(x @ y / max(float(x @ x), 1e-300))
                 xs = np.linspace(x.min(), x.max(), 2)
-                ax.plot(xs, slope * xs, color="k", lw=1.2, label=f"fit, slope {slope:.3g}")
+                ax.plot(xs, slope * xs, color="k", lw=1.2)
+                ax.set_title(f"axis {AXES[i]}: fitted slope {slope:.3g}", fontsize=9)
                 edges = np.unique(np.quantile(x, np.linspace(0, 1, 11)))
                 which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
                 count = np.bincount(which, minlength=edges.size - 1)
                 means = np.bincount(which, y, edges.size - 1) / np.maximum(count, 1)
                 centres = np.bincount(which, x, edges.size - 1) / np.maximum(count, 1)
                 ax.plot(centres[count > 0], means[count > 0], "o", color="k", ms=3.5, mfc="w")
-                ax.legend(loc="lower right", fontsize=8, frameon=True, framealpha=0.85)
             else:
                 ax.text(0.5, 0.5, "not excited", transform=ax.transAxes, ha="center")
             ax.axhline(0.0, color="0.6", lw=0.5)
