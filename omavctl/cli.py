@@ -472,41 +472,9 @@ def fit(
         )
     save_model(out, result.model)
     _render_fit(con, result.summary, out)
-    _emit(as_json, _fit_json(result.summary, out))
+    from omavctl.summary import fit_json
 
-
-def _fit_json(summary: Any, out: Path) -> dict[str, Any]:
-    """The --json object of fit: the model written, data used, effects, GP per axis."""
-    return {
-        "command": "fit",
-        "files": {"model": str(out)},
-        "samples": summary.samples,
-        "points": summary.points,
-        "points_new": summary.points_new,
-        "points_prior": summary.points_prior,
-        "features": summary.features,
-        "logs": [
-            {"path": str(lg.path), "samples": lg.samples, "used": lg.used} for lg in summary.logs
-        ],
-        "effects": {
-            name: {
-                "values": {k: v for k, v in est.values.items()},
-                "stderr": {k: v for k, v in est.stderr.items()},
-            }
-            for name, est in summary.effects.items()
-        },
-        "axes": {
-            axis: {
-                "signal_std": a.signal_std,
-                "noise_std": a.noise_std,
-                "training_r2": a.r2,
-                "training_rmse": a.rmse,
-                "rms_without_model": a.rmse_nominal,
-            }
-            for axis, a in zip("xyz", summary.axes, strict=True)
-        },
-        "notes": list(summary.notes),
-    }
+    _emit(as_json, fit_json(result.summary, out))
 
 
 def _render_fit(con: Any, summary: Any, out: Path) -> None:
@@ -854,36 +822,9 @@ def inspect(
     veh = load_vehicle(vehicle)
     ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
     render_inspect(ins, console(stdout=not as_json))
-    _emit(as_json, _inspect_json(ins))
+    from omavctl.summary import inspect_json
 
-
-def _inspect_json(ins: Any) -> dict[str, Any]:
-    """The --json object of inspect."""
-    return {
-        "command": "inspect",
-        "path": str(ins.path),
-        "format": ins.format,
-        "duration": ins.duration,
-        "t0": ins.t0,
-        "topics": [
-            {
-                "name": t.name,
-                "type": t.msgtype,
-                "count": t.count,
-                "rate_hz": t.rate,
-                "gaps": len(t.gaps),
-                "duplicates": t.duplicates,
-                "out_of_order": t.out_of_order,
-            }
-            for t in ins.topics
-        ],
-        "roles_found": ins.roles_found,
-        "roles_missing": ins.roles_missing,
-        "required_missing": ins.required_missing,
-        "column_ranges": {k: list(v) for k, v in ins.column_ranges.items()},
-        "suggested_columns": ins.suggested_columns,
-        "notes": list(ins.notes),
-    }
+    _emit(as_json, inspect_json(ins))
 
 
 # ------------------------------------------------------------------------- report

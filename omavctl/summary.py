@@ -1,4 +1,5 @@
-"""Terminal summaries and ``--json`` objects of ``evaluate`` (verdict first).
+"""Terminal summaries and ``--json`` objects of ``evaluate`` (verdict first), ``fit``
+and ``inspect``.
 
 Several models are shown side by side: one column group per model, RMSE of
 the nominal model, nominal + effects and each model per axis, the fraction of
@@ -20,7 +21,7 @@ from omavctl.verdict import (
     verdict,
 )
 
-__all__ = ["evaluation_json", "render_evaluation"]
+__all__ = ["evaluation_json", "fit_json", "inspect_json", "render_evaluation"]
 
 
 def _g(v: Any, digits: int = 4) -> str:
@@ -114,4 +115,67 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
         "verdict": [
             {"key": line.key, "text": line.text, "command": line.command} for line in lines
         ],
+    }
+
+
+def fit_json(summary: Any, out: Path) -> dict[str, Any]:
+    """The --json object of fit: the model written, data used, effects, GP per axis."""
+    return {
+        "command": "fit",
+        "files": {"model": str(out)},
+        "samples": summary.samples,
+        "points": summary.points,
+        "points_new": summary.points_new,
+        "points_prior": summary.points_prior,
+        "features": summary.features,
+        "logs": [
+            {"path": str(lg.path), "samples": lg.samples, "used": lg.used} for lg in summary.logs
+        ],
+        "effects": {
+            name: {
+                "values": {k: v for k, v in est.values.items()},
+                "stderr": {k: v for k, v in est.stderr.items()},
+            }
+            for name, est in summary.effects.items()
+        },
+        "axes": {
+            axis: {
+                "signal_std": a.signal_std,
+                "noise_std": a.noise_std,
+                "training_r2": a.r2,
+                "training_rmse": a.rmse,
+                "rms_without_model": a.rmse_nominal,
+            }
+            for axis, a in zip("xyz", summary.axes, strict=True)
+        },
+        "notes": list(summary.notes),
+    }
+
+
+def inspect_json(ins: Any) -> dict[str, Any]:
+    """The --json object of inspect."""
+    return {
+        "command": "inspect",
+        "path": str(ins.path),
+        "format": ins.format,
+        "duration": ins.duration,
+        "t0": ins.t0,
+        "topics": [
+            {
+                "name": t.name,
+                "type": t.msgtype,
+                "count": t.count,
+                "rate_hz": t.rate,
+                "gaps": len(t.gaps),
+                "duplicates": t.duplicates,
+                "out_of_order": t.out_of_order,
+            }
+            for t in ins.topics
+        ],
+        "roles_found": ins.roles_found,
+        "roles_missing": ins.roles_missing,
+        "required_missing": ins.required_missing,
+        "column_ranges": {k: list(v) for k, v in ins.column_ranges.items()},
+        "suggested_columns": ins.suggested_columns,
+        "notes": list(ins.notes),
     }
