@@ -646,9 +646,14 @@ def sha256_of(path: Path) -> str:
 def _source(item: str | Path | FlightLog) -> dict[str, Any]:
     path = item.path if isinstance(item, FlightLog) else Path(item)
     digest = sha256_of(path) if path.exists() else None
-    # the path as given (relative paths stay relative): evaluate prints the fit
-    # command that refits with another effect from the same logs
-    return {"name": path.name, "path": str(path), "sha256": digest}
+    # the path as given and absolute: evaluate prints the fit command that refits
+    # with another effect from the same logs, with paths valid where it runs
+    return {
+        "name": path.name,
+        "path": str(path),
+        "abspath": str(path.resolve()),
+        "sha256": digest,
+    }
 
 
 # ---------------------------------------------------------------- pipeline
@@ -990,6 +995,9 @@ def fit_model(
         "time_window": None if time_window is None else list(time_window),
         # evaluate's suggested refit command passes it as --vehicle
         "vehicle_path": vehicle.source if Path(vehicle.source).is_file() else None,
+        "vehicle_abspath": (
+            str(Path(vehicle.source).resolve()) if Path(vehicle.source).is_file() else None
+        ),
         "command_units": dict(vehicle.command_units),
     }
     if gain is not None and gain_se is not None:

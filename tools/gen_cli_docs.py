@@ -28,8 +28,10 @@ Generated from `omavctl --help` and every subcommand's `--help` by
 this file is stale). Conventions: every command reads files and writes files; exit
 code 0 on success, 1 with one line `error: <file>: <problem>` on bad input, 2 on a
 usage error; `--seed` makes sampling commands reproducible byte for byte; `-q`
-silences progress bars and the summary. See [getting-started.md](getting-started.md)
-for a walk-through.
+silences progress bars and the summary; `--json` prints one JSON object on stdout (the
+files written and the key figures) while the human text stays on stderr. See
+[getting-started.md](getting-started.md) for a walk-through and [design.md](design.md)
+§5 for the conventions.
 """
 
 
