@@ -223,10 +223,13 @@ def _excluded_line(tree: Mapping[str, Any]) -> Line | None:
 def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
     out = []
     for flag in tree.get("flags") or []:
-        if not isinstance(flag, Mapping) or flag.get("code") == "overconfident":
-            continue  # the uncertainty sentence says it
-        axis = f"axis {flag['axis']}: " if flag.get("axis") else ""
-        out.append(Line("flag", f"{axis}{flag.get('message', flag.get('code', ''))}"))
+        if not isinstance(flag, Mapping) or flag.get("code") in ("overconfident", "out_of_control"):
+            continue  # the uncertainty and kept-out sentences say these
+        message = str(flag.get("message", flag.get("code", "")))
+        axis = (
+            f"axis {flag['axis']}: " if flag.get("axis") and not message.startswith("axis") else ""
+        )
+        out.append(Line("flag", f"{axis}{message}"))
     return out
 
 
