@@ -539,6 +539,10 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
     gp.add_row("training R^2", *(f"{a.r2:.3f}" for a in summary.axes))
     gp.add_row("training RMSE, rad/s^2", *(f"{a.rmse:.4g}" for a in summary.axes))
     gp.add_row("RMS without model, rad/s^2", *(f"{a.rmse_nominal:.4g}" for a in summary.axes))
+    gp.add_row("GP on (held-out blocks)", *("yes" if a.gp_on else "off" for a in summary.axes))
+    gp.add_row("held-out RMSE GP, rad/s^2", *(f"{a.cv_rmse_gp:.4g}" for a in summary.axes))
+    gp.add_row("held-out RMSE physics", *(f"{a.cv_rmse_physics:.4g}" for a in summary.axes))
+    gp.add_row("held-out within 2σ", *(f"{a.cv_coverage:.0%}" for a in summary.axes))
     con.print(gp)
     for note in summary.notes:
         con.print(f"note: {note}", markup=False)

@@ -457,8 +457,8 @@ def fit_hyperparameters(
         flat = [input_names[j] for j in np.flatnonzero(length >= 0.99 * _LENGTH_BOUNDS[1])]
         if flat:
             notes.append(
-                f"axis {name}: the residual does not vary with {', '.join(flat)} "
-                "(length scale at its upper bound)"
+                f"axis {name}: the residual varies little with {', '.join(flat)} "
+                f"(length scale at its upper bound, {_LENGTH_BOUNDS[1]:g} input stds)"
             )
         sharp = [input_names[j] for j in np.flatnonzero(length <= 1.01 * _LENGTH_BOUNDS[0])]
         if sharp:

@@ -55,9 +55,10 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
     for axis in AXES:
         table.add_column(axis, justify="right")
     table.add_column("within 2σ x/y/z", justify="right")
+    table.add_column("NLPD x/y/z", justify="right")
     table.add_column("effects")
     nominal = by_model[0].get("nominal") or {}
-    table.add_row("nominal", *(_g(nominal.get("rmse", {}).get(a)) for a in AXES), "", "")
+    table.add_row("nominal", *(_g(nominal.get("rmse", {}).get(a)) for a in AXES), "", "", "")
     for j, metrics in enumerate(by_model):
         name = str(models[j].get("name", f"model {j + 1}")) if j < len(models) else f"model {j}"
         effects = ", ".join((models[j].get("effects") or {}) if j < len(models) else {})
@@ -65,6 +66,7 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
         table.add_row(
             Text(f"{name}: nominal + effects"),
             *(_g(eff.get("rmse", {}).get(a)) for a in AXES),
+            "",
             "",
             Text(effects or "none"),
         )
@@ -74,6 +76,7 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
             Text(f"{name}: model"),
             *(_g(model.get("rmse", {}).get(a)) for a in AXES),
             "/".join(f"{100 * cov[a]:.0f}%" if a in cov else "n/a" for a in AXES),
+            "/".join(_g((model.get("nlpd") or {}).get(a), 2) for a in AXES),
             Text(effects or "none"),
         )
     con.print(table)
