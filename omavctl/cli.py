@@ -346,22 +346,26 @@ def simulate(
     import math
 
     con.print(
-        f"wrote {out}: {result.steps / veh.gains.rate_hz:.2f} s flown, "
+        f"wrote {out}: {result.duration:.2f} s flown, "
         f"max attitude error {math.degrees(result.max_attitude_error):.2f} deg, "
         f"{result.infeasible_steps}/{result.steps} steps beyond actuator limits"
     )
     if result.diverged:
-        con.print("[bold red]warning:[/] the vehicle diverged; the log ends where it did")
+        con.print(
+            f"[bold red]warning:[/] the vehicle lost control at {result.diverged_at:.2f} s; "
+            "the log goes on through the tumble for 1 s, then ends"
+        )
     _emit(
         as_json,
         {
             "command": "simulate",
             "files": {"log": str(out)},
-            "duration": result.steps / veh.gains.rate_hz,
+            "duration": result.duration,
             "max_attitude_error_deg": math.degrees(result.max_attitude_error),
             "infeasible_steps": int(result.infeasible_steps),
             "steps": int(result.steps),
             "diverged": bool(result.diverged),
+            "diverged_at": result.diverged_at,
         },
     )
 
