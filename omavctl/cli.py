@@ -615,12 +615,12 @@ def plan(
         threadpool_limits(limits=1, user_api="blas"),
         Progress(console=con, transient=True, disable=quiet) as bar,
     ):
-        jobs: dict[str, Any] = {}
+        stages: dict[str, Any] = {}
 
         def progress(stage: str, fraction: float) -> None:
-            if stage not in jobs:
-                jobs[stage] = bar.add_task(stage, total=1.0)
-            bar.update(jobs[stage], completed=fraction)
+            if stage not in stages:
+                stages[stage] = bar.add_task(stage, total=1.0)
+            bar.update(stages[stage], completed=fraction)
 
         result = run(mdl, ref, settings, progress)
     best = result.best_trajectory()

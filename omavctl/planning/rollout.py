@@ -66,6 +66,24 @@ def _resample(refs: np.ndarray, t_ref: np.ndarray, t: np.ndarray) -> np.ndarray:
     return refs[:, idx] * (1 - w) + refs[:, idx + 1] * w
 
 
+def _integrate(
+    x: np.ndarray, vehicle, force: np.ndarray, torque_input: np.ndarray, dt: float, substeps: int
+) -> None:
+    """``substeps`` semi-implicit Euler steps of x (B, 12) in place: body force (B, 3) N,
+    angular input ``u_tau + g`` (B, 3) rad/s^2."""
+    inertia, inertia_inv = vehicle.inertia, vehicle.inertia_inv
+    h = dt / substeps
+    for _ in range(substeps):
+        acc = np.einsum("bij,bj->bi", rotation_matrix(x[:, 3:6]), force) / vehicle.mass
+        acc[:, 2] -= vehicle.gravity
+        w = x[:, 9:12]
+        w_dot = -cross(w, w @ inertia.T) @ inertia_inv.T + torque_input
+        x[:, 9:12] = w + h * w_dot
+        x[:, 6:9] += h * acc
+        x[:, 3:6] = wrap_angle(x[:, 3:6] + h * euler_rates(x[:, 3:6], x[:, 9:12]))
+        x[:, 0:3] += h * x[:, 6:9]
+
+
 def rollout(
     model,
     samples: PathwiseSamples,
@@ -96,15 +114,11 @@ def rollout(
     b_count = k_count * sims
     cand = np.repeat(np.arange(k_count), sims)
     sample_idx = np.tile(np.arange(sims), k_count)
-    inertia, inertia_inv, mass = vehicle.inertia, vehicle.inertia_inv, vehicle.mass
+    inertia, mass = vehicle.inertia, vehicle.mass
     ctrl = Controller(vehicle)
     state = ControllerState.zeros(b_count)
     alloc = Allocation(vehicle)
-    x = np.zeros((b_count, 12))
-    x[:, 0:3] = refs[cand, 0, 1:4]
-    x[:, 3:6] = refs[cand, 0, 4:7]
-    x[:, 6:9] = refs[cand, 0, 7:10]
-    x[:, 9:12] = refs[cand, 0, 10:13]
+    x = refs[cand, 0, 1:13].copy()  # [p, eta, v, omega]
     d = samples.gp.d
     inputs = np.empty((b_count, steps, d))
     gap = np.empty((b_count, steps))
@@ -140,7 +154,7 @@ def rollout(
             g, mu_last = g + static, mu_last + static
         inputs[:, i] = z
         gap[:, i] = np.linalg.norm(g / torque_scale, axis=1)
-        l_x = -cross(omega, omega @ inertia.T) @ inertia_inv.T
+        l_x = -cross(omega, omega @ inertia.T) @ vehicle.inertia_inv.T
         omega_dot = l_x + u[:, 3:] + g
         track += np.abs(out.desired_angular - omega_dot).mean(axis=1)
         wrench = np.concatenate([u_f * mass, u[:, 3:] @ inertia.T], axis=1)
@@ -148,20 +162,9 @@ def rollout(
         prev_tilt = res.tilt
         mark(res.thrust_high.any(axis=1) | res.thrust_low.any(axis=1), "thrust limit")
         mark(res.tilt_rate_exceeded.any(axis=1), "tilt rate limit")
-        force = wrench[:, :3]
-        h = dt / substeps
-        for _ in range(substeps):
-            acc = np.einsum("bij,bj->bi", rotation_matrix(x[:, 3:6]), force) / mass
-            acc[:, 2] -= vehicle.gravity
-            w = x[:, 9:12]
-            w_dot = -cross(w, w @ inertia.T) @ inertia_inv.T + u[:, 3:] + g
-            x[:, 9:12] = w + h * w_dot
-            x[:, 6:9] += h * acc
-            x[:, 3:6] = wrap_angle(x[:, 3:6] + h * euler_rates(x[:, 3:6], x[:, 9:12]))
-            x[:, 0:3] += h * x[:, 6:9]
+        _integrate(x, vehicle, wrench[:, :3], u[:, 3:] + g, dt, substeps)
         att_err = np.abs(wrap_angle(x[:, 3:6] - refs[cand, min(i + 1, steps - 1), 4:7])).max(axis=1)
-        tilt_bad = np.abs(x[:, 3:5]).max(axis=1) > max_tilt
-        mark(tilt_bad, "attitude limit")
+        mark(np.abs(x[:, 3:5]).max(axis=1) > max_tilt, "attitude limit")
         diverged = ~np.isfinite(x).all(axis=1) | (att_err > max_err)
         mark(diverged, "diverged")
         if diverged.any():  # keep the batch finite: freeze diverged rows at the reference
