@@ -670,6 +670,29 @@ def plan(
     points: Annotated[
         int, typer.Option(help="Training points a flight would add (k-medoids per simulation).")
     ] = 40,
+    search: Annotated[
+        str,
+        typer.Option(
+            help="How candidates are proposed: 'random' (all at once, the paper) or 'cem' "
+            "(cross-entropy method over the Fourier coefficients in --generations "
+            "generations, same number of simulations)."
+        ),
+    ] = "random",
+    generations: Annotated[int, typer.Option(help="Generations of --search cem.")] = 5,
+    selection: Annotated[
+        str,
+        typer.Option(
+            help="How the points a flight would add are picked: 'batched' (farthest-point + "
+            "k-medoids steps, all simulations at once) or 'kmedoids' (as fit, per "
+            "simulation, slow)."
+        ),
+    ] = "batched",
+    jobs: Annotated[
+        int,
+        typer.Option(
+            help="Worker processes for the simulations (see docs/planning-performance.md)."
+        ),
+    ] = 1,
     scores: Annotated[
         Path | None,
         typer.Option(help="Write every candidate's coefficients, cost and feasibility as CSV."),
@@ -697,6 +720,7 @@ def plan(
     """
     from rich.progress import Progress
     from rich.table import Table
+    from threadpoolctl import threadpool_limits
 
     from omavctl.model import check_vehicle, load_model
     from omavctl.planning import PlanSettings
@@ -711,9 +735,15 @@ def plan(
         ("--points", points),
         ("--test-points", test_points),
         ("--frequencies", frequencies),
+        ("--generations", generations),
+        ("--jobs", jobs),
     ):
         if value < 1:
             raise OmavctlError(f"{name} must be at least 1, got {value}")
+    if search not in ("random", "cem"):
+        raise OmavctlError(f"--search must be 'random' or 'cem', got '{search}'")
+    if selection not in ("batched", "kmedoids"):
+        raise OmavctlError(f"--selection must be 'batched' or 'kmedoids', got '{selection}'")
     if max_freq <= 0.1 or amplitude <= 0:
         raise OmavctlError("--max-freq must be above 0.1 Hz and --amplitude above 0")
     if epsilon is not None and epsilon <= 0:
@@ -732,15 +762,24 @@ def plan(
         test_points=test_points,
         points=points,
         seed=seed,
+        search=search,
+        generations=generations,
+        selection=selection,
+        jobs=jobs,
     )
     con = _console(quiet)
-    with Progress(console=con, transient=True, disable=quiet) as bar:
-        jobs: dict[str, Any] = {}
+    # BLAS threads set once: one per process, so that worker processes (--jobs) and
+    # BLAS do not fight over the cores and timings are stable (threadpoolctl)
+    with (
+        threadpool_limits(limits=1, user_api="blas"),
+        Progress(console=con, transient=True, disable=quiet) as bar,
+    ):
+        stages: dict[str, Any] = {}
 
         def progress(stage: str, fraction: float) -> None:
-            if stage not in jobs:
-                jobs[stage] = bar.add_task(stage, total=1.0)
-            bar.update(jobs[stage], completed=fraction)
+            if stage not in stages:
+                stages[stage] = bar.add_task(stage, total=1.0)
+            bar.update(stages[stage], completed=fraction)
 
         result = run(mdl, ref, settings, progress)
     best = result.best_trajectory()
