@@ -261,6 +261,39 @@ def task_heave(
     )
 
 
+@task_app.command(
+    "wobble",
+    short_help="Multi-sine roll/pitch/yaw wobble (a second trajectory to test a model on).",
+)
+@_reports_errors
+def task_wobble(
+    out: Out,
+    amplitude: Annotated[
+        float, typer.Option(help="Sum of the sine amplitudes per axis, deg (yaw half).")
+    ] = 15.0,
+    bandwidth: Annotated[float, typer.Option(help="Highest sine frequency, Hz.")] = 0.8,
+    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 20.0,
+    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    seed: Annotated[int, typer.Option(help="Draws the frequencies and phases.")] = 0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Multi-sine attitude wobble: roll, pitch and yaw each a sum of three sines
+    (frequencies 0.15-1 x bandwidth, random phases). Not periodic: fit on a figure-8,
+    evaluate on a wobble to see whether a model holds on a flight it has not seen."""
+    from omavctl.tasks import wobble
+
+    _write_task(
+        wobble(amplitude, bandwidth, duration, rate, ramp, height, seed),
+        out,
+        quiet,
+        as_json,
+        "wobble",
+    )
+
+
 # ----------------------------------------------------------------------- simulate
 @app.command(short_help="Fly a reference through the truth plant, write a flight log.")
 @_reports_errors
