@@ -132,7 +132,7 @@ def rollout(
     max_tilt, max_err = np.deg2rad(settings.max_tilt_deg), np.deg2rad(settings.max_error_deg)
     alive = np.ones(b_count, dtype=bool)
 
-    def mark(bad: np.ndarray, why: str) -> None:
+    def mark(bad: np.ndarray | np.bool_, why: str) -> None:
         for b in np.flatnonzero(bad & feasible):
             reason[b] = why
         feasible[bad] = False
@@ -300,7 +300,7 @@ def plan(
     # 4-5. score
     per_sim = _cost_of(model, gp, roll, test, settings, progress)
     k_count, m = settings.candidates, settings.sims
-    feasible = roll.feasible.reshape(k_count, m).all(axis=1)
+    feasible = np.asarray(roll.feasible.reshape(k_count, m).all(axis=1))
     reasons = []
     for k in range(k_count):
         why = sorted({r for r in roll.reason[k * m : (k + 1) * m] if r})
