@@ -905,7 +905,8 @@ def write_evaluation(out: str | Path, result: EvalResult) -> None:
     tree["series"] = {"file": spath.name, "keys": sorted(result.series)}
     with atomic_path(spath) as tmp:
         with tmp.open("wb") as fh:
-            np.savez(fh, **result.series)
+            series: dict[str, Any] = result.series  # NumPy 2 stubs: **kwargs vs allow_pickle
+            np.savez(fh, **series)
     text = json.dumps(
         finite_json(tree), indent=1, sort_keys=False, allow_nan=False, default=_json_default
     )
