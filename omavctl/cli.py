@@ -1,9 +1,9 @@
 """Command-line interface: parse, call one library function, render.
 
 Library errors (:class:`omavctl.errors.OmavctlError`) become one line
-``error: <file>: <problem>`` on stderr and exit code 1; usage errors stay
-typer's exit code 2. Heavy modules are imported inside the commands so that
-``--help`` and ``--version`` stay fast.
+``error: <file>: <problem>`` on stderr and exit status 2, as usage errors
+(:mod:`omavctl.guard`); other failures exit 1. Heavy modules are imported
+inside the commands so that ``--help`` and ``--version`` stay fast.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import Annotated, Any, TypeVar
 import typer
 
 from omavctl import __version__
+from omavctl.atomic import check_outputs
 from omavctl.errors import OmavctlError
 
 app = typer.Typer(
@@ -39,18 +40,13 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def _reports_errors(func: F) -> F:
-    """Turn library errors into one clear line and exit code 1."""
+    """Bad input: one line and exit status 2; see :mod:`omavctl.guard`."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return func(*args, **kwargs)
-        except OmavctlError as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(1) from None
-        except KeyboardInterrupt:
-            typer.echo("error: interrupted", err=True)
-            raise typer.Exit(130) from None
+        from omavctl.guard import guarded
+
+        return guarded(func, args, kwargs)
 
     return wrapper  # type: ignore[return-value]
 
@@ -118,6 +114,7 @@ def task_fig8(
     """Attitude figure-8 at constant position: roll = A_r sin(wt), pitch = A_p sin(2wt)."""
     from omavctl.tasks import fig8
 
+    check_outputs([], [out])
     _write_task(fig8(roll, pitch, period, duration, rate, ramp, height), out, quiet)
 
 
@@ -136,6 +133,7 @@ def task_circle(
     """Horizontal circle at level attitude, starting and ending at rest."""
     from omavctl.tasks import circle
 
+    check_outputs([], [out])
     _write_task(circle(radius, period, duration, rate, ramp, height), out, quiet)
 
 
@@ -156,6 +154,7 @@ def task_pitch(
     """Pitching manoeuvre as in the paper (60 deg, 1 rad/s^2 by default)."""
     from omavctl.tasks import pitch
 
+    check_outputs([], [out])
     _write_task(pitch(amplitude, max_acceleration, duration, rate, ramp, height), out, quiet)
 
 
@@ -174,6 +173,7 @@ def task_yaw(
     """Yaw oscillation at level attitude (identifies servo_lag: small tilts, fast tilt rates)."""
     from omavctl.tasks import yaw
 
+    check_outputs([], [out])
     _write_task(yaw(amplitude, period, duration, rate, ramp, height), out, quiet)
 
 
@@ -192,6 +192,7 @@ def task_heave(
     """Vertical oscillation at level attitude (identifies com_offset: thrust varies, no tilt)."""
     from omavctl.tasks import heave
 
+    check_outputs([], [out])
     _write_task(heave(amplitude, period, duration, rate, ramp, height), out, quiet)
 
 
@@ -245,6 +246,7 @@ def simulate(
     from omavctl.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
+    check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)
     veh = load_vehicle(vehicle)
     ref = read_trajectory(reference)
     plant = load_truth(truth, veh)
@@ -350,6 +352,7 @@ def fit(
     from omavctl.model import save_model
     from omavctl.vehicle import load_vehicle
 
+    check_outputs([*logs, vehicle, prior], [out])
     window = parse_time_window(time_window) if time_window else None
     veh = load_vehicle(vehicle)
     names = None if effects is None else [e.strip() for e in effects.split(",") if e.strip()]
@@ -468,9 +471,10 @@ def evaluate(
     from rich.table import Table
 
     from omavctl.evaluate import evaluate as run
-    from omavctl.evaluate import write_evaluation
+    from omavctl.evaluate import series_path, write_evaluation
     from omavctl.logs import parse_time_window
 
+    check_outputs([*logs, *model], [out, series_path(out)])
     window = parse_time_window(time_window) if time_window else None
     result = run(model, logs, time_window=window)
     write_evaluation(out, result)
@@ -542,10 +546,11 @@ def plan(
     from omavctl.model import check_vehicle, load_model
     from omavctl.planning import PlanSettings
     from omavctl.planning import plan as run
-    from omavctl.planning.report import format_scores
-    from omavctl.trajectory import read_trajectory, write_trajectory
+    from omavctl.planning.report import write_plan
+    from omavctl.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
+    check_outputs([task, model, vehicle], [out, scores])
     for name, value in (
         ("--candidates", candidates),
         ("--sims", sims),
@@ -585,11 +590,7 @@ def plan(
 
         result = run(mdl, ref, settings, progress)
     best = result.best_trajectory()
-    if scores is not None:
-        from omavctl.atomic import write_text_atomic
-
-        write_text_atomic(scores, format_scores(result))
-    write_trajectory(out, best)
+    write_plan(out, best, result, scores)
     table = Table(title="most informative candidates (lower cost = more informative)")
     for col in ("id", "cost", "vs task", "tracking rad/s^2"):
         table.add_column(col, justify="right")
@@ -666,8 +667,10 @@ def report(
     from rich.table import Table
     from rich.text import Text
 
+    from omavctl.evaluate import series_path
     from omavctl.report import write_report
 
+    check_outputs([*evaluations, *(series_path(e) for e in evaluations)], [out])
     con = _console(quiet)
     with con.status("rendering report"):
         summary = write_report(evaluations, out, fmt)
@@ -700,7 +703,9 @@ def report(
 
 def main() -> None:
     """Console-script entry point."""
-    app(prog_name="omavctl")
+    from omavctl.guard import run_app
+
+    run_app(app, "omavctl")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -3,6 +3,10 @@
 Each error carries the file it concerns (if any) so the CLI can print one line
 ``error: <file>: <problem>``. Subclasses also inherit the matching builtin so
 callers may catch either.
+
+Exit status (the CLI): every :class:`OmavctlError` (bad input, a bad option
+value, an output that cannot be written) exits with :data:`EXIT_BAD_INPUT`
+(2, the status of usage errors too); any other failure exits 1.
 """
 
 from __future__ import annotations
@@ -10,12 +14,21 @@ from __future__ import annotations
 from pathlib import Path
 
 __all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_FAILURE",
     "ConfigError",
     "LogError",
     "ModelError",
     "OmavctlError",
+    "OutputError",
     "TrajectoryError",
 ]
+
+
+#: Exit status of bad input, bad options and unusable outputs (as for usage errors).
+EXIT_BAD_INPUT = 2
+#: Exit status of any other failure (an operating-system error, an internal error).
+EXIT_FAILURE = 1
 
 
 class OmavctlError(Exception):
@@ -46,3 +59,7 @@ class TrajectoryError(OmavctlError, ValueError):
 
 class ModelError(OmavctlError, ValueError):
     """A model artifact is unreadable or of an unsupported schema."""
+
+
+class OutputError(OmavctlError):
+    """An output path that cannot be used (an input, a directory, unwritable)."""

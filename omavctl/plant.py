@@ -404,7 +404,8 @@ def simulate(
         max_att_err = max(max_att_err, att_err)
         if not np.all(np.isfinite(x)) or att_err > np.deg2rad(80) or abs(x[4]) > np.deg2rad(85):
             diverged = True
-            n_ctrl = k + 1
+            # a non-finite state is not logged: the log ends at the last finite sample
+            n_ctrl = k + 1 if np.all(np.isfinite(x)) else k
             break
         if k == len(times) - 1:
             break
@@ -429,6 +430,8 @@ def simulate(
             progress((k + 1) / len(times))
 
     ct = times[:n_ctrl]
+    finite_imu = np.isfinite(imu_v[:i_imu]).all(axis=1)
+    i_imu = int(np.argmin(finite_imu)) if not finite_imu.all() else i_imu
     series = {
         "body_rate": RawSeries(imu_t[:i_imu].copy(), imu_v[:i_imu].copy()),
         **{k: RawSeries(ct.copy(), v[:n_ctrl].copy()) for k, v in rec.items()},

@@ -160,5 +160,7 @@ def format_trajectory(traj: Trajectory) -> str:
 
 
 def write_trajectory(path: str | Path, traj: Trajectory) -> None:
-    """Write a trajectory CSV atomically."""
+    """Write a trajectory CSV atomically (refuses non-finite values)."""
+    if not np.all(np.isfinite(traj.data)):
+        raise TrajectoryError("refusing to write non-finite values", path)
     write_text_atomic(path, format_trajectory(traj))

@@ -696,7 +696,7 @@ def test_missing_and_non_numeric_columns_name_column_and_file(tmp_path: Path) ->
         {"columns": {**SMALL_MAP, "body_rate": {"x": "GX", "y": "GYRO_NOPE", "z": "GZ"}}},
     )
     result = runner.invoke(app, ["inspect", str(csv_path), "--vehicle", str(vehicle_file)])
-    assert result.exit_code == 1
+    assert result.exit_code == 2
     assert result.output.strip() == (
         f"error: {csv_path}: missing column 'GYRO_NOPE' (mapped to body_rate.y)"
     )

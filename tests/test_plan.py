@@ -94,7 +94,7 @@ def test_cli_plan_one_candidate_one_simulation(setup):
 
 def _one_error_line(result) -> str:
     text = result.output.strip()
-    assert result.exit_code == 1 and "Traceback" not in text
+    assert result.exit_code == 2 and "Traceback" not in text
     assert len(text.splitlines()) == 1, text
     return text
 

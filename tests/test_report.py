@@ -187,7 +187,7 @@ def test_render_report_escapes_and_handles_unknown_torque_units(evals):
 
 def _error_line(result) -> str:
     text = result.output.strip()
-    assert result.exit_code == 1, text
+    assert result.exit_code == 2, text
     assert "Traceback" not in text and len(text.splitlines()) == 1, text
     return text
 
