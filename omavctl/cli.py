@@ -256,8 +256,8 @@ def simulate(
 
         residual = load_model(model)
         check_vehicle(residual, veh, model)
-    if physics_rate < 1000.0:
-        raise OmavctlError(f"--physics-rate must be at least 1000 Hz, got {physics_rate:g}")
+    if not 1000.0 <= physics_rate <= 100_000.0:
+        raise OmavctlError(f"--physics-rate must be 1000 to 100000 Hz, got {physics_rate:g}")
     con = _console(quiet)
     from rich.progress import Progress
 
@@ -560,8 +560,8 @@ def plan(
     ):
         if value < 1:
             raise OmavctlError(f"{name} must be at least 1, got {value}")
-    if max_freq <= 0.1 or amplitude <= 0:
-        raise OmavctlError("--max-freq must be above 0.1 Hz and --amplitude above 0")
+    if not (0.1 < max_freq <= 50.0 and 0 < amplitude <= 100.0):
+        raise OmavctlError("--max-freq must be in (0.1, 50] Hz and --amplitude in (0, 100] rad/s^2")
     if epsilon is not None and epsilon <= 0:
         raise OmavctlError(f"--epsilon must be > 0, got {epsilon}")
     mdl = load_model(model)
@@ -589,7 +589,7 @@ def plan(
             bar.update(jobs[stage], completed=fraction)
 
         result = run(mdl, ref, settings, progress)
-    best = result.best_trajectory()
+    best = result.best_trajectory(task)
     write_plan(out, best, result, scores)
     table = Table(title="most informative candidates (lower cost = more informative)")
     for col in ("id", "cost", "vs task", "tracking rad/s^2"):

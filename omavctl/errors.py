@@ -11,6 +11,7 @@ value, an output that cannot be written) exits with :data:`EXIT_BAD_INPUT`
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "OmavctlError",
     "OutputError",
     "TrajectoryError",
+    "library_reason",
 ]
 
 
@@ -63,3 +65,22 @@ class ModelError(OmavctlError, ValueError):
 
 class OutputError(OmavctlError):
     """An output path that cannot be used (an input, a directory, unwritable)."""
+
+
+#: Library messages that describe Python internals rather than the file.
+_INTERNAL = re.compile(
+    r"codec|decode|NoneType|subscriptable|attribute|object|index|out of range|unpack|"
+    r"buffer|struct|assert|magic|\(\d+, \d+|0x[0-9a-f]+|byte|position \d+|expected \d+|"
+    r"reshape|broadcast|[A-Z]\w*Error",
+    re.IGNORECASE,
+)
+
+
+def library_reason(err: BaseException, default: str = "the file is damaged or truncated") -> str:
+    """One line for the user about an exception raised by a library reading a file:
+    its message when that speaks about the file, else ``default``."""
+    text = str(err).strip().splitlines()
+    line = text[0].strip() if text else ""
+    if not line or _INTERNAL.search(line) or len(line) > 160:
+        return default
+    return line

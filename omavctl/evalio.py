@@ -85,6 +85,14 @@ def _subject(tree: Mapping[str, Any]) -> str | None:
     return str(logs[0]["path"]) if len(logs) == 1 else None
 
 
+def _run_id(tree: Mapping[str, Any], digest: str) -> str:
+    """Run id: a hash of the JSON's content (without ``series``) and the series hash,
+    so that a changed JSON or a series of another run is recognised."""
+    body = {k: v for k, v in tree.items() if k != "series"}
+    text = json.dumps(body, sort_keys=True, default=_json_default).encode()
+    return hashlib.sha256(text + digest.encode()).hexdigest()[:16]
+
+
 def write_evaluation(out: str | Path, result: EvalResult) -> None:
     """Write the JSON and its series ``.npz`` together (see the module docstring)."""
     out = Path(out)
@@ -101,8 +109,7 @@ def write_evaluation(out: str | Path, result: EvalResult) -> None:
     digest = series_digest(result.series)
     tree = dict(result.tree)
     tree.pop("series", None)
-    body = json.dumps(tree, sort_keys=True, default=_json_default).encode()
-    run_id = hashlib.sha256(body + digest.encode()).hexdigest()[:16]
+    run_id = _run_id(tree, digest)
     tree["series"] = {
         "file": spath.name,
         "keys": sorted(result.series),
@@ -165,10 +172,12 @@ def _series_meta(tree: Mapping[str, Any], p: Path) -> tuple[Path, str | None, st
 
 def _read_series(spath: Path, p: Path) -> dict[str, np.ndarray]:
     try:
-        with np.load(spath, allow_pickle=False) as data:
+        with spath.open("rb") as fh:
+            data = np.load(fh, allow_pickle=False)
             if not isinstance(data, np.lib.npyio.NpzFile):
                 raise ValueError("not an .npz archive")
-            return {k: data[k] for k in data.files}
+            with data:
+                return {k: data[k] for k in data.files}
     except FileNotFoundError:
         raise OmavctlError(f"its time series file {spath.name} is missing", p) from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as err:
@@ -185,6 +194,12 @@ def load_evaluation(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndar
     p = Path(path)
     tree = _read_tree(p)
     spath, digest, run_id = _series_meta(tree, p)
+    if digest is not None and _run_id(tree, digest) != run_id:
+        raise OmavctlError(
+            "changed after evaluate wrote it (its content does not match its run id): "
+            "run evaluate again",
+            p,
+        )
     series = _read_series(spath, p)
     if digest is not None:
         stored = series.pop(RUN_ID_KEY, None)

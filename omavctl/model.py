@@ -69,7 +69,7 @@ import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
 from omavctl.atomic import atomic_path
-from omavctl.errors import ModelError
+from omavctl.errors import ModelError, library_reason
 from omavctl.physics.effects import EFFECTS, Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
@@ -514,7 +514,7 @@ def _read_members(path: Path) -> dict[str, np.ndarray]:
         text = str(err)
         if "pickle" in text:
             raise ModelError("contains pickled data; refusing to load", path) from None
-        raise ModelError(f"corrupt model file: {text}", path) from None
+        raise ModelError(f"corrupt model file: {library_reason(err)}", path) from None
 
 
 def _text(arrays: Mapping[str, np.ndarray], key: str, path: Path) -> str:

@@ -280,8 +280,18 @@ def load_for_report(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndar
 
 
 def format_from_suffix(out: str | Path) -> str:
-    """'md' for a .md/.markdown output name, else 'html'."""
-    return "md" if Path(out).suffix.lower() in (".md", ".markdown") else "html"
+    """'md' for a .md/.markdown output name, 'html' for .html/.htm or no suffix;
+    any other suffix (.pdf, ...) is refused, naming the formats that exist."""
+    suffix = Path(out).suffix.lower()
+    if suffix in (".md", ".markdown"):
+        return "md"
+    if suffix in ("", ".html", ".htm"):
+        return "html"
+    raise OmavctlError(
+        f"cannot write a '{suffix}' report: the formats are html (.html) and md (.md) "
+        "(or choose one with --format)",
+        out,
+    )
 
 
 # ------------------------------------------------------------------- figures

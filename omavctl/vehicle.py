@@ -82,11 +82,15 @@ def load_yaml_mapping(path: str | Path) -> dict[str, Any]:
     """Read a YAML file whose top level must be a mapping (``yaml.safe_load`` only)."""
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_bytes().decode("utf-8")
     except FileNotFoundError:
         raise ConfigError("file not found", p) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConfigError(f"cannot read: {err}", p) from None
+    except IsADirectoryError:
+        raise ConfigError("is a directory, not a YAML file", p) from None
+    except OSError as err:
+        raise ConfigError(f"cannot read: {err.strerror or err}", p) from None
+    except UnicodeDecodeError:
+        raise ConfigError("not a YAML file: it is not UTF-8 text", p) from None
     try:
         tree = yaml.safe_load(text)
     except yaml.YAMLError as err:

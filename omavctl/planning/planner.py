@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -223,9 +224,12 @@ class PlanResult:
     test_points: np.ndarray
     notes: list[str] = field(default_factory=list)
 
-    def best_trajectory(self) -> Trajectory:
+    def best_trajectory(self, task: str | Path | None = None) -> Trajectory:
+        """The chosen reference; ``task`` (the task file) is named when none is feasible."""
         if self.best < 0:
-            raise OmavctlError("no feasible candidate: lower --amplitude or --max-freq")
+            raise OmavctlError(
+                "no feasible candidate for this task: lower --amplitude or --max-freq", task
+            )
         return Trajectory(self.references[self.best])
 
 
@@ -248,7 +252,7 @@ def _cost_of(
         idx, _ = select_points(z, k, seed=settings.seed)
         chosen = z[idx]
         if k < settings.points:  # pad by repeating (adds no information beyond noise)
-            chosen = np.concatenate([chosen, chosen[: settings.points - k]])
+            chosen = np.resize(chosen, (settings.points, chosen.shape[1]))
         picks[b] = chosen
         if progress is not None:
             progress("selecting points", (b + 1) / b_count)
