@@ -7,7 +7,8 @@ too (key ``run_id``). Both files are written under temporary names and renamed
 together (:func:`omavctl.atomic.atomic_paths`: JSON first, then the series),
 so a JSON is never beside the series of another run unless the process was
 killed between the two renames, and :func:`load_evaluation` refuses such a
-pair. Nothing non-finite is written: a NaN or infinity anywhere is an error.
+pair. Nothing non-finite is written: a NaN or infinity in the metrics or the
+series is an error, elsewhere it is written as null and listed in ``notes``.
 """
 
 from __future__ import annotations
@@ -50,25 +51,52 @@ def series_digest(series: Mapping[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def _non_finite_at(tree: Any, where: str = "") -> str | None:
-    """Dotted path of the first NaN/infinity in a JSON-like tree, else None."""
-    if isinstance(tree, float):
-        return None if math.isfinite(tree) else where or "(top)"
-    if isinstance(tree, np.generic | np.ndarray):
-        arr = np.asarray(tree)
-        if np.issubdtype(arr.dtype, np.number) and not np.all(np.isfinite(arr)):
-            return where
-        return None
+def _non_finite(tree: Any, where: str = "") -> list[str]:
+    """Dotted paths of every NaN/infinity in a JSON-like tree."""
+    if isinstance(tree, float | np.floating):
+        return [] if math.isfinite(tree) else [where or "(top)"]
+    if isinstance(tree, np.ndarray):
+        ok = not np.issubdtype(tree.dtype, np.number) or bool(np.all(np.isfinite(tree)))
+        return [] if ok else [where]
     items: Any = ()
     if isinstance(tree, Mapping):
         items = ((f"{where}.{k}" if where else str(k), v) for k, v in tree.items())
     elif isinstance(tree, list | tuple):
         items = ((f"{where}[{i}]", v) for i, v in enumerate(tree))
-    for key, value in items:
-        found = _non_finite_at(value, key)
-        if found is not None:
-            return found
-    return None
+    return [p for key, value in items for p in _non_finite(value, key)]
+
+
+def _nulled(tree: Any) -> Any:
+    """``tree`` with every NaN/infinity replaced by None (JSON null)."""
+    if isinstance(tree, float | np.floating):
+        return float(tree) if math.isfinite(tree) else None
+    if isinstance(tree, np.ndarray):
+        return _nulled(tree.tolist())
+    if isinstance(tree, Mapping):
+        return {k: _nulled(v) for k, v in tree.items()}
+    if isinstance(tree, list | tuple):
+        return [_nulled(v) for v in tree]
+    return tree
+
+
+def _finite_tree(tree: Mapping[str, Any]) -> dict[str, Any]:
+    """The tree to write: a non-finite metric or series is an error; any other
+    non-finite number (a standard error at a bound, ...) is written as null and
+    listed in ``notes``."""
+    bad = _non_finite(tree)
+    core = [p for p in bad if p.startswith(("metrics.", "metrics_by_log", "metrics_by_model"))]
+    if core:
+        raise OmavctlError(
+            f"the evaluation is not finite at '{core[0]}': the log holds values far outside "
+            "what the model and the vehicle allow",
+            _subject(tree),
+        )
+    out = dict(tree)
+    if bad:
+        out = _nulled(out)
+        shown = ", ".join(bad[:5]) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
+        out["notes"] = [*out.get("notes", []), f"not finite, written as null: {shown}"]
+    return out
 
 
 def _json_default(obj: Any) -> Any:
@@ -97,17 +125,15 @@ def write_evaluation(out: str | Path, result: EvalResult) -> None:
     """Write the JSON and its series ``.npz`` together (see the module docstring)."""
     out = Path(out)
     spath = series_path(out)
-    where = _non_finite_at(result.tree)
-    bad = [k for k, v in result.series.items() if _non_finite_at(np.asarray(v)) is not None]
-    if where is not None or bad:
-        what = f"'{where}'" if where is not None else f"time series '{bad[0]}'"
+    bad = [k for k, v in result.series.items() if _non_finite(np.asarray(v))]
+    if bad:
         raise OmavctlError(
-            f"the evaluation is not finite at {what}: the log holds values far outside "
-            "what the model and the vehicle allow",
+            f"the evaluation's time series '{bad[0]}' is not finite: the log holds values far "
+            "outside what the model and the vehicle allow",
             _subject(result.tree),
         )
     digest = series_digest(result.series)
-    tree = dict(result.tree)
+    tree = _finite_tree(result.tree)
     tree.pop("series", None)
     run_id = _run_id(tree, digest)
     tree["series"] = {

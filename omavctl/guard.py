@@ -40,11 +40,13 @@ def _fail(line: str, code: int) -> typer.Exit:
 
 
 def check_finite_options(kwargs: dict[str, Any]) -> None:
-    """Refuse NaN or infinite float option values, naming the option."""
+    """Refuse NaN or infinite float option values and negative seeds, naming the option."""
     for name, value in kwargs.items():
+        option = "--" + name.replace("_", "-")
         if isinstance(value, float) and not math.isfinite(value):
-            option = "--" + name.replace("_", "-")
             raise OmavctlError(f"{option} must be a finite number, got {value}")
+        if name == "seed" and isinstance(value, int) and not 0 <= value < 2**63:
+            raise OmavctlError(f"{option} must be a non-negative integer, got {value}")
 
 
 def _first_line(err: BaseException) -> str:
@@ -88,6 +90,7 @@ def run_app(app: typer.Typer, prog_name: str) -> None:
     from typer.exceptions import TyperException
 
     install_signal_cleanup()
+    warnings.simplefilter("ignore")  # also at exit (ResourceWarning), outside any command
     try:
         code = app(prog_name=prog_name, standalone_mode=False)
     except TyperException as err:

@@ -1,6 +1,7 @@
 """Fuzz campaign over every reader and subcommand (see tests/fuzzkit).
 
-    python tools/fuzz_campaign.py --seed 1 --cases 500 [--runner subprocess] [--jobs 2]
+    python tools/fuzz_campaign.py --seed 1 --cases 500 [--strategy stacked]
+        [--runner subprocess] [--jobs 2]
 
 Builds the valid base inputs, makes ``--cases`` seeded mutants, runs each
 subcommand on them and prints the tally per verdict and every failure.
@@ -33,13 +34,19 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--cases", type=int, default=500)
     ap.add_argument("--runner", choices=["fork", "subprocess"], default="fork")
+    ap.add_argument(
+        "--strategy",
+        choices=["single", "stacked"],
+        default="single",
+        help="single: one mutation per input (the corpus of make test); stacked: two",
+    )
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once")
     ap.add_argument("--timeout", type=float, default=120.0, help="s per case before a hang")
     ap.add_argument("--dir", type=Path, default=None, help="keep the cases here")
     args = ap.parse_args()
     root = args.dir or Path(tempfile.mkdtemp(prefix="omavctl-fuzz-"))
     base = build_base(root / "base")
-    cases = make_cases(args.seed, args.cases, base, root / f"seed{args.seed}")
+    cases = make_cases(args.seed, args.cases, base, root / f"seed{args.seed}", args.strategy)
     import omavctl.cli
     import omavctl.evaluate
     import omavctl.planning
@@ -59,7 +66,7 @@ def main() -> int:
         print(f"FAIL {o.verdict:15s} {o.case.name} [{o.case.mutation}] "
               f"{' '.join(o.case.argv)}\n    {o.detail[:400]}")  # fmt: skip
     print(f"{len(outcomes)} cases in {time.monotonic() - start:.0f} s (seed {args.seed}, "
-          f"runner {args.runner}) in {root}")  # fmt: skip
+          f"strategy {args.strategy}, runner {args.runner}) in {root}")  # fmt: skip
     print("verdicts: " + ", ".join(f"{k} {v}" for k, v in sorted(tally.items())))
     exc = sum(1 for o in outcomes if o.verdict == "exception-text")
     wrong = sum(1 for o in outcomes if o.verdict == "exit0-wrong")

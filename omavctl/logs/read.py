@@ -89,6 +89,35 @@ def _check_metadata(path: Path) -> None:
         raise LogError(
             "not a readable ROS 2 bag: metadata.yaml lacks 'rosbag2_bagfile_information'", path
         )
+    problem = _metadata_problem(info)
+    if problem:
+        raise LogError(f"not a readable ROS 2 bag: metadata.yaml: {problem}", path)
+
+
+def _metadata_problem(info: dict[str, Any]) -> str | None:
+    """What is wrong with the fields of rosbag2_bagfile_information that are read."""
+    if not isinstance(info.get("version"), int) or isinstance(info.get("version"), bool):
+        return "'version' must be an integer"
+    if not isinstance(info.get("storage_identifier"), str):
+        return "'storage_identifier' must be a name"
+    files = info.get("relative_file_paths")
+    if not isinstance(files, list) or not all(isinstance(f, str) and f for f in files):
+        return "'relative_file_paths' must be a list of file names"
+    topics = info.get("topics_with_message_count")
+    if not isinstance(topics, list):
+        return "'topics_with_message_count' must be a list"
+    for i, entry in enumerate(topics):
+        meta = entry.get("topic_metadata") if isinstance(entry, dict) else None
+        where = f"'topics_with_message_count[{i}]"
+        if not isinstance(meta, dict):
+            return f"{where}.topic_metadata' must be a mapping"
+        for key in ("name", "type", "serialization_format"):
+            if not isinstance(meta.get(key), str) or not meta[key]:
+                return f"{where}.topic_metadata.{key}' must be a non-empty string"
+        count = entry.get("message_count")
+        if not isinstance(count, int) or isinstance(count, bool) or count < 0:
+            return f"{where}.message_count' must be a count"
+    return None
 
 
 def detect_format(path: Path) -> str:

@@ -244,6 +244,8 @@ def make_case(rng: random.Random, index: int, base: Path, work: Path) -> Case:
         paths["sim_out"] = rng.choice(["sim.csv", "sim.bag", "sim.mcap", "sim_dir"])
     if cmd.__name__ == "report" and rng.random() < 0.15:
         paths["report_out"] = "report.html"
+    if cmd.__name__ == "inspect":  # lenient by design: bad cells and rows become notes
+        bad = bad and kind != "log"
     argv, outputs = cmd(paths)
     inputs = [v for k, v in paths.items() if k not in ("sim_out", "report_out")]
     return Case(f"{index:05d}-{kind}-{cmd.__name__}", argv, target, desc, bad, outputs, inputs)
@@ -328,8 +330,26 @@ def output_case(rng: random.Random, index: int, base: Path, work: Path) -> Case:
     return Case(f"{index:05d}-output", [*argv, out], out, f"--out {out}", True, {}, inputs)
 
 
-def make_cases(seed: int, count: int, base: Path, root: Path) -> list[Case]:
-    """``count`` cases from ``seed``: 75 % input mutations, 15 % options, 10 % outputs."""
+def _stack(rng: random.Random, case: Case, work: Path) -> Case:
+    """Mutate the case's mutated file once more (``stacked`` strategy)."""
+    path = work / case.target
+    kind = case.name.split("-")[1]
+    if not path.is_file() or kind not in ("log", "vehicle", "truth", "task", "model", "eval"):
+        return case
+    desc, bad = _mutate_file(rng, kind, path, path)
+    case.mutation = f"{case.mutation}; then {desc}"
+    case.must_fail = bad and case.argv[0] != "inspect"  # the last mutation decides
+    return case
+
+
+def make_cases(
+    seed: int, count: int, base: Path, root: Path, strategy: str = "single"
+) -> list[Case]:
+    """``count`` cases from ``seed``: 75 % input mutations, 15 % options, 10 % outputs.
+
+    ``strategy`` ``"single"`` mutates one input once (the corpus of ``make test``);
+    ``"stacked"`` mutates it again on top (a different population of inputs).
+    """
     rng = random.Random(seed)
     cases = []
     for i in range(count):
@@ -338,5 +358,7 @@ def make_cases(seed: int, count: int, base: Path, root: Path) -> list[Case]:
         roll = rng.random()
         maker = make_case if roll < 0.75 else option_case if roll < 0.9 else output_case
         case = maker(rng, i, base, work)
+        if strategy == "stacked" and maker is make_case:
+            case = _stack(rng, case, work)
         cases.append(case)
     return cases
