@@ -336,7 +336,12 @@ def _stack(rng: random.Random, case: Case, work: Path) -> Case:
     kind = case.name.split("-")[1]
     if not path.is_file() or kind not in ("log", "vehicle", "truth", "task", "model", "eval"):
         return case
-    desc, bad = _mutate_file(rng, kind, path, path)
+    try:
+        desc, bad = _mutate_file(rng, kind, path, path)
+    except Exception:  # the first mutation left nothing to parse: mutate the bytes
+        new, desc, bad = rng.choice(mu.BYTE_MUTATORS)(rng, path.read_bytes())
+        path.write_bytes(new)
+        bad = bad and kind != "log"
     case.mutation = f"{case.mutation}; then {desc}"
     case.must_fail = bad and case.argv[0] != "inspect"  # the last mutation decides
     return case
