@@ -1,12 +1,17 @@
 # Set-up and checks. Everything installs into a local virtual environment.
 #   make demo   install, then run the example pipeline on built-in data
 #   make test   install, then lint, type-check and run the test suite
+#   make fuzz   install, then a fuzz campaign of FUZZ_CASES mutated inputs (tools/fuzz_campaign.py)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test lint bench clean
+.PHONY: install demo test lint bench fuzz clean
+
+FUZZ_CASES ?= 3000
+FUZZ_SEED ?= 1
+FUZZ_STRATEGY ?= single
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +31,10 @@ lint: $(STAMP)
 
 test: lint
 	$(BIN)/pytest -q
+
+fuzz: $(STAMP)
+	nice -n 10 $(BIN)/python tools/fuzz_campaign.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED) \
+		--strategy $(FUZZ_STRATEGY)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulate.py

@@ -562,8 +562,8 @@ def plan(
             raise OmavctlError(f"{name} must be at least 1, got {value}")
     if not (0.1 < max_freq <= 50.0 and 0 < amplitude <= 100.0):
         raise OmavctlError("--max-freq must be in (0.1, 50] Hz and --amplitude in (0, 100] rad/s^2")
-    if epsilon is not None and epsilon <= 0:
-        raise OmavctlError(f"--epsilon must be > 0, got {epsilon}")
+    if epsilon is not None and not 0 < epsilon <= 1000:
+        raise OmavctlError(f"--epsilon must be in (0, 1000] normalised units, got {epsilon}")
     mdl = load_model(model)
     if vehicle is not None:
         check_vehicle(mdl, load_vehicle(vehicle), vehicle)

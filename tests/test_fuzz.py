@@ -18,11 +18,11 @@ import os
 import pytest
 
 try:  # tests/ as a package or as a rootdir on sys.path
-    from .fuzzkit.cases import build_base, make_cases
-    from .fuzzkit.run import FAILURES, Outcome, run_case
+    from .fuzzkit.cases import build_base, iter_cases
+    from .fuzzkit.run import FAILURES, Outcome, run_all
 except ImportError:
-    from fuzzkit.cases import build_base, make_cases
-    from fuzzkit.run import FAILURES, Outcome, run_case
+    from fuzzkit.cases import build_base, iter_cases
+    from fuzzkit.run import FAILURES, Outcome, run_all
 
 CASES = int(os.environ.get("OMAVCTL_FUZZ_CASES", "200"))
 SEED = int(os.environ.get("OMAVCTL_FUZZ_SEED", "2026"))
@@ -36,8 +36,7 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> list[Outcome]:
     import omavctl.planning
     import omavctl.report  # noqa: F401
 
-    cases = make_cases(SEED, CASES, base, root / "cases")
-    return [run_case(c, root / "cases" / f"case{c.name[:5]}", "fork", 60.0) for c in cases]
+    return run_all(iter_cases(SEED, CASES, base, root / "cases"), "fork", 60.0)
 
 
 def test_every_case_is_a_clean_refusal_or_a_valid_output(outcomes: list[Outcome]) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import random
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -347,16 +347,16 @@ def _stack(rng: random.Random, case: Case, work: Path) -> Case:
     return case
 
 
-def make_cases(
+def iter_cases(
     seed: int, count: int, base: Path, root: Path, strategy: str = "single"
-) -> list[Case]:
-    """``count`` cases from ``seed``: 75 % input mutations, 15 % options, 10 % outputs.
+) -> Iterator[tuple[Case, Path]]:
+    """``count`` cases from ``seed`` with their folders, each made when it is reached:
+    75 % input mutations, 15 % options, 10 % outputs.
 
     ``strategy`` ``"single"`` mutates one input once (the corpus of ``make test``);
     ``"stacked"`` mutates it again on top (a different population of inputs).
     """
     rng = random.Random(seed)
-    cases = []
     for i in range(count):
         work = root / f"case{i:05d}"
         work.mkdir(parents=True)
@@ -365,5 +365,4 @@ def make_cases(
         case = maker(rng, i, base, work)
         if strategy == "stacked" and maker is make_case:
             case = _stack(rng, case, work)
-        cases.append(case)
-    return cases
+        yield case, work

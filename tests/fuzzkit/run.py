@@ -19,10 +19,12 @@ import json
 import math
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -233,3 +235,19 @@ FAILURES = (
     "input-changed",
     "temp-file-left",
 )
+
+
+def run_all(
+    cases: Iterable[tuple[Case, Path]],
+    runner: str = "fork",
+    timeout: float = 60.0,
+    keep: bool = False,
+) -> list[Outcome]:
+    """Run every case; the folders of cases that passed are removed unless ``keep``."""
+    outcomes = []
+    for case, work in cases:
+        outcome = run_case(case, work, runner, timeout)
+        outcomes.append(outcome)
+        if not keep and outcome.verdict not in FAILURES:
+            shutil.rmtree(work, ignore_errors=True)
+    return outcomes
