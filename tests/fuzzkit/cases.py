@@ -8,6 +8,7 @@ the mutated input is invalid by construction (then success is wrong).
 
 from __future__ import annotations
 
+import json
 import random
 import shutil
 from collections.abc import Callable, Iterator
@@ -136,6 +137,7 @@ def _consumers(kind: str) -> list[Callable[[dict[str, str]], tuple[list[str], di
         "task": [simulate, plan],
         "model": [evaluate, plan, simulate, fit],
         "eval": [report],
+        "legacy": [report],
         "series": [report],
     }[kind]
 
@@ -171,6 +173,12 @@ def _mutate_file(rng: random.Random, kind: str, src: Path, dst: Path) -> tuple[s
         new, desc, bad = mu.yaml_mutation(rng, data, crit)
     elif kind == "eval":
         new, desc, bad = mu.json_mutation(rng, data, lambda path: path[:1] == ("metrics",))
+    elif kind == "legacy":  # written before run ids: checked field by field
+        tree = json.loads(data)
+        del tree["series"]["sha256"], tree["series"]["run_id"]
+        new, desc, bad = mu.json_mutation(
+            rng, json.dumps(tree).encode(), lambda path: path[:2] == ("metrics", "model")
+        )
     elif kind in ("model", "series") and rng.random() < 0.6:
         critical = (lambda k: k in MODEL_CRITICAL) if kind == "model" else (lambda k: k != "x")
         new, desc, bad = mu.npz_mutation(rng, data, critical)
@@ -199,7 +207,8 @@ def _mutate_ros2(rng: random.Random, src: Path, dst: Path) -> tuple[str, bool]:
     return f"{storage.name} {desc}", bad and "empt" in desc
 
 
-KINDS = ("log", "log", "log", "vehicle", "truth", "task", "model", "model", "eval", "series")
+KINDS = ("log", "log", "log", "vehicle", "truth", "task", "model", "model", "eval", "legacy",
+         "series")  # fmt: skip
 
 
 def make_case(rng: random.Random, index: int, base: Path, work: Path) -> Case:
@@ -231,13 +240,13 @@ def make_case(rng: random.Random, index: int, base: Path, work: Path) -> Case:
         paths["eval"] = "eval.json"
     else:
         src = {"vehicle": "vehicle.yaml", "truth": "truth.yaml", "task": "task.csv"}.get(
-            kind, {"model": "m.npz", "eval": "eval.json"}.get(kind, "")
+            kind, {"model": "m.npz", "eval": "eval.json", "legacy": "eval.json"}.get(kind, "")
         )
         target = f"bad_{src}"
         desc, bad = _mutate_file(rng, kind, base / src, work / target)
-        if kind == "eval":
+        if kind in ("eval", "legacy"):
             shutil.copy2(base / "eval.series.npz", work / "bad_eval.series.npz")
-        paths[kind] = target
+        paths["eval" if kind == "legacy" else kind] = target
         if kind == "model" and cmd.__name__ == "fit":
             paths["prior"] = target
     if cmd.__name__ == "simulate":
