@@ -68,6 +68,9 @@ def _run_fork(argv: list[str], work: Path, timeout: float) -> tuple[int | None, 
                 f = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
                 os.dup2(f, fd)
                 os.close(f)
+            # the parent's sys.stdout/stderr may be a capture (pytest): use the fds
+            sys.stdout = open(1, "w", closefd=False)
+            sys.stderr = open(2, "w", closefd=False)
             import warnings
 
             warnings.resetwarnings()
