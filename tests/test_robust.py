@@ -284,3 +284,42 @@ def test_signal_removes_temporary_files(work: Path, tmp_path: Path, sig) -> None
     assert (proc.returncode, err.strip()) == expected[sig]
     assert out.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]
+
+
+# ------------------------------------------------------------ the failure path itself
+def test_guard_hides_warnings_and_internal_errors(capsys: pytest.CaptureFixture[str]) -> None:
+    import warnings
+
+    import typer
+
+    from omavctl.guard import guarded
+
+    def noisy() -> int:
+        warnings.warn("overflow encountered in exp", RuntimeWarning, stacklevel=1)
+        return 1
+
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert guarded(noisy, (), {}) == 1
+    assert seen == []
+
+    def broken() -> None:
+        raise KeyError("x")
+
+    with pytest.raises(typer.Exit) as info:
+        guarded(broken, (), {})
+    assert info.value.exit_code == 1
+    assert capsys.readouterr().err == (
+        "error: internal error (KeyError); please report it with the command line "
+        "(OMAVCTL_DEBUG=1 shows the traceback)\n"
+    )
+    with pytest.raises(typer.Exit) as info:
+        guarded(lambda **kw: None, (), {"seed": -1})
+    assert info.value.exit_code == 2
+    assert capsys.readouterr().err == "error: --seed must be a non-negative integer, got -1\n"
+
+
+def test_usage_errors_are_one_line(tmp_path: Path) -> None:
+    proc = subprocess.run([OMAVCTL, "plan", "--candidates", "x"], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: ") and len(proc.stderr.splitlines()) == 1
