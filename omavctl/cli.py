@@ -325,10 +325,12 @@ def fit(
     features: Annotated[
         str,
         typer.Option(
-            help="GP inputs: 'wrench' (scaled commanded wrench [f/m, I^-1 tau], 6-D) or "
-            "'wrench+rate' (adds body rates, 9-D).",
+            help="GP inputs: 'wrench' (scaled commanded wrench [f/m, I^-1 tau], 6-D, the "
+            "paper's), 'wrench+rate' (adds body rates), 'wrench+dtorque' (adds the torque "
+            "command's rate of change) or 'wrench+rate+dtorque' (both, 12-D: the default, "
+            "chosen on held-out flights, docs/generalisation.md).",
         ),
-    ] = "wrench",
+    ] = "wrench+rate+dtorque",
     restarts: Annotated[
         int, typer.Option(help="Extra starts of the marginal-likelihood optimiser per axis.")
     ] = 3,

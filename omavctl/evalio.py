@@ -7,8 +7,9 @@ too (key ``run_id``). Both files are written under temporary names and renamed
 together (:func:`omavctl.atomic.atomic_paths`: JSON first, then the series),
 so a JSON is never beside the series of another run unless the process was
 killed between the two renames, and :func:`load_evaluation` refuses such a
-pair. Nothing non-finite is written: a NaN or infinity in the metrics or the
-series is an error, elsewhere it is written as null and listed in ``notes``.
+pair. Nothing non-finite is written: a NaN or infinity in the series or in an
+RMSE of ``metrics`` is an error, elsewhere it is written as null and listed in
+``notes``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -80,11 +82,12 @@ def _nulled(tree: Any) -> Any:
 
 
 def _finite_tree(tree: Mapping[str, Any]) -> dict[str, Any]:
-    """The tree to write: a non-finite metric or series is an error; any other
-    non-finite number (a standard error at a bound, ...) is written as null and
-    listed in ``notes``."""
+    """The tree to write: a non-finite RMSE in ``metrics`` (what every reader of an
+    evaluation needs) is an error; any other non-finite number (a standard error at
+    a bound, an R² of a constant signal, ...) is written as null and listed in
+    ``notes``."""
     bad = _non_finite(tree)
-    core = [p for p in bad if p.startswith(("metrics.", "metrics_by_log", "metrics_by_model"))]
+    core = [p for p in bad if re.fullmatch(r"metrics\.\w+\.rmse\.\w+", p)]
     if core:
         raise OmavctlError(
             f"the evaluation is not finite at '{core[0]}': the log holds values far outside "

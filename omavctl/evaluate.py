@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from omavctl import __version__
+from omavctl.control_loss import out_of_control
 from omavctl.errors import LogError, ModelError, OmavctlError
 from omavctl.fit import body_rate_rate, sha256_of
 from omavctl.logs.types import FlightLog
@@ -638,14 +639,22 @@ def evaluate(
     samples: list[ResidualSamples] = []
     attitudes: list[np.ndarray] = []
     logs_json = []
+    excluded: list[dict[str, Any]] = []
     for i, path in enumerate(log_paths):
         flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
         _check_rate(flight, vehicle, rate)
         extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
         s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
+        loss = out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual)
+        if loss.any:
+            s = s.select(~loss.mask)
+            excluded += [
+                {"log": Path(path).name, "start": a, "end": b, "reason": why}
+                for a, b, why in loss.spans
+            ]
         if s.n < 10 * sg.window:
             raise LogError(
-                f"only {s.n} usable samples after gaps, edges and ground time "
+                f"only {s.n} usable samples after gaps, edges, ground time and loss of control "
                 f"(need at least {10 * sg.window})",
                 flight.path,
             )
@@ -688,9 +697,7 @@ def evaluate(
         "attitude": attitude,
     }
     for j, m in enumerate(models):
-        eff_pred = np.zeros_like(residual)
-        for name, est in m.effects.items():
-            eff_pred += np.concatenate([s.regressors[name] for s in samples]) @ est.theta
+        eff_pred = np.concatenate([m.effects_samples(s) for s in samples])
         gp_mean, gp_var = m.gp_predict(
             np.concatenate([s.inputs(m.features) for s in samples]), noise=True
         )
@@ -735,6 +742,7 @@ def evaluate(
             progress("predicting", (j + 1) / len(models))
 
     mean0 = series["mean_0"]
+    metrics0: dict[str, Any] = per_model[0]["metrics"]  # type: ignore[assignment]
     err = residual - mean0
     names = feature_names("wrench")
     features = {names[k]: u[:, k] for k in range(6)}
@@ -779,8 +787,79 @@ def evaluate(
         ),
         "binned": _binned(err, residual, features),
         "diagnosis": diagnosis,
+        "excluded_spans": excluded,
+        "flags": quality_flags(metrics0, excluded),
     }
     return EvalResult(tree=tree, series=series)
+
+
+#: Held-out 2-sigma coverage below which the model's uncertainty is overconfident.
+MIN_COVERAGE = 0.8
+#: Model RMSE above this multiple of physics-only (nominal + effects) is flagged.
+MAX_RATIO = 1.05
+
+
+def quality_flags(
+    metrics: dict[str, Any], excluded: Sequence[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """What a reader must know before trusting the model on these logs.
+
+    ``overconfident``: 2-sigma coverage below :data:`MIN_COVERAGE` on an axis;
+    ``worse_than_physics``: the model's RMSE above :data:`MAX_RATIO` x that of
+    nominal + effects (the GP hurts); ``out_of_control``: samples excluded.
+    """
+    flags: list[dict[str, Any]] = []
+    for a in AXES:
+        cov = metrics["model"]["coverage_2sigma"][a]
+        if cov < MIN_COVERAGE:
+            flags.append(
+                {
+                    "code": "overconfident",
+                    "axis": a,
+                    "value": cov,
+                    "message": f"axis {a}: the 2-sigma band covers {cov:.0%} of the "
+                    "measurements (should be about 95 %): the model's uncertainty is "
+                    "overconfident here",
+                }
+            )
+        phys = metrics["effects"]["rmse"][a]
+        mod = metrics["model"]["rmse"][a]
+        if phys > 0 and mod > MAX_RATIO * phys:
+            flags.append(
+                {
+                    "code": "worse_than_physics",
+                    "axis": a,
+                    "value": mod / phys,
+                    "message": f"axis {a}: the model's error is {mod / phys:.2f}x that of "
+                    "its physics alone: the GP does not transfer to these logs",
+                }
+            )
+    for span in excluded:
+        flags.append(
+            {
+                "code": "out_of_control",
+                "axis": None,
+                "value": span["end"] - span["start"],
+                "message": f"{span['log']}: {span['start']:.2f}-{span['end']:.2f} s out of "
+                f"control ({span['reason']}): kept out of the metrics and the diagnosis",
+            }
+        )
+    return flags
+
+
+def finite_json(obj: Any) -> Any:
+    """``obj`` with every non-finite float replaced by None (JSON has no NaN/Infinity)."""
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.ndarray):
+        return finite_json(obj.tolist())
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
 
 
 # Writing and reading live in omavctl.evalio; kept importable from here.

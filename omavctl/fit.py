@@ -41,13 +41,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from omavctl import __version__
+from omavctl.control_loss import out_of_control
+from omavctl.effect_search import SearchResult, search_effects
 from omavctl.errors import ConfigError, LogError, ModelError
 from omavctl.logs.types import FlightLog
 from omavctl.model import EffectEstimate, ResidualGP, check_vehicle, load_model
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.signal import (
+    DEFAULT_FEATURES,
     DEFAULT_SG_ORDER,
     DEFAULT_SG_WINDOW,
     FEATURES,
@@ -55,6 +59,14 @@ from omavctl.signal import (
     SavitzkyGolay,
     feature_names,
     residual_samples,
+)
+from omavctl.validation import (
+    BLOCK_SECONDS,
+    FOLDS,
+    KEEP_RATIO,
+    TARGET_COVERAGE,
+    cross_validate,
+    fold_of,
 )
 from omavctl.vehicle import NORMALISED, Vehicle, default_vehicle
 
@@ -152,6 +164,15 @@ class AxisFit:
     r2: float = float("nan")
     rmse: float = float("nan")
     rmse_nominal: float = float("nan")
+    #: blocked cross-validation (:mod:`omavctl.validation`): whether the GP stays
+    #: on, held-out RMSE of the GP and of physics only (rad/s^2), held-out
+    #: 2-sigma coverage before calibration and the factor on the std after it
+    gp_on: bool = True
+    cv_rmse_gp: float = float("nan")
+    cv_rmse_physics: float = float("nan")
+    cv_coverage: float = float("nan")
+    std_factor: float = 1.0
+    latent_factor: float = 1.0
 
 
 @dataclass
@@ -377,7 +398,7 @@ def select_points(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str
 
 #: Hyperparameter bounds, for inputs normalised to unit std and targets scaled to unit std.
 _SIGNAL_BOUNDS = (1e-4, 1e3)
-_LENGTH_BOUNDS = (1e-2, 1e3)
+_LENGTH_BOUNDS = (1e-2, 5.0)
 _NOISE_BOUNDS = (1e-6, 10.0)
 
 
@@ -387,15 +408,18 @@ def fit_hyperparameters(
     seed: int = 0,
     restarts: int = DEFAULT_RESTARTS,
     input_names: Sequence[str] | None = None,
+    noise_floor: np.ndarray | None = None,
 ) -> tuple[list[AxisFit], np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """Maximise the marginal likelihood of one GP per axis.
 
     x (n, d) normalised inputs; y (n, 3) targets (rad/s^2). scikit-learn's
     ``GaussianProcessRegressor`` with ``ConstantKernel * RBF(ones(d)) +
     WhiteKernel`` on targets centred and scaled per axis, ``restarts`` extra
-    optimiser starts, ``random_state=seed``. Returns the per-axis fits, the
-    target means (3,), signal variances (3,), length scales (3, d) and notes
-    (hyperparameters at a bound).
+    optimiser starts, ``random_state=seed``. ``noise_floor`` (3,) rad/s^2: the
+    noise std is bounded below by it (the measurement's own noise: a GP must
+    not explain noise as signal). Returns the per-axis fits, the target means
+    (3,), signal variances (3,), length scales (3, d) and notes (hyperparameters
+    at a bound).
     """
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.gaussian_process import GaussianProcessRegressor
@@ -412,9 +436,13 @@ def fit_hyperparameters(
         if not std > 1e-12:
             std = 1.0
         yn = (y[:, a] - mu) / std
+        noise_bounds = _NOISE_BOUNDS
+        if noise_floor is not None and np.isfinite(noise_floor[a]) and noise_floor[a] > 0:
+            low = min(float(noise_floor[a] / std) ** 2, 0.5 * _NOISE_BOUNDS[1])
+            noise_bounds = (max(low, _NOISE_BOUNDS[0]), _NOISE_BOUNDS[1])
         kernel = ConstantKernel(1.0, _SIGNAL_BOUNDS) * RBF(
             np.ones(d), _LENGTH_BOUNDS
-        ) + WhiteKernel(0.1, _NOISE_BOUNDS)
+        ) + WhiteKernel(max(0.1, 2 * noise_bounds[0]), noise_bounds)
         gpr = GaussianProcessRegressor(
             kernel=kernel, alpha=1e-10, n_restarts_optimizer=restarts, random_state=seed
         )
@@ -438,7 +466,7 @@ def fit_hyperparameters(
                 f"axis {name}: length scale of {', '.join(sharp)} at its lower bound: "
                 "the GP may be fitting noise"
             )
-        if k.k2.noise_level <= 1.01 * _NOISE_BOUNDS[0]:
+        if k.k2.noise_level <= 1.01 * noise_bounds[0] and noise_bounds[0] == _NOISE_BOUNDS[0]:
             notes.append(
                 f"axis {name}: noise variance at its lower bound: the GP interpolates its "
                 "training points"
@@ -632,7 +660,7 @@ def fit_model(
     prior: ResidualGP | str | Path | None = None,
     sg_window: int = DEFAULT_SG_WINDOW,
     sg_order: int = DEFAULT_SG_ORDER,
-    features: str = "wrench",
+    features: str = DEFAULT_FEATURES,
     seed: int = 0,
     restarts: int = DEFAULT_RESTARTS,
     progress: Progress | None = None,
@@ -650,7 +678,9 @@ def fit_model(
         points: training points selected from the new logs.
         prior: a model (or its path) whose training points are kept (augmented).
         sg_window, sg_order: Savitzky-Golay window (odd, samples) and order.
-        features: "wrench" (6-D GP inputs) or "wrench+rate" (adds body rates, 9-D).
+        features: GP inputs: "wrench" (6-D scaled commanded wrench), "+rate" adds
+            body rates, "+dtorque" the torque command's rate of change
+            (default :data:`omavctl.signal.DEFAULT_FEATURES`, 12-D).
         seed: seeds subsampling and optimiser restarts; same inputs and seed,
             same model.
         restarts: extra optimiser starts per axis.
@@ -724,6 +754,19 @@ def fit_model(
         # every registered effect's regressor: the fitted ones are estimated, all are
         # stored at the training points for evaluate's diagnosis
         s = residual_samples(flight, vehicle, sg, tuple(EFFECTS))
+        loss = out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual)
+        if loss.any:
+            s = s.select(~loss.mask)
+            flight = replace(
+                flight,
+                notes=[
+                    *flight.notes,
+                    *(
+                        f"{a:.2f}-{b:.2f} s out of control ({why}): not used"
+                        for a, b, why in loss.spans
+                    ),
+                ],
+            )
         if s.n == 0:
             longest = max((b - a for a, b in flight.segments), default=0)
             raise LogError(
@@ -757,9 +800,14 @@ def fit_model(
             where,
         )
 
-    # 3. effects
+    # 3. effects: those nonlinear in their parameter by an exact 1-D search, then
+    # the linear ones by least squares on what remains
     t0 = time.perf_counter()
     report("estimating effects", 0.0)
+    all_names = list(names)
+    original = samples
+    samples, found = _search_step(samples, names)
+    names = [nm for nm in names if nm not in found]
     eff = estimate_effects(samples, names)
     residual = np.concatenate([s.residual for s in samples])
     targets_all = residual.copy()
@@ -797,13 +845,18 @@ def fit_model(
     t0 = time.perf_counter()
     report("fitting GP hyperparameters", 0.0)
     in_mean, in_scale = _normalisation(train_x)
-    axes, t_mean, sv, ls, gp_notes = fit_hyperparameters(
-        (train_x - in_mean) / in_scale,
-        train_y,
-        seed=seed,
-        restarts=restarts,
-        input_names=feature_names(features),
-    )
+    floor = measurement_noise_std(samples, sg)
+    # one BLAS thread: the matrices are small (points x points) and threads
+    # fighting over 2 cores made fit time swing 2x (profiled)
+    with threadpool_limits(1):
+        axes, t_mean, sv, ls, gp_notes = fit_hyperparameters(
+            (train_x - in_mean) / in_scale,
+            train_y,
+            seed=seed,
+            restarts=restarts,
+            input_names=feature_names(features),
+            noise_floor=floor,
+        )
     timings["gp"] = time.perf_counter() - t0
 
     # 6. effects jointly with the GP (explicit basis functions, R&W 2.7)
@@ -835,6 +888,27 @@ def fit_model(
             "training points, hyperparameters from the first pass)"
         )
 
+    # 7. blocked cross-validation: switch the GP off where it does not help on
+    # held-out time blocks, widen its band to cover them
+    nv = np.array([a.noise_std**2 for a in axes])
+    if names:
+        x_all = np.concatenate(
+            [np.concatenate([s.regressors[nm] for s in samples]) for nm in names], axis=-1
+        )
+        targets_all = residual - x_all @ eff.theta
+    t_mean, sv, nv, latent_scale, cv_notes = _validate(
+        samples,
+        inputs_all,
+        targets_all,
+        idx,
+        train_x[:n_prior],
+        train_y[:n_prior],
+        (in_mean, in_scale),
+        (t_mean, sv, ls, nv),
+        axes,
+    )
+    gp_notes += cv_notes
+
     gain: np.ndarray | None = None
     gain_se: np.ndarray | None = None
     if vehicle.torque_normalised and GAIN_EFFECT in eff.estimates:
@@ -865,6 +939,19 @@ def fit_model(
             "kernel": "ConstantKernel * RBF(ARD) + WhiteKernel on normalised inputs",
             "restarts": restarts,
             "log_marginal_likelihood": [a.log_marginal_likelihood for a in axes],
+            "noise_floor": [float(f) for f in floor],
+            "validation": {
+                "method": f"blocked cross-validation, {BLOCK_SECONDS:g} s blocks in {FOLDS} "
+                "folds; GP off where its held-out MSE is not below "
+                f"{KEEP_RATIO:g} x physics-only; std widened to {TARGET_COVERAGE:.0%} "
+                "held-out 2-sigma coverage",
+                "gp_on": [a.gp_on for a in axes],
+                "rmse_gp": [a.cv_rmse_gp for a in axes],
+                "rmse_physics": [a.cv_rmse_physics for a in axes],
+                "coverage": [a.cv_coverage for a in axes],
+                "std_factor": [a.std_factor for a in axes],
+                "latent_factor": [a.latent_factor for a in axes],
+            },
         },
         "effects_explained_variance": [float(v) for v in eff.explained],
         "samples": n_total,
@@ -896,15 +983,17 @@ def fit_model(
         target_mean=t_mean,
         signal_variance=sv,
         length_scales=ls,
-        noise_variance=np.array([a.noise_std**2 for a in axes]),
-        effects=eff.estimates,
+        noise_variance=nv,
+        latent_scale=latent_scale,
+        effects=_merged(all_names, eff.estimates, found),
         provenance=provenance,
         train_regressors=train_reg,
     )
 
     # training fit on every new sample
     t0 = time.perf_counter()
-    pred = np.concatenate([model.predict_samples(s, variance=False)[0] for s in samples])
+    residual = np.concatenate([s.residual for s in original])
+    pred = np.concatenate([model.predict_samples(s, variance=False)[0] for s in original])
     err = residual - pred
     var = residual.var(axis=0)
     for a, axis in enumerate(axes):
@@ -926,9 +1015,9 @@ def fit_model(
         sg_order=sg.order,
         kmedoids=kmethod,
         axes=axes,
-        effects=eff.estimates,
+        effects=_merged(all_names, eff.estimates, found),
         timings=timings,
-        notes=notes + gp_notes,
+        notes=_search_notes(found) + notes + gp_notes,
         command_units=dict(vehicle.command_units),
         added_effects=added,
         torque_gain=gain,
@@ -1011,6 +1100,144 @@ def _effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
                     "it or the effect is absent"
                 )
     return notes
+
+
+def _search_step(
+    samples: list[ResidualSamples], names: Sequence[str]
+) -> tuple[list[ResidualSamples], dict[str, SearchResult]]:
+    """Estimate the effects of ``names`` that need a 1-D search (:mod:`omavctl.effect_search`)
+    and return the samples with their exact residual removed, and the estimates."""
+    searched = [nm for nm in names if get_effect(nm).search is not None]
+    if not searched:
+        return samples, {}
+    linear = [nm for nm in names if nm not in searched]
+    found = search_effects(samples, searched, linear)
+    out = []
+    for s in samples:
+        rest = s.residual.copy()
+        for nm in searched:
+            rest -= s.exact(nm, found[nm].value)
+        out.append(replace(s, residual=rest))
+    return out, found
+
+
+def _merged(
+    names: Sequence[str], linear: Mapping[str, EffectEstimate], found: Mapping[str, SearchResult]
+) -> dict[str, EffectEstimate]:
+    """Every effect's estimate in the order of ``names``."""
+    out: dict[str, EffectEstimate] = {}
+    for nm in names:
+        if nm in found:
+            p = get_effect(nm).parameters[0].name
+            r = found[nm]
+            out[nm] = EffectEstimate(nm, {p: np.array([r.value])}, {p: np.array([r.stderr])})
+        else:
+            out[nm] = linear[nm]
+    return out
+
+
+def _search_notes(found: Mapping[str, SearchResult]) -> list[str]:
+    """What the summary says about effects estimated by a 1-D search."""
+    notes = []
+    for r in found.values():
+        p = get_effect(r.name).parameters[0]
+        notes.append(
+            f"{r.name}: {p.name} = {r.value * 1e3:.1f} ± {r.stderr * 1e3:.1f} ms "
+            "(exact form, 1-D search with the linear effects profiled out, jackknife error)"
+        )
+        if r.at_bound:
+            lo, hi = get_effect(r.name).search  # type: ignore[misc]
+            notes.append(
+                f"{r.name}: {p.name} at the edge of its search interval "
+                f"({lo * 1e3:g} to {hi * 1e3:g} ms): the logs do not determine it, or "
+                "the effect is absent"
+            )
+    return notes
+
+
+def measurement_noise_std(samples: Sequence[ResidualSamples], sg: SavitzkyGolay) -> np.ndarray:
+    """Noise std (3,) rad/s^2 of the measured angular acceleration per axis.
+
+    The body-rate white noise of each log (:attr:`ResidualSamples.rate_noise`,
+    from second differences) through the derivative filter's noise gain, median
+    over logs; NaN where no log tells.
+    """
+    rates = np.array([s.rate_noise for s in samples], dtype=float)
+    if not np.isfinite(rates).any():
+        return np.full(3, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN axis stays NaN
+        return np.asarray(np.nanmedian(rates, axis=0) * sg.noise_gain, dtype=float)
+
+
+def _validate(
+    samples: Sequence[ResidualSamples],
+    inputs_all: np.ndarray,
+    targets_all: np.ndarray,
+    idx: np.ndarray,
+    prior_x: np.ndarray,
+    prior_y: np.ndarray,
+    norm: tuple[np.ndarray, np.ndarray],
+    hyper: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    axes: list[AxisFit],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Blocked cross-validation (:func:`omavctl.validation.cross_validate`) applied.
+
+    Returns the target means, signal and noise variances after switching off
+    the axes whose GP does not help (mean 0, signal variance 0, noise variance
+    the residual's mean square) and calibrating the others; fills the
+    validation fields of ``axes``; notes for the summary.
+    """
+    in_mean, in_scale = norm
+    t_mean, sv, ls, nv = (np.array(h, dtype=float) for h in hyper)
+    t = np.concatenate([s.t for s in samples])
+    log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
+    fold = fold_of(t, log_id)
+    notes: list[str] = []
+    latent = np.ones(3)
+    if np.unique(fold).size < 2:
+        notes.append("too short for blocked cross-validation: the GP is kept as fitted")
+        return t_mean, sv, nv, latent, notes
+    verdicts = cross_validate(
+        (inputs_all - in_mean) / in_scale,
+        targets_all,
+        fold,
+        idx,
+        (prior_x - in_mean) / in_scale,
+        prior_y,
+        t_mean,
+        sv,
+        ls,
+        nv,
+    )
+    for a, (name, v) in enumerate(zip("xyz", verdicts, strict=True)):
+        ax = axes[a]
+        ax.gp_on, ax.std_factor, ax.cv_coverage = v.keep, v.std_factor, v.coverage
+        ax.cv_rmse_gp, ax.cv_rmse_physics = math.sqrt(v.mse_gp), math.sqrt(v.mse_physics)
+        latent[a] = v.latent_factor**2
+        if not v.keep:
+            t_mean[a], sv[a], nv[a] = 0.0, 0.0, v.off_variance * v.std_factor**2
+            notes.append(
+                f"axis {name}: GP switched off: on held-out time blocks it predicts "
+                f"{ax.cv_rmse_gp:.3g} rad/s^2 RMS error against {ax.cv_rmse_physics:.3g} for "
+                "physics only (mean 0, variance the residual's)"
+            )
+        else:
+            sv[a] *= v.std_factor**2
+            nv[a] *= v.std_factor**2
+        ax.signal_std, ax.noise_std = math.sqrt(sv[a]), math.sqrt(nv[a])
+        ax.latent_factor = v.latent_factor
+        if v.std_factor > 1.0:
+            notes.append(
+                f"axis {name}: predictive std widened x{v.std_factor:.2f} to cover "
+                f"{TARGET_COVERAGE:.0%} of held-out time blocks (was {v.coverage:.0%})"
+            )
+        if v.latent_factor > 1.0:
+            notes.append(
+                f"axis {name}: extrapolation uncertainty widened x{v.latent_factor:.2f} "
+                "(held-out regions of input space)"
+            )
+    return t_mean, sv, nv, latent, notes
 
 
 def _normalisation(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -34,6 +34,10 @@ target_mean        (3,)        constant prior mean per axis, rad/s^2
 signal_variance    (3,)        s^2 per axis, (rad/s^2)^2
 length_scales      (3, d)      l per axis and input, in normalised input units
 noise_variance     (3,)        sigma^2 per axis, (rad/s^2)^2
+latent_scale       (3,)        optional: factor on the posterior (latent) variance
+                               in predictions, fit's extrapolation calibration
+                               (absent: 1). An axis whose GP ``fit`` switched off
+                               has signal_variance 0 and target_mean 0.
 effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..]}}``
 vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
 provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
@@ -179,6 +183,7 @@ class ResidualGP:
         signal_variance: np.ndarray,
         length_scales: np.ndarray,
         noise_variance: np.ndarray,
+        latent_scale: np.ndarray | None = None,
         effects: Mapping[str, EffectEstimate] | None = None,
         provenance: Mapping[str, Any] | None = None,
         train_regressors: Mapping[str, np.ndarray] | None = None,
@@ -194,6 +199,11 @@ class ResidualGP:
         self.signal_variance = np.asarray(signal_variance, dtype=float)
         self.length_scales = np.asarray(length_scales, dtype=float)
         self.noise_variance = np.asarray(noise_variance, dtype=float)
+        #: factor (3,) on the latent (posterior) variance in predictions: fit's
+        #: calibration for extrapolation (1 = as the kernel says)
+        self.latent_scale = (
+            np.ones(3) if latent_scale is None else np.asarray(latent_scale, dtype=float)
+        )
         self.effects: dict[str, EffectEstimate] = dict(effects or {})
         self.provenance: dict[str, Any] = dict(provenance or {})
         #: effect name -> regressor (n, 3, p) at the training points (may be empty)
@@ -230,6 +240,12 @@ class ResidualGP:
         return int(self.inputs.shape[0])
 
     @property
+    def gp_enabled(self) -> np.ndarray:
+        """Per axis (3,) whether the GP is on; off (signal variance 0, ``fit``'s blocked
+        cross-validation found it did not help): mean 0, constant variance."""
+        return np.asarray(self.signal_variance > 0)
+
+    @property
     def n_inputs(self) -> int:
         """GP input dimension d (6 or 9)."""
         return int(self.inputs.shape[1])
@@ -237,22 +253,36 @@ class ResidualGP:
     @property
     def uses_rate(self) -> bool:
         """Whether predictions need body rates (rate features or any effect)."""
-        return self.features == "wrench+rate" or bool(self.effects)
+        return "rate" in self.features.split("+") or bool(self.effects)
 
     def normalise(self, z: np.ndarray) -> np.ndarray:
         """Normalised GP inputs (..., d) from physical inputs (..., d)."""
         return (z - self.input_mean) / self.input_scale
 
-    def gp_inputs(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
-        """GP inputs z (B, d) from u (B, 6) and, for "wrench+rate", omega (B, 3)."""
+    @property
+    def uses_command_rate(self) -> bool:
+        """Whether the GP inputs include the command's rate of change (``dtorque``)."""
+        return "dtorque" in self.features.split("+")
+
+    def gp_inputs(
+        self, u: np.ndarray, omega: np.ndarray | None = None, du: np.ndarray | None = None
+    ) -> np.ndarray:
+        """GP inputs z (B, d) from u (B, 6), omega (B, 3) for the "rate" features and du
+        (B, 6) (rate of change of u, 1/s) for the "dtorque" features."""
         u = np.asarray(u, dtype=float)
         if u.shape[-1] != 6:
             raise ValueError(f"u must have 6 columns [f/m, I^-1 tau], got shape {u.shape}")
-        if self.features == "wrench":
-            return u
-        if omega is None:
-            raise ValueError("this model uses body rates: pass omega (B, 3)")
-        return np.concatenate([u, np.broadcast_to(omega, (*u.shape[:-1], 3))], axis=-1)
+        parts = [u]
+        names = self.features.split("+")
+        if "rate" in names:
+            if omega is None:
+                raise ValueError("this model uses body rates: pass omega (B, 3)")
+            parts.append(np.broadcast_to(omega, (*u.shape[:-1], 3)))
+        if "dtorque" in names:
+            if du is None:
+                raise ValueError("this model uses the command's rate of change: pass du (B, 6)")
+            parts.append(np.broadcast_to(np.asarray(du, dtype=float), u.shape)[..., 3:])
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
     def _kernel(self, axis: int, zq: np.ndarray, zq_sq: np.ndarray) -> np.ndarray:
         """k(zq, Z) (B, n) for length-scaled queries zq (B, d) with squared norms (B,)."""
@@ -281,7 +311,7 @@ class ResidualGP:
                 mean[rows, a] = self.target_mean[a] + k @ self._alpha[a]
                 if var is not None:
                     v = solve_triangular(self._chol[a], k.T, lower=True, check_finite=False)
-                    var[rows, a] = np.maximum(
+                    var[rows, a] = self.latent_scale[a] * np.maximum(
                         self.signal_variance[a] - np.einsum("nb,nb->b", v, v), 0.0
                     )
                     if noise:
@@ -303,6 +333,9 @@ class ResidualGP:
         zn = self.normalise(z)
         out = np.empty((z.shape[0], 3, values.shape[2]))
         for a in range(3):
+            if not self.signal_variance[a] > 0:  # GP off: it absorbed nothing
+                out[:, a, :] = 0.0
+                continue
             zq = zn / self.length_scales[a]
             k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
             c = values[:, a, :].mean(axis=0)
@@ -337,7 +370,11 @@ class ResidualGP:
         return cov @ b_vec, cov
 
     def predict(
-        self, u: np.ndarray, omega: np.ndarray | None = None, noise: bool = False
+        self,
+        u: np.ndarray,
+        omega: np.ndarray | None = None,
+        noise: bool = False,
+        du: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Residual mean (B, 3) rad/s^2 and variance (B, 3) at scaled wrenches u (B, 6).
 
@@ -346,16 +383,18 @@ class ResidualGP:
         GP's (latent function, plus sigma^2 with ``noise``).
         """
         u = np.atleast_2d(np.asarray(u, dtype=float))
-        mean, var = self.gp_predict(self.gp_inputs(u, omega), noise=noise)
+        mean, var = self.gp_predict(self.gp_inputs(u, omega, du), noise=noise)
         assert var is not None
         if self.effects:
             mean = mean + self.effects_mean(u, omega)
         return mean, var
 
-    def mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+    def mean(
+        self, u: np.ndarray, omega: np.ndarray | None = None, du: np.ndarray | None = None
+    ) -> np.ndarray:
         """Residual mean (B, 3) rad/s^2 at u (B, 6), omega (B, 3): the controller's ``mu``."""
         u = np.atleast_2d(np.asarray(u, dtype=float))
-        mean, _ = self.gp_predict(self.gp_inputs(u, omega), variance=False)
+        mean, _ = self.gp_predict(self.gp_inputs(u, omega, du), variance=False)
         if self.effects:
             mean = mean + self.effects_mean(u, omega)
         return mean
@@ -421,11 +460,24 @@ class ResidualGP:
         ``variance=False`` skips the variance (None).
         """
         mean, var = self.gp_predict(samples.inputs(self.features), noise=noise, variance=variance)
+        return mean + self.effects_samples(samples), var
+
+    def effects_samples(self, samples: Any) -> np.ndarray:
+        """Residual (n, 3) the fitted effects cause on a log's samples (held).
+
+        Linear effects through their held regressors; effects estimated by a
+        1-D search (lags, delay: :attr:`Effect.search`) through their exact form.
+        """
+        out = np.zeros((samples.n, 3))
         for name, est in self.effects.items():
+            if est.effect.search is not None:
+                value = float(est.values[est.effect.parameters[0].name][0])
+                out += samples.exact(name, value)
+                continue
             if name not in samples.regressors:
                 raise ValueError(f"samples lack the regressor of effect '{name}'")
-            mean = mean + samples.regressors[name] @ est.theta
-        return mean, var
+            out += samples.regressors[name] @ est.theta
+        return out
 
     # ----------------------------------------------------------- persistence
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -443,6 +495,7 @@ class ResidualGP:
             "signal_variance": self.signal_variance,
             "length_scales": self.length_scales,
             "noise_variance": self.noise_variance,
+            "latent_scale": self.latent_scale,
             "effects": np.array(json.dumps(effects, sort_keys=True)),
             "vehicle": np.array(self.vehicle.to_json()),
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
@@ -610,7 +663,12 @@ def load_model(path: str | Path) -> ResidualGP:
         raise ModelError("key 'input_names' must be a list of strings", p)
     names = tuple(str(x) for x in names_arr)
     d = len(names)
-    expected_d = {"wrench": 6, "wrench+rate": 9}.get(features)
+    expected_d = {
+        "wrench": 6,
+        "wrench+rate": 9,
+        "wrench+dtorque": 9,
+        "wrench+rate+dtorque": 12,
+    }.get(features)
     if expected_d != d:
         raise ModelError(f"features '{features}' do not match {d} input names", p)
     n = arrays["train_inputs"].shape[0] if arrays["train_inputs"].ndim == 2 else -1
@@ -622,8 +680,13 @@ def load_model(path: str | Path) -> ResidualGP:
     sv = _float(arrays, "signal_variance", (3,), p)
     ls = _float(arrays, "length_scales", (3, d), p)
     nv = _float(arrays, "noise_variance", (3,), p)
-    if np.any(scale <= 0) or np.any(sv <= 0) or np.any(ls <= 0) or np.any(nv < 0):
+    if np.any(scale <= 0) or np.any(sv < 0) or np.any(ls <= 0) or np.any(nv < 0):
         raise ModelError("scales, variances and length scales must be positive", p)
+    if np.any((sv == 0) & (nv <= 0)):
+        raise ModelError("an axis with its GP off (signal variance 0) needs a noise variance", p)
+    latent = _float(arrays, "latent_scale", (3,), p) if "latent_scale" in arrays else None
+    if latent is not None and np.any(latent <= 0):
+        raise ModelError("key 'latent_scale' must be positive", p)
     try:
         vehicle = _vehicle_from_json(_text(arrays, "vehicle", p), f"model {p.name}")
     except ModelError:
@@ -655,6 +718,7 @@ def load_model(path: str | Path) -> ResidualGP:
             signal_variance=sv,
             length_scales=ls,
             noise_variance=nv,
+            latent_scale=latent,
             effects=_effects_from_json(_json(arrays, "effects", p), p),
             provenance=provenance,
             train_regressors=regressors,

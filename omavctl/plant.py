@@ -21,6 +21,14 @@ noise from a truth YAML::
       attitude: 0.002            # rad
       position: 0.001            # m
       velocity: 0.01             # m/s
+    timing:
+      controller_rate_hz: 1000   # the controller's own rate (default: the log rate,
+                                 # controller.rate_hz of the vehicle); the log samples the
+                                 # latest command at the vehicle's rate
+    failure:                     # actuator failure: loss of control
+      time: 8.0                  # s after the start
+      arms: [0, 1]               # arms whose rotor pairs lose thrust
+      thrust_factor: 0.0         # remaining fraction of their thrust
 
 Actuators: the servo shaft follows its setpoint with the first-order lag,
 limited to ``servo.max_tilt_rate``; the arm follows the shaft through the
@@ -35,9 +43,14 @@ where ``n_k`` is the thrust direction of pair k and ``e_kj`` the unit vector
 from pair k to pair j: the wake of a pair tilted towards a neighbour hits it.
 
 The rigid body is integrated with RK4 at ``physics_rate`` (default 1 kHz); the
-controller runs at the vehicle's ``controller.rate_hz`` on noisy measurements;
-the IMU is logged at ``imu_rate`` (200 Hz), everything else at the controller
-rate.
+controller runs at ``timing.controller_rate_hz`` (default the vehicle's
+``controller.rate_hz``) on noisy measurements; the applied setpoints are those
+of ``effects.command_delay.tau_d`` seconds before (sub-sample, at the physics
+rate). The IMU is logged at ``imu_rate`` (200 Hz), everything else at the
+vehicle's ``controller.rate_hz`` (the log grid): each row holds the latest
+command (held when the controller is slower, sampled when it is faster). When
+the vehicle diverges (attitude error beyond 80 deg) the log goes on for
+:data:`AFTER_LOSS_SECONDS` of the tumble, as a real log would, then ends.
 """
 
 from __future__ import annotations
@@ -77,6 +90,12 @@ _ACTUATOR_DEFAULTS: dict[str, Any] = {
     "interference": {"rotor_rotor": 0.25, "rotor_arm": 0.04},
 }
 _NOISE_DEFAULTS = {"gyro": 0.003, "attitude": 0.002, "position": 0.001, "velocity": 0.01}
+_TIMING_DEFAULTS: dict[str, Any] = {"controller_rate_hz": None}
+_FAILURE_DEFAULTS: dict[str, Any] = {"time": 0.0, "arms": [], "thrust_factor": 0.0}
+#: Seconds of log kept after the vehicle diverged (a log ends in the crash).
+AFTER_LOSS_SECONDS = 1.0
+#: Body rate (rad/s) beyond which the simulation of a tumbling vehicle stops.
+MAX_RATE = 200.0
 
 
 @dataclass
@@ -93,6 +112,12 @@ class TruthParameters:
     noise: dict[str, float] = field(default_factory=lambda: dict(_NOISE_DEFAULTS))
     seed: int = 0
     effects: list[tuple[Effect, dict[str, np.ndarray]]] = field(default_factory=list)
+    #: s, the applied setpoints are the commands of this long ago (command_delay)
+    command_delay: float = 0.0
+    #: Hz, the controller's own rate; None: the vehicle's controller.rate_hz (the log rate)
+    controller_rate_hz: float | None = None
+    #: (time s, arm indices, remaining thrust fraction) of an actuator failure
+    failure: tuple[float, tuple[int, ...], float] | None = None
 
 
 def _number(tree: dict[str, Any], key: str, where: str, path: Path | None) -> float:
@@ -117,7 +142,15 @@ def truth_from_tree(
     tree: dict[str, Any], vehicle: Vehicle, path: Path | None = None
 ) -> TruthParameters:
     """Validate a truth mapping (see module docstring) and build the plant constants."""
-    top = {"seed": 0, "ideal": False, "actuators": {}, "effects": {}, "noise": {}}
+    top = {
+        "seed": 0,
+        "ideal": False,
+        "actuators": {},
+        "effects": {},
+        "noise": {},
+        "timing": {},
+        "failure": {},
+    }
     _check_keys(tree, top, "", path)
     act_tree = tree.get("actuators") or {}
     _check_keys(act_tree, _ACTUATOR_DEFAULTS, "actuators.", path)
@@ -151,6 +184,8 @@ def truth_from_tree(
         truth.servo_time_constant = truth.motor_time_constant = 0.0
         truth.servo_backlash = truth.thrust_spread = 0.0
         truth.rotor_rotor = truth.rotor_arm = 0.0
+    truth.controller_rate_hz = _timing(tree.get("timing") or {}, path)
+    truth.failure = _failure(tree.get("failure") or {}, path)
     effects = tree.get("effects") or {}
     if not isinstance(effects, dict):
         raise ConfigError("'effects' must map effect names to their parameters", path)
@@ -163,6 +198,32 @@ def truth_from_tree(
             raise ConfigError(err.message, path) from None
         truth.effects.append((effect, values))
     return truth
+
+
+def _timing(tree: Any, path: Path | None) -> float | None:
+    """``timing.controller_rate_hz`` (Hz) or None."""
+    _check_keys(tree, _TIMING_DEFAULTS, "timing.", path)
+    if tree.get("controller_rate_hz") is None:
+        return None
+    rate = _number(tree, "controller_rate_hz", "timing.", path)
+    if rate <= 0:
+        raise ConfigError("'timing.controller_rate_hz' must be > 0", path)
+    return rate
+
+
+def _failure(tree: Any, path: Path | None) -> tuple[float, tuple[int, ...], float] | None:
+    """``failure``: (time, arms, thrust_factor), or None when no arm fails."""
+    _check_keys(tree, _FAILURE_DEFAULTS, "failure.", path)
+    if not tree:
+        return None
+    when = _number({**_FAILURE_DEFAULTS, **tree}, "time", "failure.", path)
+    factor = _number({**_FAILURE_DEFAULTS, **tree}, "thrust_factor", "failure.", path)
+    arms = tree.get("arms", [])
+    if not isinstance(arms, list) or not arms or not all(isinstance(a, int) for a in arms):
+        raise ConfigError("'failure.arms' must be a non-empty list of arm indices", path)
+    if any(not 0 <= a < 6 for a in arms) or factor > 1:
+        raise ConfigError("'failure.arms' must lie in 0..5 and thrust_factor in 0..1", path)
+    return when, tuple(sorted(set(arms))), factor
 
 
 def load_truth(path: str | Path | None, vehicle: Vehicle) -> TruthParameters:
@@ -182,6 +243,8 @@ class SimulationResult:
     steps: int
     max_attitude_error: float  # rad
     diverged: bool
+    #: s from the start when the attitude error first exceeded 80 deg (None: never)
+    diverged_at: float | None = None
 
 
 class _Actuators:
@@ -190,6 +253,7 @@ class _Actuators:
     def __init__(self, vehicle: Vehicle, truth: TruthParameters, alloc: Allocation, rng) -> None:
         self.v, self.truth, self.alloc = vehicle, truth, alloc
         self.spread = 1.0 + truth.thrust_spread * rng.standard_normal(12)
+        self.health = np.ones(12)  # remaining thrust fraction per rotor (failures)
         hover = vehicle.mass * vehicle.gravity / 12.0
         self.shaft = np.zeros(6)
         self.tilt = np.zeros(6)
@@ -231,7 +295,12 @@ class _Actuators:
             self.thrust = self.thrust + motor * (thrust_cmd - self.thrust)
             tilts[i], thrusts[i] = self.tilt, self.thrust
         eff = np.repeat(self.efficiency(tilts), 2, axis=-1)
-        return self.alloc.forward(tilts, thrusts * self.spread * eff)
+        return self.alloc.forward(tilts, thrusts * self.spread * self.health * eff)
+
+    def fail(self, arms: tuple[int, ...], factor: float) -> None:
+        """The rotor pairs of ``arms`` keep ``factor`` of their thrust from now on."""
+        for arm in arms:
+            self.health[2 * arm : 2 * arm + 2] = factor
 
     def rotor_speed(self) -> np.ndarray:
         return np.sqrt(np.clip(self.thrust, 0.0, None) / self.v.thrust_coefficient)
@@ -294,6 +363,242 @@ class _Body:
         ]
 
 
+_RECORDED = (
+    "attitude",
+    "position",
+    "velocity",
+    "force_command",
+    "torque_command",
+    "desired_acceleration",
+    "desired_linear_acceleration",
+)
+
+
+@dataclass
+class _Rates:
+    """Step counts of one simulation, all in physics steps."""
+
+    dt: float  # physics step, s
+    ctrl_every: int
+    log_every: int
+    imu_every: int
+    steps: int  # physics steps in the flight
+
+    @classmethod
+    def of(
+        cls, physics_rate: float, ctrl: float, log: float, imu: float, duration: float
+    ) -> _Rates:
+        every = [round(physics_rate / r) for r in (ctrl, log, imu)]
+        if any(
+            e < 1 or abs(e * r - physics_rate) > 1e-6
+            for e, r in zip(every, (ctrl, log, imu), strict=True)
+        ):
+            raise ConfigError(
+                f"the physics rate ({physics_rate:g} Hz) must be a multiple of the controller "
+                f"({ctrl:g} Hz), log ({log:g} Hz) and IMU ({imu:g} Hz) rates"
+            )
+        steps = int(np.floor(duration * physics_rate + 1e-9))
+        steps -= steps % every[1]  # end on a log sample
+        return cls(1.0 / physics_rate, every[0], every[1], every[2], steps)
+
+
+class _Flight:
+    """One closed-loop flight through the truth plant (state of :func:`simulate`)."""
+
+    def __init__(
+        self,
+        reference: Trajectory,
+        vehicle: Vehicle,
+        truth: TruthParameters,
+        model: ResidualModel | None,
+        rng: np.random.Generator,
+        rates: _Rates,
+    ) -> None:
+        self.v, self.truth, self.rng, self.r = vehicle, truth, rng, rates
+        self.alloc = Allocation(vehicle)
+        self.act = _Actuators(
+            vehicle, truth, self.alloc, np.random.default_rng([truth.seed, 0x5EED])
+        )
+        self.ctrl = Controller(vehicle, model)
+        self.state = ControllerState.zeros(1)
+        self.body = _Body(vehicle.mass, truth.inertia, vehicle.gravity)
+        self.noise = truth.noise
+        self.gyro_bias = np.zeros(3)
+        for effect, params in truth.effects:
+            off = effect.gyro_offset(params)
+            if off is not None:
+                self.gyro_bias = self.gyro_bias + off
+        self.torque_effects = [
+            (e, p) for e, p in truth.effects if type(e).body_torque is not Effect.body_torque
+        ]
+        n_ctrl = rates.steps // rates.ctrl_every + 1
+        self.ref_rows = reference.sample(
+            np.arange(n_ctrl) * rates.ctrl_every * rates.dt + reference.t[0]
+        )
+        first = self.ref_rows[0]
+        self.x = np.concatenate([first[1:4], first[4:7], first[7:10], first[10:13]])
+        hover = self.alloc.allocate(
+            np.concatenate([vehicle.mass * vehicle.gravity * np.array([0.0, 0.0, 1.0]), [0, 0, 0]])
+        )
+        self.act.tilt = self.act.shaft = hover.tilt
+        self.hover_cmd = (hover.tilt.copy(), np.clip(hover.rotor_thrust, 0.0, None))
+        self.cmd_tilt = np.empty((n_ctrl, 6))
+        self.cmd_thrust = np.empty((n_ctrl, 12))
+        self.outputs: list[Any] = []
+        n_log = rates.steps // rates.log_every + 1
+        self.rec = {k: np.empty((n_log, 3)) for k in _RECORDED}
+        self.rec_t = np.empty(n_log)
+        self.tilt_log, self.rotor_log = np.empty((n_log, 6)), np.empty((n_log, 12))
+        n_imu = rates.steps // rates.imu_every + 1
+        self.imu_t, self.imu_v = np.empty(n_imu), np.empty((n_imu, 3))
+        self.n_log = self.n_imu = 0
+        self.infeasible = 0
+        self.max_att_err = 0.0
+        self.diverged_at: float | None = None
+        self.prev_tilt_cmd = hover.tilt.copy()
+
+    # ---------------------------------------------------------------- events
+    def measure(self) -> np.ndarray:
+        """Noisy measurement (12,) of the state: world velocity, wrapped angles."""
+        n, x, rng = self.noise, self.x, self.rng
+        return np.concatenate(
+            [
+                x[0:3] + n["position"] * rng.standard_normal(3),
+                wrap_angle(x[3:6] + n["attitude"] * rng.standard_normal(3)),
+                x[6:9] + n["velocity"] * rng.standard_normal(3),
+                x[9:12] + self.gyro_bias + n["gyro"] * rng.standard_normal(3),
+            ]
+        )
+
+    def control(self, k: int) -> None:
+        """Controller step k: command from a fresh measurement, setpoints stored."""
+        dt_ctrl = self.r.ctrl_every * self.r.dt
+        out = self.ctrl.step(self.state, self.measure()[None, :], self.ref_rows[k : k + 1], dt_ctrl)
+        wrench = np.concatenate([out.force[0], out.torque[0]])
+        res = self.alloc.allocate(wrench[None, :], self.prev_tilt_cmd[None, :], dt_ctrl)
+        if not bool(res.feasible[0]):
+            self.infeasible += 1
+        self.cmd_tilt[k] = self.prev_tilt_cmd = res.tilt[0]
+        self.cmd_thrust[k] = np.clip(res.rotor_thrust[0], self.v.min_thrust, self.v.max_thrust)
+        self.outputs.append(out)
+        att_err = float(np.max(np.abs(wrap_angle(self.x[3:6] - self.ref_rows[k, 4:7]))))
+        self.max_att_err = max(self.max_att_err, att_err)
+        lost = att_err > np.deg2rad(80) or abs(self.x[4]) > np.deg2rad(85)
+        if lost and self.diverged_at is None:
+            self.diverged_at = k * dt_ctrl
+
+    def record_log(self, t: float) -> None:
+        """A log row at time t: measured state, the latest controller output."""
+        i, out, meas = self.n_log, self.outputs[-1], self.measure()
+        self.rec_t[i] = t
+        self.rec["attitude"][i] = meas[3:6]
+        self.rec["position"][i] = meas[0:3]
+        self.rec["velocity"][i] = rotation_matrix(self.x[3:6]).T @ meas[6:9]
+        self.rec["force_command"][i] = out.force[0]
+        self.rec["torque_command"][i] = out.torque[0]
+        self.rec["desired_acceleration"][i] = out.desired_angular[0]
+        self.rec["desired_linear_acceleration"][i] = out.desired_linear[0]
+        self.tilt_log[i] = self.act.tilt
+        self.rotor_log[i] = self.act.rotor_speed()
+        self.n_log += 1
+
+    def record_imu(self, t: float) -> None:
+        n = self.noise["gyro"]
+        self.imu_t[self.n_imu] = t
+        self.imu_v[self.n_imu] = self.x[9:12] + self.gyro_bias + n * self.rng.standard_normal(3)
+        self.n_imu += 1
+
+    def applied(self, step: int) -> int:
+        """Index of the controller step whose setpoints act at physics ``step`` (-1: hover)."""
+        t = step * self.r.dt - self.truth.command_delay
+        return min(int(np.floor(t / (self.r.ctrl_every * self.r.dt) + 1e-9)), len(self.outputs) - 1)
+
+    # ------------------------------------------------------------------ loop
+    def run(self, progress: Callable[[float], None] | None = None) -> None:
+        """Fly until the end of the reference or shortly after a loss of control."""
+        r = self.r
+        i = 0
+        while True:
+            if i % r.ctrl_every == 0:
+                self.control(i // r.ctrl_every)
+            if i >= r.steps or not self._airborne(i):
+                if i % r.log_every == 0 and self.n_log < self.rec_t.size:
+                    self.record_log(i * r.dt)
+                if i % r.imu_every == 0 and self.n_imu < self.imu_t.size:
+                    self.record_imu(i * r.dt)
+                return
+            failure = self.truth.failure
+            if failure is not None and i * r.dt >= failure[0]:
+                self.act.fail(failure[1], failure[2])
+            n = self._chunk(i)
+            i = self._integrate(i, n)
+            if progress is not None:
+                progress(i / r.steps)
+
+    def _airborne(self, step: int) -> bool:
+        """False once the log has run AFTER_LOSS_SECONDS past a divergence or blew up."""
+        rate = float(np.max(np.abs(self.x[9:12])))
+        if not np.all(np.isfinite(self.x)) or rate > MAX_RATE:
+            return False
+        return self.diverged_at is None or step * self.r.dt < self.diverged_at + AFTER_LOSS_SECONDS
+
+    def _chunk(self, i: int) -> int:
+        """Physics steps from i with the same applied setpoints, up to the next control step."""
+        r, j = self.r, self.applied(i)
+        n = 1
+        while i + n < r.steps and (i + n) % r.ctrl_every != 0 and self.applied(i + n) == j:
+            n += 1
+        return n
+
+    def _integrate(self, i: int, n: int) -> int:
+        """Advance ``n`` physics steps from step i with constant setpoints; returns i + n."""
+        r, j = self.r, self.applied(i)
+        tilt, thrust = (self.cmd_tilt[j], self.cmd_thrust[j]) if j >= 0 else self.hover_cmd
+        wrenches = self.act.advance(tilt, thrust, r.dt, n)
+        xs = self.x.tolist()
+        for s in range(n):
+            step = i + s
+            if step % r.log_every == 0:
+                self.record_log(step * r.dt)
+            if step % r.imu_every == 0:
+                self.record_imu(step * r.dt)
+            force, torque = wrenches[s, :3], wrenches[s, 3:]
+            # effect torques from the state at the start of the physics step
+            for effect, params in self.torque_effects:
+                extra = effect.body_torque(params, np.asarray(xs[9:12]), force)
+                if extra is not None:
+                    torque = torque + extra
+            xs = self.body.rk4(xs, force.tolist(), torque.tolist(), r.dt)
+            self.x = np.asarray(xs)
+            if not np.all(np.isfinite(self.x)):
+                return step + 1
+        return i + n
+
+    def result(self, reference: Trajectory) -> SimulationResult:
+        """The log as recorded (every contract role) and what happened."""
+        n, ct = self.n_log, self.rec_t[: self.n_log].copy()
+        ref_rows = reference.sample(ct + reference.t[0])
+        series = {
+            "body_rate": RawSeries(
+                self.imu_t[: self.n_imu].copy(), self.imu_v[: self.n_imu].copy()
+            ),
+            **{k: RawSeries(ct.copy(), v[:n].copy()) for k, v in self.rec.items()},
+            "reference_position": RawSeries(ct.copy(), ref_rows[:, 1:4].copy()),
+            "reference_attitude": RawSeries(ct.copy(), ref_rows[:, 4:7].copy()),
+            "tilt": RawSeries(ct.copy(), self.tilt_log[:n].copy()),
+            "rotor": RawSeries(ct.copy(), self.rotor_log[:n].copy()),
+        }
+        log = RawLog(path=Path("<simulated>"), format="simulated", t0=LOG_EPOCH, series=series)
+        return SimulationResult(
+            log,
+            self.infeasible,
+            len(self.outputs),
+            self.max_att_err,
+            self.diverged_at is not None,
+            self.diverged_at,
+        )
+
+
 def simulate(
     reference: Trajectory,
     vehicle: Vehicle,
@@ -309,138 +614,16 @@ def simulate(
     The rotor thrust spread is a property of the simulated vehicle: it is drawn
     from the truth file's ``seed``. ``seed`` (default: the truth file's) draws
     the sensor noise, so flights with different seeds are different flights of
-    the same vehicle.
+    the same vehicle. The controller runs at ``truth.controller_rate_hz``
+    (default the vehicle's ``controller.rate_hz``), the log at the vehicle's
+    rate, the IMU at ``imu_rate``; all must divide ``physics_rate``.
     Returns the log with every contract role (stamps from 0 at the first
     controller step, ``t0`` = :data:`LOG_EPOCH`).
     """
-    alloc = Allocation(vehicle)
-    act = _Actuators(vehicle, truth, alloc, np.random.default_rng([truth.seed, 0x5EED]))
+    log_rate = vehicle.gains.rate_hz
+    ctrl_rate = truth.controller_rate_hz or log_rate
+    rates = _Rates.of(physics_rate, ctrl_rate, log_rate, imu_rate, reference.duration)
     rng = np.random.default_rng(truth.seed if seed is None else seed)
-    ctrl = Controller(vehicle, model)
-    state = ControllerState.zeros(1)
-    body = _Body(vehicle.mass, truth.inertia, vehicle.gravity)
-    noise = truth.noise
-    gyro_bias = np.zeros(3)
-    for effect, params in truth.effects:
-        off = effect.gyro_offset(params)
-        if off is not None:
-            gyro_bias = gyro_bias + off
-    torque_effects = [
-        (e, p) for e, p in truth.effects if type(e).body_torque is not Effect.body_torque
-    ]
-
-    ctrl_rate = vehicle.gains.rate_hz
-    n_sub = round(physics_rate / ctrl_rate)
-    imu_every = round(physics_rate / imu_rate)
-    if (
-        abs(n_sub * ctrl_rate - physics_rate) > 1e-9
-        or abs(imu_every * imu_rate - physics_rate) > 1e-9
-    ):
-        raise ConfigError("physics rate must be a multiple of the controller and IMU rates")
-    dt_phys, dt_ctrl = 1.0 / physics_rate, 1.0 / ctrl_rate
-    n_ctrl = int(np.floor(reference.duration * ctrl_rate + 1e-9)) + 1
-    times = np.arange(n_ctrl) / ctrl_rate
-    ref_rows = reference.sample(times + reference.t[0])
-
-    x = np.zeros(12)
-    x[0:3] = ref_rows[0, 1:4]
-    x[3:6] = ref_rows[0, 4:7]
-    x[6:9] = ref_rows[0, 7:10]
-    x[9:12] = ref_rows[0, 10:13]
-    act.tilt = act.shaft = alloc.allocate(
-        np.concatenate([vehicle.mass * vehicle.gravity * np.array([0.0, 0.0, 1.0]), np.zeros(3)])
-    ).tilt
-
-    n_imu = (n_ctrl - 1) * (n_sub // imu_every) + 1
-    imu_t, imu_v = np.empty(n_imu), np.empty((n_imu, 3))
-    rec = {
-        k: np.empty((n_ctrl, 3))
-        for k in (
-            "attitude",
-            "position",
-            "velocity",
-            "force_command",
-            "torque_command",
-            "desired_acceleration",
-            "desired_linear_acceleration",
-        )
-    }
-    tilt_log, rotor_log = np.empty((n_ctrl, 6)), np.empty((n_ctrl, 12))
-    infeasible, max_att_err, diverged = 0, 0.0, False
-    prev_tilt_cmd = act.tilt.copy()
-    gyro_meas = x[9:12] + gyro_bias + noise["gyro"] * rng.standard_normal(3)
-    imu_t[0], imu_v[0] = times[0], gyro_meas
-    i_imu = 1
-
-    for k in range(n_ctrl):
-        t = times[k]
-        # measured state; velocity in world frame for the controller, logged in body frame
-        meas = np.concatenate(
-            [
-                x[0:3] + noise["position"] * rng.standard_normal(3),
-                wrap_angle(x[3:6] + noise["attitude"] * rng.standard_normal(3)),
-                x[6:9] + noise["velocity"] * rng.standard_normal(3),
-                gyro_meas,
-            ]
-        )
-        out = ctrl.step(state, meas[None, :], ref_rows[k : k + 1], dt_ctrl)
-        wrench = np.concatenate([out.force[0], out.torque[0]])
-        res = alloc.allocate(wrench[None, :], prev_tilt_cmd[None, :], dt_ctrl)
-        if not bool(res.feasible[0]):
-            infeasible += 1
-        tilt_cmd = res.tilt[0]
-        thrust_cmd = np.clip(res.rotor_thrust[0], vehicle.min_thrust, vehicle.max_thrust)
-        prev_tilt_cmd = tilt_cmd
-
-        r_wb = rotation_matrix(x[3:6])
-        rec["attitude"][k] = meas[3:6]
-        rec["position"][k] = meas[0:3]
-        rec["velocity"][k] = r_wb.T @ meas[6:9]
-        rec["force_command"][k] = out.force[0]
-        rec["torque_command"][k] = out.torque[0]
-        rec["desired_acceleration"][k] = out.desired_angular[0]
-        rec["desired_linear_acceleration"][k] = out.desired_linear[0]
-        tilt_log[k] = act.tilt
-        rotor_log[k] = act.rotor_speed()
-        att_err = float(np.max(np.abs(wrap_angle(x[3:6] - ref_rows[k, 4:7]))))
-        max_att_err = max(max_att_err, att_err)
-        if not np.all(np.isfinite(x)) or att_err > np.deg2rad(80) or abs(x[4]) > np.deg2rad(85):
-            diverged = True
-            # a non-finite state is not logged: the log ends at the last finite sample
-            n_ctrl = k + 1 if np.all(np.isfinite(x)) else k
-            break
-        if k == len(times) - 1:
-            break
-        xs = x.tolist()
-        wrenches = act.advance(tilt_cmd, thrust_cmd, dt_phys, n_sub)
-        for s in range(n_sub):
-            force, torque = wrenches[s, :3], wrenches[s, 3:]
-            # effect torques from the state at the start of the 1 ms step
-            for effect, params in torque_effects:
-                extra = effect.body_torque(params, np.asarray(xs[9:12]), force)
-                if extra is not None:
-                    torque = torque + extra
-            xs = body.rk4(xs, force.tolist(), torque.tolist(), dt_phys)
-            if (s + 1) % imu_every == 0:
-                x = np.asarray(xs)
-                gyro_meas = x[9:12] + gyro_bias + noise["gyro"] * rng.standard_normal(3)
-                imu_t[i_imu] = t + (s + 1) * dt_phys
-                imu_v[i_imu] = gyro_meas
-                i_imu += 1
-        x = np.asarray(xs)
-        if progress is not None:
-            progress((k + 1) / len(times))
-
-    ct = times[:n_ctrl]
-    finite_imu = np.isfinite(imu_v[:i_imu]).all(axis=1)
-    i_imu = int(np.argmin(finite_imu)) if not finite_imu.all() else i_imu
-    series = {
-        "body_rate": RawSeries(imu_t[:i_imu].copy(), imu_v[:i_imu].copy()),
-        **{k: RawSeries(ct.copy(), v[:n_ctrl].copy()) for k, v in rec.items()},
-        "reference_position": RawSeries(ct.copy(), ref_rows[:n_ctrl, 1:4].copy()),
-        "reference_attitude": RawSeries(ct.copy(), ref_rows[:n_ctrl, 4:7].copy()),
-        "tilt": RawSeries(ct.copy(), tilt_log[:n_ctrl].copy()),
-        "rotor": RawSeries(ct.copy(), rotor_log[:n_ctrl].copy()),
-    }
-    log = RawLog(path=Path("<simulated>"), format="simulated", t0=LOG_EPOCH, series=series)
-    return SimulationResult(log, infeasible, n_ctrl, max_att_err, diverged)
+    flight = _Flight(reference, vehicle, truth, model, rng, rates)
+    flight.run(progress)
+    return flight.result(reference)

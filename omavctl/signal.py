@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -50,6 +50,7 @@ from omavctl.physics.rigid_body import angular_acceleration
 from omavctl.vehicle import Vehicle
 
 __all__ = [
+    "DEFAULT_FEATURES",
     "DEFAULT_SG_ORDER",
     "DEFAULT_SG_WINDOW",
     "FEATURES",
@@ -69,7 +70,12 @@ DEFAULT_SG_WINDOW = 11
 DEFAULT_SG_ORDER = 2
 
 #: GP input feature sets: the scaled commanded wrench, optionally with body rates.
-FEATURES = ("wrench", "wrench+rate")
+FEATURES = ("wrench", "wrench+rate", "wrench+dtorque", "wrench+rate+dtorque")
+#: The default, chosen on the generalisation benchmark (``benchmarks/generalise.py``,
+#: ``docs/generalisation.md``): with body rates (drag) and the torque command's
+#: rate of change (lags, delays) the residual is a function of the GP's inputs on
+#: any trajectory, and the GP no longer hurts on a flight it has not seen.
+DEFAULT_FEATURES = "wrench+rate+dtorque"
 
 
 @dataclass(frozen=True)
@@ -182,10 +188,16 @@ def scaled_wrench(force: np.ndarray, torque: np.ndarray, vehicle: Vehicle) -> np
 def feature_names(features: str) -> tuple[str, ...]:
     """Names and units of the GP input columns for a feature set."""
     names = ("fx/m", "fy/m", "fz/m", "(I^-1 tau)x", "(I^-1 tau)y", "(I^-1 tau)z")
+    rates = ("wx", "wy", "wz")
+    dtorque = ("d/dt(I^-1 tau)x", "d/dt(I^-1 tau)y", "d/dt(I^-1 tau)z")
     if features == "wrench":
         return names
     if features == "wrench+rate":
-        return (*names, "wx", "wy", "wz")
+        return (*names, *rates)
+    if features == "wrench+dtorque":
+        return (*names, *dtorque)
+    if features == "wrench+rate+dtorque":
+        return (*names, *rates, *dtorque)
     raise ConfigError(f"unknown --features '{features}' (known: {', '.join(FEATURES)})")
 
 
@@ -221,17 +233,61 @@ class ResidualSamples:
     in_gaps: int = 0
     edge_dropped: int = 0
     short_dropped: int = 0
+    #: per kept segment: its effect context and the slice of kept samples in it
+    #: (for the exact nonlinear effect forms, :meth:`exact`)
+    contexts: list[tuple[EffectContext, slice]] = field(default_factory=list, repr=False)
+    sg: SavitzkyGolay | None = field(default=None, repr=False)
+    #: which of the samples built by :func:`residual_samples` are kept (after
+    #: :meth:`select`); None: all
+    mask: np.ndarray | None = field(default=None, repr=False)
+    #: (n, 6) rate of change of the scaled command u (SG derivative, held), 1/s
+    du: np.ndarray = field(default_factory=lambda: np.empty((0, 6)))
 
     @property
     def n(self) -> int:
         return int(self.index.size)
 
+    def exact(self, name: str, value: float) -> np.ndarray:
+        """Residual (n, 3) of effect ``name``'s exact nonlinear form at parameter ``value``,
+        held like the measured residual (:meth:`omavctl.physics.effects.Effect.exact`)."""
+        if self.sg is None or (not self.contexts and self.n > 0):
+            raise ValueError("these samples were built without effect contexts")
+        effect = get_effect(name)
+        parts = [self.sg.hold(effect.exact(ctx, value))[keep] for ctx, keep in self.contexts]
+        out = np.concatenate(parts) if parts else np.empty((0, 3))
+        return out if self.mask is None else out[self.mask]
+
+    def select(self, keep: np.ndarray) -> ResidualSamples:
+        """The samples where ``keep`` (n,) bool is True (counts and noise kept)."""
+        if self.mask is None:
+            mask = np.asarray(keep, dtype=bool).copy()
+        else:
+            mask = self.mask.copy()
+            mask[np.flatnonzero(mask)] = keep
+        return replace(
+            self,
+            mask=mask,
+            index=self.index[keep],
+            t=self.t[keep],
+            omega=self.omega[keep],
+            u=self.u[keep],
+            omega_dot=self.omega_dot[keep],
+            nominal=self.nominal[keep],
+            residual=self.residual[keep],
+            du=self.du[keep],
+            regressors={k: v[keep] for k, v in self.regressors.items()},
+            held={k: v[keep] for k, v in self.held.items()},
+        )
+
     def inputs(self, features: str) -> np.ndarray:
         """GP inputs (n, d): ``u`` for "wrench", ``[u, omega]`` for "wrench+rate"."""
         feature_names(features)  # validates
-        if features == "wrench":
-            return self.u
-        return np.concatenate([self.u, self.omega], axis=-1)
+        parts = [self.u]
+        if "rate" in features.split("+"):
+            parts.append(self.omega)
+        if "dtorque" in features.split("+"):
+            parts.append(self.du[:, 3:])
+        return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
 
 def rate_noise(second_differences: np.ndarray) -> np.ndarray:
@@ -278,10 +334,11 @@ def residual_samples(
     alloc = allocation
     if eff and alloc is None:
         alloc = Allocation(vehicle)
+    contexts: list[tuple[EffectContext, slice]] = []
     inertia, inertia_inv = vehicle.inertia, vehicle.inertia_inv
 
     parts: dict[str, list[np.ndarray]] = {
-        k: [] for k in ("index", "omega", "u", "omega_dot", "nominal", "residual")
+        k: [] for k in ("index", "omega", "u", "du", "omega_dot", "nominal", "residual")
     }
     reg_parts: dict[str, list[np.ndarray]] = {name: [] for name in effects}
     second_differences: list[np.ndarray] = []
@@ -298,7 +355,9 @@ def residual_samples(
         second_differences.append(np.diff(omega, 2, axis=0))
         parts["index"].append(np.arange(ka, kb))
         parts["omega"].append(sg.hold(omega)[keep])
-        parts["u"].append(sg.hold(scaled_wrench(force, torque, vehicle))[keep])
+        u = scaled_wrench(force, torque, vehicle)
+        parts["u"].append(sg.hold(u)[keep])
+        parts["du"].append(sg.hold(sg.derivative(u))[keep])
         parts["omega_dot"].append(omega_dot[keep])
         parts["nominal"].append(held_nominal[keep])
         parts["residual"].append((omega_dot - held_nominal)[keep])
@@ -317,6 +376,7 @@ def residual_samples(
             )
             for e in eff:
                 reg_parts[e.name].append(sg.hold(e.regressor(ctx))[keep])
+            contexts.append((ctx, keep))
         for name, role in extra.items():
             held_parts[name].append(sg.hold(flight.signals[role][a:b])[keep])
 
@@ -337,6 +397,7 @@ def residual_samples(
         t=flight.t[index],
         omega=cat(parts["omega"], (3,)),
         u=cat(parts["u"], (6,)),
+        du=cat(parts["du"], (6,)),
         omega_dot=cat(parts["omega_dot"], (3,)),
         nominal=cat(parts["nominal"], (3,)),
         residual=cat(parts["residual"], (3,)),
@@ -347,4 +408,6 @@ def residual_samples(
         in_gaps=int((~flight.valid).sum()),
         edge_dropped=edge,
         short_dropped=short,
+        contexts=contexts,
+        sg=sg,
     )

@@ -22,7 +22,7 @@ from omavctl.trajectory import COLUMNS, LIMITS, Trajectory
 
 _LIMITS = np.array([LIMITS[c] for c in COLUMNS])
 
-__all__ = ["TASKS", "Envelope", "circle", "fig8", "heave", "pitch", "yaw"]
+__all__ = ["TASKS", "Envelope", "circle", "fig8", "heave", "pitch", "wobble", "yaw"]
 
 
 @dataclass(frozen=True)
@@ -274,5 +274,53 @@ def heave(
     return Trajectory.from_parts(t, pos, zeros, vel, zeros, acc, zeros)
 
 
+def wobble(
+    amplitude_deg: float = 15.0,
+    bandwidth: float = 0.8,
+    duration: float = 20.0,
+    rate: float = 100.0,
+    ramp: float = 2.0,
+    height: float = 1.0,
+    seed: int = 0,
+) -> Trajectory:
+    """Multi-sine attitude wobble: roll, pitch and yaw each a sum of three sines.
+
+    Frequencies are drawn (``seed``) between 0.15 ``bandwidth`` and ``bandwidth``
+    Hz, phases at random, amplitudes summing to ``amplitude_deg`` per axis
+    (yaw half of it). Not periodic within a flight: an identification flight
+    whose wrench history differs from a figure-8's at equal wrench, for testing
+    that a model transfers between trajectories.
+    """
+    _check(duration, ramp, rate)
+    if amplitude_deg <= 0 or bandwidth <= 0:
+        raise ConfigError("--amplitude and --bandwidth must be > 0")
+    t = _grid(duration, rate)
+    env = Envelope(duration, ramp)
+    rng = np.random.default_rng([seed, 0xB0B])
+    axes = []
+    for scale in (1.0, 1.0, 0.5):
+        freq = rng.uniform(0.15 * bandwidth, bandwidth, 3)
+        phase = rng.uniform(0.0, 2 * np.pi, 3)
+        weight = rng.uniform(0.5, 1.0, 3)
+        weight = weight / weight.sum() * np.deg2rad(amplitude_deg) * scale
+        total = [np.zeros_like(t) for _ in range(3)]
+        for f, ph, a in zip(freq, phase, weight, strict=True):
+            e, de, dde, _ = env(t)
+            s, c = np.sin(2 * np.pi * f * t + ph), np.cos(2 * np.pi * f * t + ph)
+            w = 2 * np.pi * f
+            total[0] = total[0] + a * e * s
+            total[1] = total[1] + a * (de * s + e * w * c)
+            total[2] = total[2] + a * (dde * s + 2 * de * w * c - e * w**2 * s)
+        axes.append((total[0], total[1], total[2]))
+    return _attitude_task(t, axes[0], axes[1], height, yaw=axes[2])
+
+
 #: Task generators by name (CLI subcommands are derived from this).
-TASKS = {"fig8": fig8, "circle": circle, "pitch": pitch, "yaw": yaw, "heave": heave}
+TASKS = {
+    "fig8": fig8,
+    "circle": circle,
+    "pitch": pitch,
+    "yaw": yaw,
+    "heave": heave,
+    "wobble": wobble,
+}

@@ -70,10 +70,10 @@ def _missing_error(raw: RawLog, role: str) -> LogError:
 
 
 #: Largest plausible magnitude of a logged value per role (SI units; commands may
-#: be normalised): beyond it a value is corrupt, not measured. Rates: a gyro
-#: saturates near 35 rad/s (2000 deg/s).
+#: be normalised): beyond it a value is corrupt, not measured. Body rates: a
+#: gyro saturates near 35 rad/s; a simulated tumble is cut at 200 rad/s.
 ROLE_LIMITS = {
-    "body_rate": 100.0,
+    "body_rate": 1e3,
     "attitude": 1e3,
     "reference_attitude": 1e3,
     "position": 1e5,

@@ -45,16 +45,21 @@ class ResidualModel(Protocol):
     :class:`omavctl.model.ResidualGP` (the output of ``fit``) is one.
     """
 
-    def mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+    def mean(
+        self, u: np.ndarray, omega: np.ndarray | None = None, du: np.ndarray | None = None
+    ) -> np.ndarray:
         """Residual mean (B, 3) rad/s^2 for scaled wrenches u (B, 6) at body rates
-        omega (B, 3) rad/s (models that do not depend on the state ignore omega)."""
+        omega (B, 3) rad/s and command rates of change du (B, 6) 1/s (models that do
+        not depend on the state or the command's rate ignore them)."""
         ...
 
 
 class ZeroResidual:
     """The nominal model: no residual."""
 
-    def mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+    def mean(
+        self, u: np.ndarray, omega: np.ndarray | None = None, du: np.ndarray | None = None
+    ) -> np.ndarray:
         return np.zeros((*u.shape[:-1], 3))
 
 
@@ -66,17 +71,19 @@ def invert_residual(
     iterations: int = 6,
     tol: float = 1e-10,
     step: float = 1e-5,
+    du: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Solve ``x + mu([u_force, x], omega) = target`` for x, batched (B, 3).
+    """Solve ``x + mu([u_force, x], omega, du) = target`` for x, batched (B, 3).
 
-    omega (B, 3) is the measured body rate the model is evaluated at.
+    omega (B, 3) is the measured body rate the model is evaluated at; du (B, 6)
+    the command's recent rate of change (held fixed during the solve).
     Newton's method with a forward-difference Jacobian of ``mu``; rows that
     have converged are not updated further.
     """
-    x = target - model.mean(np.concatenate([u_force, target], axis=-1), omega)
+    x = target - model.mean(np.concatenate([u_force, target], axis=-1), omega, du)
     for _ in range(iterations):
         u = np.concatenate([u_force, x], axis=-1)
-        mu = model.mean(u, omega)
+        mu = model.mean(u, omega, du)
         r = x + mu - target
         if np.max(np.abs(r)) < tol:
             break
@@ -84,7 +91,7 @@ def invert_residual(
         for j in range(3):
             up = u.copy()
             up[..., 3 + j] += step
-            jac[..., :, j] = (model.mean(up, omega) - mu) / step
+            jac[..., :, j] = (model.mean(up, omega, du) - mu) / step
         jac += np.eye(3)
         x = x - np.linalg.solve(jac, r[..., None])[..., 0]
     return x
@@ -92,10 +99,14 @@ def invert_residual(
 
 @dataclass
 class ControllerState:
-    """Integrators of the attitude (B, 3) and position (B, 3) loops."""
+    """Integrators of the attitude (B, 3) and position (B, 3) loops; the last scaled
+    command u (B, 6) and its rate of change du (B, 6) 1/s (backward difference over
+    the last step: what a residual model with command-rate inputs is given)."""
 
     att_integral: np.ndarray
     pos_integral: np.ndarray
+    last_u: np.ndarray | None = None
+    last_du: np.ndarray | None = None
 
     @classmethod
     def zeros(cls, batch: int) -> ControllerState:
@@ -168,10 +179,15 @@ class Controller:
         l_x = -cross(omega, omega @ inertia.T) @ v.inertia_inv.T
         u_force = force / v.mass
         target = a_star - l_x
+        du = state.last_du if state.last_du is not None else np.zeros((x.shape[0], 6))
         if self._has_model:
-            u_tau = invert_residual(target, u_force, self.residual, omega)
+            u_tau = invert_residual(target, u_force, self.residual, omega, du=du)
         else:
             u_tau = target
+        u_now = np.concatenate([u_force, u_tau], axis=-1)
+        if state.last_u is not None:
+            state.last_du = (u_now - state.last_u) / dt
+        state.last_u = u_now
         torque = u_tau @ inertia.T
         return ControlOutput(
             force=force,

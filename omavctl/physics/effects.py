@@ -14,6 +14,7 @@ for each effect ``residual ~= X(theta)`` with ``X = regressor(ctx)`` of shape
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cached_property
@@ -32,7 +33,9 @@ __all__ = [
     "Effect",
     "EffectContext",
     "Parameter",
+    "first_order_lag",
     "get_effect",
+    "shift_held",
 ]
 
 
@@ -102,6 +105,13 @@ class Effect(ABC):
     #: Physically plausible range of theta, used as bounds by ``evaluate``'s
     #: diagnosis (a missing effect must explain the error with possible values).
     theta_range: ClassVar[tuple[float, float]] = (-np.inf, np.inf)
+    #: Search interval of the effect's one physical parameter when it enters the
+    #: residual nonlinearly (time constants, delays): ``fit`` then estimates it
+    #: exactly by a 1-D search over :meth:`exact` with the linear parameters of
+    #: the other effects profiled out. None: linear in theta (least squares).
+    #: The :meth:`regressor` of such an effect is its first-order linearisation
+    #: (theta = the parameter), used by ``evaluate``'s diagnosis to detect it.
+    search: ClassVar[tuple[float, float] | None] = None
 
     # --- estimation --------------------------------------------------------
     @property
@@ -111,6 +121,14 @@ class Effect(ABC):
     @abstractmethod
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         """Regressor X, shape (N, 3, n_theta): residual ~= X @ theta."""
+
+    def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
+        """Residual (N, 3) rad/s^2 of the exact nonlinear form at parameter ``value``.
+
+        Per control period (commands held), before the Savitzky-Golay hold
+        kernel. Only for effects with :attr:`search`.
+        """
+        raise NotImplementedError(f"{self.name} has no exact nonlinear form")
 
     def to_parameters(
         self, theta: np.ndarray, cov: np.ndarray
@@ -275,6 +293,7 @@ class ServoLag(Effect):
     parameters = (Parameter("T_s", 1, "s", "servo time constant"),)
     prior_std = 0.05  # s
     theta_range = (0.0, 0.5)
+    search = (0.0, 0.3)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         tilt, thrust = ctx.allocated
@@ -282,6 +301,14 @@ class ServoLag(Effect):
         jac = ctx.allocation.tilt_jacobian(tilt, thrust)  # (N, 6, 6)
         dw = -np.einsum("nij,nj->ni", jac, rate)
         return ctx.angular(dw)[:, :, None]
+
+    def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
+        """Tilts through the exact first-order lag of the held setpoints (period means)."""
+        tilt, thrust = ctx.allocated
+        lagged = first_order_lag(tilt, value, ctx.dt)
+        rotor = np.repeat(thrust / 2.0, 2, axis=-1)
+        dw = ctx.allocation.forward(lagged, rotor) - ctx.allocation.forward(tilt, rotor)
+        return ctx.angular(dw)
 
     def configure_truth(self, params, truth):
         truth.servo_time_constant = float(params["T_s"][0])
@@ -300,6 +327,7 @@ class MotorLag(Effect):
     parameters = (Parameter("T_m", 1, "s", "motor time constant"),)
     prior_std = 0.05  # s
     theta_range = (0.0, 0.5)
+    search = (0.0, 0.3)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         tilt, thrust = ctx.allocated
@@ -308,8 +336,88 @@ class MotorLag(Effect):
         dw = -np.einsum("nij,nj->ni", jac, rate)
         return ctx.angular(dw)[:, :, None]
 
+    def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
+        """Arm thrusts through the exact first-order lag of the held setpoints."""
+        tilt, thrust = ctx.allocated
+        lagged = first_order_lag(thrust, value, ctx.dt)
+        dw = ctx.allocation.forward(tilt, np.repeat(lagged / 2.0, 2, axis=-1))
+        dw = dw - ctx.allocation.forward(tilt, np.repeat(thrust / 2.0, 2, axis=-1))
+        return ctx.angular(dw)
+
     def configure_truth(self, params, truth):
         truth.motor_time_constant = float(params["T_m"][0])
+
+
+class CommandDelay(Effect):
+    """The applied wrench is the command of ``tau_d`` seconds ago.
+
+    Transport, bus and filter delays: ``tau_applied(t) = tau_cmd(t - tau_d)``,
+    hence the residual ``I^-1 (tau_cmd(t - tau_d) - tau_cmd(t))``. Signed: a
+    negative ``tau_d`` means the logged command lags what was applied (a
+    controller faster than the log, stamps taken late). To first order
+    ``-tau_d I^-1 d/dt tau_cmd`` (the linear regressor the diagnosis uses);
+    ``fit`` estimates ``tau_d`` exactly, sub-sample, with the held command
+    shifted by a fraction of a period. ``tau_d`` in s.
+    """
+
+    name = "command_delay"
+    summary = "pure delay tau_d of the applied wrench (signed)"
+    parameters = (Parameter("tau_d", 1, "s", "delay of the applied wrench behind the command"),)
+    prior_std = 0.05  # s
+    theta_range = (-0.02, 0.2)
+    search = (-0.02, 0.2)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        rate = ctx.derivative(ctx.torque)  # (N, 3)
+        return -(rate @ ctx.inertia_inv.T)[:, :, None]
+
+    def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
+        """Mean over each period of the held command delayed by ``value`` s."""
+        delayed = shift_held(ctx.torque, value, ctx.dt)
+        return (delayed - ctx.torque) @ ctx.inertia_inv.T
+
+    def configure_truth(self, params, truth):
+        if params["tau_d"][0] < 0:
+            raise ConfigError(
+                "'effects.command_delay.tau_d' must be >= 0 in a truth file (the simulator "
+                "delays the applied wrench)"
+            )
+        truth.command_delay = float(params["tau_d"][0])
+
+
+def first_order_lag(setpoint: np.ndarray, time_constant: float, dt: float) -> np.ndarray:
+    """Mean over each period of a first-order lag following held setpoints.
+
+    setpoint (N, k) held over periods of ``dt``; the state starts at the first
+    setpoint; ``x_{i+1} = a x_i + (1 - a) c_i`` with ``a = exp(-dt / T)``, and
+    the mean over period i is ``c_i + (x_i - c_i) T (1 - a) / dt``. Exact for
+    piecewise-constant setpoints; ``T <= 0`` returns the setpoints.
+    """
+    from scipy.signal import lfilter
+
+    if time_constant <= 0:
+        return setpoint.copy()
+    a = math.exp(-dt / time_constant)
+    c0 = setpoint[0]
+    start = lfilter([0.0, 1.0 - a], [1.0, -a], setpoint - c0, axis=0) + c0  # x_i
+    return setpoint + (start - setpoint) * (time_constant * (1.0 - a) / dt)
+
+
+def shift_held(values: np.ndarray, delay: float, dt: float) -> np.ndarray:
+    """Mean over each period of held ``values`` (N, k) delayed by ``delay`` s (signed).
+
+    With ``delay = (q + f) dt`` (q integer, 0 <= f < 1) period i sees
+    ``f values[i-q-1] + (1-f) values[i-q]``; indices beyond the ends take the
+    edge values.
+    """
+    steps = delay / dt
+    q = math.floor(steps)
+    f = steps - q
+    n = values.shape[0]
+    idx = np.arange(n) - q
+    a = values[np.clip(idx, 0, n - 1)]
+    b = values[np.clip(idx - 1, 0, n - 1)]
+    return (1.0 - f) * a + f * b
 
 
 class GyroBias(Effect):
@@ -345,7 +453,15 @@ class GyroBias(Effect):
 #: All registered effects by name; CLI choices are derived from this.
 EFFECTS: dict[str, Effect] = {
     e.name: e
-    for e in (RotationalDrag(), ComOffset(), InertiaError(), ServoLag(), MotorLag(), GyroBias())
+    for e in (
+        RotationalDrag(),
+        ComOffset(),
+        InertiaError(),
+        ServoLag(),
+        MotorLag(),
+        CommandDelay(),
+        GyroBias(),
+    )
 }
 
 

@@ -138,6 +138,8 @@ def rollout(
             reason[b] = why
         feasible[bad] = False
 
+    u_last: np.ndarray | None = None
+    du = np.zeros((b_count, 6))  # the command's rate of change over the last step
     for i in range(steps):
         ref = refs[cand, i]
         out = ctrl.step(state, x, ref, dt)
@@ -145,12 +147,15 @@ def rollout(
         u_f, target = out.u[:, :3], out.u[:, 3:]
         u = out.u.copy()
         for _ in range(2):  # fixed-point inversion of u_tau + mu(u) = target
-            z = model.normalise(model.gp_inputs(u, omega))
+            z = model.normalise(model.gp_inputs(u, omega, du))
             mu = samples.mean(z)
             if model.effects:
                 mu = mu + model.effects_mean(u, omega)
             u[:, 3:] = target - mu
-        z = model.normalise(model.gp_inputs(u, omega))
+        z = model.normalise(model.gp_inputs(u, omega, du))
+        if u_last is not None:
+            du = (u - u_last) / dt
+        u_last = u.copy()
         g, _ = samples.evaluate(z, sample_idx)
         if model.effects:
             g = g + model.effects_mean(u, omega)

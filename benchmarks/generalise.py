@@ -1,0 +1,174 @@
+"""Generalisation benchmark: fit on one flight, evaluate on another.
+
+A model is judged on flights it has not seen. For every hidden effect and
+controller timing, two different trajectories (a figure-8 and a multi-sine
+wobble) are flown through the truth plant; a model is fitted on each and
+evaluated on the other (both directions). Printed per axis: the full model's
+RMSE over the physics-only RMSE (nominal plus the model's fitted effects: the
+GP must never make it worse) and the 2-sigma coverage of the model's
+predictive band (honest uncertainty: 0.85-0.99). Then the shared real logs.
+
+    python benchmarks/generalise.py [--quick] [--features wrench,wrench+rate]
+        [--effects-fit] [--out docs/generalisation-results.md]
+
+``make generalise`` runs it; ``tests/test_generalise.py`` pins a subset.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from omavctl.evaluate import evaluate
+from omavctl.fit import fit_model
+from omavctl.logs import write_log
+from omavctl.model import save_model
+from omavctl.plant import simulate, truth_from_tree
+from omavctl.signal import DEFAULT_FEATURES
+from omavctl.tasks import fig8, wobble
+from omavctl.vehicle import default_vehicle
+
+#: hidden effect -> truth ``effects`` entry
+EFFECT_CASES: dict[str, dict[str, Any]] = {
+    "none": {},
+    "rotational_drag": {"rotational_drag": {"D": [0.05, 0.05, 0.03]}},
+    "com_offset": {"com_offset": {"r": [0.02, -0.015, 0.0]}},
+    "inertia_error": {"inertia_error": {"scale": [1.18, 0.88, 1.22]}},
+    "servo_lag": {"servo_lag": {"T_s": 0.035}},
+    "motor_lag": {"motor_lag": {"T_m": 0.05}},
+    "command_delay": {"command_delay": {"tau_d": 0.03}},
+}
+#: controller timing -> truth ``timing`` entry (the log is always 100 Hz)
+TIMINGS: dict[str, dict[str, Any]] = {
+    "100Hz-held": {},
+    "1kHz-sampled": {"controller_rate_hz": 1000.0},
+}
+DURATION = 16.0
+
+
+def trajectories(duration: float = DURATION) -> dict[str, Any]:
+    """The two trajectories of every case."""
+    return {
+        "fig8": fig8(roll_deg=20, pitch_deg=20, period=5.0, duration=duration, ramp=2.0),
+        "wobble": wobble(amplitude_deg=25, bandwidth=0.8, duration=duration, ramp=2.0),
+    }
+
+
+@dataclass
+class Outcome:
+    """One direction of one case: per-axis ratio and coverage."""
+
+    case: str
+    timing: str
+    fit_on: str
+    ratio: np.ndarray  # (3,) model RMSE / physics-only RMSE
+    coverage: np.ndarray  # (3,) 2-sigma coverage of the model
+    physics_rmse: np.ndarray  # (3,)
+    model_rmse: np.ndarray  # (3,)
+    gp_axes: list[bool]  # GP kept per axis
+    missing: list[str]
+
+
+def fly_pair(workdir: Path, case: str, timing: str, duration: float = DURATION) -> dict[str, Path]:
+    """Simulate both trajectories of a case; returns trajectory name -> log path (CSV)."""
+    vehicle = default_vehicle()
+    truth = truth_from_tree({"effects": EFFECT_CASES[case], "timing": TIMINGS[timing]}, vehicle)
+    out = {}
+    for seed, (name, ref) in enumerate(trajectories(duration).items()):
+        path = workdir / f"{case}-{timing}-{name}.csv"
+        if not path.exists():
+            write_log(path, simulate(ref, vehicle, truth, seed=seed + 1).log)
+        out[name] = path
+    return out
+
+
+def run_direction(
+    workdir: Path,
+    logs: dict[str, Path],
+    fit_on: str,
+    case: str,
+    timing: str,
+    features: str = DEFAULT_FEATURES,
+    points: int = 100,
+    effects: Iterable[str] = (),
+) -> Outcome:
+    """Fit on ``logs[fit_on]``, evaluate on the other log."""
+    other = next(n for n in logs if n != fit_on)
+    result = fit_model(
+        [logs[fit_on]], points=points, features=features, effects=list(effects), restarts=1
+    )
+    model_path = workdir / f"{case}-{timing}-{fit_on}-{features}.npz"
+    save_model(model_path, result.model)
+    tree = evaluate([model_path], [logs[other]]).tree
+    phys = np.array([tree["metrics"]["effects"]["rmse"][a] for a in "xyz"])
+    mod = np.array([tree["metrics"]["model"]["rmse"][a] for a in "xyz"])
+    cov = np.array([tree["metrics"]["model"]["coverage_2sigma"][a] for a in "xyz"])
+    gp = [bool(v) for v in result.model.gp_enabled]
+    return Outcome(
+        case, timing, fit_on, mod / phys, cov, phys, mod, gp, tree["diagnosis"]["missing"]
+    )
+
+
+def _fmt(v: np.ndarray, digits: int = 2) -> str:
+    return "/".join(f"{x:.{digits}f}" for x in v)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="8 s flights, 100 Hz timing only")
+    ap.add_argument("--features", default=DEFAULT_FEATURES, help="comma-separated GP feature sets")
+    ap.add_argument("--cases", default=",".join(EFFECT_CASES))
+    ap.add_argument("--timings", default=",".join(TIMINGS))
+    ap.add_argument("--workdir", type=Path, default=None, help="keep the logs here")
+    args = ap.parse_args(argv)
+    duration = 10.0 if args.quick else DURATION
+    timings = ["100Hz-held"] if args.quick else args.timings.split(",")
+    tmp = None
+    if args.workdir is None:
+        tmp = tempfile.TemporaryDirectory()
+        workdir = Path(tmp.name)
+    else:
+        workdir = args.workdir
+        workdir.mkdir(parents=True, exist_ok=True)
+    rows = []
+    t0 = time.perf_counter()
+    with threadpool_limits(1):
+        for features in args.features.split(","):
+            for case in args.cases.split(","):
+                for timing in timings:
+                    logs = fly_pair(workdir, case, timing, duration)
+                    for fit_on in logs:
+                        o = run_direction(workdir, logs, fit_on, case, timing, features)
+                        rows.append((features, o))
+                        ok = bool(np.all(o.ratio <= 1.05)) and bool(
+                            np.all((o.coverage >= 0.85) & (o.coverage <= 0.99))
+                        )
+                        print(
+                            f"{features:12s} {case:16s} {timing:13s} fit {fit_on:7s} "
+                            f"ratio {_fmt(o.ratio)}  coverage {_fmt(o.coverage)}  "
+                            f"physics {_fmt(o.physics_rmse, 3)}  gp {o.gp_axes}  "
+                            f"missing {o.missing}  {'ok' if ok else 'FAIL'}",
+                            flush=True,
+                        )
+    worst = max(float(o.ratio.max()) for _, o in rows)
+    cov = np.concatenate([o.coverage for _, o in rows])
+    print(
+        f"{len(rows)} directions in {time.perf_counter() - t0:.0f} s: worst ratio {worst:.3f}, "
+        f"coverage min {cov.min():.2f} median {np.median(cov):.2f} max {cov.max():.2f}"
+    )
+    if tmp is not None:
+        tmp.cleanup()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
