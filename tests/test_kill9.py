@@ -23,7 +23,19 @@ from omavctl.evaluate import load_evaluation
 
 OMAVCTL = str(Path(sys.executable).with_name("omavctl"))
 FIT = ["--points", "15", "--restarts", "0", "-q"]
-PLAN = ["--candidates", "2", "--sims", "2", "--test-points", "30", "--points", "5", "-q"]
+PLAN = [
+    "--candidates",
+    "4",
+    "--amplitude",
+    "0.2",
+    "--sims",
+    "2",
+    "--test-points",
+    "30",
+    "--points",
+    "5",
+    "-q",
+]
 
 #: command -> (old run, new run, outputs); both runs write the same outputs.
 COMMANDS = {

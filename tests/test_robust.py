@@ -25,7 +25,19 @@ from omavctl.errors import OutputError
 runner = CliRunner()
 OMAVCTL = str(Path(sys.executable).with_name("omavctl"))
 FIT = ["--points", "15", "--restarts", "0", "-q"]
-PLAN = ["--candidates", "2", "--sims", "2", "--test-points", "30", "--points", "5", "-q"]
+PLAN = [
+    "--candidates",
+    "4",
+    "--amplitude",
+    "0.2",
+    "--sims",
+    "2",
+    "--test-points",
+    "30",
+    "--points",
+    "5",
+    "-q",
+]
 
 
 def _digests(folder: Path) -> dict[str, str]:

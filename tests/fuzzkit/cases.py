@@ -22,7 +22,19 @@ from . import mutate as mu
 
 #: Cheap settings that keep each run short.
 FIT = ["--points", "15", "--restarts", "0", "-q"]
-PLAN = ["--candidates", "2", "--sims", "2", "--test-points", "30", "--points", "5", "-q"]
+PLAN = [
+    "--candidates",
+    "4",
+    "--amplitude",
+    "0.2",
+    "--sims",
+    "2",
+    "--test-points",
+    "30",
+    "--points",
+    "5",
+    "-q",
+]
 LOG_KINDS = ("log.csv", "log.bag", "log.mcap", "log_dir")
 CSV_REQUIRED = {
     "t",
