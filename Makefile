@@ -2,12 +2,13 @@
 #   make demo   install, then run the example pipeline on built-in data
 #   make test   install, then lint, type-check and run the test suite
 #   make fuzz   install, then a fuzz campaign of FUZZ_CASES mutated inputs (tools/fuzz_campaign.py)
+#   make generalise   the generalisation benchmark (docs/generalisation.md)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test lint bench fuzz clean
+.PHONY: install demo test lint bench fuzz generalise clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -35,6 +36,11 @@ test: lint
 fuzz: $(STAMP)
 	nice -n 10 $(BIN)/python tools/fuzz_campaign.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED) \
 		--strategy $(FUZZ_STRATEGY)
+
+# fit on one flight, evaluate on another: every hidden effect, two controller
+# timings, both directions, and the shared real log (about 6 minutes on 2 cores)
+generalise: $(STAMP)
+	$(BIN)/python benchmarks/generalise.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulate.py

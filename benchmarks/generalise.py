@@ -118,6 +118,36 @@ def run_direction(
     )
 
 
+#: The shared real flight (relative to the repository) and its vehicle file.
+PX4_LOG = Path(__file__).resolve().parents[2] / "shared/data/real/px4tools_octocopter/01_07_59.csv"
+PX4_VEHICLE = Path(__file__).resolve().parents[1] / "examples/px4tools-octocopter.yaml"
+#: Its two halves of flight (s from the log's start): fit on one, evaluate on the other.
+PX4_WINDOWS = {"6.5-15 s": (6.5, 15.0), "15 s-end": (15.0, None)}
+
+
+def run_real(workdir: Path, features: str = DEFAULT_FEATURES) -> list[Outcome]:
+    """The px4tools octocopter flight: fit on one half, evaluate on the other, both ways."""
+    from omavctl.vehicle import load_vehicle
+
+    vehicle = load_vehicle(PX4_VEHICLE)
+    out = []
+    for fit_name, fit_win in PX4_WINDOWS.items():
+        _, eval_win = next((n, w) for n, w in PX4_WINDOWS.items() if n != fit_name)
+        result = fit_model(
+            [PX4_LOG], vehicle, points=100, features=features, restarts=1, time_window=fit_win
+        )
+        model_path = workdir / f"px4-{fit_win[0]:g}-{features}.npz"
+        save_model(model_path, result.model)
+        tree = evaluate([model_path], [PX4_LOG], time_window=eval_win).tree
+        phys = np.array([tree["metrics"]["effects"]["rmse"][a] for a in "xyz"])
+        mod = np.array([tree["metrics"]["model"]["rmse"][a] for a in "xyz"])
+        cov = np.array([tree["metrics"]["model"]["coverage_2sigma"][a] for a in "xyz"])
+        gp = [bool(v) for v in result.model.gp_enabled]
+        missing = tree["diagnosis"]["missing"]
+        out.append(Outcome("px4 real", "83Hz", fit_name, mod / phys, cov, phys, mod, gp, missing))
+    return out
+
+
 def _fmt(v: np.ndarray, digits: int = 2) -> str:
     return "/".join(f"{x:.{digits}f}" for x in v)
 
@@ -159,6 +189,19 @@ def main(argv: list[str] | None = None) -> int:
                             f"missing {o.missing}  {'ok' if ok else 'FAIL'}",
                             flush=True,
                         )
+        if PX4_LOG.exists() and not args.quick:
+            for features in args.features.split(","):
+                for o in run_real(workdir, features):
+                    rows.append((features, o))
+                    print(
+                        f"{features:12s} {o.case:16s} {o.timing:13s} fit {o.fit_on:9s} "
+                        f"ratio {_fmt(o.ratio)}  coverage {_fmt(o.coverage)}  "
+                        f"physics {_fmt(o.physics_rmse, 3)}  gp {o.gp_axes}  "
+                        f"missing {o.missing}",
+                        flush=True,
+                    )
+        else:
+            print(f"real log not found ({PX4_LOG}): skipped")
     worst = max(float(o.ratio.max()) for _, o in rows)
     cov = np.concatenate([o.coverage for _, o in rows])
     print(

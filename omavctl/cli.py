@@ -19,6 +19,26 @@ from omavctl import __version__
 from omavctl.atomic import check_outputs
 from omavctl.errors import OmavctlError
 
+
+def _arguments_by_metavar() -> None:
+    """Show an argument with a metavar as just that, e.g. ``LOG...``: typer would add its
+    Python type (``LOG... <list[Path]>``) and wrap it in the usage line (``{LOG...}...``)."""
+    from typer.core import TyperArgument
+
+    type_rich = TyperArgument.display_type_rich
+    usage_name = TyperArgument._usage_display_name
+
+    def display_type_rich(self: TyperArgument, ctx: Any) -> str | None:
+        return None if self.metavar else type_rich(self, ctx)
+
+    def usage_display_name(self: TyperArgument) -> str:
+        return str(self.metavar) if self.metavar else usage_name(self)
+
+    TyperArgument.display_type_rich = display_type_rich  # type: ignore[method-assign,assignment]
+    TyperArgument._usage_display_name = usage_display_name  # type: ignore[method-assign]
+
+
+_arguments_by_metavar()
 app = typer.Typer(
     name="omavctl",
     help="Learn residual models of an omnidirectional aerial vehicle from flight logs, "
@@ -34,7 +54,9 @@ task_app = typer.Typer(
     no_args_is_help=True,
     rich_markup_mode=None,
 )
-app.add_typer(task_app, name="task")
+app.add_typer(
+    task_app, name="task", short_help="Write a task trajectory (fig8, circle, pitch, yaw, heave)."
+)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -68,16 +90,34 @@ def _main(
 
 
 def _console(quiet: bool = False):
-    from rich.console import Console
+    """Human text on stderr; no wrapping when stderr is not a terminal."""
+    from omavctl.cliout import console
 
-    return Console(stderr=True, quiet=quiet, highlight=False, soft_wrap=True)
+    return console(quiet)
+
+
+def _emit(as_json: bool, obj: dict[str, Any]) -> None:
+    """With --json, print ``obj`` as one JSON object on stdout."""
+    if as_json:
+        from omavctl.cliout import emit_json
+
+        emit_json(obj)
 
 
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bars or summary.")]
+Json = Annotated[
+    bool,
+    typer.Option(
+        "--json",
+        help="Print one JSON object on stdout (files written, key figures); "
+        "human text stays on stderr.",
+    ),
+]
 VehicleOpt = Annotated[
     Path | None,
     typer.Option(
         "--vehicle",
+        metavar="VEHICLE.yaml",
         help="Vehicle YAML (mass, inertia, geometry, limits, gains, topics, effects); "
         "keys not given keep the built-in omav's values.",
     ),
@@ -85,20 +125,30 @@ VehicleOpt = Annotated[
 
 
 # --------------------------------------------------------------------------- task
-Out = Annotated[Path, typer.Option("--out", "-o", help="Output trajectory CSV.")]
+Out = Annotated[Path, typer.Option("--out", "-o", metavar="CSV", help="Output trajectory CSV.")]
 Rate = Annotated[float, typer.Option(help="Sample rate of the CSV, Hz.")]
 Height = Annotated[float, typer.Option(help="Hover height (z), m.")]
 
 
-def _write_task(traj: Any, out: Path, quiet: bool) -> None:
+def _write_task(traj: Any, out: Path, quiet: bool, as_json: bool = False, name: str = "") -> None:
     from omavctl.trajectory import write_trajectory
 
+    check_outputs([], [out])
     write_trajectory(out, traj)
     if not quiet:
         _console().print(f"wrote {out} ({traj.data.shape[0]} samples, {traj.duration:.2f} s)")
+    _emit(
+        as_json,
+        {
+            "command": f"task {name}".strip(),
+            "files": {"trajectory": str(out)},
+            "samples": int(traj.data.shape[0]),
+            "duration": float(traj.duration),
+        },
+    )
 
 
-@task_app.command("fig8")
+@task_app.command("fig8", short_help="Attitude figure-8 at constant position (the paper's task).")
 @_reports_errors
 def task_fig8(
     out: Out,
@@ -110,15 +160,17 @@ def task_fig8(
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
     """Attitude figure-8 at constant position: roll = A_r sin(wt), pitch = A_p sin(2wt)."""
     from omavctl.tasks import fig8
 
-    check_outputs([], [out])
-    _write_task(fig8(roll, pitch, period, duration, rate, ramp, height), out, quiet)
+    _write_task(
+        fig8(roll, pitch, period, duration, rate, ramp, height), out, quiet, as_json, "fig8"
+    )
 
 
-@task_app.command("circle")
+@task_app.command("circle", short_help="Horizontal circle at level attitude, from rest to rest.")
 @_reports_errors
 def task_circle(
     out: Out,
@@ -129,15 +181,15 @@ def task_circle(
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
     """Horizontal circle at level attitude, starting and ending at rest."""
     from omavctl.tasks import circle
 
-    check_outputs([], [out])
-    _write_task(circle(radius, period, duration, rate, ramp, height), out, quiet)
+    _write_task(circle(radius, period, duration, rate, ramp, height), out, quiet, as_json, "circle")
 
 
-@task_app.command("pitch")
+@task_app.command("pitch", short_help="The paper's pitching manoeuvre (60 deg, 1 rad/s^2).")
 @_reports_errors
 def task_pitch(
     out: Out,
@@ -150,15 +202,21 @@ def task_pitch(
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
     """Pitching manoeuvre as in the paper (60 deg, 1 rad/s^2 by default)."""
     from omavctl.tasks import pitch
 
-    check_outputs([], [out])
-    _write_task(pitch(amplitude, max_acceleration, duration, rate, ramp, height), out, quiet)
+    _write_task(
+        pitch(amplitude, max_acceleration, duration, rate, ramp, height),
+        out,
+        quiet,
+        as_json,
+        "pitch",
+    )
 
 
-@task_app.command("yaw")
+@task_app.command("yaw", short_help="Yaw oscillation at level attitude (identifies servo_lag).")
 @_reports_errors
 def task_yaw(
     out: Out,
@@ -169,15 +227,17 @@ def task_yaw(
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
     """Yaw oscillation at level attitude (identifies servo_lag: small tilts, fast tilt rates)."""
     from omavctl.tasks import yaw
 
-    check_outputs([], [out])
-    _write_task(yaw(amplitude, period, duration, rate, ramp, height), out, quiet)
+    _write_task(yaw(amplitude, period, duration, rate, ramp, height), out, quiet, as_json, "yaw")
 
 
-@task_app.command("heave")
+@task_app.command(
+    "heave", short_help="Vertical oscillation at level attitude (identifies com_offset)."
+)
 @_reports_errors
 def task_heave(
     out: Out,
@@ -188,24 +248,29 @@ def task_heave(
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
     """Vertical oscillation at level attitude (identifies com_offset: thrust varies, no tilt)."""
     from omavctl.tasks import heave
 
-    check_outputs([], [out])
-    _write_task(heave(amplitude, period, duration, rate, ramp, height), out, quiet)
+    _write_task(
+        heave(amplitude, period, duration, rate, ramp, height), out, quiet, as_json, "heave"
+    )
 
 
 # ----------------------------------------------------------------------- simulate
-@app.command()
+@app.command(short_help="Fly a reference through the truth plant, write a flight log.")
 @_reports_errors
 def simulate(
-    reference: Annotated[Path, typer.Option("--reference", "-r", help="Reference trajectory CSV.")],
+    reference: Annotated[
+        Path, typer.Option("--reference", "-r", metavar="CSV", help="Reference trajectory CSV.")
+    ],
     out: Annotated[
         Path,
         typer.Option(
             "--out",
             "-o",
+            metavar="LOG",
             help="Output log; its kind follows the name: a directory (no suffix) -> ROS 2 bag "
             "(mcap storage), .bag -> ROS 1 bag, .mcap -> standalone MCAP, .csv -> wide CSV.",
         ),
@@ -214,6 +279,7 @@ def simulate(
         Path | None,
         typer.Option(
             "--truth",
+            metavar="TRUTH.yaml",
             help="Truth YAML: actuator imperfections, hidden effects, sensor noise, seed "
             "(default: documented imperfections, no hidden effect).",
         ),
@@ -233,11 +299,13 @@ def simulate(
         Path | None,
         typer.Option(
             "--model",
+            metavar="MODEL.npz",
             help="Residual model (.npz written by fit) that the controller inverts, "
             "u + mu(u) = a* (default: the nominal model, mu = 0).",
         ),
     ] = None,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
     """Fly a reference in closed loop through the truth plant and write a flight log."""
     from omavctl.logs import write_log
@@ -282,18 +350,39 @@ def simulate(
     )
     if result.diverged:
         con.print("[bold red]warning:[/] the vehicle diverged; the log ends where it did")
+    _emit(
+        as_json,
+        {
+            "command": "simulate",
+            "files": {"log": str(out)},
+            "duration": result.steps / veh.gains.rate_hz,
+            "max_attitude_error_deg": math.degrees(result.max_attitude_error),
+            "infeasible_steps": int(result.infeasible_steps),
+            "steps": int(result.steps),
+            "diverged": bool(result.diverged),
+        },
+    )
 
 
 # ---------------------------------------------------------------------------- fit
-@app.command()
+@app.command(short_help="Learn a residual model (effects + GP) from flight logs.")
 @_reports_errors
 def fit(
     logs: Annotated[
         list[Path],
-        typer.Argument(help="Flight logs: ROS 1 .bag, ROS 2 bag directories, .mcap or wide .csv."),
+        typer.Argument(
+            metavar="LOG...",
+            help="Flight logs: ROS 1 .bag, ROS 2 bag directories, .mcap or wide .csv.",
+        ),
     ],
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="Output model file (.npz, schema omavctl.model/1).")
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="MODEL.npz",
+            help="Output model file (.npz, schema omavctl.model/1).",
+        ),
     ],
     vehicle: VehicleOpt = None,
     effects: Annotated[
@@ -345,8 +434,15 @@ def fit(
         ),
     ] = None,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
-    """Learn the residual model (effects + one GP per body axis) from flight logs."""
+    """Learn the residual model from flight logs: physical effects by least squares, then
+    one Gaussian process per body axis on what remains.
+
+    Angular accelerations come from the body rates by a Savitzky-Golay derivative; the
+    residual is measured minus nominal (rigid body) angular acceleration, rad/s^2. The
+    model file (.npz) is what evaluate, simulate --model and plan read.
+    """
     from rich.progress import Progress
 
     from omavctl.fit import fit_model
@@ -377,6 +473,9 @@ def fit(
         )
     save_model(out, result.model)
     _render_fit(con, result.summary, out)
+    from omavctl.summary import fit_json
+
+    _emit(as_json, fit_json(result.summary, out))
 
 
 def _render_fit(con: Any, summary: Any, out: Path) -> None:
@@ -439,6 +538,10 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
     gp.add_row("training R^2", *(f"{a.r2:.3f}" for a in summary.axes))
     gp.add_row("training RMSE, rad/s^2", *(f"{a.rmse:.4g}" for a in summary.axes))
     gp.add_row("RMS without model, rad/s^2", *(f"{a.rmse_nominal:.4g}" for a in summary.axes))
+    gp.add_row("GP on (held-out blocks)", *("yes" if a.gp_on else "off" for a in summary.axes))
+    gp.add_row("held-out RMSE GP, rad/s^2", *(f"{a.cv_rmse_gp:.4g}" for a in summary.axes))
+    gp.add_row("held-out RMSE physics", *(f"{a.cv_rmse_physics:.4g}" for a in summary.axes))
+    gp.add_row("held-out within 2σ", *(f"{a.cv_coverage:.0%}" for a in summary.axes))
     con.print(gp)
     for note in summary.notes:
         con.print(f"note: {note}", markup=False)
@@ -446,70 +549,101 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
 
 
 # ----------------------------------------------------------------------- evaluate
-@app.command()
+@app.command(short_help="Compare models with a flight: verdict, errors, missing physics.")
 @_reports_errors
 def evaluate(
-    logs: Annotated[list[Path], typer.Argument(help="Flight logs to compare the model with.")],
+    logs: Annotated[
+        list[Path],
+        typer.Argument(
+            metavar="LOG...",
+            help="Flight logs to compare the models with (ROS 1 .bag, ROS 2 bag directory, "
+            ".mcap or .csv); best not the ones the model was fitted on.",
+        ),
+    ],
     model: Annotated[
         list[Path],
-        typer.Option("--model", "-m", help="Model .npz (repeat to compare several models)."),
+        typer.Option(
+            "--model",
+            "-m",
+            metavar="MODEL.npz",
+            help="Model written by fit (repeat to compare several models side by side; the "
+            "first one is diagnosed).",
+        ),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="EVAL.json",
+            help="Evaluation JSON (schema omavctl.eval/1); time series go to "
+            "<stem>.series.npz beside it. Default: <model stem>.eval.json beside the first "
+            "model.",
+        ),
+    ] = None,
+    mcap: Annotated[
+        Path | None,
+        typer.Option(
+            "--mcap",
+            metavar="SERIES.mcap",
+            help="MCAP file of the time series for Foxglove/PlotJuggler (measured, predicted, "
+            "2σ band, nominal, physics-only, worst-segment markers; JSON channels on the log's "
+            "own time stamps). Default: <stem>.series.mcap beside the evaluation JSON.",
+        ),
+    ] = None,
+    time_window: Annotated[
+        str | None,
+        typer.Option(
+            metavar="START:END",
+            help="Only samples with START <= t < END (s from log start), e.g. 15: or 2.5:10.",
+        ),
+    ] = None,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Compare models with measured angular accelerations, find where they fail, and
+    diagnose which physical effect is missing.
+
+    Prints the verdict first (what is missing and the fit command that adds it, where
+    the model fails and what the vehicle was doing, whether its 2σ band can be trusted),
+    then the RMSE (rad/s^2) of the nominal model, nominal + effects and each model side
+    by side. Writes the evaluation JSON, its .series.npz and an MCAP of the series.
+    """
+    from omavctl.evaluate import evaluate as run
+    from omavctl.evaluate import series_path, write_evaluation
+    from omavctl.logs import parse_time_window
+    from omavctl.series_mcap import mcap_path, write_series_mcap
+    from omavctl.summary import evaluation_json, render_evaluation
+
+    window = parse_time_window(time_window) if time_window else None
+    if out is None and model:
+        out = model[0].with_name(model[0].with_suffix("").name + ".eval.json")
+    assert out is not None
+    mcap_out = mcap if mcap is not None else mcap_path(out)
+    check_outputs([*logs, *model], [out, series_path(out), mcap_out])
+    result = run(model, logs, time_window=window)
+    write_evaluation(out, result)
+    write_series_mcap(mcap_out, result.tree, result.series)
+    files = {"evaluation": out, "series": series_path(out), "mcap": mcap_out}
+    render_evaluation(_console(quiet), result.tree, files)
+    _emit(as_json, evaluation_json(result.tree, files))
+
+
+# --------------------------------------------------------------------------- plan
+@app.command(short_help="Plan the most informative next reference for a task.")
+@_reports_errors
+def plan(
+    task: Annotated[
+        Path, typer.Option("--task", metavar="CSV", help="Task trajectory CSV to learn for.")
+    ],
+    model: Annotated[
+        Path, typer.Option("--model", metavar="MODEL.npz", help="Current model (.npz from fit).")
     ],
     out: Annotated[
         Path,
         typer.Option(
-            "--out",
-            "-o",
-            help="Evaluation JSON (schema omavctl.eval/1); time series go to <stem>.series.npz.",
+            "--out", "-o", metavar="CSV", help="Most informative reference, trajectory CSV."
         ),
-    ],
-    time_window: Annotated[
-        str | None,
-        typer.Option(help="Only samples with START <= t < END (s from log start), as START:END."),
-    ] = None,
-    quiet: Quiet = False,
-) -> None:
-    """Compare models with measured angular accelerations, find where they fail, and
-    diagnose which physical effect is missing."""
-    from rich.table import Table
-
-    from omavctl.evaluate import evaluate as run
-    from omavctl.evaluate import series_path, write_evaluation
-    from omavctl.logs import parse_time_window
-
-    check_outputs([*logs, *model], [out, series_path(out)])
-    window = parse_time_window(time_window) if time_window else None
-    result = run(model, logs, time_window=window)
-    write_evaluation(out, result)
-    con = _console(quiet)
-    tree = result.tree
-    table = Table(title="RMSE of the angular acceleration, rad/s^2")
-    table.add_column("prediction")
-    for axis in "xyz":
-        table.add_column(axis, justify="right")
-    for label in ("nominal", "effects", "model"):
-        rmse = tree["metrics"][label]["rmse"]
-        table.add_row(label, *(f"{rmse[a]:.4g}" for a in "xyz"))
-    con.print(table)
-    if tree["tracking"]:
-        tr = tree["tracking"]
-        con.print("tracking |a* - w_dot|: " + ", ".join(f"{a} {tr[a]:.3g}" for a in "xyz"))
-    diag = tree["diagnosis"]
-    if diag["missing"]:
-        con.print(f"missing physics, best first: {', '.join(diag['missing'])}", markup=False)
-        con.print(f"add it with: {diag['fit_command']}", markup=False)
-    else:
-        con.print("no registered effect is missing with meaningful explained variance")
-    con.print(f"wrote {out}")
-
-
-# --------------------------------------------------------------------------- plan
-@app.command()
-@_reports_errors
-def plan(
-    task: Annotated[Path, typer.Option("--task", help="Task trajectory CSV to learn for.")],
-    model: Annotated[Path, typer.Option("--model", help="Current model (.npz from fit).")],
-    out: Annotated[
-        Path, typer.Option("--out", "-o", help="Most informative reference, trajectory CSV.")
     ],
     vehicle: VehicleOpt = None,
     candidates: Annotated[int, typer.Option(help="Candidate references K.")] = 20,
@@ -539,9 +673,24 @@ def plan(
     seed: Annotated[
         int, typer.Option(help="Random seed (deviations, GP samples, test points).")
     ] = 0,
+    report_out: Annotated[
+        Path | None,
+        typer.Option(
+            "--report",
+            metavar="PLAN.html",
+            help="Also write an HTML report: the task and the planned reference over time, "
+            "and every candidate's cost.",
+        ),
+    ] = None,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
-    """Plan the most informative next reference: task + sampled Fourier deviation."""
+    """Plan the most informative next reference: the task plus a sampled Fourier deviation.
+
+    Each of K candidates is flown M times in closed-loop simulation with GP posterior
+    samples; its cost is the mean posterior variance ((rad/s^2)^2) the GP would have at
+    test points of the task region after adding its data (lower = more informative).
+    """
     from rich.progress import Progress
     from rich.table import Table
 
@@ -552,7 +701,7 @@ def plan(
     from omavctl.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
-    check_outputs([task, model, vehicle], [out, scores])
+    check_outputs([task, model, vehicle], [out, scores, report_out])
     for name, value in (
         ("--candidates", candidates),
         ("--sims", sims),
@@ -612,47 +761,95 @@ def plan(
     )
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
+    files = {"reference": str(out)}
+    if scores is not None:
+        files["scores"] = str(scores)
+    if report_out is not None:
+        from omavctl.plan_report import write_plan_report
+
+        write_plan_report(report_out, ref, result)
+        files["report"] = str(report_out)
+        con.print(f"wrote {report_out} (plan report)")
     con.print(f"wrote {out} (candidate {result.best})")
+    _emit(
+        as_json,
+        {
+            "command": "plan",
+            "files": files,
+            "best": int(result.best),
+            "best_cost": float(result.cost[result.best]),
+            "task_cost": float(result.task_cost),
+            "prior_variance": float(result.prior_variance),
+            "epsilon": float(result.epsilon),
+            "rejected": rejected,
+            "candidates": [
+                {
+                    "id": k,
+                    "cost": float(result.cost[k]),
+                    "tracking": float(result.tracking[k]),
+                    "feasible": bool(result.feasible[k]),
+                }
+                for k in range(len(result.cost))
+            ],
+            "notes": list(result.notes),
+        },
+    )
 
 
 # ------------------------------------------------------------------------ inspect
-@app.command()
+@app.command(short_help="List a log's topics, rates, gaps and contract roles.")
 @_reports_errors
 def inspect(
     log: Annotated[
-        Path, typer.Argument(help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap or .csv.")
+        Path,
+        typer.Argument(
+            metavar="LOG", help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap or .csv."
+        ),
     ],
     vehicle: VehicleOpt = None,
+    as_json: Json = False,
 ) -> None:
     """List topics, types, counts, rates, duration, gaps and contract roles of a log.
+
+    The listing goes to stdout (one row per topic, never wrapped in a pipe, so
+    `omavctl inspect LOG | grep TOPIC` works); with --json it goes to stderr and stdout
+    holds one JSON object.
 
     A CSV of another layout without a column map in --vehicle: list its columns with
     ranges and suggest a column map.
     """
-    from rich.console import Console
-
+    from omavctl.cliout import console
     from omavctl.logs import inspect_log, render_inspect
     from omavctl.vehicle import load_vehicle
 
     veh = load_vehicle(vehicle)
     ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
-    render_inspect(ins, Console(highlight=False))
+    render_inspect(ins, console(stdout=not as_json))
+    from omavctl.summary import inspect_json
+
+    _emit(as_json, inspect_json(ins))
 
 
 # ------------------------------------------------------------------------- report
-@app.command()
+@app.command(short_help="Render evaluations as one HTML/Markdown report, verdict first.")
 @_reports_errors
 def report(
     evaluations: Annotated[
         list[Path],
         typer.Argument(
+            metavar="EVAL.json...",
             help="Evaluation files (.json written by evaluate, with their .series.npz next "
             "to them); with several, the report compares them, relative to the first.",
         ),
     ],
     out: Annotated[
         Path,
-        typer.Option("--out", "-o", help="Output report (one self-contained .html, or .md)."),
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="REPORT",
+            help="Output report (one self-contained .html, or .md).",
+        ),
     ],
     fmt: Annotated[
         str | None,
@@ -663,9 +860,16 @@ def report(
         ),
     ] = None,
     quiet: Quiet = False,
+    as_json: Json = False,
 ) -> None:
-    """Render evaluation files as a report: summary, measured vs predicted, residual vs
-    feature, worst segments, diagnosis with the fit command, before/after comparison."""
+    """Render evaluation files as one report, verdict first.
+
+    The verdict (what is missing, how much the error falls with it added, where the
+    model fails, whether its uncertainty can be trusted), then figures: error over time
+    with the worst segments labelled, measured vs predicted with the 2σ band, effect
+    signatures, candidate effects' explained variance, before/after per axis; then the
+    summary tables, residual vs feature, the diagnosis with the fit command.
+    """
     from rich.table import Table
     from rich.text import Text
 
@@ -676,6 +880,9 @@ def report(
     con = _console(quiet)
     with con.status("rendering report"):
         summary = write_report(evaluations, out, fmt)
+    con.print(Text("verdict", style="bold"))
+    for line in summary.verdict:
+        con.print(Text(f"  {line.plain()}"))
     table = Table(title="model RMSE per axis, rad/s^2", title_justify="left")
     table.add_column("evaluation")
     for axis in "xyz":
@@ -701,6 +908,30 @@ def report(
         con.print(f"  {last.fit_command}", markup=False)
     figures = f", {summary.figures} figures" if summary.fmt == "html" else ""
     con.print(f"wrote {out} ({summary.fmt}{figures})", markup=False)
+    _emit(
+        as_json,
+        {
+            "command": "report",
+            "files": {"report": str(out)},
+            "format": summary.fmt,
+            "figures": summary.figures,
+            "evaluations": [
+                {
+                    "label": ev.label,
+                    "path": ev.path,
+                    "model_rmse": ev.model_rmse,
+                    "missing": ev.missing,
+                    "fit_command": ev.fit_command,
+                }
+                for ev in summary.evaluations
+            ],
+            "change": summary.change() if len(summary.evaluations) > 1 else None,
+            "verdict": [
+                {"key": ln.key, "about": ln.who, "text": ln.text, "command": ln.command}
+                for ln in summary.verdict
+            ],
+        },
+    )
 
 
 def main() -> None:

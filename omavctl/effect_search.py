@@ -166,3 +166,101 @@ def search_effects(
         at_bound = min(values[name] - lo, hi - values[name]) < 0.05 * step
         out[name] = SearchResult(name, values[name], se, bool(at_bound))
     return out
+
+
+def _factors(
+    z: np.ndarray, signal_variance: np.ndarray, length_scales: np.ndarray, noise: np.ndarray
+) -> list[tuple[np.ndarray, bool]]:
+    """Cholesky factors of ``K_a = s_a^2 k(z, z) + sigma_a^2 I`` per axis (z (m, d))."""
+    from scipy.linalg import cho_factor
+
+    out = []
+    for a in range(3):
+        zl = z / length_scales[a]
+        sq = (zl * zl).sum(1)
+        k = signal_variance[a] * np.exp(
+            -0.5 * np.maximum(sq[:, None] + sq[None] - 2 * zl @ zl.T, 0)
+        )
+        k[np.diag_indices_from(k)] += noise[a]
+        out.append(cho_factor(k, lower=True))
+    return out
+
+
+def gls_search(
+    samples: Sequence[ResidualSamples],
+    train_index: np.ndarray,
+    start: dict[str, SearchResult],
+    x_linear: np.ndarray,
+    prior: tuple[np.ndarray, np.ndarray],
+    z_train: np.ndarray,
+    hyper: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> dict[str, SearchResult]:
+    """The searched effects again, jointly with the GP: at the training points.
+
+    The first search profiles only the linear effects out, so whatever the GP will
+    explain (a smooth function of its inputs: rotor interference, say) biases it.
+    Here, for a trial value, the residual at the training points (indices
+    ``train_index`` into the stacked samples) minus the exact form is scored by
+    the generalised least squares of the joint step (:func:`omavctl.fit.joint_effects`):
+    ``J = sum_a r_a^T K_a^-1 r_a + |(theta - m) / s|^2`` with the linear effects'
+    theta profiled (x_linear (m, 3, p) their regressors there, prior (m, s)),
+    ``K_a`` the GP covariance with hyperparameters ``hyper`` = (target means,
+    signal variances, length scales, noise variances) at the normalised inputs
+    z_train (m, d). Standard error from the curvature: ``2 / J''`` (J is minus
+    twice a log-likelihood). Coordinate descent over several effects.
+    """
+    from scipy.linalg import cho_solve
+
+    mean, sv, ls, nv = hyper
+    chol = _factors(z_train, sv, ls, nv)
+    residual = np.concatenate([s.residual for s in samples])[train_index]
+    p = x_linear.shape[2]
+    p_mean, p_std = prior
+    kx = [cho_solve(chol[a], x_linear[:, a, :]) for a in range(3)]
+    a_mat = np.diag(1.0 / p_std**2) + sum(x_linear[:, a, :].T @ kx[a] for a in range(3))
+    values = {n: r.value for n, r in start.items()}
+    exact_cache: dict[tuple[str, float], np.ndarray] = {}
+
+    def exact(name: str, v: float) -> np.ndarray:
+        key = (name, v)
+        if key not in exact_cache:
+            exact_cache[key] = np.concatenate([s.exact(name, v) for s in samples])[train_index]
+        return exact_cache[key]
+
+    def objective(name: str, v: float) -> float:
+        y = residual - exact(name, v) - mean
+        for other, w in values.items():
+            if other != name:
+                y = y - exact(other, w)
+        ky = [cho_solve(chol[a], y[:, a]) for a in range(3)]
+        j = sum(float(y[:, a] @ ky[a]) for a in range(3))
+        if p:
+            b = p_mean / p_std**2 + sum(x_linear[:, a, :].T @ ky[a] for a in range(3))
+            theta = np.linalg.solve(a_mat, b)
+            # min over theta of the quadratic form: J - b^T A^-1 b + m^T B^-1 m
+            j += float(p_mean @ (p_mean / p_std**2)) - float(b @ theta)
+        return j
+
+    for _ in range(SWEEPS if len(values) > 1 else 1):
+        for name in values:
+            lo, hi = get_effect(name).search  # type: ignore[misc]
+            grid = np.linspace(lo, hi, GRID)
+            costs = [objective(name, float(v)) for v in grid]
+            best = float(grid[int(np.argmin(costs))])
+            values[name] = _refine(
+                lambda v, n=name: objective(n, v), lo, hi, best, 2 * (hi - lo) / (GRID - 1)
+            )
+    out = {}
+    for name, v in values.items():
+        lo, hi = get_effect(name).search  # type: ignore[misc]
+        h = 2e-3 * (hi - lo)
+        a, b = max(lo, v - h), min(hi, v + h)
+        mid = 0.5 * (a + b)
+        curv = (objective(name, b) - 2 * objective(name, mid) + objective(name, a)) / (
+            (0.5 * (b - a)) ** 2
+        )
+        se = math.sqrt(2.0 / curv) if curv > 0 else float("inf")
+        step = (hi - lo) / (GRID - 1)
+        at_bound = min(v - lo, hi - v) < 0.05 * step
+        out[name] = SearchResult(name, v, se, bool(at_bound))
+    return out

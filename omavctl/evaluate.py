@@ -562,7 +562,9 @@ def diagnose(
         after = after - best.contribution
         pool.pop(best.name)
         ranking = score_effects(after, pool, blocks, model_std, floor, refit)
-    learned = score_effects(residual, regs, blocks)
+    # what the physics-free residual behaves like, with the same materiality: an
+    # "effect" below the measurement's own noise is not claimed as learned
+    learned = score_effects(residual, regs, blocks, noise_floor=floor)
     unexplained = unexplained_structure(after, features, sg.dt)
     return {
         "method": {
@@ -585,13 +587,33 @@ def diagnose(
     }
 
 
+def _where(given: str, absolute: str | None) -> str:
+    """A file recorded by fit (as given there, and absolute) as typed from here:
+    the absolute record when it exists (fit may have run elsewhere), else as given."""
+    from omavctl.cliout import display_path
+
+    if absolute and Path(absolute).exists():
+        return display_path(absolute)
+    return display_path(given) if Path(given).exists() else given
+
+
 def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
-    """The ``omavctl fit`` command that refits ``model`` with ``effect`` added."""
+    """The ``omavctl fit`` command that refits ``model`` with ``effect`` added.
+
+    Paths are valid from the current directory (the logs and vehicle file that fit
+    read, the new model beside ``model_path``) and every word is shell-quoted.
+    """
+    from omavctl.cliout import display_path, shell_join
+
     prov = model.provenance
-    sources = [s.get("path") or s.get("name") for s in prov.get("sources", [])]
+    sources = [
+        _where(str(s.get("path") or s.get("name")), s.get("abspath"))
+        for s in prov.get("sources", [])
+        if s.get("path") or s.get("name")
+    ]
     effects = [*model.effects, effect]
-    stem = Path(model_path).with_suffix("")
-    parts = ["omavctl", "fit", *[str(s) for s in sources if s]]
+    stem = Path(display_path(model_path)).with_suffix("")
+    parts = ["omavctl", "fit", *sources]
     parts += ["--effects", ",".join(effects), "--out", f"{stem}+{effect}.npz"]
     kmed = prov.get("kmedoids", {})
     if "points" in kmed:
@@ -611,8 +633,8 @@ def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
             f"{'' if lo is None else f'{lo:g}'}:{'' if hi is None else f'{hi:g}'}",
         ]
     if prov.get("vehicle_path"):
-        parts += ["--vehicle", str(prov["vehicle_path"])]
-    return " ".join(parts)
+        parts += ["--vehicle", _where(str(prov["vehicle_path"]), prov.get("vehicle_abspath"))]
+    return shell_join(parts)
 
 
 # ----------------------------------------------------------------- evaluate
@@ -669,6 +691,8 @@ def evaluate(
                 "name": p.name,
                 "sha256": sha256_of(p),
                 "format": flight.format,
+                # absolute time of the series' t = 0 on the log's own clock
+                "t0": float(flight.t0),
                 "duration": float(flight.t[-1] - flight.t[0]),
                 "samples": s.n,
                 "samples_total": s.total,
@@ -756,6 +780,11 @@ def evaluate(
         tracking = {a: float(terr[i]) for i, a in enumerate(AXES)}
         tracking["mean"] = float(terr.mean())
     diagnosis = diagnose(samples, model, mean0, series["std_0"], features, sg)
+    # regressors of the named effects (or the top candidate) for the report's
+    # effect-signature figures
+    shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
+    for name in shown:
+        series[f"regressor_{name}"] = np.concatenate([s.regressors[name] for s in samples])
     if diagnosis["missing"]:
         top = diagnosis["missing"][0]
         diagnosis["fit_command"] = fit_command(mpaths[0], model, top)

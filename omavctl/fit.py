@@ -45,7 +45,7 @@ from threadpoolctl import threadpool_limits
 
 from omavctl import __version__
 from omavctl.control_loss import out_of_control
-from omavctl.effect_search import SearchResult, search_effects
+from omavctl.effect_search import SearchResult, gls_search, search_effects
 from omavctl.errors import ConfigError, LogError, ModelError
 from omavctl.logs.types import FlightLog
 from omavctl.model import EffectEstimate, ResidualGP, check_vehicle, load_model
@@ -457,8 +457,8 @@ def fit_hyperparameters(
         flat = [input_names[j] for j in np.flatnonzero(length >= 0.99 * _LENGTH_BOUNDS[1])]
         if flat:
             notes.append(
-                f"axis {name}: the residual does not vary with {', '.join(flat)} "
-                "(length scale at its upper bound)"
+                f"axis {name}: the residual varies little with {', '.join(flat)} "
+                f"(length scale at its upper bound, {_LENGTH_BOUNDS[1]:g} input stds)"
             )
         sharp = [input_names[j] for j in np.flatnonzero(length <= 1.01 * _LENGTH_BOUNDS[0])]
         if sharp:
@@ -646,9 +646,14 @@ def sha256_of(path: Path) -> str:
 def _source(item: str | Path | FlightLog) -> dict[str, Any]:
     path = item.path if isinstance(item, FlightLog) else Path(item)
     digest = sha256_of(path) if path.exists() else None
-    # the path as given (relative paths stay relative): evaluate prints the fit
-    # command that refits with another effect from the same logs
-    return {"name": path.name, "path": str(path), "sha256": digest}
+    # the path as given and absolute: evaluate prints the fit command that refits
+    # with another effect from the same logs, with paths valid where it runs
+    return {
+        "name": path.name,
+        "path": str(path),
+        "abspath": str(path.resolve()),
+        "sha256": digest,
+    }
 
 
 # ---------------------------------------------------------------- pipeline
@@ -841,22 +846,53 @@ def fit_model(
         }
     timings["kmedoids"] = time.perf_counter() - t0
 
-    # 5. GP hyperparameters
+    # 5. GP hyperparameters; lags and delays once more jointly with the GP
+    # (generalised least squares at the training points, linear effects profiled),
+    # twice: the first hyperparameters saw the residual of the first, biased search
     t0 = time.perf_counter()
     report("fitting GP hyperparameters", 0.0)
     in_mean, in_scale = _normalisation(train_x)
     floor = measurement_noise_std(samples, sg)
-    # one BLAS thread: the matrices are small (points x points) and threads
-    # fighting over 2 cores made fit time swing 2x (profiled)
-    with threadpool_limits(1):
-        axes, t_mean, sv, ls, gp_notes = fit_hyperparameters(
+    refine = bool(found) and prior_model is None
+    p_mean, p_std = effect_prior(names, first_pass, vehicle)
+    x_tr = (
+        np.concatenate([train_reg[nm] for nm in names], axis=-1)
+        if names
+        else np.zeros((train_x.shape[0], 3, 0))
+    )
+
+    def hyperparameters(targets: np.ndarray) -> tuple[Any, ...]:
+        # one BLAS thread: the matrices are small (points x points) and threads
+        # fighting over 2 cores made fit time swing 2x (profiled)
+        with threadpool_limits(1):
+            return fit_hyperparameters(
+                (train_x - in_mean) / in_scale,
+                targets,
+                seed=seed,
+                restarts=restarts,
+                input_names=feature_names(features),
+                noise_floor=floor,
+            )
+
+    axes, t_mean, sv, ls, gp_notes = hyperparameters(train_y)
+    for gls_pass in range(2 if refine else 0):
+        found = gls_search(
+            original,
+            idx,
+            found,
+            x_tr,
+            (p_mean, p_std),
             (train_x - in_mean) / in_scale,
-            train_y,
-            seed=seed,
-            restarts=restarts,
-            input_names=feature_names(features),
-            noise_floor=floor,
+            (t_mean, sv, ls, np.array([a.noise_std**2 for a in axes])),
         )
+        samples = _without_searched(original, found)
+        residual = np.concatenate([s.residual for s in samples])
+        targets_all = residual.copy()
+        if names:
+            targets_all -= x_eff @ first_pass.theta
+        train_y = targets_all[idx]
+        if gls_pass == 0:
+            axes, t_mean, sv, ls, gp_notes = hyperparameters(train_y)
     timings["gp"] = time.perf_counter() - t0
 
     # 6. effects jointly with the GP (explicit basis functions, R&W 2.7)
@@ -959,6 +995,9 @@ def fit_model(
         "time_window": None if time_window is None else list(time_window),
         # evaluate's suggested refit command passes it as --vehicle
         "vehicle_path": vehicle.source if Path(vehicle.source).is_file() else None,
+        "vehicle_abspath": (
+            str(Path(vehicle.source).resolve()) if Path(vehicle.source).is_file() else None
+        ),
         "command_units": dict(vehicle.command_units),
     }
     if gain is not None and gain_se is not None:
@@ -1112,13 +1151,20 @@ def _search_step(
         return samples, {}
     linear = [nm for nm in names if nm not in searched]
     found = search_effects(samples, searched, linear)
+    return _without_searched(samples, found), found
+
+
+def _without_searched(
+    samples: Sequence[ResidualSamples], found: Mapping[str, SearchResult]
+) -> list[ResidualSamples]:
+    """The samples with the exact residual of every searched effect removed."""
     out = []
     for s in samples:
         rest = s.residual.copy()
-        for nm in searched:
-            rest -= s.exact(nm, found[nm].value)
+        for nm, r in found.items():
+            rest -= s.exact(nm, r.value)
         out.append(replace(s, residual=rest))
-    return out, found
+    return out
 
 
 def _merged(
@@ -1143,7 +1189,7 @@ def _search_notes(found: Mapping[str, SearchResult]) -> list[str]:
         p = get_effect(r.name).parameters[0]
         notes.append(
             f"{r.name}: {p.name} = {r.value * 1e3:.1f} ± {r.stderr * 1e3:.1f} ms "
-            "(exact form, 1-D search with the linear effects profiled out, jackknife error)"
+            "(exact form, 1-D search jointly with the GP and the linear effects)"
         )
         if r.at_bound:
             lo, hi = get_effect(r.name).search  # type: ignore[misc]

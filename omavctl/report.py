@@ -28,22 +28,21 @@ from __future__ import annotations
 
 import base64
 import html
-import io
-import itertools
 import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeGuard
+from typing import Any, TypeGuard
 
 import numpy as np
 
 from omavctl.atomic import atomic_path
 from omavctl.errors import OmavctlError
-
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+from omavctl.report_figures import AXIS_COLOURS
+from omavctl.report_figures import png as _png
+from omavctl.report_figures import runs as _runs
+from omavctl.report_figures import style as _style
 
 __all__ = [
     "FORMATS",
@@ -295,28 +294,6 @@ def format_from_suffix(out: str | Path) -> str:
 
 
 # ------------------------------------------------------------------- figures
-def _png(fig: Figure) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
-    return buf.getvalue()
-
-
-def _style() -> Any:
-    """matplotlib's default style, whatever the user's matplotlibrc says."""
-    import matplotlib.style
-
-    return matplotlib.style.context("default")
-
-
-def _runs(t: np.ndarray, dt: float) -> list[slice]:
-    """Contiguous stretches of ``t`` (breaks where the step exceeds 1.5 dt)."""
-    if t.size == 0:
-        return []
-    cuts = np.flatnonzero(np.diff(t) > 1.5 * dt) + 1
-    edges = [0, *cuts.tolist(), t.size]
-    return [slice(a, b) for a, b in itertools.pairwise(edges)]
-
-
 def _time_figure(series: Mapping[str, np.ndarray], sel: np.ndarray, dt: float, title: str) -> bytes:
     """Measured vs predicted angular acceleration of one log, one panel per axis."""
     from matplotlib.figure import Figure
@@ -355,7 +332,8 @@ def _time_figure(series: Mapping[str, np.ndarray], sel: np.ndarray, dt: float, t
                 ax.plot(t[run], pred[run, i], color="C0", lw=1.0, label="model" if first else None)
             ax.set_ylabel(rf"$\dot\omega_{AXES[i]}$, rad/s²")
             ax.grid(True, lw=0.3, alpha=0.6)
-        axs[0].legend(loc="upper right", ncol=4, fontsize=8)
+        fig.legend(*axs[0].get_legend_handles_labels(), loc="outside upper center", ncol=4,
+                   fontsize=8, frameon=False)  # fmt: skip
         axs[0].set_title(title, fontsize=10)
         axs[-1].set_xlabel("time, s")
         return _png(fig)
@@ -374,7 +352,7 @@ def _feature_unit(name: str) -> str:
 
 
 def _binned_figure(binned: Mapping[str, Any], which: str, title: str) -> bytes | None:
-    """Residual mean (solid) and RMS (dotted) per quantile bin of each feature."""
+    """Residual mean per quantile bin of each feature, every panel on the same scale."""
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
@@ -394,17 +372,14 @@ def _binned_figure(binned: Mapping[str, Any], which: str, title: str) -> bytes |
             wspace=0.22,
             hspace=0.5,
         )
-        axs = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
+        axs = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False, sharey=True)).ravel()
         for ax, name in zip(axs, names, strict=False):
             entry = binned[name]
             x = np.asarray(entry.get("centers", []), float)
             for i, axis in enumerate(AXES):
                 mean = np.asarray(_get(entry, f"{which}_mean", axis, default=[]), float)
-                rms = np.asarray(_get(entry, f"{which}_rms", axis, default=[]), float)
                 if mean.shape == x.shape:
-                    ax.plot(x, mean, "-o", color=f"C{i}", ms=2.5, lw=1.0)
-                if rms.shape == x.shape:
-                    ax.plot(x, rms, ":", color=f"C{i}", lw=1.2)
+                    ax.plot(x, mean, "-o", color=AXIS_COLOURS[i], ms=2.5, lw=1.0)
             ax.axhline(0.0, color="0.6", lw=0.5)
             unit = _feature_unit(name)
             ax.set_xlabel(f"{name}, {unit}" if unit else name, fontsize=8)
@@ -415,11 +390,11 @@ def _binned_figure(binned: Mapping[str, Any], which: str, title: str) -> bytes |
         for ax in axs[len(names) :]:
             ax.set_visible(False)
         handles = [
-            Line2D([], [], color=f"C{i}", lw=1.5, label=f"axis {a}") for i, a in enumerate(AXES)
+            Line2D([], [], color=AXIS_COLOURS[i], lw=1.5, label=f"axis {a}")
+            for i, a in enumerate(AXES)
         ]
         handles += [
-            Line2D([], [], color="k", ls="-", marker="o", ms=2.5, label="mean"),
-            Line2D([], [], color="k", ls=":", label="RMS"),
+            Line2D([], [], color="k", ls="-", marker="o", ms=2.5, label="mean per bin"),
         ]
         fig.legend(
             handles=handles,
@@ -430,29 +405,6 @@ def _binned_figure(binned: Mapping[str, Any], which: str, title: str) -> bytes |
             frameon=False,
         )
         fig.suptitle(title, fontsize=10, y=1 - 0.05 / height, va="top")
-        return _png(fig)
-
-
-def _comparison_figure(labels: Sequence[str], rmse: Sequence[Sequence[float]]) -> bytes:
-    """Grouped bars: model RMSE per axis (groups) per evaluation file (bars)."""
-    from matplotlib.figure import Figure
-
-    k = len(labels)
-    width = 0.8 / k
-    with _style():
-        fig = Figure(figsize=(9, 3.8), dpi=DPI, layout="constrained")
-        ax = fig.subplots()
-        x = np.arange(len(AXES))
-        for j, (label, vals) in enumerate(zip(labels, rmse, strict=True)):
-            bars = ax.bar(
-                x + (j - (k - 1) / 2) * width, vals, width, label=label, color=f"C{j % 10}"
-            )
-            ax.bar_label(bars, fmt="%.3g", fontsize=7)
-        ax.set_xticks(x, [f"axis {a}" for a in AXES])
-        ax.set_ylabel("model RMSE, rad/s²")
-        ax.grid(True, axis="y", lw=0.3, alpha=0.6)
-        ax.legend(fontsize=8)
-        ax.set_title("model RMSE per axis, per evaluation file", fontsize=10)
         return _png(fig)
 
 
@@ -531,7 +483,11 @@ def _param_lines(
                 skipped.append(labels[i])
                 continue
             err = f" ± {_g(errs[i], 2)}" if i < len(errs) else ""
-            lines.append(f"{labels[i]} = {_g(v)}{err}{' ' + unit if unit else ''}".rstrip())
+            note = ""
+            if i < len(errs) and _finite(errs[i]) and errs[i] == 0 and _finite(v) and v != 0:
+                # the jackknife spread collapses at a bound of the plausible range
+                err, note = "", " (at its bound: no std. error)"
+            lines.append(f"{labels[i]} = {_g(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
         offset += len(vals)
     if skipped:
         lines.append(Span(f"not excited: {', '.join(skipped)}", "em"))
@@ -700,8 +656,9 @@ def _binned_section(tree: Mapping[str, Any], k: int, label: str, figures: bool) 
     blocks.append(
         Para(
             "Residual (measured − predicted angular acceleration, rad/s²) in quantile bins "
-            "of each input and state feature: the mean per bin (solid) shows structure a "
-            "missing effect leaves, the RMS per bin (dotted) where the prediction fails."
+            "of each input and state feature, all panels on one scale: a mean that moves "
+            "away from 0 is structure a missing effect leaves (the RMS per bin is in the "
+            "evaluation JSON, 'binned')."
         )
     )
     for which, title in (("model", "model residual"), ("nominal", "nominal residual")):
@@ -712,47 +669,38 @@ def _binned_section(tree: Mapping[str, Any], k: int, label: str, figures: bool) 
 
 
 def _worst_section(tree: Mapping[str, Any], k: int, label: str) -> list[Block]:
+    from omavctl.verdict import activity
+
     blocks: list[Block] = [Heading(3, label, f"worst-{k}")]
     segs = tree.get("worst_segments") or []
     if not segs:
         return [*blocks, Para("No worst segments in this evaluation.", note=True)]
-    rows: list[list[Cell]] = []
-    for i, s in enumerate(segs):
-        start, end = s.get("start"), s.get("end")
-        rows.append(
-            [
-                str(i + 1),
-                str(s.get("log", "?")),
-                _g(start),
-                _g(end),
-                *(_g(v) for v in _axes_of(s.get("rmse"))),
-                ", ".join(_g(v, 3) for v in _as_list(s.get("attitude_deg", []))),
-                ", ".join(_g(v, 3) for v in _as_list(s.get("rate", []))),
-                ", ".join(_g(v, 3) for v in _as_list(s.get("u", []))),
-            ]
-        )
+    rows: list[list[Cell]] = [
+        [
+            str(i + 1),
+            str(s.get("log", "?")),
+            f"{_g(s.get('start'), 3)}–{_g(s.get('end'), 3)}",
+            *(_g(v, 3) for v in _axes_of(s.get("rmse"))),
+            activity(s),
+        ]
+        for i, s in enumerate(segs)
+        if isinstance(s, Mapping)
+    ]
     blocks.append(
         Para(
-            "Time windows where the model's error is largest (RMSE per axis, rad/s²), with "
-            "what the vehicle was doing there: mean |roll, pitch, yaw| in deg, mean |body "
-            "rate| in rad/s, and mean |scaled commanded wrench| (f/m in m/s², I⁻¹τ in rad/s²)."
+            "Time windows where the model's error is largest (RMSE per axis, rad/s²; numbered "
+            "as in the error-over-time figures), with what the vehicle was doing there: its "
+            "tilt (mean |roll|, |pitch|), its fastest rotation (mean |body rate|) and its "
+            "thrust when far from hover. The mean |attitude|, |rate| and |scaled wrench| "
+            "vectors are in the evaluation JSON ('worst_segments')."
         )
     )
     blocks.append(
         Table(
-            columns=[
-                "#",
-                "log",
-                "start, s",
-                "end, s",
-                *AXES,
-                "|attitude|, deg",
-                "|rate|, rad/s",
-                "|wrench|",
-            ],
-            groups=[("", 4), ("RMSE, rad/s²", 3), ("", 3)],
+            columns=["#", "log", "time, s", *AXES, "what the vehicle was doing"],
+            groups=[("", 3), ("RMSE, rad/s²", 3), ("", 1)],
             rows=rows,
-            align="rlrrrrrrrr",
+            align="rlrrrrl",
         )
     )
     return blocks
@@ -839,7 +787,9 @@ def _fmt_any(v: Any) -> str:
     return _g(v) if isinstance(v, int | float) and not isinstance(v, bool) else str(v)
 
 
-def _diagnosis_section(tree: Mapping[str, Any], k: int, label: str) -> list[Block]:
+def _diagnosis_section(
+    tree: Mapping[str, Any], k: int, label: str, learned_as: str | None = None
+) -> list[Block]:
     blocks: list[Block] = [Heading(3, label, f"diagnosis-{k}")]
     diag = tree.get("diagnosis")
     if not isinstance(diag, Mapping):
@@ -887,19 +837,30 @@ def _diagnosis_section(tree: Mapping[str, Any], k: int, label: str) -> list[Bloc
     else:
         blocks.append(Para("None found (no feature correlation, no spectral peak)."))
     learned = diag.get("learned") or []
-    if learned:
-        blocks.append(Heading(4, "What the GP has learned"))
+    if learned and learned_as is not None:
+        blocks.append(Heading(4, "What the nominal model's residual resembles"))
+        blocks.append(
+            Para(
+                f"Same as for {learned_as}: this ranking is fitted to the nominal model's "
+                "residual on the same logs, so it does not depend on the model.",
+                note=True,
+            )
+        )
+    elif learned:
+        blocks.append(Heading(4, "What the nominal model's residual resembles"))
         found = [
             str(e.get("name"))
             for e in learned
             if isinstance(e, Mapping) and e.get("missing") is True
         ]
         text = (
-            "The same ranking on the nominal model's residual: which physical effects the "
-            "learned residual (effects + GP) behaves like."
+            "The same ranking on the nominal model's residual (measured − rigid body): which "
+            "physical effects the data shows beyond the nominal model, whatever the model "
+            "learned. A high rank is not proof that the effect is present: effects whose "
+            "signatures look alike stand in for one another."
         )
         if found:
-            text += " It has learned: " + ", ".join(found) + "."
+            text += " Resembles most: " + ", ".join(found) + "."
         blocks.append(Para(text))
         blocks.append(_ranking_table(learned, torque_unknown, "learned"))
     return blocks
@@ -931,13 +892,6 @@ def _comparison_section(evals: Sequence[Evaluation], figures: bool) -> list[Bloc
                 note=True,
             )
         )
-    blocks.append(
-        FigureBlock(
-            _comparison_figure(labels, rmse) if figures else b"",
-            "model RMSE per axis per file",
-            "model RMSE per axis, per evaluation file",
-        )
-    )
     rows: list[list[Cell]] = []
     for j, (tree, _, label) in enumerate(evals):
         models = tree.get("models", []) or []
@@ -980,11 +934,16 @@ def _comparison_section(evals: Sequence[Evaluation], figures: bool) -> list[Bloc
 def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Document:
     """The report as format-neutral blocks; ``figures`` False leaves the PNGs empty
     (for formats that cannot show them)."""
+    from omavctl.report_top import figure_sections, verdict_section
+
     doc = Document("omavctl report")
     names = ", ".join(label for _, _, label in evals)
     doc.add(Heading(1, "omavctl report"))
+    doc.add(*verdict_section(evals))
     doc.add(Para(f"Evaluation files: {names}. Angular accelerations in rad/s²."))
     sections = [
+        ("verdict", "Verdict"),
+        *([("figures", "What the figures show")] if figures else []),
         ("summary", "1. Summary"),
         ("time", "2. Measured vs predicted angular acceleration"),
         ("binned", "3. Residual vs feature"),
@@ -994,6 +953,8 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
     if len(evals) > 1:
         sections.append(("comparison", "6. Before/after comparison"))
     doc.add(Bullets([Span(f"#{anchor}|{title}", "link") for anchor, title in sections]))
+    doc.add(*figure_sections(evals, figures))
+    sections = sections[2 if figures else 1 :]
 
     doc.add(Heading(2, sections[0][1], "summary"))
     doc.add(*_summary_overview(evals))
@@ -1010,7 +971,10 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
         doc.add(*_worst_section(tree, k, label))
     doc.add(Heading(2, sections[4][1], "diagnosis"))
     for k, (tree, _, label) in enumerate(evals):
-        doc.add(*_diagnosis_section(tree, k, label))
+        same = k > 0 and _get(tree, "diagnosis", "learned") == _get(
+            evals[0][0], "diagnosis", "learned"
+        )
+        doc.add(*_diagnosis_section(tree, k, label, evals[0][2] if same else None))
     if len(evals) > 1:
         doc.add(Heading(2, sections[5][1], "comparison"))
         doc.add(*_comparison_section(evals, figures))
@@ -1020,9 +984,12 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
 # -------------------------------------------------------------------- HTML
 CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;
-margin:0 auto;max-width:1240px;padding:1em 1.5em;color:#222;line-height:1.4}
+margin:0 auto;max-width:1240px;padding:1em 1.5em;color:#222;line-height:1.4;
+overflow-wrap:break-word}
+@media (max-width:900px){body{padding:.5em .8em}}
 h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;margin-top:2em}h3{margin-top:1.5em}
-table{border-collapse:collapse;margin:.6em 0;font-size:.88em}
+div.tw{max-width:100%;overflow-x:auto}
+table{border-collapse:collapse;margin:.6em 0;font-size:.85em}
 th,td{border:1px solid #ccc;padding:.2em .5em;vertical-align:top;text-align:left}
 th{background:#f2f2f2}td.n{text-align:right;font-variant-numeric:tabular-nums}
 pre{background:#f6f6f6;border:1px solid #ddd;padding:.6em;white-space:pre-wrap;
@@ -1058,7 +1025,7 @@ def _html_cell(c: Cell) -> str:
 
 
 def _html_table(t: Table) -> str:
-    out = ["<table>"]
+    out = ['<div class="tw"><table>']
     if t.caption:
         out.append(f"<caption>{html.escape(t.caption)}</caption>")
     out.append("<thead>")
@@ -1078,7 +1045,7 @@ def _html_table(t: Table) -> str:
             for i, c in enumerate(row)
         )
         out.append(f"<tr>{cells}</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "\n".join(out)
 
 
@@ -1189,7 +1156,8 @@ def _md(doc: Document) -> str:
         elif isinstance(b, Table):
             parts.append(_md_table(b))
         elif isinstance(b, FigureBlock):
-            parts.append(f"*Figure not available in Markdown: {_md_text(b.caption)}.*")
+            caption = _md_text(b.caption.rstrip("."))
+            parts.append(f"*Figure not available in Markdown: {caption}.*")
         elif isinstance(b, Code):
             fence = "````" if "```" in b.text else "```"
             parts.append(f"{fence}\n{b.text}\n{fence}")
@@ -1231,6 +1199,7 @@ class ReportSummary:
     fmt: str
     figures: int
     evaluations: list[EvaluationSummary]
+    verdict: list[Any] = field(default_factory=list)
 
     def change(self) -> dict[str, str]:
         """Per-axis % change of the model RMSE from the first file to the last."""
@@ -1282,4 +1251,7 @@ def write_report(
         )
         for (tree, _, label), p in zip(evals, paths, strict=True)
     ]
-    return ReportSummary(out, fmt, text.count("data:image/png;base64,"), summaries)
+    from omavctl.verdict import report_verdict
+
+    lines = report_verdict([(tree, label) for tree, _, label in evals])
+    return ReportSummary(out, fmt, text.count("data:image/png;base64,"), summaries, lines)

@@ -43,7 +43,7 @@ fit {b}/flight-01 --effects rotational_drag --points 40 --restarts 1 --out {b}/g
 evaluate {b}/flight-02.bag --model {b}/gp-drag.npz --out {b}/eval-drag.json -q
 report {b}/eval.json {b}/eval-drag.json --out {b}/report.html -q
 plan --task {b}/fig8.csv --model {b}/gp-drag.npz --candidates 2 --sims 1 --test-points 100
-    --scores {b}/scores.csv --out {b}/informative.csv -q
+    --scores {b}/scores.csv --report {b}/plan.html --out {b}/informative.csv -q
 """
 
 
@@ -90,3 +90,5 @@ def test_plan_writes_the_next_reference(demo):
     assert header.startswith("t,x,y,z,roll,pitch,yaw")
     rows = (demo / "scores.csv").read_text().splitlines()
     assert rows[0].startswith("candidate,") and len(rows) == 3
+    plan = (demo / "plan.html").read_text()
+    assert plan.count("data:image/png;base64,") == 2 and "Most informative reference" in plan

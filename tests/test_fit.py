@@ -20,7 +20,13 @@ from omavctl.logs import align, read_log, read_raw, write_log
 from omavctl.model import load_model
 from omavctl.physics.rigid_body import euler_rates_to_body
 from omavctl.plant import simulate, truth_from_tree
-from omavctl.signal import DEFAULT_SG_ORDER, DEFAULT_SG_WINDOW, SavitzkyGolay, residual_samples
+from omavctl.signal import (
+    DEFAULT_FEATURES,
+    DEFAULT_SG_ORDER,
+    DEFAULT_SG_WINDOW,
+    SavitzkyGolay,
+    residual_samples,
+)
 from omavctl.tasks import fig8
 from omavctl.trajectory import Trajectory, write_trajectory
 
@@ -117,10 +123,14 @@ EFFECT_CASES = [
     ("name", "params", "reference"), EFFECT_CASES, ids=[c[0] for c in EFFECT_CASES]
 )
 def test_hidden_effect_is_recovered(vehicle, name, params, reference):
-    """Ideal actuators, default sensor noise, one hidden effect: fit --effects finds it."""
+    """Ideal actuators, default sensor noise, one hidden effect: fit --effects finds it.
+
+    On the paper's GP inputs (the commanded wrench): with body-rate inputs (the
+    default) the GP can represent drag itself and the two share it
+    (:func:`test_drag_with_rate_inputs`)."""
     truth = truth_from_tree({"ideal": True, "effects": {name: params}}, vehicle)
     flight = align(simulate(reference(), vehicle, truth, seed=0).log)
-    result = fit_model([flight], vehicle, effects=[name], points=30, restarts=0)
+    result = fit_model([flight], vehicle, effects=[name], points=30, restarts=0, features="wrench")
     est = result.summary.effects[name]
     ((pname, true),) = params.items()
     value, stderr = est.values[pname], est.stderr[pname]
@@ -131,10 +141,21 @@ def test_hidden_effect_is_recovered(vehicle, name, params, reference):
     np.testing.assert_array_equal(result.model.effects[name].values[pname], value)
 
 
+def test_drag_with_rate_inputs(vehicle):
+    """With the default inputs (body rates among them) drag is still found, the GP
+    taking a little of it (D within 15 %)."""
+    name, params, reference = EFFECT_CASES[0]
+    truth = truth_from_tree({"ideal": True, "effects": {name: params}}, vehicle)
+    flight = align(simulate(reference(), vehicle, truth, seed=0).log)
+    result = fit_model([flight], vehicle, effects=[name], points=30, restarts=0)
+    assert result.model.features == DEFAULT_FEATURES
+    np.testing.assert_allclose(result.summary.effects[name].values["D"], params["D"], rtol=0.15)
+
+
 # ------------------------------------------------------- GP on imperfections
 def test_gp_predicts_the_residual_of_a_held_out_flight(flights, fitted, vehicle):
     model = load_model(fitted)
-    assert model.n_train == 150 and model.features == "wrench" and not model.effects
+    assert model.n_train == 150 and model.features == DEFAULT_FEATURES and not model.effects
     source = model.provenance["sources"][0]
     assert source["name"] == "train.csv"
     assert source["sha256"] == hashlib.sha256((flights / "train.csv").read_bytes()).hexdigest()
@@ -145,7 +166,7 @@ def test_gp_predicts_the_residual_of_a_held_out_flight(flights, fitted, vehicle)
     print(f"held-out R^2 per axis: {np.round(r2, 3)}")
     assert np.all(r2 >= 0.6), r2
     # pointwise API agrees with the sample API (no effects in this model)
-    np.testing.assert_allclose(model.predict(s.u[:50])[0], mean[:50])
+    np.testing.assert_allclose(model.predict(s.u[:50], s.omega[:50], du=s.du[:50])[0], mean[:50])
     assert np.all(var > 0)
 
 
@@ -200,7 +221,7 @@ def test_prior_is_augmented_and_rate_features(flights, fitted, tmp_path):
     bad = tmp_path / "bad.npz"
     result = runner.invoke(app, [*args, "--features", "wrench+rate", "--out", str(bad)])
     assert _error_line(result) == (
-        f"error: {fitted}: prior model uses --features wrench, this fit wrench+rate"
+        f"error: {fitted}: prior model uses --features {DEFAULT_FEATURES}, this fit wrench+rate"
     )
     assert not bad.exists()
     # body-rate features: 9 inputs, predictions need omega
@@ -235,7 +256,7 @@ def test_cli_defaults_are_the_library_defaults():
     assert defaults["restarts"] == fit_module.DEFAULT_RESTARTS
     assert defaults["sg_window"] == DEFAULT_SG_WINDOW
     assert defaults["sg_order"] == DEFAULT_SG_ORDER
-    assert defaults["features"] == "wrench"
+    assert defaults["features"] == DEFAULT_FEATURES
 
 
 # ------------------------------------------------------------- bad input
@@ -316,10 +337,14 @@ def test_bad_input_is_one_clear_line_and_no_output(flights, tmp_path, kind, make
         (["--sg-window", "10"], "error: --sg-window must be an odd number >= 3, got 10"),
         (
             ["--effects", "wind"],
-            "error: unknown effect 'wind' (known: com_offset, gyro_bias, "
+            "error: unknown effect 'wind' (known: com_offset, command_delay, gyro_bias, "
             "inertia_error, motor_lag, rotational_drag, servo_lag)",
         ),
-        (["--features", "rate"], "error: unknown --features 'rate' (known: wrench, wrench+rate)"),
+        (
+            ["--features", "rate"],
+            "error: unknown --features 'rate' (known: wrench, wrench+rate, wrench+dtorque, "
+            "wrench+rate+dtorque)",
+        ),
     ],
 )
 def test_bad_options_are_one_clear_line(flights, tmp_path, options, message):

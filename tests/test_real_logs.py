@@ -207,9 +207,12 @@ def test_frd_and_flu_csvs_of_one_flight_give_the_same_model(tmp_path: Path, flig
     np.testing.assert_allclose(d_b, d_a, rtol=1e-6, atol=1e-12)
     # and the same predictions anywhere near the flight
     rng = np.random.default_rng(0)
-    u = a.inputs[rng.integers(0, a.n_train, 40)] + 0.1 * rng.standard_normal((40, 6))
+    u = a.inputs[rng.integers(0, a.n_train, 40), :6] + 0.1 * rng.standard_normal((40, 6))
     omega = 0.3 * rng.standard_normal((40, 3))
-    np.testing.assert_allclose(b.predict(u, omega)[0], a.predict(u, omega)[0], rtol=1e-5, atol=1e-8)
+    du = rng.standard_normal((40, 6))
+    np.testing.assert_allclose(
+        b.predict(u, omega, du=du)[0], a.predict(u, omega, du=du)[0], rtol=1e-5, atol=1e-8
+    )
     # a 100 Hz log on the 100 Hz grid: no upsampling note
     assert upsampling_note(read_vehicle_log(frd_path, load_vehicle(frd_vehicle)), a.vehicle) is None
 

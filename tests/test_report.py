@@ -42,7 +42,9 @@ def evals(tmp_path_factory, vehicle) -> Path:
     write_log(d / "train.csv", train, topics=vehicle.topics)
     write_log(d / "held <out>.mcap", held, topics=vehicle.topics)
     for name, effects in (("before", []), ("after", ["rotational_drag"])):
-        fit = fit_model([d / "train.csv"], vehicle, effects=effects, points=40, restarts=0)
+        fit = fit_model(
+            [d / "train.csv"], vehicle, effects=effects, points=40, restarts=0, features="wrench"
+        )
         save_model(d / f"{name}.npz", fit.model)
         write_evaluation(d / f"{name}.json", evaluate([d / f"{name}.npz"], [d / "held <out>.mcap"]))
     return d
@@ -100,10 +102,12 @@ def test_single_report_is_valid_self_contained_html(evals, tmp_path):
     assert doc.errors == [] and doc.stack == []
     assert doc.tags.count("html") == 1 and doc.tags.count("body") == 1
     assert text.startswith("<!DOCTYPE html>")
-    # figures: one time plot for the one log, model and nominal residual vs feature
+    # figures: error over time with the worst segments, the signature of the missing
+    # effect, the candidates' explained variance; measured vs predicted for the one log;
+    # model and nominal residual vs feature
     pngs = [s for s in doc.srcs if s.startswith("data:image/png;base64,")]
-    assert len(pngs) == len(doc.srcs) == summary.figures == 3
-    assert text.count("data:image/png;base64,") == 3
+    assert len(pngs) == len(doc.srcs) == summary.figures == 6
+    assert text.count("data:image/png;base64,") == 6
     assert base64.b64decode(pngs[0].split(",", 1)[1]).startswith(b"\x89PNG\r\n\x1a\n")
     # nothing fetched from anywhere
     for bad in ("http://", "https://", 'src="//', "<script", "<link", "@import", "url("):
@@ -128,7 +132,7 @@ def test_single_report_is_valid_self_contained_html(evals, tmp_path):
     import html
 
     assert f"<pre><code>{html.escape(diag['fit_command'])}</code></pre>" in text
-    assert "What the GP has learned" in text
+    assert "What the nominal model&#x27;s residual resembles" in text
 
 
 def test_two_file_report_compares(evals, tmp_path):
@@ -139,7 +143,8 @@ def test_two_file_report_compares(evals, tmp_path):
     assert parse(text).errors == []
     assert 'id="comparison"' in text
     comparison = text[text.index('id="comparison"') :]
-    assert "data:image/png;base64," in comparison  # the bar figure
+    figures = text[text.index('id="figures"') : text.index('id="summary"')]
+    assert 'alt="model RMSE per axis before and after"' in figures  # the bar figure
     table = comparison[comparison.index("<table>") : comparison.index("</table>")]
     before, after = (json.loads(f.read_text())["metrics"]["model"]["rmse"] for f in files)
     for axis in "xyz":
@@ -148,8 +153,30 @@ def test_two_file_report_compares(evals, tmp_path):
         assert summary.change()[axis] == f"{change:+.1f} %"
     # the hidden effect drives x and y: adding it makes the error fall there
     assert after["x"] < before["x"] and after["y"] < before["y"]
-    # 2 evaluations x (1 time + 2 binned) + the comparison bars
-    assert summary.figures == 7
+    # the before/after bars + 2 evaluations x (error over time, effect signature,
+    # candidates; measured vs predicted, 2 binned)
+    assert summary.figures == 13
+    # the verdict comes first: the missing effect and the % change per axis
+    first = _text_lines(text)[:6]
+    assert first[0] == "omavctl report" and first[1] == "Verdict"
+    head = " ".join(first[2:5])
+    assert "Missing: rotational_drag" in head
+    assert "With rotational_drag added" in head and "falls by" in head
+    for axis in "xyz":
+        change = 100 * (after[axis] / before[axis] - 1)
+        assert f"{axis} {change:+.1f} %".replace("-", "−") in head
+    # the nominal residual's ranking does not depend on the model: shown once
+    assert text.count("Same as for before.json") == 1
+
+
+def _text_lines(html_text: str) -> list[str]:
+    """The visible text of an HTML document, one line per block element."""
+    body = html_text[html_text.index("<body>") :]
+    body = re.sub(r"</(h[1-6]|p|li|tr|figcaption|pre)>", "\n", body)
+    body = re.sub(r"<[^>]+>", "", body)
+    import html as html_mod
+
+    return [ln.strip() for ln in html_mod.unescape(body).splitlines() if ln.strip()]
 
 
 def test_markdown_and_determinism(evals, tmp_path):

@@ -251,4 +251,5 @@ def align(
         rate=float(rate),
         topics=list(raw.topics),
         notes=list(raw.notes) + notes,
+        t0=float(raw.t0) + float(start),
     )

@@ -130,6 +130,8 @@ class FlightLog:
     rate: float
     topics: list[TopicInfo] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: Absolute time (s, the log's own clock, e.g. ROS epoch) of ``t = 0``.
+    t0: float = 0.0
 
     @property
     def dt(self) -> float:

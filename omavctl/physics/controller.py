@@ -80,10 +80,15 @@ def invert_residual(
     Newton's method with a forward-difference Jacobian of ``mu``; rows that
     have converged are not updated further.
     """
-    x = target - model.mean(np.concatenate([u_force, target], axis=-1), omega, du)
+
+    def mean(u: np.ndarray) -> np.ndarray:
+        # models that do not use the command's rate take (u, omega) only
+        return model.mean(u, omega) if du is None else model.mean(u, omega, du)
+
+    x = target - mean(np.concatenate([u_force, target], axis=-1))
     for _ in range(iterations):
         u = np.concatenate([u_force, x], axis=-1)
-        mu = model.mean(u, omega, du)
+        mu = mean(u)
         r = x + mu - target
         if np.max(np.abs(r)) < tol:
             break
@@ -91,7 +96,7 @@ def invert_residual(
         for j in range(3):
             up = u.copy()
             up[..., 3 + j] += step
-            jac[..., :, j] = (model.mean(up, omega, du) - mu) / step
+            jac[..., :, j] = (mean(up) - mu) / step
         jac += np.eye(3)
         x = x - np.linalg.solve(jac, r[..., None])[..., 0]
     return x
@@ -181,7 +186,10 @@ class Controller:
         target = a_star - l_x
         du = state.last_du if state.last_du is not None else np.zeros((x.shape[0], 6))
         if self._has_model:
-            u_tau = invert_residual(target, u_force, self.residual, omega, du=du)
+            uses_rate = getattr(self.residual, "uses_command_rate", False)
+            u_tau = invert_residual(
+                target, u_force, self.residual, omega, du=du if uses_rate else None
+            )
         else:
             u_tau = target
         u_now = np.concatenate([u_force, u_tau], axis=-1)

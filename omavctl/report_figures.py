@@ -1,0 +1,274 @@
+"""Figures of the report that explain rather than list (matplotlib, Agg, PNG bytes).
+
+- :func:`error_figure`: model error over time per axis, the worst segments shaded,
+  numbered and labelled with what the vehicle was doing;
+- :func:`signature_figure`: an effect's signature, the model's error against that
+  effect's regressor per axis with the fitted line through the origin;
+- :func:`candidates_figure`: held-out explained variance of every candidate effect,
+  the threshold, which are missing and which are ambiguous with which;
+- :func:`before_after_figure`: model RMSE per axis per file with the % change.
+
+Legends sit outside the axes (above them) so that they never hide a line; every
+figure has a fixed size and dpi so that the same inputs give the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from omavctl.verdict import activity
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "before_after_figure",
+    "candidates_figure",
+    "error_figure",
+    "png",
+    "runs",
+    "signature_figure",
+    "style",
+]
+
+AXES = ("x", "y", "z")
+DPI = 100
+#: Colours of the three body axes.
+AXIS_COLOURS = ("#1f77b4", "#d62728", "#2ca02c")
+#: Colour of an effect named missing (not an axis colour).
+MISSING_COLOUR = "#7b4fa6"
+
+
+def png(fig: Figure) -> bytes:
+    """The figure as PNG bytes without metadata that changes between runs."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
+    return buf.getvalue()
+
+
+def style() -> Any:
+    """matplotlib's default style, whatever the user's matplotlibrc says."""
+    import matplotlib.style
+
+    return matplotlib.style.context("default")
+
+
+def runs(t: np.ndarray, dt: float) -> list[slice]:
+    """Contiguous stretches of ``t`` (breaks where the step exceeds 1.5 dt)."""
+    if t.size == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(t) > 1.5 * dt) + 1
+    edges = [0, *cuts.tolist(), t.size]
+    return [slice(a, b) for a, b in itertools.pairwise(edges)]
+
+
+def _segment_note(rank: int, seg: Mapping[str, Any]) -> str:
+    rmse = seg.get("rmse") or {}
+    worst = max(AXES, key=lambda a: float(rmse.get(a, 0.0) or 0.0))
+    return (
+        f"#{rank}  {float(seg.get('start', 0)):.1f}–{float(seg.get('end', 0)):.1f} s: "
+        f"{worst} error {float(rmse.get(worst, 0.0)):.3g} rad/s², {activity(seg)}"
+    )
+
+
+def error_figure(
+    t: np.ndarray,
+    err: np.ndarray,
+    std: np.ndarray,
+    segments: Sequence[Mapping[str, Any]],
+    dt: float,
+    title: str,
+) -> bytes:
+    """Model error (measured − predicted) per axis over time, ±2σ, worst segments shaded.
+
+    ``segments`` are the worst segments of this log (with their rank in ``"rank"``).
+    """
+    from matplotlib.figure import Figure
+
+    n_notes = len(segments)
+    height = 6.0 + 0.2 * n_notes
+    with style():
+        fig = Figure(figsize=(10, height), dpi=DPI, layout="constrained")
+        ratios = [1.0, 1.0, 1.0] + ([0.1 + 0.075 * n_notes] if n_notes else [])
+        grid = fig.add_gridspec(len(ratios), 1, height_ratios=ratios)
+        axs = [fig.add_subplot(grid[0])]
+        axs += [fig.add_subplot(grid[i], sharex=axs[0], sharey=axs[0]) for i in (1, 2)]
+        lim = float(np.nanpercentile(np.abs(err), 99.5)) * 1.25 if err.size else 1.0
+        for i, ax in enumerate(axs):
+            for k, run in enumerate(runs(t, dt)):
+                ax.fill_between(
+                    t[run],
+                    -2 * std[run, i],
+                    2 * std[run, i],
+                    color="0.85",
+                    linewidth=0,
+                    label="predicted ±2σ" if k == 0 else None,
+                )
+                ax.plot(
+                    t[run],
+                    err[run, i],
+                    color=AXIS_COLOURS[i],
+                    lw=0.8,
+                    label="measured − predicted" if k == 0 else None,
+                )
+            for seg in segments:
+                a, b = float(seg.get("start", 0)), float(seg.get("end", 0))
+                ax.axvspan(a, b, color="#ff7f0e", alpha=0.18, lw=0)
+                if i == 0:
+                    ax.text(
+                        (a + b) / 2, 0.97, f"#{seg.get('rank')}",
+                        transform=ax.get_xaxis_transform(), ha="center", va="top",
+                        fontsize=8, color="#b35900", fontweight="bold",
+                    )  # fmt: skip
+            ax.axhline(0.0, color="0.5", lw=0.5)
+            ax.set_ylim(-max(lim, 1e-6), max(lim, 1e-6))
+            ax.set_ylabel(f"error {AXES[i]}, rad/s²")
+            ax.grid(True, lw=0.3, alpha=0.6)
+        axs[-1].set_xlabel("time, s")
+        handles, labels = axs[0].get_legend_handles_labels()
+        from matplotlib.patches import Patch
+
+        handles.append(Patch(color="#ff7f0e", alpha=0.3))
+        labels.append("worst segment")
+        fig.legend(handles, labels, loc="outside upper center", ncol=3, fontsize=8, frameon=False)
+        axs[0].set_title(title, fontsize=10)
+        for ax in axs[:2]:
+            ax.tick_params(labelbottom=False)
+        if n_notes:
+            notes = fig.add_subplot(grid[3])
+            notes.axis("off")
+            text = "\n".join(_segment_note(int(s.get("rank", 0)), s) for s in segments)
+            notes.text(0.0, 1.0, text, fontsize=8.5, va="top", ha="left", transform=notes.transAxes)
+        return png(fig)
+
+
+def signature_figure(
+    regressor: np.ndarray, error: np.ndarray, name: str, explained: float | None, title: str
+) -> bytes | None:
+    """The model's error (n, 3) against the effect's regressor (n, 3, p), per axis.
+
+    Per axis the regressor column with the most spread is shown; the line is the
+    least-squares fit through the origin (the effects are linear in their
+    parameters), the dots are bin means.
+    """
+    from matplotlib.figure import Figure
+
+    if regressor.ndim != 3 or regressor.shape[:2] != error.shape:
+        return None
+    with style():
+        fig = Figure(figsize=(10, 3.6), dpi=DPI, layout="constrained")
+        axs = fig.subplots(1, 3, sharey=True)
+        lim = float(np.nanpercentile(np.abs(error), 99.5)) * 1.2 if error.size else 1.0
+        for i, ax in enumerate(axs):
+            spread = regressor[:, i, :].std(axis=0)
+            j = int(np.argmax(spread))
+            x, y = regressor[:, i, j], error[:, i]
+            ax.scatter(x, y, s=2, color=AXIS_COLOURS[i], alpha=0.25, lw=0, rasterized=True)
+            if spread[j] > 0:
+                slope = float(x @ y / max(float(x @ x), 1e-300))
+                xs = np.linspace(x.min(), x.max(), 2)
+                ax.plot(xs, slope * xs, color="k", lw=1.2)
+                ax.set_title(f"axis {AXES[i]}: fitted slope {slope:.3g}", fontsize=9)
+                edges = np.unique(np.quantile(x, np.linspace(0, 1, 11)))
+                which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
+                count = np.bincount(which, minlength=edges.size - 1)
+                means = np.bincount(which, y, edges.size - 1) / np.maximum(count, 1)
+                centres = np.bincount(which, x, edges.size - 1) / np.maximum(count, 1)
+                ax.plot(centres[count > 0], means[count > 0], "o", color="k", ms=3.5, mfc="w")
+            else:
+                ax.text(0.5, 0.5, "not excited", transform=ax.transAxes, ha="center")
+            ax.axhline(0.0, color="0.6", lw=0.5)
+            ax.set_ylim(-max(lim, 1e-6), max(lim, 1e-6))
+            ax.set_xlabel(f"{name} regressor, axis {AXES[i]}", fontsize=9)
+            ax.grid(True, lw=0.3, alpha=0.6)
+        axs[0].set_ylabel("model error, rad/s²")
+        share = f" — explains {100 * explained:.0f} % held out" if explained is not None else ""
+        fig.suptitle(f"{title}{share}", fontsize=10)
+        return png(fig)
+
+
+def candidates_figure(entries: Sequence[Mapping[str, Any]], threshold: float | None) -> bytes:
+    """Held-out explained variance of every candidate effect, best first."""
+    from matplotlib.figure import Figure
+
+    rows = [e for e in entries if isinstance(e, Mapping)][:10]
+    names = [str(e.get("name", "?")) for e in rows]
+    ev = np.array([max(float(e.get("explained_variance") or 0.0), 0.0) for e in rows])
+    with style():
+        fig = Figure(figsize=(9, 0.5 * len(rows) + 1.4), dpi=DPI, layout="constrained")
+        ax = fig.subplots()
+        y = np.arange(len(rows))[::-1]
+        for k, e in enumerate(rows):
+            missing = e.get("missing") is True
+            amb = e.get("ambiguous_with") or []
+            ax.barh(
+                y[k],
+                ev[k],
+                color=MISSING_COLOUR if missing else "0.7",
+                hatch="//" if amb else None,
+                edgecolor="k" if amb else "none",
+                height=0.6,
+            )
+            per_axis = e.get("explained_variance_per_axis") or {}
+            for i, a in enumerate(AXES):
+                v = per_axis.get(a)
+                if isinstance(v, int | float):
+                    ax.plot(max(float(v), 0.0), y[k], "|", ms=12, mew=2, color=AXIS_COLOURS[i])
+            text = f"{100 * ev[k]:.0f} %" + ("  missing" if missing else "")
+            if amb:
+                text += f"  ambiguous with {', '.join(map(str, amb))}"
+            axis_ev = [float(v) for v in per_axis.values() if isinstance(v, int | float)]
+            right = max([ev[k], *axis_ev, threshold or 0.0])
+            ax.text(right + 0.02, y[k], text, va="center", fontsize=8)
+        if threshold is not None:
+            ax.axvline(threshold, color="k", ls="--", lw=0.8)
+        ax.set_yticks(y, names)
+        ax.set_xlim(0, 1.35)
+        ax.set_xlabel("explained variance of the model's error, held-out blocks")
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import Patch
+
+        handles: list[Any] = [
+            Patch(color=MISSING_COLOUR, label="missing"),
+            Patch(color="0.7", label="not missing"),
+        ]
+        handles += [
+            Line2D([], [], ls="none", marker="|", ms=10, mew=2, color=c, label=f"axis {a}")
+            for a, c in zip(AXES, AXIS_COLOURS, strict=True)
+        ]
+        if threshold is not None:
+            handles.append(Line2D([], [], color="k", ls="--", label="threshold"))
+        fig.legend(handles=handles, loc="outside upper center", ncol=6, fontsize=8, frameon=False)
+        return png(fig)
+
+
+def before_after_figure(labels: Sequence[str], rmse: Sequence[Sequence[float]]) -> bytes:
+    """Model RMSE per axis (groups) per evaluation file (bars), % change from the first."""
+    from matplotlib.figure import Figure
+
+    k = len(labels)
+    width = 0.8 / k
+    with style():
+        fig = Figure(figsize=(9, 4.0), dpi=DPI, layout="constrained")
+        ax = fig.subplots()
+        x = np.arange(len(AXES))
+        top = max((max(v) for v in rmse), default=1.0)
+        for j, (label, vals) in enumerate(zip(labels, rmse, strict=True)):
+            pos = x + (j - (k - 1) / 2) * width
+            ax.bar(pos, vals, width, label=label, color=f"C{j % 10}")
+            for i, v in enumerate(vals):
+                text = f"{v:.3g}"
+                if j > 0 and rmse[0][i] > 0:
+                    text += f"\n{100 * (v / rmse[0][i] - 1):+.1f} %"
+                ax.text(pos[i], v + 0.01 * top, text, ha="center", va="bottom", fontsize=8)
+        ax.set_ylim(0, top * 1.3)
+        ax.set_xticks(x, [f"axis {a}" for a in AXES])
+        ax.set_ylabel("model RMSE, rad/s²")
+        ax.grid(True, axis="y", lw=0.3, alpha=0.6)
+        fig.legend(loc="outside upper center", ncol=min(k, 4), fontsize=8, frameon=False)
+        return png(fig)

@@ -1,0 +1,184 @@
+"""The top of the report: the verdict, then the figures that explain it.
+
+Verdict sentences (:func:`omavctl.verdict.report_verdict`), then per evaluation
+file the model error over time with the worst segments labelled, the signature
+of each named effect, the candidate effects' explained variance, and with
+several files the before/after bars.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from omavctl import report_figures as rf
+from omavctl.report import (
+    Block,
+    Bullets,
+    Content,
+    Evaluation,
+    FigureBlock,
+    Heading,
+    Inline,
+    Span,
+)
+from omavctl.verdict import report_verdict
+
+__all__ = ["figure_sections", "verdict_section"]
+
+
+def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
+    """The verdict, as the first lines of the report."""
+    lines = report_verdict([(tree, label) for tree, _, label in evals])
+    titles = {
+        "missing": "What is missing",
+        "change": "Error change",
+        "fails": "Where it fails",
+        "uncertainty": "Uncertainty",
+        "excluded": "Excluded",
+        "flag": "Warning",
+    }
+    items: list[Content] = []
+    for ln in lines:
+        # the sentences say what they are about; the bold head says which file(s)
+        head = ln.who or titles.get(ln.key, ln.key)
+        parts: tuple[Inline, ...] = (Span(f"{head}: ", "strong"), ln.text)
+        if ln.command:
+            parts = (*parts, " Add it with: ", Span(ln.command, "code"))
+        items.append(parts)
+    return [Heading(2, "Verdict", "verdict"), Bullets(items)]
+
+
+def _dt(tree: Mapping[str, Any], t: np.ndarray) -> float:
+    rate = tree.get("grid_rate_hz")
+    if isinstance(rate, int | float) and rate > 0:
+        return 1.0 / float(rate)
+    return float(np.median(np.diff(t))) if t.size > 1 else 1.0
+
+
+def _error_blocks(
+    tree: Mapping[str, Any], series: Mapping[str, np.ndarray], label: str, figures: bool
+) -> list[Block]:
+    t = np.asarray(series["t"], float)
+    log_id = np.asarray(series["log"]).astype(int)
+    err = (
+        np.asarray(series["measured"], float)
+        - np.asarray(series["nominal"], float)
+        - np.asarray(series["mean_0"], float)
+    )
+    std = np.asarray(series["std_0"], float)
+    segs = [
+        {**s, "rank": k + 1}
+        for k, s in enumerate(tree.get("worst_segments") or [])
+        if isinstance(s, Mapping)
+    ]
+    out: list[Block] = []
+    for i, lg in enumerate(tree.get("logs") or []):
+        sel = np.flatnonzero(log_id == i)
+        if sel.size == 0:
+            continue
+        name = str(lg.get("name", f"log {i}"))
+        mine = [s for s in segs if s.get("log") == name]
+        data = (
+            rf.error_figure(t[sel], err[sel], std[sel], mine, _dt(tree, t), f"{label} — {name}")
+            if figures
+            else b""
+        )
+        out.append(
+            FigureBlock(
+                data,
+                f"{name}: model error over time with the worst segments",
+                f"{label}, {name}: model error (measured − predicted angular acceleration) "
+                "per axis, the grey band the model's own ±2σ; the worst segments are shaded "
+                "and numbered with what the vehicle was doing.",
+            )
+        )
+    return out
+
+
+def _signature_blocks(
+    tree: Mapping[str, Any], series: Mapping[str, np.ndarray], label: str, figures: bool
+) -> list[Block]:
+    diag = tree.get("diagnosis") or {}
+    entries = {str(e.get("name")): e for e in diag.get("missing_effects") or []}
+    err = (
+        np.asarray(series["measured"], float)
+        - np.asarray(series["nominal"], float)
+        - np.asarray(series["mean_0"], float)
+    )
+    out: list[Block] = []
+    for key in sorted(k for k in series if k.startswith("regressor_")):
+        name = key.removeprefix("regressor_")
+        ev = entries.get(name, {}).get("explained_variance")
+        status = "missing" if name in (diag.get("missing") or []) else "not missing"
+        data = (
+            rf.signature_figure(
+                np.asarray(series[key], float),
+                err,
+                name,
+                float(ev) if isinstance(ev, int | float) else None,
+                f"{label}: signature of {name} ({status})",
+            )
+            if figures
+            else b""
+        )
+        if data is None:
+            continue
+        out.append(
+            FigureBlock(
+                data,
+                f"signature of {name}",
+                f"{label}: the model's error against the regressor of {name}, per axis, with "
+                "the least-squares line through the origin and bin means: a slope is the "
+                "effect's signature, a flat cloud says it is not there.",
+            )
+        )
+    return out
+
+
+def _candidates_blocks(tree: Mapping[str, Any], label: str, figures: bool) -> list[Block]:
+    diag = tree.get("diagnosis") or {}
+    entries = [e for e in diag.get("missing_effects") or [] if isinstance(e, Mapping)]
+    if not entries:
+        return []
+    threshold = (diag.get("method") or {}).get("min_explained_variance")
+    thr = float(threshold) if isinstance(threshold, int | float) else None
+    data = rf.candidates_figure(entries, thr) if figures else b""
+    return [
+        FigureBlock(
+            data,
+            "explained variance of the candidate effects",
+            f"{label}: how much of the model's remaining error each registered effect "
+            "explains on held-out blocks (bar: all axes, ticks: per axis); hatched bars are "
+            "ambiguous (their contributions look alike).",
+        )
+    ]
+
+
+def figure_sections(evals: Sequence[Evaluation], figures: bool) -> list[Block]:
+    """The figures under the verdict (none for formats without figures)."""
+    if not figures:
+        return []
+    blocks: list[Block] = [Heading(2, "What the figures show", "figures")]
+    if len(evals) > 1:
+        labels = [label for _, _, label in evals]
+        rmse = [
+            [float((tree.get("metrics") or {})["model"]["rmse"][a]) for a in "xyz"]
+            for tree, _, _ in evals
+        ]
+        data = rf.before_after_figure(labels, rmse) if figures else b""
+        blocks.append(
+            FigureBlock(
+                data,
+                "model RMSE per axis before and after",
+                "Model RMSE per axis per evaluation file, with the change from the first.",
+            )
+        )
+    for tree, series, label in evals:
+        blocks.append(Heading(3, label, None))
+        blocks += _error_blocks(tree, series, label, figures)
+        blocks += _signature_blocks(tree, series, label, figures)
+        blocks += _candidates_blocks(tree, label, figures)
+    return blocks

@@ -1,0 +1,184 @@
+"""Terminal summaries and ``--json`` objects of ``evaluate`` (verdict first), ``fit``
+and ``inspect``.
+
+Several models are shown side by side: one column group per model, RMSE of
+the nominal model, nominal + effects and each model per axis, the fraction of
+samples within 2 sigma, then the verdict (and the before/after lines when
+there are several models).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from omavctl.verdict import (
+    AXES,
+    change_lines,
+    coverage_of,
+    scores_of_models,
+    verdict,
+)
+
+__all__ = ["evaluation_json", "fit_json", "inspect_json", "render_evaluation"]
+
+
+def _g(v: Any, digits: int = 4) -> str:
+    ok = isinstance(v, int | float) and not isinstance(v, bool)
+    return f"{v:.{digits}g}" if ok else "n/a"
+
+
+def _by_model(tree: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    by_model = tree.get("metrics_by_model")
+    if isinstance(by_model, list) and by_model:
+        return by_model
+    return [tree.get("metrics") or {}]
+
+
+def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Path]) -> None:
+    """Print the evaluation: verdict, models side by side, tracking, files written."""
+    from rich.table import Table
+    from rich.text import Text
+
+    models = tree.get("models") or []
+    by_model = _by_model(tree)
+    lines = verdict(tree)
+    lines = lines[:1] + change_lines(scores_of_models(tree)) + lines[1:]
+    con.print(Text("verdict", style="bold"))
+    for line in lines:
+        con.print(Text(f"  {line.text}"))
+        if line.command:
+            con.print(Text(f"    add it with: {line.command}"))
+    table = Table(title="RMSE of the angular acceleration, rad/s^2", title_justify="left")
+    table.add_column("prediction")
+    for axis in AXES:
+        table.add_column(axis, justify="right")
+    table.add_column("within 2σ x/y/z", justify="right")
+    table.add_column("NLPD x/y/z", justify="right")
+    table.add_column("effects")
+    nominal = by_model[0].get("nominal") or {}
+    table.add_row("nominal", *(_g(nominal.get("rmse", {}).get(a)) for a in AXES), "", "", "")
+    for j, metrics in enumerate(by_model):
+        name = str(models[j].get("name", f"model {j + 1}")) if j < len(models) else f"model {j}"
+        effects = ", ".join((models[j].get("effects") or {}) if j < len(models) else {})
+        eff = metrics.get("effects") or {}
+        table.add_row(
+            Text(f"{name}: nominal + effects"),
+            *(_g(eff.get("rmse", {}).get(a)) for a in AXES),
+            "",
+            "",
+            Text(effects or "none"),
+        )
+        model = metrics.get("model") or {}
+        cov = coverage_of(model)
+        table.add_row(
+            Text(f"{name}: model"),
+            *(_g(model.get("rmse", {}).get(a)) for a in AXES),
+            "/".join(f"{100 * cov[a]:.0f}%" if a in cov else "n/a" for a in AXES),
+            "/".join(_g((model.get("nlpd") or {}).get(a), 2) for a in AXES),
+            Text(effects or "none"),
+        )
+    con.print(table)
+    tracking = tree.get("tracking")
+    if isinstance(tracking, Mapping):
+        con.print("tracking |a* - w_dot|: " + ", ".join(f"{a} {_g(tracking[a], 3)}" for a in AXES))
+    for what, path in files.items():
+        con.print(Text(f"wrote {path} ({what})"))
+
+
+def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[str, Any]:
+    """The ``--json`` object of ``evaluate``: files written and the key figures."""
+    models = tree.get("models") or []
+    out_models = []
+    for j, metrics in enumerate(_by_model(tree)):
+        m = models[j] if j < len(models) else {}
+        model = metrics.get("model") or {}
+        out_models.append(
+            {
+                "path": m.get("path"),
+                "effects": list((m.get("effects") or {}).keys()),
+                "rmse": model.get("rmse"),
+                "rmse_effects": (metrics.get("effects") or {}).get("rmse"),
+                "coverage_2sigma": coverage_of(model),
+            }
+        )
+    diag = tree.get("diagnosis") or {}
+    lines = verdict(tree)
+    lines = lines[:1] + change_lines(scores_of_models(tree)) + lines[1:]
+    return {
+        "command": "evaluate",
+        "files": {k: str(v) for k, v in files.items()},
+        "rmse_nominal": (tree.get("metrics") or {}).get("nominal", {}).get("rmse"),
+        "models": out_models,
+        "tracking": tree.get("tracking"),
+        "missing": list(diag.get("missing") or []),
+        "fit_command": diag.get("fit_command"),
+        "flags": list(tree.get("flags") or []),
+        "verdict": [
+            {"key": line.key, "text": line.text, "command": line.command} for line in lines
+        ],
+    }
+
+
+def fit_json(summary: Any, out: Path) -> dict[str, Any]:
+    """The --json object of fit: the model written, data used, effects, GP per axis."""
+    return {
+        "command": "fit",
+        "files": {"model": str(out)},
+        "samples": summary.samples,
+        "points": summary.points,
+        "points_new": summary.points_new,
+        "points_prior": summary.points_prior,
+        "features": summary.features,
+        "logs": [
+            {"path": str(lg.path), "samples": lg.samples, "used": lg.used} for lg in summary.logs
+        ],
+        "effects": {
+            name: {
+                "values": {k: v for k, v in est.values.items()},
+                "stderr": {k: v for k, v in est.stderr.items()},
+            }
+            for name, est in summary.effects.items()
+        },
+        "axes": {
+            axis: {
+                "signal_std": a.signal_std,
+                "noise_std": a.noise_std,
+                "training_r2": a.r2,
+                "training_rmse": a.rmse,
+                "rms_without_model": a.rmse_nominal,
+            }
+            for axis, a in zip("xyz", summary.axes, strict=True)
+        },
+        "notes": list(summary.notes),
+    }
+
+
+def inspect_json(ins: Any) -> dict[str, Any]:
+    """The --json object of inspect."""
+    return {
+        "command": "inspect",
+        "path": str(ins.path),
+        "format": ins.format,
+        "duration": ins.duration,
+        "t0": ins.t0,
+        "topics": [
+            {
+                "name": t.name,
+                "type": t.msgtype,
+                "count": t.count,
+                "rate_hz": t.rate,
+                "gaps": len(t.gaps),
+                "duplicates": t.duplicates,
+                "out_of_order": t.out_of_order,
+            }
+            for t in ins.topics
+        ],
+        "roles_found": ins.roles_found,
+        "roles_missing": ins.roles_missing,
+        "required_missing": ins.required_missing,
+        "column_ranges": {k: list(v) for k, v in ins.column_ranges.items()},
+        "suggested_columns": ins.suggested_columns,
+        "notes": list(ins.notes),
+    }

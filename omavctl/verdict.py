@@ -1,0 +1,356 @@
+"""The verdict of one or more evaluations, in a few sentences, first.
+
+What is missing (or that nothing is), how much the error falls when it is
+added (a before/after pair, per axis, with the reason for any axis that got
+worse), where the model fails and what the vehicle was doing there, and
+whether its uncertainty can be trusted. Used by ``evaluate``'s terminal
+summary and at the top of the report; works on the evaluation JSON tree
+(schema ``omavctl.eval/1``) only, treating missing keys as empty.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = [
+    "COVERAGE_MIN",
+    "Line",
+    "ModelScore",
+    "activity",
+    "change_lines",
+    "coverage_of",
+    "report_verdict",
+    "scores_of_files",
+    "scores_of_models",
+    "verdict",
+]
+
+AXES = ("x", "y", "z")
+#: Below this fraction of samples within 2 sigma the uncertainty is overconfident.
+COVERAGE_MIN = 0.8
+#: Above this fraction, with a predicted std far above the error, underconfident.
+COVERAGE_UNDER = 0.995
+
+
+@dataclass(frozen=True)
+class Line:
+    """One sentence of the verdict: ``key`` (missing, change, fails, uncertainty,
+    excluded, flag), its text, which file it is about (``who``, '' for the only one)
+    and a command to run (the fit command that adds the missing effect)."""
+
+    key: str
+    text: str
+    who: str = ""
+    command: str | None = None
+
+    def plain(self) -> str:
+        """The sentence with its file and command, as one line of text."""
+        text = f"{self.who}: {self.text}" if self.who else self.text
+        return f"{text} Add it with: {self.command}" if self.command else text
+
+
+@dataclass(frozen=True)
+class ModelScore:
+    """A model as the before/after comparison needs it."""
+
+    label: str
+    effects: tuple[str, ...]
+    effect_params: Mapping[str, Any]
+    rmse: Mapping[str, float]
+    tree: Mapping[str, Any]
+
+
+def _get(tree: Any, *keys: Any, default: Any = None) -> Any:
+    for k in keys:
+        if isinstance(tree, Mapping) and k in tree:
+            tree = tree[k]
+        elif isinstance(tree, list) and isinstance(k, int) and -len(tree) <= k < len(tree):
+            tree = tree[k]
+        else:
+            return default
+    return tree
+
+
+def _num(v: Any) -> float | None:
+    ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    return float(v) if ok else None
+
+
+def _pct(v: float) -> str:
+    return f"{100 * v:.0f} %"
+
+
+def _signed(v: float) -> str:
+    return f"{100 * v:+.1f} %".replace("-", "−")
+
+
+# ------------------------------------------------------------------ missing
+def _missing_line(tree: Mapping[str, Any]) -> Line:
+    diag = _get(tree, "diagnosis", default={}) or {}
+    missing = [str(m) for m in _get(diag, "missing", default=[]) or []]
+    entries = {str(e.get("name")): e for e in diag.get("missing_effects", []) or []}
+    if not missing:
+        threshold = _num(_get(diag, "method", "min_explained_variance"))
+        text = "Nothing missing: no registered effect explains"
+        text += f" {_pct(threshold)} or more" if threshold is not None else " a material share"
+        text += " of the model's remaining error on held-out data."
+        if diag.get("unexplained"):
+            text += " Some structure remains that no registered effect explains (see Diagnosis)."
+        return Line("missing", text)
+    top = entries.get(missing[0], {})
+    ev = _num(top.get("explained_variance"))
+    per_axis = top.get("explained_variance_per_axis") or {}
+    axes = ", ".join(
+        f"{a} {_pct(v)}" for a in AXES if (v := _num(per_axis.get(a))) is not None and v > 0.005
+    )
+    text = f"Missing: {missing[0]}"
+    if ev is not None:
+        text += f" — it explains {_pct(ev)} of the model's remaining error on held-out data"
+        text += f" ({axes})" if axes else ""
+    text += "."
+    if len(missing) > 1:
+        text += f" Then: {', '.join(missing[1:])}."
+    amb = top.get("ambiguous_with") or []
+    if amb:
+        text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
+    cmd = diag.get("fit_command")
+    return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
+
+
+# --------------------------------------------------------------- where/why
+def activity(seg: Mapping[str, Any]) -> str:
+    """What the vehicle was doing in a worst segment, in words: tilt, the fastest
+    rotation, thrust (from the segment's mean |attitude|, |rate|, |wrench|)."""
+    att = [_num(v) or 0.0 for v in (seg.get("attitude_deg") or [])][:3]
+    rate = [_num(v) or 0.0 for v in (seg.get("rate") or [])][:3]
+    u = [_num(v) or 0.0 for v in (seg.get("u") or [])]
+    parts: list[str] = []
+    if len(att) >= 2:
+        roll, pitch = att[0], att[1]
+        if max(roll, pitch) >= 5.0:
+            parts.append(f"tilted (|roll| {roll:.0f}°, |pitch| {pitch:.0f}°)")
+        else:
+            parts.append("near level")
+    if len(rate) == 3 and max(rate) >= 0.2:
+        k = max(range(3), key=lambda i: rate[i])
+        parts.append(f"{('rolling', 'pitching', 'yawing')[k]} at {rate[k]:.2f} rad/s")
+    elif rate:
+        parts.append("barely rotating")
+    if len(u) >= 3 and u[2] > 0:
+        g = u[2] / 9.81
+        if abs(g - 1.0) >= 0.15:
+            parts.append(f"thrust {g:.2f} g")
+    return ", ".join(parts) if parts else "no state recorded"
+
+
+def _fails_line(tree: Mapping[str, Any]) -> Line | None:
+    segs = tree.get("worst_segments") or []
+    if not segs or not isinstance(segs[0], Mapping):
+        return None
+    seg = segs[0]
+    rmse = seg.get("rmse") or {}
+    vals = {a: v for a in AXES if (v := _num(rmse.get(a))) is not None}
+    if not vals:
+        return None
+    axis = max(vals, key=lambda a: vals[a])
+    overall = _num(_get(tree, "metrics", "model", "rmse", axis))
+    ratio = f", {vals[axis] / overall:.1f}× its overall" if overall else ""
+    start, end = _num(seg.get("start")), _num(seg.get("end"))
+    when = f"{start:.1f}–{end:.1f} s" if start is not None and end is not None else "?"
+    text = (
+        f"Fails most at {when} of {seg.get('log', '?')}: {axis} error "
+        f"{vals[axis]:.3g} rad/s² RMS{ratio}, while {activity(seg)}."
+    )
+    return Line("fails", text)
+
+
+def coverage_of(metrics: Mapping[str, Any]) -> dict[str, float]:
+    """Per-axis fraction within 2 sigma (key ``coverage`` or ``coverage_2sigma``)."""
+    cov = metrics.get("coverage") or metrics.get("coverage_2sigma") or {}
+    return {a: v for a in AXES if (v := _num(_get(cov, a))) is not None}
+
+
+def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
+    model = _get(tree, "metrics", "model", default={}) or {}
+    cov = coverage_of(model)
+    if not cov:
+        return None
+    over = [a for a in AXES if a in cov and cov[a] < COVERAGE_MIN]
+    std, rmse = model.get("mean_std") or {}, model.get("rmse") or {}
+    under = [
+        a
+        for a in AXES
+        if a in cov
+        and cov[a] > COVERAGE_UNDER
+        and (s := _num(std.get(a))) is not None
+        and (r := _num(rmse.get(a))) is not None
+        and s > 2 * r
+    ]
+    shown = ", ".join(f"{a} {_pct(cov[a])}" for a in AXES if a in cov)
+    if over:
+        text = (
+            f"Uncertainty overconfident on {', '.join(over)}: only "
+            f"{', '.join(_pct(cov[a]) for a in over)} of the samples lie within the "
+            f"predicted 2σ (95 % expected); do not trust its error bars there "
+            f"(within 2σ: {shown})."
+        )
+    elif under:
+        text = (
+            f"Uncertainty underconfident on {', '.join(under)}: the predicted σ is more "
+            f"than twice the actual error (within 2σ: {shown})."
+        )
+    else:
+        text = f"Uncertainty can be trusted: within 2σ {shown} of the samples (95 % expected)."
+    return Line("uncertainty", text)
+
+
+def _excluded_line(tree: Mapping[str, Any]) -> Line | None:
+    spans = [s for s in tree.get("excluded_spans") or [] if isinstance(s, Mapping)]
+    if not spans:
+        return None
+    total = sum(
+        max((_num(s.get("end")) or 0.0) - (_num(s.get("start")) or 0.0), 0.0) for s in spans
+    )
+    reasons = sorted({str(s.get("reason", "")) for s in spans if s.get("reason")})
+    text = f"Kept out of the metrics: {len(spans)} span(s), {total:.1f} s"
+    text += f" ({'; '.join(reasons)})." if reasons else "."
+    return Line("excluded", text)
+
+
+def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
+    out = []
+    for flag in tree.get("flags") or []:
+        if not isinstance(flag, Mapping) or flag.get("code") in ("overconfident", "out_of_control"):
+            continue  # the uncertainty and kept-out sentences say these
+        message = str(flag.get("message", flag.get("code", "")))
+        axis = (
+            f"axis {flag['axis']}: " if flag.get("axis") and not message.startswith("axis") else ""
+        )
+        out.append(Line("flag", f"{axis}{message}"))
+    return out
+
+
+def verdict(tree: Mapping[str, Any]) -> list[Line]:
+    """The verdict of one evaluation: missing, where it fails, uncertainty, flags."""
+    lines = [_missing_line(tree)]
+    for line in (_fails_line(tree), _uncertainty_line(tree), _excluded_line(tree)):
+        if line is not None:
+            lines.append(line)
+    return lines + _flag_lines(tree)
+
+
+# --------------------------------------------------------------- before/after
+def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[ModelScore]:
+    """One :class:`ModelScore` per evaluation file (its first model)."""
+    out = []
+    for tree, label in evals:
+        effects = _get(tree, "models", 0, "effects", default={}) or {}
+        rmse = _get(tree, "metrics", "model", "rmse", default={}) or {}
+        out.append(ModelScore(label, tuple(effects), effects, rmse, tree))
+    return out
+
+
+def scores_of_models(tree: Mapping[str, Any]) -> list[ModelScore]:
+    """One :class:`ModelScore` per model of one evaluation file (``--model`` repeated)."""
+    models = tree.get("models") or []
+    by_model = tree.get("metrics_by_model") or [tree.get("metrics") or {}]
+    out = []
+    for m, metrics in zip(models, by_model, strict=False):
+        effects = m.get("effects") or {}
+        rmse = _get(metrics, "model", "rmse", default={}) or {}
+        out.append(ModelScore(str(m.get("name", "?")), tuple(effects), effects, rmse, tree))
+    return out
+
+
+def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], axis: str) -> str:
+    """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold."""
+    i = AXES.index(axis)
+    reasons = []
+    diag = _get(before.tree, "diagnosis", "missing_effects", default=[]) or []
+    for name in added:
+        entry = next((e for e in diag if isinstance(e, Mapping) and e.get("name") == name), None)
+        ev = _num(_get(entry, "explained_variance_per_axis", axis))
+        if ev is not None and ev < 0.05:
+            reasons.append(f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error")
+        params = after.effect_params.get(name) or {}
+        for key, vals in params.items():
+            if str(key).endswith("_stderr") or not isinstance(vals, list) or len(vals) != 3:
+                continue
+            v, se = _num(vals[i]), _num(_get(params, f"{key}_stderr", i))
+            if v is not None and se is not None and abs(v) < 2 * se:
+                reasons.append(
+                    f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable from 0"
+                )
+    noise = _num(_get(before.tree, "diagnosis", "method", "measurement_noise_std"))
+    r0, r1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
+    if noise and r0 is not None and r1 is not None and max(r0, r1) < 3 * noise:
+        reasons.append(
+            f"both errors are within {max(r0, r1) / noise:.1f}× the measurement noise "
+            f"({noise:.2g} rad/s²)"
+        )
+    core = "; ".join(reasons) if reasons else "the added effect does not act on this axis"
+    return f"{core}: the change comes from the refitted GP, not from the effect"
+
+
+def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[Line]:
+    """Before/after: the first score against the last, per axis, worse axes explained;
+    ``name_after`` names the last one in the sentence (when the line does not say
+    which files it compares)."""
+    if len(scores) < 2:
+        return []
+    before, after = scores[0], scores[-1]
+    added = [e for e in after.effects if e not in before.effects]
+    removed = [e for e in before.effects if e not in after.effects]
+    changes: dict[str, float] = {}
+    for a in AXES:
+        r0, r1 = _num(before.rmse.get(a)), _num(after.rmse.get(a))
+        if r0 and r1 is not None:
+            changes[a] = r1 / r0 - 1.0
+    if not changes:
+        return []
+    what = "With " + ", ".join(added) + " added" if added else f"From {before.label} to"
+    if name_after or not added:
+        what = f"{what} ({after.label})" if added else f"{what} {after.label}"
+    if removed:
+        what += f", {', '.join(removed)} removed"
+    b0 = [v for a in AXES if (v := _num(before.rmse.get(a))) is not None]
+    b1 = [v for a in AXES if (v := _num(after.rmse.get(a))) is not None]
+    mean = sum(b1) / sum(b0) - 1.0 if b0 and len(b0) == len(b1) and sum(b0) > 0 else None
+    if mean is not None:
+        verb = "falls" if mean < 0 else "rises"
+        text = f"{what}: the model error {verb} by {abs(100 * mean):.1f} % (sum over axes)"
+    else:
+        text = f"{what}: model error"
+    text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items()) + "."
+    lines = [Line("change", text)]
+    for a, c in changes.items():
+        if c > 0.02:
+            lines.append(
+                Line(
+                    "change",
+                    f"Axis {a} got worse ({_signed(c)}): {_worse_reason(before, after, added, a)}.",
+                )
+            )
+    return lines
+
+
+def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
+    """The verdict of a report: one file's own; with several, what the first lacked,
+    the before/after change (first to last, per axis) and the last file's verdict."""
+    if not evals:
+        return []
+    if len(evals) == 1:
+        tree = evals[0][0]
+        return verdict(tree)[:1] + change_lines(scores_of_models(tree)) + verdict(tree)[1:]
+    (first, label0), (last, label1) = evals[0], evals[-1]
+    head = verdict(first)[0]
+    lines = [Line(head.key, head.text, label0, head.command)]
+    lines += [
+        Line(ln.key, ln.text, f"{label0} → {label1}")
+        for ln in change_lines(scores_of_files(evals), name_after=False)
+    ]
+    lines += [Line(ln.key, ln.text, label1, ln.command) for ln in verdict(last)]
+    return lines

@@ -1,0 +1,102 @@
+"""A model is judged on flights it has not seen (benchmarks/generalise.py, pinned).
+
+Fit on one trajectory, evaluate on another, both directions: a figure-8 and a
+multi-sine wobble (different shapes, yaw, frequencies), with the default plant
+imperfections, a controller at the log rate (commands held) or ten times
+faster (sampled), and hidden effects. The full model (effects + GP) must never
+be worse than its physics alone, and its 2-sigma band must be honest where it
+is (docs/generalisation.md lists every case, including those still outside the
+0.85-0.99 band).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from benchmarks.generalise import fly_pair, run_direction
+
+#: (hidden effect, controller timing) pairs pinned here; both directions each
+CASES = [
+    ("none", "100Hz-held"),
+    ("none", "1kHz-sampled"),
+    ("rotational_drag", "100Hz-held"),
+    ("command_delay", "100Hz-held"),
+]
+#: cases whose coverage is pinned to the 0.85-1.0 band as well
+CALIBRATED = {("none", "1kHz-sampled"), ("rotational_drag", "100Hz-held"), ("none", "100Hz-held")}
+
+
+@pytest.fixture(scope="module")
+def outcomes(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("generalise")
+    out = {}
+    for case, timing in CASES:
+        logs = fly_pair(tmp, case, timing)
+        for fit_on in logs:
+            out[(case, timing, fit_on)] = run_direction(tmp, logs, fit_on, case, timing)
+    return out
+
+
+@pytest.mark.parametrize(("case", "timing"), CASES)
+@pytest.mark.parametrize("fit_on", ["fig8", "wobble"])
+def test_the_gp_never_makes_a_new_flight_worse(outcomes, case, timing, fit_on):
+    o = outcomes[(case, timing, fit_on)]
+    print(case, timing, fit_on, "ratio", o.ratio.round(2), "coverage", o.coverage.round(2))
+    assert np.all(o.ratio <= 1.05)
+
+
+@pytest.mark.parametrize(("case", "timing"), sorted(CALIBRATED))
+@pytest.mark.parametrize("fit_on", ["fig8", "wobble"])
+def test_the_band_covers_a_new_flight(outcomes, case, timing, fit_on):
+    o = outcomes[(case, timing, fit_on)]
+    assert np.all(o.coverage >= 0.85), o.coverage
+
+
+def test_a_clean_flight_of_an_ideal_plant_switches_the_gp_off(tmp_path):
+    """Noise only: the GP has nothing to learn and says so (mean 0, variance the
+    residual's mean square: the log's own derivative noise)."""
+    from omavctl.fit import fit_model
+    from omavctl.logs import align
+    from omavctl.plant import simulate, truth_from_tree
+    from omavctl.tasks import fig8
+    from omavctl.vehicle import default_vehicle
+
+    vehicle = default_vehicle()
+    ref = fig8(roll_deg=20, pitch_deg=20, period=5.0, duration=12.0, ramp=2.0)
+    log = align(simulate(ref, vehicle, truth_from_tree({"ideal": True}, vehicle), seed=0).log)
+    result = fit_model([log], points=80, restarts=0)
+    floor = np.array(result.model.provenance["gp"]["noise_floor"])
+    assert np.all((floor > 0.02) & (floor < 0.04))  # 0.003 rad/s gyro noise x SG gain
+    assert not result.model.gp_enabled.any()
+    assert sum("GP switched off" in n for n in result.summary.notes) == 3
+    std = np.sqrt(result.model.noise_variance)
+    assert np.all(np.abs(std / floor - 1) < 0.2)
+
+
+@pytest.mark.parametrize("timing", [{}, {"controller_rate_hz": 1000}])
+def test_clean_flights_claim_nothing(tmp_path, timing):
+    """Ideal actuators, sensor noise only, a controller at the log rate (commands
+    held) or ten times faster (sampled: a sub-period lead the held-command model
+    does not know): fit on a figure-8, evaluate on a wobble. Nothing is missing,
+    nothing is claimed as learned."""
+    from omavctl.evaluate import evaluate
+    from omavctl.fit import fit_model
+    from omavctl.logs import write_log
+    from omavctl.model import save_model
+    from omavctl.plant import simulate, truth_from_tree
+    from omavctl.tasks import fig8, wobble
+    from omavctl.vehicle import default_vehicle
+
+    vehicle = default_vehicle()
+    truth = truth_from_tree({"ideal": True, "timing": timing}, vehicle)
+    fit_log, eval_log = tmp_path / "fit.csv", tmp_path / "eval.bag"
+    write_log(fit_log, simulate(fig8(20, 20, 5.0, 12.0), vehicle, truth, seed=1).log)
+    write_log(eval_log, simulate(wobble(25, duration=12.0), vehicle, truth, seed=2).log)
+    model = tmp_path / "m.npz"
+    save_model(model, fit_model([fit_log], vehicle, points=80, restarts=0).model)
+    tree = evaluate([model], [eval_log]).tree
+    diag = tree["diagnosis"]
+    assert diag["missing"] == [] and diag["fit_command"] is None
+    assert not any(e["missing"] for e in diag["learned"])
+    assert not [f for f in tree["flags"] if f["code"] == "worse_than_physics"]

@@ -1,0 +1,252 @@
+"""Scripting the CLI: --json on stdout, tables that do not wrap in pipes, evaluate's
+default output, a fit command that runs as printed from another directory, the MCAP
+series on the log's own stamps, argument names in --help."""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.logs import read_raw
+
+ROOT = Path(__file__).resolve().parent.parent
+TRUTH = ROOT / "examples" / "truth-drag.yaml"
+runner = CliRunner()
+
+
+def _run(args: list[str], cwd: Path | None = None) -> tuple[str, str]:
+    """Invoke omavctl in-process (optionally from ``cwd``); returns (stdout, stderr)."""
+    old = Path.cwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        result = runner.invoke(app, args)
+    finally:
+        os.chdir(old)
+    assert result.exit_code == 0, f"omavctl {' '.join(args)}:\n{result.output}"
+    return result.stdout, result.stderr
+
+
+def _one_json(stdout: str) -> dict:
+    lines = [ln for ln in stdout.splitlines() if ln.strip()]
+    assert len(lines) == 1, stdout
+    obj = json.loads(lines[0])
+    assert isinstance(obj, dict)
+    assert "NaN" not in lines[0] and "Infinity" not in lines[0]
+    return obj
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory) -> Path:
+    """A project folder: logs in logs/ (a ROS 1 bag with a hidden drag and a held-out
+    MCAP), a model fitted from the folder with relative paths."""
+    w = tmp_path_factory.mktemp("work")
+    (w / "logs").mkdir()
+    (w / "models").mkdir()
+    for args in (
+        "task fig8 --roll 26 --pitch 26 --period 4 --duration 8 --ramp 1 --out logs/a.csv -q",
+        "task fig8 --roll 20 --pitch 30 --period 3 --duration 8 --ramp 1 --out logs/b.csv -q",
+        f"simulate -r logs/a.csv --truth {TRUTH} --seed 1 --out logs/train.bag -q",
+        f"simulate -r logs/b.csv --truth {TRUTH} --seed 2 --out logs/held.mcap -q",
+    ):
+        _run(shlex.split(args), cwd=w)
+    stdout, _ = _run(
+        shlex.split("fit logs/train.bag --points 40 --restarts 0 --out models/gp.npz --json"),
+        cwd=w,
+    )
+    fit = _one_json(stdout)
+    assert fit["files"] == {"model": "models/gp.npz"}
+    assert set(fit["axes"]) == {"x", "y", "z"} and fit["points"] == 40
+    return w
+
+
+def test_inspect_pipes_into_grep(work):
+    """A real pipe: stdout is not a terminal, each topic stays on one line."""
+    env = {**os.environ, "COLUMNS": "60"}
+    inspect = subprocess.run(
+        [sys.executable, "-m", "omavctl", "inspect", "logs/train.bag"],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+    )
+    rows = [ln for ln in inspect.stdout.splitlines() if "/omav/wrench_command" in ln]
+    assert len(rows) == 1
+    assert "WrenchStamped" in rows[0] and "100.0" in rows[0]
+    grep = subprocess.run(
+        f"{shlex.quote(sys.executable)} -m omavctl inspect logs/train.bag "
+        "| grep /omav/wrench_command",
+        shell=True,
+        cwd=work,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert grep.returncode == 0 and "geometry_msgs/msg/WrenchStamped" in grep.stdout
+
+
+def test_inspect_json(work):
+    stdout, stderr = _run(["inspect", "logs/train.bag", "--json"], cwd=work)
+    obj = _one_json(stdout)
+    names = {t["name"] for t in obj["topics"]}
+    assert "/omav/wrench_command" in names and obj["format"] == "ros1"
+    assert obj["required_missing"] == []
+    assert "/omav/wrench_command" in stderr  # the human listing moved to stderr
+
+
+def test_evaluate_default_out_json_and_fit_command_from_a_subdirectory(work):
+    sub = work / "analysis"
+    sub.mkdir()
+    stdout, stderr = _run(
+        ["evaluate", "../logs/held.mcap", "--model", "../models/gp.npz", "--json"], cwd=sub
+    )
+    obj = _one_json(stdout)
+    # no --out: beside the model, and it says where
+    assert obj["files"]["evaluation"] == "../models/gp.eval.json"
+    assert (work / "models" / "gp.eval.json").is_file()
+    assert (work / "models" / "gp.eval.series.npz").is_file()
+    assert "wrote ../models/gp.eval.json" in stderr
+    assert stderr.lstrip().startswith("verdict")
+    assert obj["missing"][:1] == ["rotational_drag"]
+    assert obj["verdict"][0]["key"] == "missing"
+    assert set(obj["models"][0]["rmse"]) == {"x", "y", "z"}
+    # the printed command runs as printed from here, and writes beside the model
+    command = obj["fit_command"]
+    assert command.startswith("omavctl fit ../logs/train.bag --effects rotational_drag ")
+    words = shlex.split(command)
+    out = _run([*words[1:], "--restarts", "0", "-q"], cwd=sub)
+    assert out == ("", "")
+    assert (work / "models" / "gp+rotational_drag.npz").is_file()
+
+
+def test_fit_command_is_shell_quoted(work, tmp_path):
+    odd = tmp_path / "my flights"
+    odd.mkdir()
+    (odd / "train it.bag").write_bytes((work / "logs" / "train.bag").read_bytes())
+    _run(["fit", str(odd / "train it.bag"), "--points", "30", "--restarts", "0",
+          "--out", str(odd / "m 1.npz"), "-q"])  # fmt: skip
+    stdout, _ = _run(
+        ["evaluate", str(work / "logs" / "held.mcap"), "--model", str(odd / "m 1.npz"), "--json"]
+    )
+    command = _one_json(stdout)["fit_command"]
+    if command:  # the diagnosis may or may not name the drag from 30 points
+        words = shlex.split(command)
+        assert str(odd / "train it.bag") in words
+        assert str(odd / "m 1+rotational_drag.npz") in words or any(
+            w.endswith("m 1+rotational_drag.npz") for w in words
+        )
+
+
+def test_several_models_side_by_side(work):
+    _run(
+        shlex.split(
+            "fit logs/train.bag --effects rotational_drag --points 40 --restarts 0 "
+            "--out models/drag.npz -q"
+        ),
+        cwd=work,
+    )
+    stdout, stderr = _run(
+        shlex.split(
+            "evaluate logs/held.mcap -m models/gp.npz -m models/drag.npz --out both.json --json"
+        ),
+        cwd=work,
+    )
+    obj = _one_json(stdout)
+    assert [m["path"] for m in obj["models"]] == ["models/gp.npz", "models/drag.npz"]
+    assert "gp.npz: model" in stderr and "drag.npz: model" in stderr
+    change = [v["text"] for v in obj["verdict"] if v["key"] == "change"]
+    assert change and change[0].startswith("With rotational_drag added")
+
+
+def test_mcap_series_on_the_logs_stamps(work):
+    from mcap.reader import make_reader
+
+    _run(
+        shlex.split("evaluate logs/held.mcap -m models/gp.npz --out e.json --mcap s.mcap -q"),
+        cwd=work,
+    )
+    tree = json.loads((work / "e.json").read_text())
+    with np.load(work / "e.series.npz") as data:
+        n = data["t"].size
+    with (work / "s.mcap").open("rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        assert summary is not None
+        channels = {c.topic: c for c in summary.channels.values()}
+        assert set(channels) == {
+            "/omavctl/measured",
+            "/omavctl/nominal",
+            "/omavctl/physics",
+            "/omavctl/predicted",
+            "/omavctl/band_2sigma",
+            "/omavctl/worst_segments",
+        }
+        for c in channels.values():
+            assert c.message_encoding == "json"
+            schema = summary.schemas[c.schema_id]
+            assert schema.encoding == "jsonschema" and json.loads(schema.data)["type"] == "object"
+        stamps: dict[str, list[int]] = {}
+        first: dict[str, dict] = {}
+        for _, channel, message in reader.iter_messages():
+            stamps.setdefault(channel.topic, []).append(message.log_time)
+            first.setdefault(channel.topic, json.loads(message.data))
+    assert len(stamps["/omavctl/measured"]) == n
+    assert set(first["/omavctl/measured"]) == {"x", "y", "z"}
+    assert {"x_low", "x_high"} <= set(first["/omavctl/band_2sigma"])
+    assert len(stamps["/omavctl/worst_segments"]) == 2 * len(tree["worst_segments"])
+    # on the log's own clock: every stamp is a stamp of the log's IMU, to 1 us
+    raw = read_raw(work / "logs" / "held.mcap")
+    imu = np.round((raw.t0 + raw.series["body_rate"].stamps) * 1e6).astype(np.int64)
+    ours = np.round(np.array(stamps["/omavctl/measured"]) / 1e3).astype(np.int64)
+    assert np.isin(ours, imu).all()
+    assert ours.min() > 1e15  # epoch microseconds, not seconds from the start
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["task", "yaw", "--out", "t.csv"],
+        ["simulate", "-r", "logs/a.csv", "--out", "s.csv", "--seed", "3"],
+        ["report", "e.json", "--out", "r.html"],
+    ],
+)
+def test_json_everywhere(work, args):
+    if args[0] == "report" and not (work / "e.json").exists():
+        _run(shlex.split("evaluate logs/held.mcap -m models/gp.npz --out e.json -q"), cwd=work)
+    stdout, _ = _run([*args, "--json"], cwd=work)
+    obj = _one_json(stdout)
+    assert obj["command"].split()[0] == args[0]
+    for path in obj["files"].values():
+        assert (work / path).exists()
+
+
+def test_every_command_has_json_and_named_arguments():
+    root = typer.main.get_command(app)
+    paths = [("task", n) for n in root.commands["task"].commands] + [  # type: ignore[attr-defined]
+        (n,) for n in root.commands if n != "task"
+    ]
+    assert len(paths) == 11
+    for path in paths:
+        text = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "100"}).output
+        assert "--json" in text, path
+        assert "<list[Path]>" not in text and "list[" not in text, path
+    assert "LOG..." in runner.invoke(app, ["fit", "--help"]).output
+    assert "EVAL.json..." in runner.invoke(app, ["report", "--help"]).output
+
+
+def test_command_lists_are_not_cut():
+    for path in ([], ["task"]):
+        text = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "80"}).output
+        commands = text[text.index("Commands:") :].splitlines()[1:]
+        assert commands and all(not line.rstrip().endswith("...") for line in commands), text

@@ -1,0 +1,153 @@
+"""The verdict sentences from evaluation trees: missing or not, the before/after change
+with the reason for a worse axis, where the model fails, trust in its uncertainty,
+flags and excluded spans of newer evaluations (keys treated as empty when absent)."""
+
+from __future__ import annotations
+
+import copy
+
+from omavctl.report import _param_lines
+from omavctl.verdict import (
+    activity,
+    change_lines,
+    report_verdict,
+    scores_of_files,
+    verdict,
+)
+
+
+def _tree(rmse: dict, coverage: dict, missing: list[str], effects: dict | None = None) -> dict:
+    return {
+        "models": [{"name": "m.npz", "effects": effects or {}}],
+        "metrics": {
+            "model": {
+                "rmse": rmse,
+                "coverage_2sigma": coverage,
+                "mean_std": {a: 0.05 for a in "xyz"},
+            }
+        },
+        "worst_segments": [
+            {
+                "log": "f.bag",
+                "start": 1.06,
+                "end": 2.05,
+                "rmse": {"x": 0.1, "y": 0.56, "z": 0.05},
+                "attitude_deg": [17.0, 12.6, 0.1],
+                "rate": [0.2, 0.69, 0.22],
+                "u": [2.2, 2.8, 9.3, 1.1, 2.3, 0.7],
+            }
+        ],
+        "diagnosis": {
+            "method": {"min_explained_variance": 0.15, "measurement_noise_std": 0.029},
+            "missing": missing,
+            "missing_effects": [
+                {
+                    "name": "rotational_drag",
+                    "explained_variance": 0.51,
+                    "explained_variance_per_axis": {"x": 0.56, "y": 0.97, "z": 0.0},
+                    "ambiguous_with": [],
+                }
+            ],
+            "fit_command": "omavctl fit 'my log.bag' --effects rotational_drag"
+            if missing
+            else None,
+            "unexplained": [],
+        },
+    }
+
+
+BEFORE = _tree(
+    {"x": 0.088, "y": 0.294, "z": 0.0465}, {"x": 0.85, "y": 0.41, "z": 0.97}, ["rotational_drag"]
+)
+AFTER = _tree(
+    {"x": 0.060, "y": 0.114, "z": 0.0581},
+    {"x": 0.95, "y": 0.90, "z": 0.95},
+    [],
+    {"rotational_drag": {"D": [0.046, 0.049, 0.036], "D_stderr": [0.0065, 0.0031, 0.079]}},
+)  # fmt: skip
+
+
+def test_missing_effect_first_with_its_command():
+    lines = verdict(BEFORE)
+    assert lines[0].key == "missing"
+    assert lines[0].text.startswith("Missing: rotational_drag — it explains 51 %")
+    assert "(x 56 %, y 97 %)" in lines[0].text
+    assert lines[0].command == "omavctl fit 'my log.bag' --effects rotational_drag"
+    assert (
+        lines[0].plain().endswith("Add it with: omavctl fit 'my log.bag' --effects rotational_drag")
+    )
+
+
+def test_nothing_missing_says_so():
+    assert verdict(AFTER)[0].text.startswith("Nothing missing: no registered effect explains 15 %")
+
+
+def test_where_it_fails_names_what_the_vehicle_did():
+    fails = next(line for line in verdict(BEFORE) if line.key == "fails")
+    assert "1.1–2.0 s of f.bag" in fails.text and "y error 0.56" in fails.text
+    assert "pitching at 0.69 rad/s" in fails.text and "tilted" in fails.text
+    level = activity({"attitude_deg": [1, 2, 0], "rate": [0.01, 0.02, 0.01], "u": [0, 0, 14.7]})
+    assert level == "near level, barely rotating, thrust 1.50 g"
+
+
+def test_overconfidence_below_80_percent_and_trust_above():
+    unc = next(line for line in verdict(BEFORE) if line.key == "uncertainty")
+    assert unc.text.startswith("Uncertainty overconfident on y: only 41 %")
+    trusted = next(line for line in verdict(AFTER) if line.key == "uncertainty")
+    assert trusted.text.startswith("Uncertainty can be trusted")
+    # the newer key name 'coverage' is read as well
+    newer = copy.deepcopy(AFTER)
+    newer["metrics"]["model"]["coverage"] = newer["metrics"]["model"].pop("coverage_2sigma")
+    newer["metrics"]["model"]["coverage"]["z"] = 0.5
+    assert "overconfident on z" in next(ln.text for ln in verdict(newer) if ln.key == "uncertainty")
+
+
+def test_before_after_per_axis_with_the_reason_for_the_worse_axis():
+    lines = change_lines(scores_of_files([(BEFORE, "before.json"), (AFTER, "after.json")]))
+    head = lines[0].text
+    assert head.startswith("With rotational_drag added (after.json): the model error falls by")
+    assert "x −31.8 %" in head and "y −61.2 %" in head and "z +24.9 %" in head
+    assert len(lines) == 2 and lines[1].text.startswith("Axis z got worse (+24.9 %)")
+    reason = lines[1].text
+    assert "rotational_drag explained 0 % of the z error" in reason
+    assert "D_z = 0.036 ± 0.079 is indistinguishable from 0" in reason
+    assert "within 2.0× the measurement noise" in reason
+
+
+def test_flags_and_excluded_spans_when_present():
+    tree = copy.deepcopy(AFTER)
+    tree["flags"] = [
+        {"code": "worse_than_physics", "axis": "z", "message": "the GP is worse than physics"},
+        {"code": "overconfident", "axis": "y", "message": "said by the uncertainty line"},
+    ]
+    tree["excluded_spans"] = [
+        {"start": 3.0, "end": 3.5, "reason": "out of control"},
+        {"start": 7.0, "end": 7.25, "reason": "out of control"},
+    ]
+    texts = {line.key: line.text for line in verdict(tree)}
+    assert texts["flag"] == "axis z: the GP is worse than physics"
+    assert texts["excluded"] == "Kept out of the metrics: 2 span(s), 0.8 s (out of control)."
+    assert sum(line.key == "flag" for line in verdict(tree)) == 1
+
+
+def test_report_verdict_names_the_files():
+    lines = report_verdict([(BEFORE, "before.json"), (AFTER, "after.json")])
+    assert [line.who for line in lines[:3]] == [
+        "before.json",
+        "before.json → after.json",
+        "before.json → after.json",
+    ]
+    assert "(after.json)" not in lines[1].text  # the line already says which files
+    assert lines[3].who == "after.json" and lines[3].key == "missing"
+
+
+def test_empty_tree_does_not_fail():
+    assert verdict({})[0].text.startswith("Nothing missing")
+    assert change_lines(scores_of_files([({}, "a"), ({}, "b")])) == []
+
+
+def test_parameter_at_a_bound_is_not_shown_as_plus_minus_zero():
+    lines = _param_lines({"tau": [0.2], "tau_stderr": [0.0]}, {"tau": "s"}, False)
+    assert lines == ("tau = 0.2 s (at its bound: no std. error)",)
+    lines = _param_lines({"D": [0.04, 0.0, 0.0], "D_stderr": [0.004, 0.0, 0.0]}, {}, False)
+    assert lines[0] == "D_x = 0.04 ± 0.004" and lines[1] == "D_y = 0 ± 0"
