@@ -241,6 +241,23 @@ def _unit(unit: str, torque_unknown: bool) -> str:
 
 
 # ---------------------------------------------------------------- validation
+def _bad_metric(block: Any, where: str) -> str | None:
+    """Path of the first metric value in ``block`` ({prediction: {metric: {axis: value}}})
+    that is neither a number nor null, else None."""
+    if not isinstance(block, Mapping):
+        return where
+    for pred, metrics in block.items():
+        if not isinstance(metrics, Mapping):
+            return f"{where}.{pred}"
+        for name, axes in metrics.items():
+            if not isinstance(axes, Mapping):
+                return f"{where}.{pred}.{name}"
+            for axis, value in axes.items():
+                if value is not None and not _finite(value):
+                    return f"{where}.{pred}.{name}.{axis}"
+    return None
+
+
 def check_evaluation(tree: Any, series: Mapping[str, np.ndarray], path: str | Path) -> None:
     """Raise :class:`OmavctlError` naming ``path`` unless ``tree`` and ``series``
     carry what the report needs (the ``load_evaluation`` schema check comes first)."""
@@ -250,6 +267,11 @@ def check_evaluation(tree: Any, series: Mapping[str, np.ndarray], path: str | Pa
                 raise OmavctlError(
                     f"not an evaluation JSON: no number at 'metrics.{pred}.rmse.{axis}'", path
                 )
+    bad = _bad_metric(tree.get("metrics"), "metrics")
+    for i, block in enumerate(_as_list(tree.get("metrics_by_model") or [])):
+        bad = bad or _bad_metric(block, f"metrics_by_model[{i}]")
+    if bad:
+        raise OmavctlError(f"not an evaluation JSON: '{bad}' is not a number", path)
     logs = tree.get("logs")
     if not isinstance(logs, list) or not logs or not all(isinstance(lg, Mapping) for lg in logs):
         raise OmavctlError("not an evaluation JSON: 'logs' is not a list of logs", path)
@@ -264,6 +286,8 @@ def check_evaluation(tree: Any, series: Mapping[str, np.ndarray], path: str | Pa
         n = arr.shape[0] if n is None else n
         if arr.shape[0] != n:
             raise OmavctlError(f"time series '{key}' has {arr.shape[0]} samples, not {n}", path)
+        if not np.all(np.isfinite(arr)):
+            raise OmavctlError(f"time series '{key}' has non-finite values", path)
     log_id = np.asarray(series["log"])
     if n and (log_id.min() < 0 or log_id.max() >= len(logs)):
         raise OmavctlError("time series 'log' refers to logs the JSON does not list", path)
