@@ -258,6 +258,39 @@ def task_heave(
     )
 
 
+@task_app.command(
+    "wobble",
+    short_help="Multi-sine roll/pitch/yaw wobble (a second trajectory to test a model on).",
+)
+@_reports_errors
+def task_wobble(
+    out: Out,
+    amplitude: Annotated[
+        float, typer.Option(help="Sum of the sine amplitudes per axis, deg (yaw half).")
+    ] = 15.0,
+    bandwidth: Annotated[float, typer.Option(help="Highest sine frequency, Hz.")] = 0.8,
+    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 20.0,
+    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    seed: Annotated[int, typer.Option(help="Draws the frequencies and phases.")] = 0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Multi-sine attitude wobble: roll, pitch and yaw each a sum of three sines
+    (frequencies 0.15-1 x bandwidth, random phases). Not periodic: fit on a figure-8,
+    evaluate on a wobble to see whether a model holds on a flight it has not seen."""
+    from omavctl.tasks import wobble
+
+    _write_task(
+        wobble(amplitude, bandwidth, duration, rate, ramp, height, seed),
+        out,
+        quiet,
+        as_json,
+        "wobble",
+    )
+
+
 # ----------------------------------------------------------------------- simulate
 @app.command(short_help="Fly a reference through the truth plant, write a flight log.")
 @_reports_errors
@@ -344,22 +377,26 @@ def simulate(
     import math
 
     con.print(
-        f"wrote {out}: {result.steps / veh.gains.rate_hz:.2f} s flown, "
+        f"wrote {out}: {result.duration:.2f} s flown, "
         f"max attitude error {math.degrees(result.max_attitude_error):.2f} deg, "
         f"{result.infeasible_steps}/{result.steps} steps beyond actuator limits"
     )
     if result.diverged:
-        con.print("[bold red]warning:[/] the vehicle diverged; the log ends where it did")
+        con.print(
+            f"[bold red]warning:[/] the vehicle lost control at {result.diverged_at:.2f} s; "
+            "the log goes on through the tumble for 1 s, then ends"
+        )
     _emit(
         as_json,
         {
             "command": "simulate",
             "files": {"log": str(out)},
-            "duration": result.steps / veh.gains.rate_hz,
+            "duration": result.duration,
             "max_attitude_error_deg": math.degrees(result.max_attitude_error),
             "infeasible_steps": int(result.infeasible_steps),
             "steps": int(result.steps),
             "diverged": bool(result.diverged),
+            "diverged_at": result.diverged_at,
         },
     )
 
@@ -666,6 +703,29 @@ def plan(
     points: Annotated[
         int, typer.Option(help="Training points a flight would add (k-medoids per simulation).")
     ] = 40,
+    search: Annotated[
+        str,
+        typer.Option(
+            help="How candidates are proposed: 'random' (all at once, the paper) or 'cem' "
+            "(cross-entropy method over the Fourier coefficients in --generations "
+            "generations, same number of simulations)."
+        ),
+    ] = "random",
+    generations: Annotated[int, typer.Option(help="Generations of --search cem.")] = 5,
+    selection: Annotated[
+        str,
+        typer.Option(
+            help="How the points a flight would add are picked: 'batched' (farthest-point + "
+            "k-medoids steps, all simulations at once) or 'kmedoids' (as fit, per "
+            "simulation, slow)."
+        ),
+    ] = "batched",
+    jobs: Annotated[
+        int,
+        typer.Option(
+            help="Worker processes for the simulations (see docs/planning-performance.md)."
+        ),
+    ] = 1,
     scores: Annotated[
         Path | None,
         typer.Option(help="Write every candidate's coefficients, cost and feasibility as CSV."),
@@ -693,6 +753,7 @@ def plan(
     """
     from rich.progress import Progress
     from rich.table import Table
+    from threadpoolctl import threadpool_limits
 
     from omavctl.model import check_vehicle, load_model
     from omavctl.planning import PlanSettings
@@ -708,9 +769,15 @@ def plan(
         ("--points", points),
         ("--test-points", test_points),
         ("--frequencies", frequencies),
+        ("--generations", generations),
+        ("--jobs", jobs),
     ):
         if value < 1:
             raise OmavctlError(f"{name} must be at least 1, got {value}")
+    if search not in ("random", "cem"):
+        raise OmavctlError(f"--search must be 'random' or 'cem', got '{search}'")
+    if selection not in ("batched", "kmedoids"):
+        raise OmavctlError(f"--selection must be 'batched' or 'kmedoids', got '{selection}'")
     if not (0.1 < max_freq <= 50.0 and 0 < amplitude <= 100.0):
         raise OmavctlError("--max-freq must be in (0.1, 50] Hz and --amplitude in (0, 100] rad/s^2")
     if epsilon is not None and not 0 < epsilon <= 1000:
@@ -729,15 +796,24 @@ def plan(
         test_points=test_points,
         points=points,
         seed=seed,
+        search=search,
+        generations=generations,
+        selection=selection,
+        jobs=jobs,
     )
     con = _console(quiet)
-    with Progress(console=con, transient=True, disable=quiet) as bar:
-        jobs: dict[str, Any] = {}
+    # BLAS threads set once: one per process, so that worker processes (--jobs) and
+    # BLAS do not fight over the cores and timings are stable (threadpoolctl)
+    with (
+        threadpool_limits(limits=1, user_api="blas"),
+        Progress(console=con, transient=True, disable=quiet) as bar,
+    ):
+        stages: dict[str, Any] = {}
 
         def progress(stage: str, fraction: float) -> None:
-            if stage not in jobs:
-                jobs[stage] = bar.add_task(stage, total=1.0)
-            bar.update(jobs[stage], completed=fraction)
+            if stage not in stages:
+                stages[stage] = bar.add_task(stage, total=1.0)
+            bar.update(stages[stage], completed=fraction)
 
         result = run(mdl, ref, settings, progress)
     best = result.best_trajectory(task)

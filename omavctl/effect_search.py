@@ -25,6 +25,7 @@ from scipy.optimize import minimize_scalar
 
 from omavctl.physics.effects import get_effect
 from omavctl.signal import ResidualSamples
+from omavctl.validation import cholesky_of_k
 
 __all__ = ["BLOCK_SECONDS", "GRID", "GROUPS", "SearchResult", "search_effects"]
 
@@ -168,24 +169,6 @@ def search_effects(
     return out
 
 
-def _factors(
-    z: np.ndarray, signal_variance: np.ndarray, length_scales: np.ndarray, noise: np.ndarray
-) -> list[tuple[np.ndarray, bool]]:
-    """Cholesky factors of ``K_a = s_a^2 k(z, z) + sigma_a^2 I`` per axis (z (m, d))."""
-    from scipy.linalg import cho_factor
-
-    out = []
-    for a in range(3):
-        zl = z / length_scales[a]
-        sq = (zl * zl).sum(1)
-        k = signal_variance[a] * np.exp(
-            -0.5 * np.maximum(sq[:, None] + sq[None] - 2 * zl @ zl.T, 0)
-        )
-        k[np.diag_indices_from(k)] += noise[a]
-        out.append(cho_factor(k, lower=True))
-    return out
-
-
 def gls_search(
     samples: Sequence[ResidualSamples],
     train_index: np.ndarray,
@@ -212,7 +195,7 @@ def gls_search(
     from scipy.linalg import cho_solve
 
     mean, sv, ls, nv = hyper
-    chol = _factors(z_train, sv, ls, nv)
+    chol = [cholesky_of_k(z_train, sv[a], ls[a], nv[a]) for a in range(3)]
     residual = np.concatenate([s.residual for s in samples])[train_index]
     p = x_linear.shape[2]
     p_mean, p_std = prior

@@ -65,6 +65,7 @@ from omavctl.validation import (
     FOLDS,
     KEEP_RATIO,
     TARGET_COVERAGE,
+    cholesky_of_k,
     cross_validate,
     fold_of,
 )
@@ -592,19 +593,13 @@ def joint_effects(
     mean ``m`` (p,) (default 0) adds ``B^-1 m`` to the right-hand sum. Returns
     theta (p,) and its posterior covariance (p, p).
     """
-    from scipy.linalg import cho_factor, cho_solve
+    from scipy.linalg import cho_solve
 
     p = x.shape[2]
     a_mat = np.diag(1.0 / prior_std**2)
     b_vec = np.zeros(p) if prior_mean is None else prior_mean / prior_std**2
     for a in range(3):
-        zl = z / length_scales[a]
-        sq = (zl * zl).sum(1)
-        k = signal_variance[a] * np.exp(
-            -0.5 * np.maximum(sq[:, None] + sq[None] - 2 * zl @ zl.T, 0)
-        )
-        k[np.diag_indices_from(k)] += noise_variance[a]
-        c = cho_factor(k, lower=True)
+        c = cholesky_of_k(z, signal_variance[a], length_scales[a], noise_variance[a])
         a_mat += x[:, a, :].T @ cho_solve(c, x[:, a, :])
         b_vec += x[:, a, :].T @ cho_solve(c, y[:, a] - mean[a])
     cov = np.linalg.inv(a_mat)

@@ -245,6 +245,8 @@ class SimulationResult:
     diverged: bool
     #: s from the start when the attitude error first exceeded 80 deg (None: never)
     diverged_at: float | None = None
+    #: s of flight in the log (to its last row)
+    duration: float = 0.0
 
 
 class _Actuators:
@@ -596,6 +598,7 @@ class _Flight:
             self.max_att_err,
             self.diverged_at is not None,
             self.diverged_at,
+            float(ct[-1]) if n else 0.0,
         )
 
 

@@ -43,6 +43,7 @@ from omavctl.report_figures import AXIS_COLOURS
 from omavctl.report_figures import png as _png
 from omavctl.report_figures import runs as _runs
 from omavctl.report_figures import style as _style
+from omavctl.verdict import get_path as _get
 
 __all__ = [
     "FORMATS",
@@ -209,18 +210,6 @@ def percent_change(new: Any, old: Any) -> str:
     if not (_finite(new) and _finite(old)) or old <= 0:
         return "n/a"
     return f"{100 * (new - old) / old:+.1f} %"
-
-
-def _get(tree: Any, *keys: Any, default: Any = None) -> Any:
-    """``tree[k0][k1]...`` or ``default`` when any level is missing."""
-    for k in keys:
-        if isinstance(tree, Mapping) and k in tree:
-            tree = tree[k]
-        elif isinstance(tree, list) and isinstance(k, int) and -len(tree) <= k < len(tree):
-            tree = tree[k]
-        else:
-            return default
-    return tree
 
 
 def _axes_of(d: Any) -> list[Any]:

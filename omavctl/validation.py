@@ -51,9 +51,11 @@ __all__ = [
     "KEEP_RATIO",
     "TARGET_COVERAGE",
     "AxisValidation",
+    "cholesky_of_k",
     "cross_validate",
     "fold_of",
     "gp_posterior",
+    "se_kernel",
 ]
 
 #: Length of a held-out time block, s.
@@ -116,6 +118,27 @@ def fold_of(t: np.ndarray, log_id: np.ndarray, seconds: float = BLOCK_SECONDS) -
     return fold
 
 
+def se_kernel(
+    a: np.ndarray, b: np.ndarray, signal_variance: float, length_scales: np.ndarray
+) -> np.ndarray:
+    """Squared-exponential ARD kernel (n, m) between rows of a (n, d) and b (m, d).
+
+    Squared distances by matrix products (``|a|^2 + |b|^2 - 2 a.b``), clipped at 0.
+    """
+    al, bl = a / length_scales, b / length_scales
+    d2 = (al * al).sum(1)[:, None] + (bl * bl).sum(1)[None] - 2.0 * al @ bl.T
+    return np.asarray(signal_variance * np.exp(-0.5 * np.maximum(d2, 0.0)))
+
+
+def cholesky_of_k(
+    z: np.ndarray, signal_variance: float, length_scales: np.ndarray, noise_variance: float
+) -> tuple[np.ndarray, bool]:
+    """Cholesky factor (scipy ``cho_factor``) of ``s^2 k(z, z) + sigma^2 I`` (z (n, d))."""
+    k = se_kernel(z, z, signal_variance, length_scales)
+    k[np.diag_indices_from(k)] += noise_variance
+    return cho_factor(k, lower=True)
+
+
 def gp_posterior(
     z_train: np.ndarray,
     y_train: np.ndarray,
@@ -129,13 +152,8 @@ def gp_posterior(
 
     z_train (m, d), z_test (k, d) normalised inputs; y_train (m,) targets.
     """
-    a = z_train / length_scales
-    b = z_test / length_scales
-    sa, sb = (a * a).sum(1), (b * b).sum(1)
-    k_aa = signal_variance * np.exp(-0.5 * np.maximum(sa[:, None] + sa[None] - 2 * a @ a.T, 0))
-    k_aa[np.diag_indices_from(k_aa)] += noise_variance
-    k_ba = signal_variance * np.exp(-0.5 * np.maximum(sb[:, None] + sa[None] - 2 * b @ a.T, 0))
-    c = cho_factor(k_aa, lower=True)
+    c = cholesky_of_k(z_train, signal_variance, length_scales, noise_variance)
+    k_ba = se_kernel(z_test, z_train, signal_variance, length_scales)
     mu = mean + k_ba @ cho_solve(c, y_train - mean)
     v = cho_solve(c, k_ba.T)
     var = np.maximum(signal_variance - np.einsum("km,mk->k", k_ba, v), 0.0)

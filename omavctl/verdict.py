@@ -63,7 +63,8 @@ class ModelScore:
     tree: Mapping[str, Any]
 
 
-def _get(tree: Any, *keys: Any, default: Any = None) -> Any:
+def get_path(tree: Any, *keys: Any, default: Any = None) -> Any:
+    """``tree[k0][k1]...`` or ``default`` when any level is missing."""
     for k in keys:
         if isinstance(tree, Mapping) and k in tree:
             tree = tree[k]
@@ -89,11 +90,11 @@ def _signed(v: float) -> str:
 
 # ------------------------------------------------------------------ missing
 def _missing_line(tree: Mapping[str, Any]) -> Line:
-    diag = _get(tree, "diagnosis", default={}) or {}
-    missing = [str(m) for m in _get(diag, "missing", default=[]) or []]
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    missing = [str(m) for m in get_path(diag, "missing", default=[]) or []]
     entries = {str(e.get("name")): e for e in diag.get("missing_effects", []) or []}
     if not missing:
-        threshold = _num(_get(diag, "method", "min_explained_variance"))
+        threshold = _num(get_path(diag, "method", "min_explained_variance"))
         text = "Nothing missing: no registered effect explains"
         text += f" {_pct(threshold)} or more" if threshold is not None else " a material share"
         text += " of the model's remaining error on held-out data."
@@ -156,7 +157,7 @@ def _fails_line(tree: Mapping[str, Any]) -> Line | None:
     if not vals:
         return None
     axis = max(vals, key=lambda a: vals[a])
-    overall = _num(_get(tree, "metrics", "model", "rmse", axis))
+    overall = _num(get_path(tree, "metrics", "model", "rmse", axis))
     ratio = f", {vals[axis] / overall:.1f}× its overall" if overall else ""
     start, end = _num(seg.get("start")), _num(seg.get("end"))
     when = f"{start:.1f}–{end:.1f} s" if start is not None and end is not None else "?"
@@ -170,11 +171,11 @@ def _fails_line(tree: Mapping[str, Any]) -> Line | None:
 def coverage_of(metrics: Mapping[str, Any]) -> dict[str, float]:
     """Per-axis fraction within 2 sigma (key ``coverage`` or ``coverage_2sigma``)."""
     cov = metrics.get("coverage") or metrics.get("coverage_2sigma") or {}
-    return {a: v for a in AXES if (v := _num(_get(cov, a))) is not None}
+    return {a: v for a in AXES if (v := _num(get_path(cov, a))) is not None}
 
 
 def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
-    model = _get(tree, "metrics", "model", default={}) or {}
+    model = get_path(tree, "metrics", "model", default={}) or {}
     cov = coverage_of(model)
     if not cov:
         return None
@@ -247,8 +248,8 @@ def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Mode
     """One :class:`ModelScore` per evaluation file (its first model)."""
     out = []
     for tree, label in evals:
-        effects = _get(tree, "models", 0, "effects", default={}) or {}
-        rmse = _get(tree, "metrics", "model", "rmse", default={}) or {}
+        effects = get_path(tree, "models", 0, "effects", default={}) or {}
+        rmse = get_path(tree, "metrics", "model", "rmse", default={}) or {}
         out.append(ModelScore(label, tuple(effects), effects, rmse, tree))
     return out
 
@@ -260,7 +261,7 @@ def scores_of_models(tree: Mapping[str, Any]) -> list[ModelScore]:
     out = []
     for m, metrics in zip(models, by_model, strict=False):
         effects = m.get("effects") or {}
-        rmse = _get(metrics, "model", "rmse", default={}) or {}
+        rmse = get_path(metrics, "model", "rmse", default={}) or {}
         out.append(ModelScore(str(m.get("name", "?")), tuple(effects), effects, rmse, tree))
     return out
 
@@ -269,22 +270,22 @@ def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], a
     """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold."""
     i = AXES.index(axis)
     reasons = []
-    diag = _get(before.tree, "diagnosis", "missing_effects", default=[]) or []
+    diag = get_path(before.tree, "diagnosis", "missing_effects", default=[]) or []
     for name in added:
         entry = next((e for e in diag if isinstance(e, Mapping) and e.get("name") == name), None)
-        ev = _num(_get(entry, "explained_variance_per_axis", axis))
+        ev = _num(get_path(entry, "explained_variance_per_axis", axis))
         if ev is not None and ev < 0.05:
             reasons.append(f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error")
         params = after.effect_params.get(name) or {}
         for key, vals in params.items():
             if str(key).endswith("_stderr") or not isinstance(vals, list) or len(vals) != 3:
                 continue
-            v, se = _num(vals[i]), _num(_get(params, f"{key}_stderr", i))
+            v, se = _num(vals[i]), _num(get_path(params, f"{key}_stderr", i))
             if v is not None and se is not None and abs(v) < 2 * se:
                 reasons.append(
                     f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable from 0"
                 )
-    noise = _num(_get(before.tree, "diagnosis", "method", "measurement_noise_std"))
+    noise = _num(get_path(before.tree, "diagnosis", "method", "measurement_noise_std"))
     r0, r1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
     if noise and r0 is not None and r1 is not None and max(r0, r1) < 3 * noise:
         reasons.append(

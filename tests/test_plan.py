@@ -11,7 +11,8 @@ from omavctl.fit import fit_model
 from omavctl.logs import align
 from omavctl.model import SCHEMA, load_model, save_model
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
-from omavctl.planning.planner import PlanSettings, _test_points, plan, rollout
+from omavctl.planning.planner import PlanSettings, _test_points, plan
+from omavctl.planning.rollout import rollout
 from omavctl.plant import simulate, truth_from_tree
 from omavctl.tasks import fig8
 from omavctl.trajectory import read_trajectory, write_trajectory
@@ -40,7 +41,7 @@ def test_covering_the_task_region_scores_lower_than_staying_away(setup):
     rng = np.random.default_rng(0)
     gp = GPAxes.from_model(model)
     samples = PathwiseSamples(gp, settings.sims, rng)
-    roll = rollout(model, samples, task.data[None], task.t, settings.sims, settings)
+    roll = rollout(model, samples, task.data[None], task.t, settings.sims)
     visited = roll.inputs.reshape(-1, gp.d)
     test = _test_points(visited, float(roll.gap.mean()), settings.test_points, rng)
     inside = visited[rng.choice(visited.shape[0], size=20, replace=False)]
@@ -78,8 +79,8 @@ def test_cli_plan_is_deterministic_and_writes_scores(setup):
         outs.append((out.read_bytes(), scores.read_bytes()))
     assert outs[0] == outs[1]
     header = outs[0][1].decode().splitlines()[0].split(",")
-    assert header[0] == "candidate" and len(header) == 1 + 12 + 5
-    assert header[-1] == "reference_sha256"
+    assert header[0] == "candidate" and len(header) == 1 + 12 + 6
+    assert header[-2:] == ["generation", "reference_sha256"]
     assert len(outs[0][1].decode().splitlines()) == 4
     read_trajectory(tmp / "a.csv")
 

@@ -11,6 +11,7 @@ from omavctl.planning.candidates import (
     deviated_references,
     sample_coefficients,
 )
+from omavctl.planning.fused import FusedSamples
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data, se_kernel
 from omavctl.tasks import fig8
 
@@ -134,3 +135,44 @@ def test_deviation_acceleration_has_the_sampled_magnitude(amplitude):
     ref = deviated_references(task, coeffs)[0]
     middle = (task.t > 5) & (task.t < 15)
     assert np.abs(ref[middle, 16]).max() == pytest.approx(amplitude, rel=0.01)
+
+
+@pytest.mark.parametrize("noise", [0.01, 1e-4])
+def test_fused_float32_samples_agree_with_the_float64_evaluation(noise):
+    """float32 error stays below 1e-5 of the summed term magnitudes (exponents carry
+    rounding of the squared norms), and far below the sample itself."""
+    gp = _gp(n=80, seed=12)
+    gp = GPAxes(
+        gp.inputs, gp.targets, gp.mean, gp.signal_variance, gp.length_scales, np.full(3, noise)
+    )
+    samples = PathwiseSamples(gp, 4, np.random.default_rng(13))
+    fused = FusedSamples(samples, chunk=64)
+    z = gp.inputs[np.arange(150) % gp.n] + 0.3 * np.random.default_rng(14).normal(size=(150, 6))
+    for m in range(4):
+        sample, mean = samples.evaluate(z, np.full(150, m))
+        out = fused.evaluate(z.T, m)
+        assert out.dtype == np.float64 and out.shape == (6, 150)
+        for a in range(3):
+            k = gp.kernel(a, z, gp.inputs)
+            feat = np.abs(samples.features(a, z)) @ np.abs(samples.w[a, m])
+            size_s = np.abs(k) @ np.abs(samples.v[a, m]) + feat + abs(gp.mean[a])
+            size_m = np.abs(k) @ np.abs(gp.alpha[a]) + abs(gp.mean[a])
+            assert np.all(np.abs(out[a] - sample[:, a]) <= 1e-5 * size_s)
+            assert np.all(np.abs(out[3 + a] - mean[:, a]) <= 1e-5 * size_m)
+        assert np.abs(out[:3].T - sample).max() < 1e-3 * np.abs(sample).max()
+
+
+def test_fused_samples_without_signal_on_an_axis_give_the_constant():
+    gp = _gp(n=30, seed=15)
+    gp = GPAxes(
+        gp.inputs,
+        gp.targets,
+        gp.mean,
+        np.array([1.0, 0.0, 2.0]),
+        gp.length_scales,
+        gp.noise_variance,
+    )
+    fused = FusedSamples(PathwiseSamples(gp, 2, np.random.default_rng(16)))
+    out = fused.evaluate(np.random.default_rng(17).normal(size=(6, 20)), 1)
+    np.testing.assert_array_equal(out[1], gp.mean[1])
+    np.testing.assert_array_equal(out[4], gp.mean[1])

@@ -104,9 +104,10 @@ def invert_residual(
 
 @dataclass
 class ControllerState:
-    """Integrators of the attitude (B, 3) and position (B, 3) loops; the last scaled
-    command u (B, 6) and its rate of change du (B, 6) 1/s (backward difference over
-    the last step: what a residual model with command-rate inputs is given)."""
+    """Integrators of the attitude (B, 3) and position (B, 3) loops; the last model-free
+    scaled command ``[f/m, a* - l(x)]`` (B, 6) and its rate of change du (B, 6) 1/s
+    (backward difference over the last step: what a residual model with
+    command-rate inputs is given)."""
 
     att_integral: np.ndarray
     pos_integral: np.ndarray
@@ -184,7 +185,13 @@ class Controller:
         l_x = -cross(omega, omega @ inertia.T) @ v.inertia_inv.T
         u_force = force / v.mass
         target = a_star - l_x
-        du = state.last_du if state.last_du is not None else np.zeros((x.shape[0], 6))
+        # the command's rate of change for a model with command-rate inputs: that of
+        # the model-free command [f/m, a* - l(x)], which the inversion does not
+        # change (the inverted command's own rate would close an algebraic loop of
+        # gain T/dt through a learned lag T: unstable for T > dt)
+        u_free = np.concatenate([u_force, target], axis=-1)
+        du = np.zeros_like(u_free) if state.last_u is None else (u_free - state.last_u) / dt
+        state.last_u, state.last_du = u_free, du
         if self._has_model:
             uses_rate = getattr(self.residual, "uses_command_rate", False)
             u_tau = invert_residual(
@@ -192,10 +199,6 @@ class Controller:
             )
         else:
             u_tau = target
-        u_now = np.concatenate([u_force, u_tau], axis=-1)
-        if state.last_u is not None:
-            state.last_du = (u_now - state.last_u) / dt
-        state.last_u = u_now
         torque = u_tau @ inertia.T
         return ControlOutput(
             force=force,

@@ -20,11 +20,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from omavctl.physics.rigid_body import euler_rates, euler_rates_to_body
+from omavctl.physics.rigid_body import euler_rates, euler_rates_to_body, rotation_matrix
 from omavctl.tasks import Envelope
 from omavctl.trajectory import Trajectory
 
-__all__ = ["coefficient_names", "deviated_references", "sample_coefficients"]
+__all__ = [
+    "ReferenceStream",
+    "coefficient_names",
+    "deviated_references",
+    "sample_coefficients",
+]
 
 
 def coefficient_names(frequencies: int) -> list[str]:
@@ -63,15 +68,20 @@ def _task_euler_derivatives(task: Trajectory) -> tuple[np.ndarray, np.ndarray, n
 
 
 def deviated_references(
-    task: Trajectory, coefficients: np.ndarray, ramp: float = 2.0
+    task: Trajectory, coefficients: np.ndarray, ramp: float = 2.0, rows: slice | None = None
 ) -> np.ndarray:
     """Candidate references (K, N, 19) in trajectory column order.
 
     coefficients (K, 3, P, 2) from :func:`sample_coefficients`; the task's
-    positions, velocities and linear accelerations are kept.
+    positions, velocities and linear accelerations are kept. ``rows`` restricts
+    the output to those task rows (K, len(rows), 19), the same values as the
+    full call: the batched rollouts generate references block by block.
     """
-    t = task.t - task.t[0]
-    env, denv, ddenv, _ = Envelope(float(t[-1]), min(ramp, float(t[-1]) / 2))(t)
+    rows = slice(None) if rows is None else rows
+    t_all = task.t - task.t[0]
+    t = t_all[rows]
+    duration = float(t_all[-1])
+    env, denv, ddenv, _ = Envelope(duration, min(ramp, duration / 2))(t)
     f = coefficients[..., 0][..., None]  # (K, 3, P, 1)
     amp = coefficients[..., 1][..., None]
     w = 2 * np.pi * f
@@ -83,14 +93,65 @@ def deviated_references(
     delta = env * base
     ddelta = denv * base + env * dbase
     dddelta = ddenv * base + 2 * denv * dbase + env * ddbase
-    eta, deta, ddeta = _task_euler_derivatives(task)
+    eta, deta, ddeta = (v[rows] for v in _task_euler_derivatives(task))
     eta_k = eta[None] + np.swapaxes(delta, 1, 2)
     deta_k = deta[None] + np.swapaxes(ddelta, 1, 2)
     ddeta_k = ddeta[None] + np.swapaxes(dddelta, 1, 2)
     omega, domega = euler_rates_to_body(eta_k, deta_k, ddeta_k)
     assert domega is not None
-    out = np.broadcast_to(task.data, (coefficients.shape[0], *task.data.shape)).copy()
+    data = task.data[rows]
+    out = np.broadcast_to(data, (coefficients.shape[0], *data.shape)).copy()
     out[..., 4:7] = eta_k
     out[..., 10:13] = omega
     out[..., 16:19] = domega
     return out
+
+
+class ReferenceStream:
+    """Candidate references on the controller grid, generated block by block.
+
+    The batched rollouts need, per control step i, every candidate's reference
+    row; (K, N, 19) at once would be 365 MB for 1000 candidates of 24 s.
+    ``block(lo, hi)`` returns the rows of steps lo..hi-1 as (hi - lo, 19, K)
+    (C order: one step is one contiguous (19, K) slice) and the rotation
+    matrices of their reference attitudes (hi - lo, 9, K), row-major entries.
+    On a controller grid that differs from the task's, rows are interpolated
+    linearly (as :func:`omavctl.planning.rollout.rollout` does). With
+    ``task_first``, candidate 0 is the task's own data (its coefficients are
+    ignored).
+    """
+
+    def __init__(
+        self,
+        task: Trajectory,
+        coefficients: np.ndarray,
+        t: np.ndarray,
+        task_first: bool = False,
+    ) -> None:
+        self.task, self.coefficients, self.task_first = task, coefficients, task_first
+        t_ref = task.t
+        self.same_grid = t_ref.size == t.size and bool(np.allclose(t_ref, t))
+        self.idx = np.clip(np.searchsorted(t_ref, t, side="right") - 1, 0, t_ref.size - 2)
+        w = (t - t_ref[self.idx]) / (t_ref[self.idx + 1] - t_ref[self.idx])
+        self.weight = np.clip(w, 0.0, 1.0)
+
+    def _rows(self, lo: int, hi: int) -> np.ndarray:
+        """Task rows lo..hi-1 of every candidate (K, hi - lo, 19)."""
+        out = deviated_references(self.task, self.coefficients, rows=slice(lo, hi))
+        if self.task_first:
+            out[0] = self.task.data[lo:hi]
+        return out
+
+    def block(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+        """Reference rows (hi - lo, 19, K) and attitudes as rotations (hi - lo, 9, K)."""
+        if self.same_grid:
+            refs = self._rows(lo, hi)
+        else:
+            idx, w = self.idx[lo:hi], self.weight[lo:hi, None]
+            first = int(idx.min())
+            rows = self._rows(first, int(idx.max()) + 2)
+            refs = rows[:, idx - first] * (1 - w) + rows[:, idx + 1 - first] * w
+        refs = np.ascontiguousarray(np.transpose(refs, (1, 2, 0)))
+        rot = rotation_matrix(np.moveaxis(refs[:, 4:7], 1, -1))  # (L, K, 3, 3)
+        rot = np.ascontiguousarray(np.moveaxis(rot.reshape(*rot.shape[:2], 9), -1, 1))
+        return refs, rot

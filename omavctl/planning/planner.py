@@ -7,35 +7,39 @@
    GP inputs estimate the task region; epsilon defaults to the mean distance
    between commanded and achieved input (the paper's heuristic); S test points
    are drawn uniformly in the epsilon-balls around visited inputs.
-2. Sample K deviation coefficient sets (:mod:`~omavctl.planning.candidates`).
+2. Propose K deviation coefficient sets (:mod:`~omavctl.planning.candidates`):
+   all at once at random, or generation by generation with the cross-entropy
+   method (:mod:`~omavctl.planning.search`).
 3. Simulate every candidate M times, all K*M simulations in one batch per time
-   step; reject those that break allocation limits, attitude limits or diverge.
-4. For each simulation pick the points ``fit`` would train on
-   (:func:`omavctl.fit.select_points`, k-medoids, on every ``stride``-th sample
-   to keep it cheap) and compute the posterior variance at the test points
-   given prior data + those points by a rank update (never a refit).
-5. Cost = mean variance over test points, axes and simulations; lowest wins.
+   step (:mod:`~omavctl.planning.batched`; the task flies in the same batch);
+   reject those that break allocation limits, attitude limits or diverge.
+4. Score the feasible ones with the objective (:mod:`~omavctl.planning.scoring`):
+   for each simulation the points ``fit`` would add, and the posterior variance
+   at the test points given prior data + those points by a rank update.
+5. Cost = mean over the M simulations; lowest wins.
+
+Random streams: the posterior samples, the test points and the candidates
+each draw from their own child of ``SeedSequence(seed)``, so the fast and the
+reference path (``fast=False``) see the same samples, test points and candidates.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from omavctl.errors import OmavctlError
-from omavctl.physics.allocation import Allocation
-from omavctl.physics.controller import Controller, ControllerState
-from omavctl.physics.rigid_body import cross, euler_rates, rotation_matrix, wrap_angle
 from omavctl.planning.candidates import deviated_references, sample_coefficients
-from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
+from omavctl.planning.gp import GPAxes, PathwiseSamples
+from omavctl.planning.rollout import REASONS, Progress
+from omavctl.planning.scoring import Flights, Objective, VarianceObjective
+from omavctl.planning.search import CrossEntropy, generation_sizes
+from omavctl.planning.simulate import Batch, Simulator
 from omavctl.trajectory import Trajectory
 
-__all__ = ["PlanResult", "PlanSettings", "Rollouts", "plan", "rollout"]
-
-Progress = Callable[[str, float], None]
+__all__ = ["OBJECTIVES", "PlanResult", "PlanSettings", "plan"]
 
 
 @dataclass(frozen=True)
@@ -55,142 +59,21 @@ class PlanSettings:
     rff_features: int = 256
     max_tilt_deg: float = 80.0  # attitude limit on roll and pitch
     max_error_deg: float = 30.0  # attitude error beyond which a simulation diverged
-    stride: int = 4  # k-medoids on every stride-th simulated sample
+    stride: int = 4  # points are picked among every stride-th simulated sample
+    search: str = "random"  # or "cem"
+    generations: int = 5  # cem: generations the candidates are spent in
+    selection: str = "batched"  # or "kmedoids" (per simulation, as fit)
+    objective: str = "variance"
+    fast: bool = True  # False: the straightforward reference path
+    jobs: int = 1  # worker processes for the fast path
 
 
-@dataclass
-class Rollouts:
-    """Batched simulations: B = K * M rows (candidate k = b // M, sample m = b % M).
-
-    inputs (B, T, d) normalised GP inputs visited; gap (B, T) distance between
-    commanded and achieved input (normalised units); tracking (B,) mean absolute
-    angular-acceleration tracking error |a* - omega_dot| (rad/s^2); feasible (B,);
-    reason (B,) why not ("" if feasible).
-    """
-
-    inputs: np.ndarray
-    gap: np.ndarray
-    tracking: np.ndarray
-    feasible: np.ndarray
-    reason: list[str]
+def _variance_objective(gp: GPAxes, test: np.ndarray, settings: PlanSettings) -> Objective:
+    return VarianceObjective(gp, test, settings.points, settings.selection, settings.seed)
 
 
-def _resample(refs: np.ndarray, t_ref: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """refs (K, N, 19) on t_ref -> (K, T, 19) on t (linear)."""
-    if t_ref.size == t.size and np.allclose(t_ref, t):
-        return refs
-    idx = np.clip(np.searchsorted(t_ref, t, side="right") - 1, 0, t_ref.size - 2)
-    w = ((t - t_ref[idx]) / (t_ref[idx + 1] - t_ref[idx]))[None, :, None]
-    w = np.clip(w, 0.0, 1.0)
-    return refs[:, idx] * (1 - w) + refs[:, idx + 1] * w
-
-
-def rollout(
-    model,
-    samples: PathwiseSamples,
-    refs: np.ndarray,
-    t_ref: np.ndarray,
-    sims: int,
-    settings: PlanSettings,
-    progress: Progress | None = None,
-    label: str = "simulating",
-    substeps: int = 4,
-) -> Rollouts:
-    """Simulate every reference in ``refs`` (K, N, 19) ``sims`` times, batched.
-
-    The controller (nominal PID) runs at the vehicle's rate; its torque is
-    corrected by two fixed-point iterations of ``u + mu(u) = a*`` with the
-    model mean; the plant is ``omega_dot = l(x) + u_tau + g_m(u)`` with g_m the
-    m-th posterior sample plus the model's static effects, integrated with
-    ``substeps`` semi-implicit Euler steps per control period.
-    """
-    vehicle = model.vehicle
-    rate = vehicle.gains.rate_hz
-    dt = 1.0 / rate
-    t = np.arange(int(np.floor((t_ref[-1] - t_ref[0]) * rate + 1e-9)) + 1) / rate + t_ref[0]
-    refs = _resample(refs, t_ref, t)
-    k_count, steps = refs.shape[0], t.size
-    b_count = k_count * sims
-    cand = np.repeat(np.arange(k_count), sims)
-    sample_idx = np.tile(np.arange(sims), k_count)
-    inertia, inertia_inv, mass = vehicle.inertia, vehicle.inertia_inv, vehicle.mass
-    ctrl = Controller(vehicle)
-    state = ControllerState.zeros(b_count)
-    alloc = Allocation(vehicle)
-    x = np.zeros((b_count, 12))
-    x[:, 0:3] = refs[cand, 0, 1:4]
-    x[:, 3:6] = refs[cand, 0, 4:7]
-    x[:, 6:9] = refs[cand, 0, 7:10]
-    x[:, 9:12] = refs[cand, 0, 10:13]
-    d = samples.gp.d
-    inputs = np.empty((b_count, steps, d))
-    gap = np.empty((b_count, steps))
-    track = np.zeros(b_count)
-    feasible = np.ones(b_count, dtype=bool)
-    reason = [""] * b_count
-    prev_tilt: np.ndarray | None = None
-    torque_scale = model.input_scale[3:6]
-    max_tilt, max_err = np.deg2rad(settings.max_tilt_deg), np.deg2rad(settings.max_error_deg)
-    alive = np.ones(b_count, dtype=bool)
-
-    def mark(bad: np.ndarray, why: str) -> None:
-        for b in np.flatnonzero(bad & feasible):
-            reason[b] = why
-        feasible[bad] = False
-
-    u_last: np.ndarray | None = None
-    du = np.zeros((b_count, 6))  # the command's rate of change over the last step
-    for i in range(steps):
-        ref = refs[cand, i]
-        out = ctrl.step(state, x, ref, dt)
-        omega = x[:, 9:12]
-        u_f, target = out.u[:, :3], out.u[:, 3:]
-        u = out.u.copy()
-        for _ in range(2):  # fixed-point inversion of u_tau + mu(u) = target
-            z = model.normalise(model.gp_inputs(u, omega, du))
-            mu = samples.mean(z)
-            if model.effects:
-                mu = mu + model.effects_mean(u, omega)
-            u[:, 3:] = target - mu
-        z = model.normalise(model.gp_inputs(u, omega, du))
-        if u_last is not None:
-            du = (u - u_last) / dt
-        u_last = u.copy()
-        g, _ = samples.evaluate(z, sample_idx)
-        if model.effects:
-            g = g + model.effects_mean(u, omega)
-        inputs[:, i] = z
-        gap[:, i] = np.linalg.norm(g / torque_scale, axis=1)
-        l_x = -cross(omega, omega @ inertia.T) @ inertia_inv.T
-        omega_dot = l_x + u[:, 3:] + g
-        track += np.abs(out.desired_angular - omega_dot).mean(axis=1)
-        wrench = np.concatenate([u_f * mass, u[:, 3:] @ inertia.T], axis=1)
-        res = alloc.allocate(wrench, prev_tilt, dt if prev_tilt is not None else None)
-        prev_tilt = res.tilt
-        mark(res.thrust_high.any(axis=1) | res.thrust_low.any(axis=1), "thrust limit")
-        mark(res.tilt_rate_exceeded.any(axis=1), "tilt rate limit")
-        force = wrench[:, :3]
-        h = dt / substeps
-        for _ in range(substeps):
-            acc = np.einsum("bij,bj->bi", rotation_matrix(x[:, 3:6]), force) / mass
-            acc[:, 2] -= vehicle.gravity
-            w = x[:, 9:12]
-            w_dot = -cross(w, w @ inertia.T) @ inertia_inv.T + u[:, 3:] + g
-            x[:, 9:12] = w + h * w_dot
-            x[:, 6:9] += h * acc
-            x[:, 3:6] = wrap_angle(x[:, 3:6] + h * euler_rates(x[:, 3:6], x[:, 9:12]))
-            x[:, 0:3] += h * x[:, 6:9]
-        att_err = np.abs(wrap_angle(x[:, 3:6] - refs[cand, min(i + 1, steps - 1), 4:7])).max(axis=1)
-        tilt_bad = np.abs(x[:, 3:5]).max(axis=1) > max_tilt
-        mark(tilt_bad, "attitude limit")
-        diverged = ~np.isfinite(x).all(axis=1) | (att_err > max_err)
-        mark(diverged, "diverged")
-        if diverged.any():  # keep the batch finite: freeze diverged rows at the reference
-            alive &= ~diverged
-            x[~alive] = np.nan_to_num(x[~alive])
-        if progress is not None:
-            progress(label, (i + 1) / steps)
-    return Rollouts(inputs, gap, track / steps, feasible, reason)
+#: Objectives by name: (model GPs, test points, settings) -> objective.
+OBJECTIVES = {"variance": _variance_objective}
 
 
 def _test_points(
@@ -211,9 +94,10 @@ class PlanResult:
 
     coefficients (K, 3, P, 2); cost (K,) mean posterior variance ((rad/s^2)^2),
     inf when infeasible; feasible (K,); reason (K,); tracking (K,) mean absolute
-    tracking error in the simulations (rad/s^2); references (K, N, 19);
-    best index (-1 if none is feasible); task_cost the cost of flying the task
-    itself; epsilon used; prior_variance mean prior variance at the test points.
+    tracking error in the simulations (rad/s^2); generation (K,) in which the
+    candidate was proposed (0 for random search); best index (-1 if none is
+    feasible); task_cost the cost of flying the task itself; epsilon used;
+    prior_variance mean prior variance at the test points; task the task.
     """
 
     coefficients: np.ndarray
@@ -221,12 +105,13 @@ class PlanResult:
     feasible: np.ndarray
     reason: list[str]
     tracking: np.ndarray
-    references: np.ndarray
+    generation: np.ndarray
     best: int
     task_cost: float
     epsilon: float
     prior_variance: float
     test_points: np.ndarray
+    task: Trajectory
     notes: list[str] = field(default_factory=list)
 
     def best_trajectory(self, task: str | Path | None = None) -> Trajectory:
@@ -235,34 +120,60 @@ class PlanResult:
             raise OmavctlError(
                 "no feasible candidate for this task: lower --amplitude or --max-freq", task
             )
-        return Trajectory(self.references[self.best])
+        return Trajectory(
+            deviated_references(self.task, self.coefficients[self.best : self.best + 1])[0]
+        )
 
 
-def _cost_of(
-    model,
-    gp: GPAxes,
-    roll: Rollouts,
-    test: np.ndarray,
-    settings: PlanSettings,
-    progress: Progress | None,
-) -> np.ndarray:
-    """Mean posterior variance (B,) over test points and axes after each simulation's data."""
-    from omavctl.fit import select_points
+def _score(objective: Objective, batch: Batch) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Cost (K,) (inf unless every simulation is feasible), feasible (K,), reasons (K,)."""
+    feasible = (batch.code == 0).all(axis=1)
+    cost = np.full(feasible.shape, np.inf)
+    if feasible.any():
+        flights = Flights(
+            batch.inputs[feasible], batch.tracking[feasible], batch.code[feasible] == 0
+        )
+        cost[feasible] = objective(flights).mean(axis=1)
+    reasons = [", ".join(sorted({REASONS[c] for c in row if c})) for row in batch.code]
+    return cost, feasible, reasons
 
-    b_count = roll.inputs.shape[0]
-    picks = np.empty((b_count, settings.points, gp.d))
-    for b in range(b_count):
-        z = roll.inputs[b, :: settings.stride]
-        k = min(settings.points, z.shape[0])
-        idx, _ = select_points(z, k, seed=settings.seed)
-        chosen = z[idx]
-        if k < settings.points:  # pad by repeating (adds no information beyond noise)
-            chosen = np.resize(chosen, (settings.points, chosen.shape[1]))
-        picks[b] = chosen
-        if progress is not None:
-            progress("selecting points", (b + 1) / b_count)
-    var = posterior_variance_with_data(gp, picks, test)  # (B, S, 3)
-    return var.mean(axis=(1, 2))
+
+def _task_region(
+    model_gp: GPAxes, batch: Batch, settings: PlanSettings, rng: np.random.Generator
+) -> tuple[np.ndarray, float]:
+    """Test points (S, d) and epsilon from the task's simulations."""
+    assert batch.task_inputs is not None and batch.task_gap is not None
+    visited = batch.task_inputs.reshape(-1, model_gp.d)
+    epsilon = batch.task_gap if settings.epsilon is None else settings.epsilon
+    if not epsilon > 0:
+        raise OmavctlError("--epsilon must be > 0 (the model predicts no residual at all)")
+    return _test_points(visited, epsilon, settings.test_points, rng), float(epsilon)
+
+
+def _check(settings: PlanSettings) -> None:
+    if settings.search not in ("random", "cem"):
+        raise OmavctlError(f"unknown --search '{settings.search}' (random or cem)")
+    if settings.objective not in OBJECTIVES:
+        raise OmavctlError(f"unknown objective '{settings.objective}'")
+
+
+def _proposer(settings: PlanSettings, rng: np.random.Generator):
+    """Generation sizes and ``propose(n, coeffs so far, costs so far)`` -> (n, 3, P, 2)."""
+    s = settings
+    bounds = (s.frequencies, s.min_freq, s.max_freq, s.amplitude)
+    sizes = [s.candidates]
+    if s.search == "cem":
+        sizes = generation_sizes(s.candidates, s.generations)
+    cem = CrossEntropy.for_bounds(*bounds)
+
+    def propose(n: int, coeffs: list[np.ndarray], costs: list[np.ndarray]) -> np.ndarray:
+        if coeffs:
+            cem.update(np.concatenate(coeffs), np.concatenate(costs))
+        if cem.mean is None:  # first generation, or nothing feasible yet: uniform
+            return sample_coefficients(rng, n, *bounds)
+        return cem.sample(rng, n, (3, s.frequencies, 2))
+
+    return sizes, propose
 
 
 def plan(
@@ -271,62 +182,59 @@ def plan(
     settings: PlanSettings,
     progress: Progress | None = None,
 ) -> PlanResult:
-    """Sample, simulate and score candidate references (see module docstring)."""
-    rng = np.random.default_rng(settings.seed)
+    """Propose, simulate and score candidate references (see module docstring)."""
+    _check(settings)
+    seeds = np.random.SeedSequence(settings.seed).spawn(3)
+    rng_gp, rng_test, rng_cand = (np.random.default_rng(s) for s in seeds)
     gp = GPAxes.from_model(model)
-    samples = PathwiseSamples(gp, settings.sims, rng, settings.rff_features)
-    notes: list[str] = []
-
-    # 1. the task region
-    task_roll = rollout(
-        model, samples, task.data[None], task.t, settings.sims, settings, progress, "task"
+    samples = PathwiseSamples(gp, settings.sims, rng_gp, settings.rff_features)
+    limits = (settings.max_tilt_deg, settings.max_error_deg)
+    sim = Simulator(
+        model, samples, task, settings.stride, limits, settings.fast, settings.jobs, progress
     )
-    visited = task_roll.inputs.reshape(-1, gp.d)
-    epsilon = float(task_roll.gap.mean()) if settings.epsilon is None else settings.epsilon
-    if epsilon <= 0:
-        raise OmavctlError("--epsilon must be > 0 (the model predicts no residual at all)")
-    test = _test_points(visited, epsilon, settings.test_points, rng)
-    prior_var = float(gp.posterior_variance(test).mean())
-    task_cost = float(_cost_of(model, gp, task_roll, test, settings, None).mean())
-    if not task_roll.feasible.all():
-        notes.append(
-            "the task itself breaks limits in simulation: "
-            + ", ".join(sorted({r for r in task_roll.reason if r}))
-        )
-
-    # 2-3. candidates
-    coeffs = sample_coefficients(
-        rng,
-        settings.candidates,
-        settings.frequencies,
-        settings.min_freq,
-        settings.max_freq,
-        settings.amplitude,
-    )
-    refs = deviated_references(task, coeffs)
-    roll = rollout(model, samples, refs, task.t, settings.sims, settings, progress, "candidates")
-
-    # 4-5. score
-    per_sim = _cost_of(model, gp, roll, test, settings, progress)
-    k_count, m = settings.candidates, settings.sims
-    feasible = roll.feasible.reshape(k_count, m).all(axis=1)
-    reasons = []
-    for k in range(k_count):
-        why = sorted({r for r in roll.reason[k * m : (k + 1) * m] if r})
-        reasons.append(", ".join(why))
-    cost = np.where(feasible, per_sim.reshape(k_count, m).mean(axis=1), np.inf)
-    best = int(np.argmin(cost)) if feasible.any() else -1
+    sizes, propose = _proposer(settings, rng_cand)
+    coeffs: list[np.ndarray] = []
+    parts: list[tuple[np.ndarray, np.ndarray, list[str], np.ndarray]] = []
+    objective: Objective | None = None
+    for g, size in enumerate(sizes):
+        coeffs.append(propose(size, coeffs, [p[0] for p in parts]))
+        label = "simulating" if g == 0 else f"generation {g + 1}/{len(sizes)}"
+        batch = sim(coeffs[-1], with_task=g == 0, label=label)
+        if objective is None:
+            test, epsilon = _task_region(gp, batch, settings, rng_test)
+            objective = OBJECTIVES[settings.objective](gp, test, settings)
+            task_cost, notes = _task_cost(objective, batch, settings)
+        parts.append((*_score(objective, batch), batch.tracking.mean(axis=1)))
+    cost = np.concatenate([p[0] for p in parts])
+    feasible = np.concatenate([p[1] for p in parts])
     return PlanResult(
-        coefficients=coeffs,
+        coefficients=np.concatenate(coeffs),
         cost=cost,
         feasible=feasible,
-        reason=reasons,
-        tracking=roll.tracking.reshape(k_count, m).mean(axis=1),
-        references=refs,
-        best=best,
+        reason=[r for p in parts for r in p[2]],
+        tracking=np.concatenate([p[3] for p in parts]),
+        generation=np.repeat(np.arange(len(sizes)), sizes),
+        best=int(np.argmin(cost)) if feasible.any() else -1,
         task_cost=task_cost,
         epsilon=epsilon,
-        prior_variance=prior_var,
+        prior_variance=float(gp.posterior_variance(test).mean()),
         test_points=test,
+        task=task,
         notes=notes,
     )
+
+
+def _task_cost(
+    objective: Objective, batch: Batch, settings: PlanSettings
+) -> tuple[float, list[str]]:
+    """The task's own cost (its M simulations scored like a candidate) and notes."""
+    assert batch.task_inputs is not None and batch.task_code is not None
+    m = settings.sims
+    flights = Flights(
+        batch.task_inputs[None, :, :: settings.stride], np.zeros((1, m)), batch.task_code[None] == 0
+    )
+    notes = []
+    if batch.task_code.any():
+        why = sorted({REASONS[c] for c in batch.task_code if c})
+        notes.append("the task itself breaks limits in simulation: " + ", ".join(why))
+    return float(objective(flights).mean()), notes

@@ -24,15 +24,16 @@ def _num(v: float) -> str:
 
 
 def format_scores(result: PlanResult, reference_sha256: str | None = None) -> str:
-    """CSV: candidate id, the 3*2*P coefficients (Hz and rad/s^2), cost, feasible, reason
-    and, when given, the sha256 of the reference CSV written with it (same in every row).
+    """CSV: candidate id, the 3*2*P coefficients (Hz and rad/s^2), cost, tracking,
+    feasible, reason, generation (of the search that proposed it; 0 for random) and,
+    when given, the sha256 of the reference CSV written with it (same in every row).
 
     Infeasible candidates have an empty cost. Deterministic for the same result.
     """
     k_count, _, p_count, _ = result.coefficients.shape
     names = coefficient_names(p_count)
     buf = io.StringIO()
-    header = ["candidate", *names, "cost", "tracking", "feasible", "reason"]
+    header = ["candidate", *names, "cost", "tracking", "feasible", "reason", "generation"]
     if reference_sha256 is not None:
         header.append("reference_sha256")
     buf.write(",".join(header) + "\n")
@@ -41,7 +42,7 @@ def format_scores(result: PlanResult, reference_sha256: str | None = None) -> st
         cost = _num(result.cost[k]) if result.feasible[k] else ""
         reason = result.reason[k].replace(",", ";").replace("\n", " ")
         row = [str(k), *coeffs, cost, _num(result.tracking[k])]
-        row += ["true" if result.feasible[k] else "false", reason]
+        row += ["true" if result.feasible[k] else "false", reason, str(result.generation[k])]
         if reference_sha256 is not None:
             row.append(reference_sha256)
         buf.write(",".join(row) + "\n")

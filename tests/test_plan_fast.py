@@ -1,0 +1,167 @@
+"""The fast planner: agrees with the reference path, ranks like k-medoids, CEM beats random."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.stats import spearmanr
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.fit import fit_model
+from omavctl.logs import align
+from omavctl.model import ResidualGP, save_model
+from omavctl.planning import PlanSettings, plan
+from omavctl.planning.candidates import ReferenceStream, deviated_references, sample_coefficients
+from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
+from omavctl.planning.planner import _test_points
+from omavctl.planning.rollout import control_times
+from omavctl.planning.scoring import batched_picks, integrated_variance, kmedoids_picks
+from omavctl.planning.simulate import Simulator
+from omavctl.plant import simulate, truth_from_tree
+from omavctl.tasks import fig8
+from omavctl.trajectory import write_trajectory
+
+runner = CliRunner()
+SMALL = PlanSettings(candidates=5, sims=2, test_points=100, points=15)
+
+
+@pytest.fixture(scope="module")
+def fitted(vehicle):
+    """An 8 s figure-8 task and a model fitted on one flight of it."""
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
+    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
+    return task, fit_model([flight], vehicle, points=40, restarts=0).model
+
+
+def test_fast_and_reference_paths_agree_on_costs(fitted):
+    task, model = fitted
+    settings = replace(SMALL, selection="kmedoids")
+    fast = plan(model, task, settings)
+    ref = plan(model, task, replace(settings, fast=False))
+    assert fast.feasible.any()
+    np.testing.assert_array_equal(fast.feasible, ref.feasible)
+    assert fast.reason == ref.reason
+    ok = ref.feasible
+    np.testing.assert_allclose(fast.cost[ok], ref.cost[ok], rtol=1e-3)
+    np.testing.assert_allclose(fast.tracking, ref.tracking, rtol=1e-3)
+    assert fast.task_cost == pytest.approx(ref.task_cost, rel=1e-3)
+    assert fast.epsilon == pytest.approx(ref.epsilon, rel=1e-3)
+    np.testing.assert_array_equal(fast.coefficients, ref.coefficients)
+
+
+def test_batched_selection_ranks_candidates_like_kmedoids(fitted):
+    task, model = fitted
+    rng = np.random.default_rng(3)
+    gp = GPAxes.from_model(model)
+    sim = Simulator(model, PathwiseSamples(gp, 8, rng), task, 4, (80.0, 30.0))
+    batch = sim(sample_coefficients(rng, 40, 2, 0.1, 2.0, 1.0), with_task=True)
+    assert batch.task_inputs is not None and batch.task_gap is not None
+    test = _test_points(batch.task_inputs.reshape(-1, gp.d), batch.task_gap, 300, rng)
+    ok = (batch.code == 0).all(axis=1)
+    assert ok.sum() >= 30
+    flights = batch.inputs[ok].reshape(-1, *batch.inputs.shape[2:])
+    # the default 40 points per flight and 8 simulations per candidate
+    by_kmedoids = integrated_variance(gp, kmedoids_picks(flights, 40, 0), test)
+    by_batch = integrated_variance(gp, batched_picks(flights, 40), test)
+    rho = spearmanr(by_kmedoids.reshape(-1, 8).mean(1), by_batch.reshape(-1, 8).mean(1))
+    assert rho.correlation >= 0.95
+
+
+def test_integrated_variance_equals_the_mean_of_the_rank_update():
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(50, 6))
+    gp = GPAxes(
+        inputs=x,
+        targets=np.column_stack([np.sin(x[:, 0]), x[:, 1], x[:, 2] ** 2]),
+        mean=np.zeros(3),
+        signal_variance=np.array([1.0, 0.5, 0.0]),  # the z-axis GP switched off
+        length_scales=rng.uniform(0.8, 3.0, size=(3, 6)),
+        noise_variance=np.array([0.01, 0.001, 0.02]),
+    )
+    picks, test = rng.normal(size=(7, 9, 6)), rng.normal(size=(60, 6))
+    direct = posterior_variance_with_data(gp, picks, test).mean(axis=(1, 2))
+    np.testing.assert_allclose(integrated_variance(gp, picks, test, chunk=3), direct, rtol=1e-9)
+
+
+def test_reference_stream_blocks_equal_the_full_references(fitted):
+    task, _ = fitted
+    coeffs = sample_coefficients(np.random.default_rng(5), 3, 2, 0.1, 2.0, 1.0)
+    full = deviated_references(task, coeffs)
+    for rate in (100.0, 150.0):  # the task's grid, and one to interpolate onto
+        t = control_times(task.t, rate)
+        stream = ReferenceStream(task, coeffs, t, task_first=True)
+        refs, rot = stream.block(10, 40)
+        expected = np.stack(
+            [np.interp(t[10:40], task.t, full[k, :, c]) for k in range(3) for c in range(19)]
+        )
+        expected = expected.reshape(3, 19, -1).transpose(2, 1, 0)
+        expected[:, :, 0] = np.stack(
+            [np.interp(t[10:40], task.t, task.data[:, c]) for c in range(19)]
+        ).T
+        np.testing.assert_allclose(refs, expected, atol=1e-12)
+        assert rot.shape == (30, 9, 3)
+
+
+def test_cem_finds_a_lower_cost_than_random_sampling_at_equal_budget(fitted):
+    task, model = fitted
+    settings = replace(SMALL, candidates=48, generations=4)
+    random = plan(model, task, settings)
+    cem = plan(model, task, replace(settings, search="cem"))
+    assert cem.coefficients.shape == random.coefficients.shape  # same number of simulations
+    assert cem.feasible[cem.best]
+    assert cem.cost[cem.best] < random.cost[random.best]
+    assert set(cem.generation) == {0, 1, 2, 3}
+    # the search improved on its uniform first generation
+    assert cem.cost[cem.generation > 0].min() < cem.cost[cem.generation == 0].min()
+
+
+def test_plan_survives_an_axis_without_gp(fitted):
+    task, model = fitted
+    sv = model.signal_variance.copy()
+    sv[2] = 0.0
+    off = ResidualGP(
+        vehicle=model.vehicle,
+        features=model.features,
+        input_names=model.input_names,
+        inputs=model.inputs,
+        targets=model.targets,
+        input_mean=model.input_mean,
+        input_scale=model.input_scale,
+        target_mean=model.target_mean,
+        signal_variance=sv,
+        length_scales=model.length_scales,
+        noise_variance=model.noise_variance,
+    )
+    result = plan(off, task, SMALL)
+    assert result.feasible.any()
+    assert np.all(np.isfinite(result.cost[result.feasible]))
+
+
+def test_cli_plan_same_seed_same_bytes_and_jobs_agree(fitted, tmp_path):
+    task, model = fitted
+    task_path, model_path = tmp_path / "task.csv", tmp_path / "model.npz"
+    write_trajectory(task_path, task)
+    save_model(model_path, model)
+    outs = []
+    cem = ["--search", "cem", "--generations", "2"]
+    for name, extra in (("a", cem), ("b", cem), ("c", []), ("d", ["--jobs", "2"])):
+        out, scores = tmp_path / f"{name}.csv", tmp_path / f"{name}-scores.csv"
+        args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
+        args += ["--candidates", "8", "--sims", "2", "--test-points", "80", "--points", "10"]
+        args += ["--scores", str(scores), "-q", *extra]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, result.output
+        outs.append((out.read_bytes(), scores.read_bytes()))
+    assert outs[0] == outs[1]
+    lines = outs[0][1].decode().splitlines()
+    assert len(lines) == 1 + 8  # every candidate scored
+    assert {line.split(",")[-1] for line in lines[1:]} == {"0", "1"}
+    # worker processes see other batch shapes (BLAS rounding, then the discrete
+    # point selection): the same candidates and feasibility, costs within 1e-3
+    rows = [[line.split(",") for line in o[1].decode().splitlines()[1:]] for o in outs[2:]]
+    assert [r[:13] + r[15:] for r in rows[0]] == [r[:13] + r[15:] for r in rows[1]]
+    cost = np.array([[float(r[13] or "nan") for r in rr] for rr in rows])
+    np.testing.assert_allclose(cost[1], cost[0], rtol=1e-3)
