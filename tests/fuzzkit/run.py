@@ -155,11 +155,16 @@ def check_output(path: Path, kind: str) -> str | None:
 
             read_trajectory(path)
         elif kind == "scores":
-            rows = path.read_text().splitlines()
+            rows = [r.split(",") for r in path.read_text().splitlines()]
+            numeric = [
+                j
+                for j, name in enumerate(rows[0])
+                if name[:2] in ("f_", "A_") or name in ("cost", "tracking", "generation")
+            ]
             for row in rows[1:]:
-                for cell in row.split(",")[1:-3]:
-                    if cell and not math.isfinite(float(cell)):
-                        return f"scores cell {cell}"
+                for j in numeric:
+                    if row[j] and not math.isfinite(float(row[j])):
+                        return f"scores cell {row[j]}"
         elif kind == "log":
             from omavctl.logs import read_raw
 
