@@ -386,4 +386,6 @@ def iter_cases(
         case = maker(rng, i, base, work)
         if strategy == "stacked" and maker is make_case:
             case = _stack(rng, case, work)
+        if rng.random() < 0.2:  # scripting: one JSON object on stdout, errors on stderr
+            case.argv.append("--json")
         yield case, work

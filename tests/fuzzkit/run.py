@@ -190,6 +190,8 @@ def judge(case: Case, work: Path, code: int | None, stdout: str, stderr: str) ->
     if leftovers:
         return "temp-file-left", ", ".join(leftovers)
     text = (stdout + stderr).strip()
+    if code != 0 and "--json" in case.argv and stdout.strip():
+        return "not-one-line", f"stdout on failure: {stdout[:200]}"
     if code != 0:
         lines = text.splitlines()
         if code != 2:
@@ -212,6 +214,13 @@ def judge(case: Case, work: Path, code: int | None, stdout: str, stderr: str) ->
         return "warning-printed", stderr[-300:]
     if case.must_fail:
         return "exit0-wrong", f"accepted {case.mutation}"
+    if "--json" in case.argv:
+        lines = stdout.strip().splitlines()
+        try:
+            if len(lines) != 1 or not isinstance(_finite_json(lines[0]), dict):
+                return "exit0-wrong", f"--json printed {len(lines)} lines"
+        except ValueError as err:
+            return "exit0-wrong", f"--json output is not strict JSON: {err}"
     for out, kind in case.outputs.items():
         problem = check_output(work / out, kind)
         if problem:
