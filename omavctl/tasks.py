@@ -274,6 +274,7 @@ def heave(
     return Trajectory.from_parts(t, pos, zeros, vel, zeros, acc, zeros)
 
 
+@_plausible
 def wobble(
     amplitude_deg: float = 15.0,
     bandwidth: float = 0.8,

@@ -280,6 +280,7 @@ OPTION_CASES: list[tuple[list[str], str, list[str]]] = [
     (["task", "circle", "--out", "t.csv", "-q"], "--radius", ["nan", "-1", "1e300", "0"]),
     (["task", "yaw", "--out", "t.csv", "-q"], "--period", ["nan", "0", "-1", "1e-300"]),
     (["task", "heave", "--out", "t.csv", "-q"], "--height", ["nan", "inf", "-1e300"]),
+    (["task", "wobble", "--out", "t.csv", "-q"], "--bandwidth", ["nan", "0", "-1", "1e300"]),
     (["plan", "--task", "task.csv", "--model", "m.npz", "--out", "p.csv", *PLAN], "--amplitude",
      ["nan", "inf", "-1", "0", "1e300"]),
     (["plan", "--task", "task.csv", "--model", "m.npz", "--out", "p.csv", *PLAN], "--max-freq",
