@@ -1227,6 +1227,29 @@ def _labels(paths: Sequence[str | Path]) -> list[str]:
     return [str(p) for p in paths]
 
 
+#: What rendering raises on an evaluation whose keys hold values of unexpected types
+#: (files written before run ids are checked field by field, not as a whole).
+_STRUCTURE_ERRORS = (TypeError, AttributeError, KeyError, IndexError, ValueError)
+
+
+def _render_checked(evals: Sequence[Evaluation], fmt: str, paths: Sequence[str | Path]) -> str:
+    """:func:`render_report`, naming the evaluation file whose structure it cannot read."""
+    try:
+        return render_report(evals, fmt)
+    except _STRUCTURE_ERRORS:
+        culprit = paths[0]
+        for ev, p in zip(evals, paths, strict=True):
+            try:
+                render_report([ev], "md")
+            except _STRUCTURE_ERRORS:
+                culprit = p
+                break
+        raise OmavctlError(
+            "not an evaluation JSON this omavctl can read: a key holds a value of another type",
+            culprit,
+        ) from None
+
+
 def write_report(
     paths: Sequence[str | Path], out: str | Path, fmt: str | None = None
 ) -> ReportSummary:
@@ -1250,7 +1273,7 @@ def write_report(
     loaded = [load_for_report(p) for p in paths]
     labels = _labels(paths)
     evals = [(tree, series, label) for (tree, series), label in zip(loaded, labels, strict=True)]
-    text = render_report(evals, fmt)
+    text = _render_checked(evals, fmt, paths)
     with atomic_path(out) as tmp:
         tmp.write_bytes(text.encode("utf-8"))
     summaries = [

@@ -335,3 +335,17 @@ def test_usage_errors_are_one_line(tmp_path: Path) -> None:
     proc = subprocess.run([OMAVCTL, "plan", "--candidates", "x"], capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.startswith("error: ") and len(proc.stderr.splitlines()) == 1
+
+
+def test_older_evaluation_with_a_value_of_another_type(work: Path, tmp_path: Path) -> None:
+    tree = json.loads((work / "eval.json").read_text())
+    del tree["series"]["sha256"], tree["series"]["run_id"]
+    tree["diagnosis"]["method"] = 1e-300
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(tree))
+    shutil.copy(work / "eval.series.npz", tmp_path / "eval.series.npz")
+    line = _line(["report", str(old), "--out", str(tmp_path / "r.md")], work)
+    assert line == (
+        f"error: {old}: not an evaluation JSON this omavctl can read: a key holds a value "
+        "of another type"
+    )
