@@ -1,14 +1,17 @@
 # Set-up and checks. Everything installs into a local virtual environment.
-#   make demo   install, then run the example pipeline on built-in data
-#   make test   install, then lint, type-check and run the test suite
-#   make fuzz   install, then a fuzz campaign of FUZZ_CASES mutated inputs (tools/fuzz_campaign.py)
-#   make generalise   the generalisation benchmark (docs/generalisation.md)
+#   make demo          install, then run the example pipeline on built-in data
+#   make test          install (NumPy 2), then lint, type-check and run the test suite
+#   make test-numpy1   install with NumPy 1.26 into .venv-numpy1, run the k-medoids
+#                      agreement tests (the same training points as under NumPy 2)
+#   make generalise    the generalisation benchmark (docs/generalisation.md)
+#   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+VENV1  ?= .venv-numpy1
 
-.PHONY: install demo test lint bench fuzz generalise clean
+.PHONY: install demo test test-numpy1 lint bench fuzz generalise clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -17,7 +20,13 @@ FUZZ_STRATEGY ?= single
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[dev]'
+	$(BIN)/python -m pip install -q 'numpy>=2' -e '.[dev]'
+	touch $@
+
+$(VENV1)/.installed: pyproject.toml
+	$(PYTHON) -m venv $(VENV1)
+	$(VENV1)/bin/python -m pip install -q --upgrade pip
+	$(VENV1)/bin/python -m pip install -q 'numpy>=1.26,<2' -e '.[dev]'
 	touch $@
 
 install: $(STAMP)
@@ -42,10 +51,13 @@ fuzz: $(STAMP)
 generalise: $(STAMP)
 	$(BIN)/python benchmarks/generalise.py
 
+test-numpy1: $(VENV1)/.installed
+	$(VENV1)/bin/pytest -q tests/test_kmedoids.py
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_simulate.py
 	$(BIN)/python benchmarks/bench_read.py
 	$(BIN)/python benchmarks/bench_fit.py
 
 clean:
-	rm -rf $(VENV) examples/build .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(VENV1) examples/build .pytest_cache .mypy_cache .ruff_cache

@@ -335,20 +335,11 @@ def _sq_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.maximum(d2, 0.0)
 
 
-def _kmedoids(x: np.ndarray, k: int) -> np.ndarray:
-    """Indices (k,) of k-medoids of x (n, d) (alternate method, BUILD init, sq. Euclidean)."""
-    with warnings.catch_warnings():
-        # scikit-learn-extra 0.3.0 uses distutils' LooseVersion on import
-        warnings.simplefilter("ignore", DeprecationWarning)
-        from sklearn_extra.cluster import KMedoids
+def _kmedoids(x: np.ndarray, k: int, seed: int = 0) -> np.ndarray:
+    """Indices (k,) of k-medoids of x (n, d), squared Euclidean (:mod:`omavctl.kmedoids`)."""
+    from omavctl.kmedoids import kmedoids
 
-    with warnings.catch_warnings():
-        # identical samples can leave a cluster empty; the medoids are still valid
-        warnings.simplefilter("ignore")
-        km = KMedoids(
-            n_clusters=k, metric="precomputed", method="alternate", init="build", max_iter=300
-        ).fit(_sq_dist(x, x))
-    return np.asarray(km.medoid_indices_, dtype=np.int64)
+    return kmedoids(x, k, seed)
 
 
 def _cost(x: np.ndarray, medoids: np.ndarray, chunk: int = 20000) -> float:
@@ -362,8 +353,8 @@ def _cost(x: np.ndarray, medoids: np.ndarray, chunk: int = 20000) -> float:
 def select_points(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str]:
     """Pick k training points among the rows of x (n, d) (normalised inputs) by k-medoids.
 
-    Squared Euclidean distance (as in the paper); scikit-learn-extra
-    ``KMedoids(method="alternate", init="build")`` on a precomputed matrix.
+    Squared Euclidean distance (as in the paper); the library call is
+    :func:`omavctl.kmedoids.kmedoids` (eager-swap PAM, seeded random start).
     Above :data:`KMEDOIDS_MAX_DIRECT` samples no n x n matrix is built: like
     CLARA, :data:`KMEDOIDS_DRAWS` seeded subsamples of
     ``max(KMEDOIDS_SUBSAMPLE, 4 k)`` samples (each holding the best medoids so
@@ -376,7 +367,7 @@ def select_points(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str
     if k == n:
         return np.arange(n), "all samples"
     if n <= KMEDOIDS_MAX_DIRECT:
-        return np.sort(_kmedoids(x, k)), f"k-medoids on all {n} samples"
+        return np.sort(_kmedoids(x, k, seed)), f"k-medoids on all {n} samples"
     size = min(n, max(KMEDOIDS_SUBSAMPLE, 4 * k))
     rng = np.random.default_rng(seed)
     best: np.ndarray | None = None
@@ -387,7 +378,7 @@ def select_points(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str
         else:
             rest = np.setdiff1d(np.arange(n), best)
             sub = np.sort(np.concatenate([best, rng.choice(rest, size=size - k, replace=False)]))
-        medoids = sub[_kmedoids(x[sub], k)]
+        medoids = sub[_kmedoids(x[sub], k, seed)]
         cost = _cost(x, x[medoids])
         if cost < best_cost:
             best, best_cost = medoids, cost
@@ -961,8 +952,7 @@ def fit_model(
         "kmedoids": {
             "points": points,
             "metric": "sqeuclidean",
-            "method": "alternate",
-            "init": "build",
+            "method": "eager-swap PAM, seeded random start (omavctl.kmedoids)",
             "selection": kmethod,
             "max_direct": KMEDOIDS_MAX_DIRECT,
         },

@@ -70,6 +70,13 @@ CASES = {
     "none-yaw": ("yaw", None, {}),
     "servo_lag": ("yaw", "servo_lag", {"T_s": 0.08}),
 }
+#: Training points per fit (fewer than fit's default 200, for speed). inertia_error,
+#: like the GP a function of the wrench alone, needs the default: with 100 points
+#: whether the diagnosis names it depended on which points k-medoids picked (fit
+#: seeds 0-3 with rustpam: com_offset named for seed 0, inertia_error's refit
+#: explained variance 0.02 for seed 1); with 200 all four seeds name it, refit
+#: explained variance 0.40-0.59.
+POINTS = {"inertia_error": 200}
 
 
 def _flights(tmp, vehicle, case):
@@ -89,8 +96,10 @@ def cases(tmp_path_factory, vehicle):
     for case in CASES:
         fit_log, eval_log = _flights(tmp, vehicle, case)
         model = tmp / f"{case}.npz"
+        points = POINTS.get(case, 100)
         save_model(
-            model, fit_model([fit_log], vehicle, points=100, restarts=0, features=FEATURES).model
+            model,
+            fit_model([fit_log], vehicle, points=points, restarts=0, features=FEATURES).model,
         )
         out[case] = (fit_log, eval_log, model)
     return tmp, out
@@ -132,7 +141,12 @@ def test_missing_effect_is_named_and_adding_it_halves_the_error(cases, vehicle, 
     save_model(
         refit,
         fit_model(
-            [fit_log], vehicle, effects=[name], points=100, restarts=0, features=FEATURES
+            [fit_log],
+            vehicle,
+            effects=[name],
+            points=POINTS.get(name, 100),
+            restarts=0,
+            features=FEATURES,
         ).model,
     )
     after = evaluate([refit], [eval_log]).tree

@@ -130,13 +130,20 @@ def test_hidden_effect_is_recovered(vehicle, name, params, reference):
     (:func:`test_drag_with_rate_inputs`)."""
     truth = truth_from_tree({"ideal": True, "effects": {name: params}}, vehicle)
     flight = align(simulate(reference(), vehicle, truth, seed=0).log)
-    result = fit_model([flight], vehicle, effects=[name], points=30, restarts=0, features="wrench")
+    # drag with 40 points: with 30, which points k-medoids picks moved D_y 2.5 standard
+    # errors (0.0337 +- 0.0015 for 0.03 after the switch to rustpam's selection); the
+    # lags with 30: with more points a GP on the wrench of one periodic flight takes a
+    # larger share of the lag (servo 16 ms for 20 with 40 points; docs/fit.md)
+    points = 40 if name == "rotational_drag" else 30
+    result = fit_model(
+        [flight], vehicle, effects=[name], points=points, restarts=0, features="wrench"
+    )
     est = result.summary.effects[name]
     ((pname, true),) = params.items()
     value, stderr = est.values[pname], est.stderr[pname]
     print(f"{name}.{pname}: true {true}, fitted {np.round(value, 5)} +- {np.round(stderr, 5)}")
     np.testing.assert_allclose(value, true, rtol=0.10)
-    # joint GLS standard errors (30 training points) are a few percent of the value
+    # joint GLS standard errors (30-40 training points) are a few percent of the value
     assert np.all(stderr > 0) and np.all(stderr < 0.1 * np.abs(true))
     np.testing.assert_array_equal(result.model.effects[name].values[pname], value)
 

@@ -51,7 +51,7 @@ class AllocationResult:
 
     @property
     def feasible(self) -> np.ndarray:
-        return ~(
+        return ~np.asarray(
             self.thrust_high.any(axis=-1)
             | self.thrust_low.any(axis=-1)
             | self.tilt_rate_exceeded.any(axis=-1)

@@ -133,7 +133,7 @@ def rollout(
     u_prev: np.ndarray | None = None
     alive = np.ones(b_count, dtype=bool)
 
-    def mark(bad: np.ndarray, why: str) -> None:
+    def mark(bad: np.ndarray | np.bool_, why: str) -> None:
         for b in np.flatnonzero(bad & feasible):
             reason[b] = why
         feasible[bad] = False

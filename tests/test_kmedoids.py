@@ -1,0 +1,84 @@
+"""k-medoids (omavctl.kmedoids, fit.select_points): PAM quality, determinism, and the
+same points under NumPy 1 and NumPy 2 (.ci/run runs this file in both environments)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from omavctl import fit as fit_module
+from omavctl.fit import _cost, select_points
+from omavctl.kmedoids import kmedoids
+
+
+def curve(n: int) -> np.ndarray:
+    """A deterministic 6-D point cloud (no random generator, so no version can change it)."""
+    i = np.arange(n, dtype=np.float64)
+    return np.stack(
+        [
+            np.sin(0.37 * i),
+            np.cos(0.11 * i),
+            np.sin(0.05 * i) * np.cos(0.7 * i),
+            0.5 * np.sin(0.013 * i * i % 7.0),
+            np.cos(0.023 * i) ** 3,
+            (i % 17) / 17.0 - 0.5,
+        ],
+        axis=1,
+    )
+
+
+# Selected under NumPy 1.26.4 and 2.4.6 (rustpam 0.2.1): the same indices. A change
+# here means fits on the same logs pick other training points than before.
+GOLDEN_DIRECT = [7, 49, 57, 66, 77, 129, 179, 267, 307, 361, 368, 393]
+GOLDEN_SUBSAMPLED = [19, 61, 129, 393, 495, 567, 609, 721, 779, 792]
+
+
+def test_same_points_as_recorded_direct():
+    idx, how = select_points(curve(400), 12, seed=0)
+    assert idx.tolist() == GOLDEN_DIRECT
+    assert how == "k-medoids on all 400 samples"
+
+
+def test_same_points_as_recorded_subsampled(monkeypatch):
+    monkeypatch.setattr(fit_module, "KMEDOIDS_MAX_DIRECT", 300)
+    monkeypatch.setattr(fit_module, "KMEDOIDS_SUBSAMPLE", 200)
+    idx, how = select_points(curve(900), 10, seed=3)
+    assert idx.tolist() == GOLDEN_SUBSAMPLED
+    assert "3 seeded subsamples of 200 of 900" in how
+
+
+def test_no_single_swap_improves_the_objective():
+    """PAM's fixed point: swapping any medoid for any other sample does not lower the cost."""
+    x = curve(70)
+    medoids = kmedoids(x, 5, seed=1)
+    best = _cost(x, x[medoids])
+    for pos, cand in itertools.product(range(5), range(70)):
+        if cand in medoids:
+            continue
+        trial = medoids.copy()
+        trial[pos] = cand
+        assert _cost(x, x[trial]) >= best * (1 - 1e-5)
+
+
+def test_one_medoid_per_separated_cluster():
+    rng = np.random.default_rng(4)
+    centres = 10.0 * np.eye(6)[:5]
+    x = np.concatenate([c + 0.1 * rng.standard_normal((40, 6)) for c in centres])
+    medoids = kmedoids(x, 5, seed=0)
+    assert sorted(int(m) // 40 for m in medoids) == [0, 1, 2, 3, 4]
+
+
+def test_seed_reproduces_and_result_is_valid():
+    x = curve(300)
+    a, b = kmedoids(x, 20, seed=7), kmedoids(x, 20, seed=7)
+    assert a.dtype == np.int64 and np.array_equal(a, b)
+    assert len(np.unique(a)) == 20 and a.min() >= 0 and a.max() < 300
+
+
+def test_bad_k():
+    with pytest.raises(ValueError, match="cannot select"):
+        kmedoids(curve(10), 11)
+    with pytest.raises(ValueError, match="cannot select"):
+        kmedoids(curve(10), 0)
