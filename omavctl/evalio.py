@@ -149,7 +149,9 @@ def write_evaluation(out: str | Path, result: EvalResult) -> None:
     with atomic_paths(out, spath) as (tmp_json, tmp_series):
         tmp_json.write_text(text + "\n")
         with tmp_series.open("wb") as fh:
-            np.savez(fh, **result.series, **{RUN_ID_KEY: np.array(run_id)})
+            # typed Any: NumPy 2's stubs read **kwargs as its allow_pickle flag
+            arrays: dict[str, Any] = {**result.series, RUN_ID_KEY: np.array(run_id)}
+            np.savez(fh, **arrays)
 
 
 def _reject_constant(name: str) -> Any:
