@@ -20,13 +20,13 @@ import math
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -57,53 +57,69 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest() if path.exists() else "-"
 
 
+def _child(argv: list[str], work: str) -> None:
+    """Body of a forked case: own stdout/stderr files, the real entry point, exit status."""
+    code = 1
+    try:
+        os.chdir(work)
+        for fd, name in ((1, ".stdout"), (2, ".stderr")):
+            f = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+            os.dup2(f, fd)
+            os.close(f)
+        # the parent's sys.stdout/stderr may be a capture (pytest): use the fds
+        sys.stdout = open(1, "w", closefd=False)
+        sys.stderr = open(2, "w", closefd=False)
+        import warnings
+
+        warnings.resetwarnings()
+        warnings.showwarning = warnings._showwarning_orig  # type: ignore[attr-defined]
+        sys.argv = ["omavctl", *argv]
+        from omavctl.cli import main
+
+        try:
+            main()
+            code = 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except BaseException:
+        import traceback
+
+        traceback.print_exc()
+        code = 99
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
+_CONTEXT: Any = None
+
+
+def _context() -> Any:
+    """A forkserver: a clean process that imported omavctl once and forks each case.
+    (Forking the test process itself would copy library thread pools, e.g. the
+    k-medoids one, that deadlock in the child.)"""
+    global _CONTEXT
+    if _CONTEXT is None:
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["omavctl.cli", "omavctl.evaluate", "omavctl.report"])
+        _CONTEXT = ctx
+    return _CONTEXT
+
+
 def _run_fork(argv: list[str], work: Path, timeout: float) -> tuple[int | None, str, str]:
     out, err = work / ".stdout", work / ".stderr"
-    pid = os.fork()
-    if pid == 0:  # child
-        code = 1
-        try:
-            os.chdir(work)
-            for fd, name in ((1, out), (2, err)):
-                f = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-                os.dup2(f, fd)
-                os.close(f)
-            # the parent's sys.stdout/stderr may be a capture (pytest): use the fds
-            sys.stdout = open(1, "w", closefd=False)
-            sys.stderr = open(2, "w", closefd=False)
-            import warnings
-
-            warnings.resetwarnings()
-            warnings.showwarning = warnings._showwarning_orig  # type: ignore[attr-defined]
-            sys.argv = ["omavctl", *argv]
-            from omavctl.cli import main
-
-            try:
-                main()
-                code = 0
-            except SystemExit as exc:
-                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-        except BaseException:
-            import traceback
-
-            traceback.print_exc()
-            code = 99
-        finally:
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os._exit(code)
-    start = time.monotonic()
-    while True:
-        done, status = os.waitpid(pid, os.WNOHANG)
-        if done:
-            code = os.waitstatus_to_exitcode(status)
-            break
-        if time.monotonic() - start > timeout:
-            os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-            code = None
-            break
-        time.sleep(0.01)
+    proc = _context().Process(target=_child, args=(argv, str(work)))
+    proc.start()
+    proc.join(timeout)
+    if proc.is_alive():
+        proc.kill()
+        proc.join()
+        code = None
+    else:
+        code = proc.exitcode
     text = [p.read_text(errors="replace") if p.exists() else "" for p in (out, err)]
     for p in (out, err):
         p.unlink(missing_ok=True)
