@@ -4,13 +4,18 @@
 #   make test-numpy1   install with NumPy 1.26 into .venv-numpy1, run the k-medoids
 #                      agreement tests (the same training points as under NumPy 2)
 #   make generalise    the generalisation benchmark (docs/generalisation.md)
+#   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo test test-numpy1 lint bench generalise clean
+.PHONY: install demo test test-numpy1 lint bench fuzz generalise clean
+
+FUZZ_CASES ?= 3000
+FUZZ_SEED ?= 1
+FUZZ_STRATEGY ?= single
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -36,6 +41,10 @@ lint: $(STAMP)
 
 test: lint
 	$(BIN)/pytest -q
+
+fuzz: $(STAMP)
+	nice -n 10 $(BIN)/python tools/fuzz_campaign.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED) \
+		--strategy $(FUZZ_STRATEGY)
 
 # fit on one flight, evaluate on another: every hidden effect, two controller
 # timings, both directions, and the shared real log (about 6 minutes on 2 cores)

@@ -1,9 +1,9 @@
 """Command-line interface: parse, call one library function, render.
 
 Library errors (:class:`omavctl.errors.OmavctlError`) become one line
-``error: <file>: <problem>`` on stderr and exit code 1; usage errors stay
-typer's exit code 2. Heavy modules are imported inside the commands so that
-``--help`` and ``--version`` stay fast.
+``error: <file>: <problem>`` on stderr and exit status 2, as usage errors
+(:mod:`omavctl.guard`); other failures exit 1. Heavy modules are imported
+inside the commands so that ``--help`` and ``--version`` stay fast.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import Annotated, Any, TypeVar
 import typer
 
 from omavctl import __version__
+from omavctl.atomic import check_outputs
 from omavctl.errors import OmavctlError
 
 
@@ -61,18 +62,13 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def _reports_errors(func: F) -> F:
-    """Turn library errors into one clear line and exit code 1."""
+    """Bad input: one line and exit status 2; see :mod:`omavctl.guard`."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return func(*args, **kwargs)
-        except OmavctlError as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(1) from None
-        except KeyboardInterrupt:
-            typer.echo("error: interrupted", err=True)
-            raise typer.Exit(130) from None
+        from omavctl.guard import guarded
+
+        return guarded(func, args, kwargs)
 
     return wrapper  # type: ignore[return-value]
 
@@ -137,6 +133,7 @@ Height = Annotated[float, typer.Option(help="Hover height (z), m.")]
 def _write_task(traj: Any, out: Path, quiet: bool, as_json: bool = False, name: str = "") -> None:
     from omavctl.trajectory import write_trajectory
 
+    check_outputs([], [out])
     write_trajectory(out, traj)
     if not quiet:
         _console().print(f"wrote {out} ({traj.data.shape[0]} samples, {traj.duration:.2f} s)")
@@ -350,6 +347,7 @@ def simulate(
     from omavctl.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
+    check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)
     veh = load_vehicle(vehicle)
     ref = read_trajectory(reference)
     plant = load_truth(truth, veh)
@@ -359,8 +357,8 @@ def simulate(
 
         residual = load_model(model)
         check_vehicle(residual, veh, model)
-    if physics_rate < 1000.0:
-        raise OmavctlError(f"--physics-rate must be at least 1000 Hz, got {physics_rate:g}")
+    if not 1000.0 <= physics_rate <= 100_000.0:
+        raise OmavctlError(f"--physics-rate must be 1000 to 100000 Hz, got {physics_rate:g}")
     con = _console(quiet)
     from rich.progress import Progress
 
@@ -489,6 +487,7 @@ def fit(
     from omavctl.model import save_model
     from omavctl.vehicle import load_vehicle
 
+    check_outputs([*logs, vehicle, prior], [out])
     window = parse_time_window(time_window) if time_window else None
     veh = load_vehicle(vehicle)
     names = None if effects is None else [e.strip() for e in effects.split(",") if e.strip()]
@@ -656,10 +655,11 @@ def evaluate(
     window = parse_time_window(time_window) if time_window else None
     if out is None and model:
         out = model[0].with_name(model[0].with_suffix("").name + ".eval.json")
-    result = run(model, logs, time_window=window)
     assert out is not None
-    write_evaluation(out, result)
     mcap_out = mcap if mcap is not None else mcap_path(out)
+    check_outputs([*logs, *model], [out, series_path(out), mcap_out])
+    result = run(model, logs, time_window=window)
+    write_evaluation(out, result)
     write_series_mcap(mcap_out, result.tree, result.series)
     files = {"evaluation": out, "series": series_path(out), "mcap": mcap_out}
     render_evaluation(_console(quiet), result.tree, files)
@@ -758,10 +758,11 @@ def plan(
     from omavctl.model import check_vehicle, load_model
     from omavctl.planning import PlanSettings
     from omavctl.planning import plan as run
-    from omavctl.planning.report import format_scores
-    from omavctl.trajectory import read_trajectory, write_trajectory
+    from omavctl.planning.report import write_plan
+    from omavctl.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
+    check_outputs([task, model, vehicle], [out, scores, report_out])
     for name, value in (
         ("--candidates", candidates),
         ("--sims", sims),
@@ -777,10 +778,10 @@ def plan(
         raise OmavctlError(f"--search must be 'random' or 'cem', got '{search}'")
     if selection not in ("batched", "kmedoids"):
         raise OmavctlError(f"--selection must be 'batched' or 'kmedoids', got '{selection}'")
-    if max_freq <= 0.1 or amplitude <= 0:
-        raise OmavctlError("--max-freq must be above 0.1 Hz and --amplitude above 0")
-    if epsilon is not None and epsilon <= 0:
-        raise OmavctlError(f"--epsilon must be > 0, got {epsilon}")
+    if not (0.1 < max_freq <= 50.0 and 0 < amplitude <= 100.0):
+        raise OmavctlError("--max-freq must be in (0.1, 50] Hz and --amplitude in (0, 100] rad/s^2")
+    if epsilon is not None and not 0 < epsilon <= 1000:
+        raise OmavctlError(f"--epsilon must be in (0, 1000] normalised units, got {epsilon}")
     mdl = load_model(model)
     if vehicle is not None:
         check_vehicle(mdl, load_vehicle(vehicle), vehicle)
@@ -815,12 +816,8 @@ def plan(
             bar.update(stages[stage], completed=fraction)
 
         result = run(mdl, ref, settings, progress)
-    best = result.best_trajectory()
-    if scores is not None:
-        from omavctl.atomic import write_text_atomic
-
-        write_text_atomic(scores, format_scores(result))
-    write_trajectory(out, best)
+    best = result.best_trajectory(task)
+    write_plan(out, best, result, scores)
     table = Table(title="most informative candidates (lower cost = more informative)")
     for col in ("id", "cost", "vs task", "tracking rad/s^2"):
         table.add_column(col, justify="right")
@@ -952,8 +949,10 @@ def report(
     from rich.table import Table
     from rich.text import Text
 
+    from omavctl.evaluate import series_path
     from omavctl.report import write_report
 
+    check_outputs([*evaluations, *(series_path(e) for e in evaluations)], [out])
     con = _console(quiet)
     with con.status("rendering report"):
         summary = write_report(evaluations, out, fmt)
@@ -1013,7 +1012,9 @@ def report(
 
 def main() -> None:
     """Console-script entry point."""
-    app(prog_name="omavctl")
+    from omavctl.guard import run_app
+
+    run_app(app, "omavctl")
 
 
 if __name__ == "__main__":  # pragma: no cover

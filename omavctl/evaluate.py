@@ -34,7 +34,6 @@ learned, in physical terms.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -44,7 +43,6 @@ from typing import Any
 import numpy as np
 
 from omavctl import __version__
-from omavctl.atomic import atomic_path
 from omavctl.control_loss import out_of_control
 from omavctl.errors import LogError, ModelError, OmavctlError
 from omavctl.fit import body_rate_rate, sha256_of
@@ -61,6 +59,8 @@ __all__ = [
     "EvalResult",
     "diagnose",
     "evaluate",
+    "load_evaluation",
+    "series_path",
     "write_evaluation",
 ]
 
@@ -891,56 +891,5 @@ def finite_json(obj: Any) -> Any:
     return obj
 
 
-def series_path(out: str | Path) -> Path:
-    """Where the time series of ``out`` (eval JSON) are stored: ``<stem>.series.npz``."""
-    out = Path(out)
-    return out.with_name(out.stem + ".series.npz")
-
-
-def write_evaluation(out: str | Path, result: EvalResult) -> None:
-    """Write the JSON and its sibling series ``.npz`` atomically (series first)."""
-    out = Path(out)
-    spath = series_path(out)
-    tree = dict(result.tree)
-    tree["series"] = {"file": spath.name, "keys": sorted(result.series)}
-    with atomic_path(spath) as tmp:
-        with tmp.open("wb") as fh:
-            series: dict[str, Any] = result.series  # NumPy 2 stubs: **kwargs vs allow_pickle
-            np.savez(fh, **series)
-    text = json.dumps(
-        finite_json(tree), indent=1, sort_keys=False, allow_nan=False, default=_json_default
-    )
-    with atomic_path(out) as tmp:
-        tmp.write_text(text + "\n")
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
-def load_evaluation(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Read an evaluation JSON and its series; refuses other schemas."""
-    p = Path(path)
-    try:
-        tree = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise OmavctlError("file not found", p) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise OmavctlError(f"not an evaluation JSON: {err}", p) from None
-    if not isinstance(tree, dict) or "schema" not in tree:
-        raise OmavctlError("not an evaluation JSON: no 'schema' key", p)
-    if tree["schema"] != SCHEMA:
-        raise OmavctlError(f"schema '{tree['schema']}' is not supported (expected {SCHEMA})", p)
-    spath = p.with_name(tree.get("series", {}).get("file", series_path(p).name))
-    try:
-        with np.load(spath, allow_pickle=False) as data:
-            series = {k: data[k] for k in data.files}
-    except FileNotFoundError:
-        raise OmavctlError(f"its time series file {spath.name} is missing", p) from None
-    except (OSError, ValueError) as err:
-        raise OmavctlError(f"unreadable time series {spath.name}: {err}", p) from None
-    return tree, series
+# Writing and reading live in omavctl.evalio; kept importable from here.
+from omavctl.evalio import load_evaluation, series_path, write_evaluation  # noqa: E402

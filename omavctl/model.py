@@ -73,7 +73,7 @@ import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
 from omavctl.atomic import atomic_path
-from omavctl.errors import ModelError
+from omavctl.errors import ModelError, library_reason
 from omavctl.physics.effects import EFFECTS, Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
@@ -134,11 +134,15 @@ class EffectEstimate:
         """Regression coefficients (p,) of the effect's regressor."""
         return self.effect.to_theta(self.values)
 
-    def to_json(self) -> dict[str, list[float]]:
-        out: dict[str, list[float]] = {}
+    def to_json(self) -> dict[str, list[float | None]]:
+        """Values and standard errors; a standard error that is not finite (a parameter
+        the data cannot determine) is null: JSON never holds NaN or Infinity."""
+        out: dict[str, list[float | None]] = {}
         for p in self.effect.parameters:
             out[p.name] = [float(x) for x in self.values[p.name]]
-            out[f"{p.name}_stderr"] = [float(x) for x in self.stderr[p.name]]
+            out[f"{p.name}_stderr"] = [
+                float(x) if math.isfinite(x) else None for x in self.stderr[p.name]
+            ]
         return out
 
 
@@ -509,6 +513,8 @@ def save_model(path: str | Path, model: ResidualGP) -> None:
             arr = np.asarray(arrays[key])
             if arr.dtype.hasobject:  # pragma: no cover - guarded by construction
                 raise ModelError(f"refusing to write object array '{key}'", path)
+            if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+                raise ModelError(f"refusing to write non-finite values in '{key}'", path)
             buf = io.BytesIO()
             np.lib.format.write_array(buf, arr, allow_pickle=False)
             info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_DATE)
@@ -567,7 +573,7 @@ def _read_members(path: Path) -> dict[str, np.ndarray]:
         text = str(err)
         if "pickle" in text:
             raise ModelError("contains pickled data; refusing to load", path) from None
-        raise ModelError(f"corrupt model file: {text}", path) from None
+        raise ModelError(f"corrupt model file: {library_reason(err)}", path) from None
 
 
 def _text(arrays: Mapping[str, np.ndarray], key: str, path: Path) -> str:
@@ -593,7 +599,16 @@ def _float(
     arr = arr.astype(float)
     if not np.all(np.isfinite(arr)):
         raise ModelError(f"key '{key}' has non-finite values", path)
+    if arr.size and np.max(np.abs(arr)) > MAX_MAGNITUDE:
+        raise ModelError(
+            f"key '{key}' holds implausible values (up to {np.max(np.abs(arr)):.3g})", path
+        )
     return arr
+
+
+#: Largest magnitude of any number in a model: normalised inputs, rad/s^2 targets,
+#: variances and effect parameters are all far below it; beyond is a corrupt file.
+MAX_MAGNITUDE = 1e12
 
 
 def _effects_from_json(tree: Any, path: Path) -> dict[str, EffectEstimate]:
@@ -615,6 +630,12 @@ def _effects_from_json(tree: Any, path: Path) -> dict[str, EffectEstimate]:
                     f"effect '{name}': parameter '{p.name}' missing or not {p.size} number(s)",
                     path,
                 ) from None
+            both = np.concatenate([values[p.name], stderr[p.name]])
+            both = np.nan_to_num(both, nan=0.0, posinf=0.0, neginf=0.0)
+            if not np.all(np.isfinite(values[p.name])) or np.any(np.abs(both) > MAX_MAGNITUDE):
+                raise ModelError(
+                    f"effect '{name}': parameter '{p.name}' is not finite or implausible", path
+                )
         out[name] = EffectEstimate(name, values, stderr)
     return out
 
@@ -703,7 +724,8 @@ def load_model(path: str | Path) -> ResidualGP:
             train_regressors=regressors,
         )
     except (np.linalg.LinAlgError, ValueError) as err:
-        raise ModelError(f"inconsistent model: {err}", p) from None
+        reason = library_reason(err, "its arrays do not fit together")
+        raise ModelError(f"inconsistent model: {reason}", p) from None
 
 
 def check_vehicle(model: ResidualGP, vehicle: Vehicle, path: str | Path | None = None) -> None:

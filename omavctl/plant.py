@@ -165,8 +165,10 @@ def truth_from_tree(
     }
     try:
         seed = int(tree.get("seed", 0))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ConfigError("'seed' must be an integer", path) from None
+    if not 0 <= seed < 2**63:
+        raise ConfigError(f"'seed' must be a non-negative integer, got {seed}", path)
     truth = TruthParameters(
         inertia=vehicle.inertia.copy(),
         servo_time_constant=_number(act, "servo_time_constant", "actuators.", path),

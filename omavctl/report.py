@@ -230,6 +230,23 @@ def _unit(unit: str, torque_unknown: bool) -> str:
 
 
 # ---------------------------------------------------------------- validation
+def _bad_metric(block: Any, where: str) -> str | None:
+    """Path of the first metric value in ``block`` ({prediction: {metric: {axis: value}}})
+    that is neither a number nor null, else None."""
+    if not isinstance(block, Mapping):
+        return where
+    for pred, metrics in block.items():
+        if not isinstance(metrics, Mapping):
+            return f"{where}.{pred}"
+        for name, axes in metrics.items():
+            if not isinstance(axes, Mapping):
+                return f"{where}.{pred}.{name}"
+            for axis, value in axes.items():
+                if value is not None and not _finite(value):
+                    return f"{where}.{pred}.{name}.{axis}"
+    return None
+
+
 def check_evaluation(tree: Any, series: Mapping[str, np.ndarray], path: str | Path) -> None:
     """Raise :class:`OmavctlError` naming ``path`` unless ``tree`` and ``series``
     carry what the report needs (the ``load_evaluation`` schema check comes first)."""
@@ -239,6 +256,11 @@ def check_evaluation(tree: Any, series: Mapping[str, np.ndarray], path: str | Pa
                 raise OmavctlError(
                     f"not an evaluation JSON: no number at 'metrics.{pred}.rmse.{axis}'", path
                 )
+    bad = _bad_metric(tree.get("metrics"), "metrics")
+    for i, block in enumerate(_as_list(tree.get("metrics_by_model") or [])):
+        bad = bad or _bad_metric(block, f"metrics_by_model[{i}]")
+    if bad:
+        raise OmavctlError(f"not an evaluation JSON: '{bad}' is not a number", path)
     logs = tree.get("logs")
     if not isinstance(logs, list) or not logs or not all(isinstance(lg, Mapping) for lg in logs):
         raise OmavctlError("not an evaluation JSON: 'logs' is not a list of logs", path)
@@ -253,6 +275,8 @@ def check_evaluation(tree: Any, series: Mapping[str, np.ndarray], path: str | Pa
         n = arr.shape[0] if n is None else n
         if arr.shape[0] != n:
             raise OmavctlError(f"time series '{key}' has {arr.shape[0]} samples, not {n}", path)
+        if not np.all(np.isfinite(arr)):
+            raise OmavctlError(f"time series '{key}' has non-finite values", path)
     log_id = np.asarray(series["log"])
     if n and (log_id.min() < 0 or log_id.max() >= len(logs)):
         raise OmavctlError("time series 'log' refers to logs the JSON does not list", path)
@@ -268,8 +292,18 @@ def load_for_report(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndar
 
 
 def format_from_suffix(out: str | Path) -> str:
-    """'md' for a .md/.markdown output name, else 'html'."""
-    return "md" if Path(out).suffix.lower() in (".md", ".markdown") else "html"
+    """'md' for a .md/.markdown output name, 'html' for .html/.htm or no suffix;
+    any other suffix (.pdf, ...) is refused, naming the formats that exist."""
+    suffix = Path(out).suffix.lower()
+    if suffix in (".md", ".markdown"):
+        return "md"
+    if suffix in ("", ".html", ".htm"):
+        return "html"
+    raise OmavctlError(
+        f"cannot write a '{suffix}' report: the formats are html (.html) and md (.md) "
+        "(or choose one with --format)",
+        out,
+    )
 
 
 # ------------------------------------------------------------------- figures
@@ -1193,6 +1227,29 @@ def _labels(paths: Sequence[str | Path]) -> list[str]:
     return [str(p) for p in paths]
 
 
+#: What rendering raises on an evaluation whose keys hold values of unexpected types
+#: (files written before run ids are checked field by field, not as a whole).
+_STRUCTURE_ERRORS = (TypeError, AttributeError, KeyError, IndexError, ValueError)
+
+
+def _render_checked(evals: Sequence[Evaluation], fmt: str, paths: Sequence[str | Path]) -> str:
+    """:func:`render_report`, naming the evaluation file whose structure it cannot read."""
+    try:
+        return render_report(evals, fmt)
+    except _STRUCTURE_ERRORS:
+        culprit = paths[0]
+        for ev, p in zip(evals, paths, strict=True):
+            try:
+                render_report([ev], "md")
+            except _STRUCTURE_ERRORS:
+                culprit = p
+                break
+        raise OmavctlError(
+            "not an evaluation JSON this omavctl can read: a key holds a value of another type",
+            culprit,
+        ) from None
+
+
 def write_report(
     paths: Sequence[str | Path], out: str | Path, fmt: str | None = None
 ) -> ReportSummary:
@@ -1216,7 +1273,7 @@ def write_report(
     loaded = [load_for_report(p) for p in paths]
     labels = _labels(paths)
     evals = [(tree, series, label) for (tree, series), label in zip(loaded, labels, strict=True)]
-    text = render_report(evals, fmt)
+    text = _render_checked(evals, fmt, paths)
     with atomic_path(out) as tmp:
         tmp.write_bytes(text.encode("utf-8"))
     summaries = [

@@ -8,13 +8,19 @@ angles (``omega = W(eta) eta_dot``, ``omega_dot = W eta_ddot + W_dot eta_dot``).
 
 from __future__ import annotations
 
+import functools
+import inspect
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from omavctl.errors import ConfigError
 from omavctl.physics.rigid_body import euler_rates_to_body
-from omavctl.trajectory import Trajectory
+from omavctl.trajectory import COLUMNS, LIMITS, Trajectory
+
+_LIMITS = np.array([LIMITS[c] for c in COLUMNS])
 
 __all__ = ["TASKS", "Envelope", "circle", "fig8", "heave", "pitch", "wobble", "yaw"]
 
@@ -51,9 +57,18 @@ class Envelope:
         return value, d1, d2, integral
 
 
+#: Most samples a task may have (a day at 100 Hz is 8.6 million).
+MAX_SAMPLES = 10_000_000
+
+
 def _check(duration: float, ramp: float, rate: float) -> None:
-    if rate <= 0:
-        raise ConfigError(f"--rate must be > 0, got {rate}")
+    if not 1.0 <= rate <= 10_000.0:
+        raise ConfigError(f"--rate must be between 1 and 10000 Hz, got {rate}")
+    if duration * rate > MAX_SAMPLES:
+        raise ConfigError(
+            f"--duration ({duration:g} s) at --rate {rate:g} Hz gives more than "
+            f"{MAX_SAMPLES} samples"
+        )
     if ramp <= 0:
         raise ConfigError(f"--ramp must be > 0, got {ramp}")
     if duration < 2 * ramp:
@@ -99,6 +114,32 @@ def _attitude_task(
     return Trajectory.from_parts(t, pos, eta, zeros, w, zeros, dw)
 
 
+def _plausible(func: Callable[..., Trajectory]) -> Callable[..., Trajectory]:
+    """Refuse options that make a task beyond the trajectory CSV's plausible ranges
+    (or overflow), naming the generator's options."""
+    options = ", ".join(
+        "--" + n.removesuffix("_deg").replace("_", "-") for n in inspect.signature(func).parameters
+    )
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Trajectory:
+        try:
+            traj = func(*args, **kwargs)
+        except (OverflowError, FloatingPointError):
+            traj = None
+        bad = None if traj is None else ~np.isfinite(traj.data) | (np.abs(traj.data) > _LIMITS)
+        if traj is None or bad is None or bad.any():
+            what = ""
+            if traj is not None and bad is not None:
+                i, j = np.argwhere(bad)[0]
+                what = f" ({COLUMNS[j]} = {traj.data[i, j]:.3g}, plausible ±{_LIMITS[j]:g})"
+            raise ConfigError(f"the options give a task beyond plausible values{what}: {options}")
+        return traj
+
+    return wrapper
+
+
+@_plausible
 def fig8(
     roll_deg: float = 26.0,
     pitch_deg: float = 26.0,
@@ -124,6 +165,7 @@ def fig8(
     return _attitude_task(t, r, p, height)
 
 
+@_plausible
 def pitch(
     amplitude_deg: float = 60.0,
     max_acceleration: float = 1.0,
@@ -147,6 +189,7 @@ def pitch(
     return _attitude_task(t, None, p, height)
 
 
+@_plausible
 def circle(
     radius: float = 1.0,
     period: float = 6.0,
@@ -181,6 +224,7 @@ def circle(
     return Trajectory.from_parts(t, pos, zeros, vel, zeros, acc, zeros)
 
 
+@_plausible
 def yaw(
     amplitude_deg: float = 30.0,
     period: float = 4.0,
@@ -204,6 +248,7 @@ def yaw(
     return _attitude_task(t, None, None, height, yaw=y)
 
 
+@_plausible
 def heave(
     amplitude: float = 0.2,
     period: float = 3.0,
@@ -229,6 +274,7 @@ def heave(
     return Trajectory.from_parts(t, pos, zeros, vel, zeros, acc, zeros)
 
 
+@_plausible
 def wobble(
     amplitude_deg: float = 15.0,
     bandwidth: float = 0.8,

@@ -29,6 +29,20 @@ __all__ = [
 SCHEMA = "omavctl.trajectory/1"
 COLUMNS = "t x y z roll pitch yaw vx vy vz wx wy wz ax ay az dwx dwy dwz".split()
 _UNIFORM_RTOL = 1e-6
+#: Largest plausible magnitude per column group (SI units): a value beyond it is
+#: a corrupt file, not a flight (t: s, position: m, angles: rad, velocity: m/s,
+#: body rates: rad/s, accelerations: m/s^2 and rad/s^2).
+_GROUP_LIMITS = {
+    ("t",): 1e6,
+    ("x", "y", "z"): 1e4,
+    ("roll", "pitch"): 10.0,
+    ("yaw",): 1e3,
+    ("vx", "vy", "vz"): 1e3,
+    ("wx", "wy", "wz"): 100.0,
+    ("ax", "ay", "az"): 1e3,
+    ("dwx", "dwy", "dwz"): 1e4,
+}
+LIMITS = {c: lim for cols, lim in _GROUP_LIMITS.items() for c in cols}
 
 
 @dataclass(frozen=True)
@@ -104,11 +118,16 @@ def read_trajectory(path: str | Path) -> Trajectory:
     """Read and validate a trajectory CSV (exact columns, finite, uniform time grid)."""
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_bytes().decode("utf-8")
     except FileNotFoundError:
         raise TrajectoryError("file not found", p) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise TrajectoryError(f"cannot read: {err}", p) from None
+    except IsADirectoryError:
+        raise TrajectoryError("is a directory, not a trajectory CSV", p) from None
+    except OSError as err:
+        raise TrajectoryError(f"cannot read: {err.strerror or err}", p) from None
+    except UnicodeDecodeError:
+        raise TrajectoryError("not a trajectory CSV: it is not UTF-8 text", p) from None
+    text = text.removeprefix("\ufeff")
     rows = list(csv.reader(io.StringIO(text)))
     if not rows:
         raise TrajectoryError("empty file: expected a header row and samples", p)
@@ -138,6 +157,15 @@ def read_trajectory(path: str | Path) -> Trajectory:
     if bad.any():
         i, j = np.argwhere(bad)[0]
         raise TrajectoryError(f"row {i + 2}, column '{COLUMNS[j]}': not finite", p)
+    limits = np.array([LIMITS[c] for c in COLUMNS])
+    beyond = np.abs(data) > limits
+    if beyond.any():
+        i, j = np.argwhere(beyond)[0]
+        raise TrajectoryError(
+            f"row {i + 2}, column '{COLUMNS[j]}': {data[i, j]:.6g} is beyond the plausible "
+            f"range ±{limits[j]:g}",
+            p,
+        )
     dt = np.diff(data[:, 0])
     if np.any(dt <= 0):
         i = int(np.argmax(dt <= 0))
@@ -160,5 +188,7 @@ def format_trajectory(traj: Trajectory) -> str:
 
 
 def write_trajectory(path: str | Path, traj: Trajectory) -> None:
-    """Write a trajectory CSV atomically."""
+    """Write a trajectory CSV atomically (refuses non-finite values)."""
+    if not np.all(np.isfinite(traj.data)):
+        raise TrajectoryError("refusing to write non-finite values", path)
     write_text_atomic(path, format_trajectory(traj))

@@ -82,11 +82,15 @@ def load_yaml_mapping(path: str | Path) -> dict[str, Any]:
     """Read a YAML file whose top level must be a mapping (``yaml.safe_load`` only)."""
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_bytes().decode("utf-8")
     except FileNotFoundError:
         raise ConfigError("file not found", p) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConfigError(f"cannot read: {err}", p) from None
+    except IsADirectoryError:
+        raise ConfigError("is a directory, not a YAML file", p) from None
+    except OSError as err:
+        raise ConfigError(f"cannot read: {err.strerror or err}", p) from None
+    except UnicodeDecodeError:
+        raise ConfigError("not a YAML file: it is not UTF-8 text", p) from None
     try:
         tree = yaml.safe_load(text)
     except yaml.YAMLError as err:
@@ -123,16 +127,45 @@ def _vec(tree: dict[str, Any], key: str, n: int, path: Path | None, name: str) -
         arr = np.full(n, float(arr[0]))
     if arr.size != n or not np.all(np.isfinite(arr)):
         raise ConfigError(f"key '{name}' must be {n} finite numbers", path)
+    if np.any(np.abs(arr) > MAX_GAIN):
+        raise ConfigError(f"key '{name}' has values beyond ±{MAX_GAIN:g}", path)
     return arr
 
 
+#: Plausible ranges (inclusive) of a multirotor's scalar parameters, SI units: a
+#: value outside is a typo or a corrupt file, and would make the numerics
+#: overflow (a mass of 1e-300 kg) rather than describe a vehicle.
+PLAUSIBLE = {
+    "mass": (1e-3, 1e4),
+    "gravity": (0.1, 100.0),
+    "geometry.arm_length": (1e-3, 100.0),
+    "rotor.max_thrust": (1e-3, 1e5),
+    "rotor.min_thrust": (0.0, 1e5),
+    "rotor.thrust_coefficient": (1e-12, 1e3),
+    "rotor.drag_ratio": (0.0, 10.0),
+    "servo.max_tilt_rate": (1e-3, 1e4),
+    "controller.rate_hz": (1.0, 1e5),
+}
+#: Plausible eigenvalues of the inertia matrix, kg m^2.
+INERTIA_RANGE = (1e-7, 1e5)
+#: Largest controller gain magnitude.
+MAX_GAIN = 1e7
+
+
 def _positive(value: Any, name: str, path: Path | None, allow_zero: bool = False) -> float:
+    if isinstance(value, bool):
+        raise ConfigError(f"key '{name}' must be a number", path)
     try:
         x = float(value)
     except (TypeError, ValueError):
         raise ConfigError(f"key '{name}' must be a number", path) from None
     if not np.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
         raise ConfigError(f"key '{name}' must be {'>= 0' if allow_zero else '> 0'}", path)
+    lo, hi = PLAUSIBLE.get(name, (0.0, np.inf))
+    if not lo <= x <= hi:
+        raise ConfigError(
+            f"key '{name}' = {x:g} is outside the plausible range {lo:g} to {hi:g}", path
+        )
     return x
 
 
@@ -220,6 +253,13 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
         raise ConfigError("key 'inertia' must be 3 diagonal values or a 3x3 matrix", path)
     if not np.allclose(inertia, inertia.T) or np.any(np.linalg.eigvalsh(inertia) <= 0):
         raise ConfigError("key 'inertia' must be symmetric positive definite", path)
+    eig = np.linalg.eigvalsh(inertia)
+    if eig.min() < INERTIA_RANGE[0] or eig.max() > INERTIA_RANGE[1]:
+        raise ConfigError(
+            f"key 'inertia' has principal moments {eig.min():.3g} to {eig.max():.3g} kg m^2, "
+            f"outside the plausible range {INERTIA_RANGE[0]:g} to {INERTIA_RANGE[1]:g}",
+            path,
+        )
     geo, rot, servo, ctl = tree["geometry"], tree["rotor"], tree["servo"], tree["controller"]
     angles = _vec(geo, "arm_angles_deg", 6, path, "geometry.arm_angles_deg")
     att, pos = ctl["attitude"], ctl["position"]

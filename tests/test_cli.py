@@ -98,7 +98,7 @@ def test_simulate_writes_every_log_kind(task_csv, tmp_path, name):
 
 def _error_line(result) -> str:
     text = result.output.strip()
-    assert result.exit_code == 1, text
+    assert result.exit_code == 2, text
     assert "Traceback" not in text
     assert len(text.splitlines()) == 1, text
     return text

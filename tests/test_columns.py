@@ -690,13 +690,13 @@ def test_missing_and_non_numeric_columns_name_column_and_file(tmp_path: Path) ->
         f"{csv_path}: the column map has no entry for attitude (columns.attitude)"
     )
 
-    # through the CLI: one line, exit code 1
+    # through the CLI: one line, exit status 2
     vehicle_file = write_vehicle(
         tmp_path / "v2.yaml",
         {"columns": {**SMALL_MAP, "body_rate": {"x": "GX", "y": "GYRO_NOPE", "z": "GZ"}}},
     )
     result = runner.invoke(app, ["inspect", str(csv_path), "--vehicle", str(vehicle_file)])
-    assert result.exit_code == 1
+    assert result.exit_code == 2
     assert result.output.strip() == (
         f"error: {csv_path}: missing column 'GYRO_NOPE' (mapped to body_rate.y)"
     )

@@ -217,7 +217,7 @@ def test_evaluate_refuses_unusable_input(cases, tmp_path):
     bad.write_text("t,body_rate_x\n0,1\n")
     out = tmp_path / "e.json"
     r = runner.invoke(app, ["evaluate", str(bad), "--model", str(model), "--out", str(out)])
-    assert r.exit_code == 1 and "Traceback" not in r.output
+    assert r.exit_code == 2 and "Traceback" not in r.output
     assert r.output.strip().startswith(f"error: {bad}: ")
     r = runner.invoke(
         app, ["evaluate", str(eval_log), "--model", str(tmp_path / "no.npz"), "--out", str(out)]

@@ -59,7 +59,7 @@ def attitude_sines(amplitudes_deg, periods, duration: float = 10.0, rate: float 
 
 def _error_line(result) -> str:
     text = result.output.strip()
-    assert result.exit_code == 1, text
+    assert result.exit_code == 2, text
     assert "Traceback" not in text
     assert len(text.splitlines()) == 1, text
     return text

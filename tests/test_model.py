@@ -269,7 +269,7 @@ def test_simulate_with_model_and_vehicle_mismatch(vehicle, tmp_path):
             str(heavy),
         ],
     )
-    assert result.exit_code == 1
+    assert result.exit_code == 2
     assert result.output.startswith(f"error: {model}: model was fitted for a vehicle of mass 4 kg")
     assert not out2.exists()
 

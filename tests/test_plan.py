@@ -79,8 +79,8 @@ def test_cli_plan_is_deterministic_and_writes_scores(setup):
         outs.append((out.read_bytes(), scores.read_bytes()))
     assert outs[0] == outs[1]
     header = outs[0][1].decode().splitlines()[0].split(",")
-    assert header[0] == "candidate" and len(header) == 1 + 12 + 5
-    assert header[-1] == "generation"
+    assert header[0] == "candidate" and len(header) == 1 + 12 + 6
+    assert header[-2:] == ["generation", "reference_sha256"]
     assert len(outs[0][1].decode().splitlines()) == 4
     read_trajectory(tmp / "a.csv")
 
@@ -96,7 +96,7 @@ def test_cli_plan_one_candidate_one_simulation(setup):
 
 def _one_error_line(result) -> str:
     text = result.output.strip()
-    assert result.exit_code == 1 and "Traceback" not in text
+    assert result.exit_code == 2 and "Traceback" not in text
     assert len(text.splitlines()) == 1, text
     return text
 

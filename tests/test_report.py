@@ -214,7 +214,7 @@ def test_render_report_escapes_and_handles_unknown_torque_units(evals):
 
 def _error_line(result) -> str:
     text = result.output.strip()
-    assert result.exit_code == 1, text
+    assert result.exit_code == 2, text
     assert "Traceback" not in text and len(text.splitlines()) == 1, text
     return text
 
@@ -265,6 +265,14 @@ def test_cli(evals, tmp_path):
     del tree["metrics"]["model"]
     moved.write_text(json.dumps(tree))
     line = _error_line(runner.invoke(app, ["report", str(moved), "--out", str(bad)]))
+    assert line == (
+        f"error: {moved}: changed after evaluate wrote it (its content does not match its "
+        "run id): run evaluate again"
+    )
+    # a file without run id and content hash (older omavctl) is checked field by field
+    del tree["series"]["sha256"], tree["series"]["run_id"]
+    moved.write_text(json.dumps(tree))
+    line = _error_line(runner.invoke(app, ["report", str(moved), "--out", str(bad)]))
     assert line == f"error: {moved}: not an evaluation JSON: no number at 'metrics.model.rmse.x'"
     # the report never overwrites its inputs
     before = (evals / "before.json").read_bytes()
@@ -273,8 +281,18 @@ def test_cli(evals, tmp_path):
             app, ["report", str(evals / "before.json"), "--out", str(evals / "before.json")]
         )
     )
-    assert line.endswith("the report would overwrite one of its inputs")
+    assert line.endswith("output would overwrite the input; choose another name")
     assert (evals / "before.json").read_bytes() == before
     # no output (nor temporary file) left behind by any failure
     assert not bad.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    # a format that does not exist is refused, naming those that do
+    pdf = tmp_path / "report.pdf"
+    line = _error_line(
+        runner.invoke(app, ["report", str(evals / "before.json"), "--out", str(pdf)])
+    )
+    assert line == (
+        f"error: {pdf}: cannot write a '.pdf' report: the formats are html (.html) and md (.md) "
+        "(or choose one with --format)"
+    )
+    assert not pdf.exists()

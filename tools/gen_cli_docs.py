@@ -26,12 +26,14 @@ HEADER = """\
 Generated from `omavctl --help` and every subcommand's `--help` by
 `python tools/gen_cli_docs.py`; do not edit by hand (`tests/test_docs.py` fails when
 this file is stale). Conventions: every command reads files and writes files; exit
-code 0 on success, 1 with one line `error: <file>: <problem>` on bad input, 2 on a
-usage error; `--seed` makes sampling commands reproducible byte for byte; `-q`
-silences progress bars and the summary; `--json` prints one JSON object on stdout (the
-files written and the key figures) while the human text stays on stderr. See
-[getting-started.md](getting-started.md) for a walk-through and [design.md](design.md)
-§5 for the conventions.
+code 0 on success, 2 with one line `error: <file>: <problem>` on bad input (a
+file that is unreadable, corrupt, implausible or of another format, a bad option
+value, an output that is one of the inputs, a directory or unwritable) and on a
+usage error, 1 on any other failure; `--seed` makes sampling commands
+reproducible byte for byte; `-q` silences progress bars and the summary; `--json`
+prints one JSON object on stdout (the files written and the key figures) while the
+human text stays on stderr. See [getting-started.md](getting-started.md) for a
+walk-through and [design.md](design.md) §5 for the conventions.
 """
 
 

@@ -11,7 +11,7 @@ each column is linearly interpolated (angles unwrapped first and wrapped to
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -67,6 +67,54 @@ def _missing_error(raw: RawLog, role: str) -> LogError:
         cols = ", ".join(f"{role}_{c}" for c in ROLE_COLUMNS[role])
         return LogError(f"missing columns for {role}: {cols}", raw.path)
     return LogError(f"missing topic '{_label(raw, role)}' (role {role})", raw.path)
+
+
+#: Largest plausible magnitude of a logged value per role (SI units; commands may
+#: be normalised): beyond it a value is corrupt, not measured. Body rates: a
+#: gyro saturates near 35 rad/s; a simulated tumble is cut at 200 rad/s.
+ROLE_LIMITS = {
+    "body_rate": 1e3,
+    "attitude": 1e3,
+    "reference_attitude": 1e3,
+    "position": 1e5,
+    "reference_position": 1e5,
+    "velocity": 1e3,
+    "force_command": 1e5,
+    "torque_command": 1e5,
+    "desired_acceleration": 1e5,
+    "desired_linear_acceleration": 1e5,
+}
+#: Default limit of roles not listed (tilt angles, rotor speeds, ...).
+DEFAULT_LIMIT = 1e6
+#: Most grid samples of one aligned log (over 11 days at 100 Hz).
+MAX_GRID = 100_000_000
+
+
+def _plausible(
+    raw: RawLog,
+    role: str,
+    s: np.ndarray,
+    v: np.ndarray,
+    required: bool,
+    note: Callable[[str], None],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Samples of ``role`` within :data:`ROLE_LIMITS`; a required role with a value
+    beyond is an error, an optional role loses those samples (with a note)."""
+    limit = ROLE_LIMITS.get(role, DEFAULT_LIMIT)
+    big = (np.abs(v) > limit).any(axis=1) if v.size else np.zeros(s.size, dtype=bool)
+    if not big.any():
+        return s, v
+    first = int(np.flatnonzero(big)[0])
+    label = _label(raw, role)
+    value = float(v[first][np.argmax(np.abs(v[first]))])
+    if required:
+        raise LogError(
+            f"implausible value {value:.3g} in {label} (role {role}) at t={s[first]:.3f} s "
+            f"(beyond ±{limit:g})",
+            raw.path,
+        )
+    note(f"{label}: {int(big.sum())} samples of {role} beyond ±{limit:g} dropped")
+    return s[~big], v[~big]
 
 
 def align(
@@ -133,6 +181,7 @@ def align(
                 )
             note(f"{label}: {int((~ok).sum())} samples of {role} with non-finite values dropped")
             s, v = s[ok], v[ok]
+        s, v = _plausible(raw, role, s, v, role in required, note)
         if s.size < 2:
             if role in required:
                 raise LogError(
@@ -155,6 +204,12 @@ def align(
         raise LogError(
             f"too little data: the signals overlap for {span:.3f} s, {max(n, 0)} samples "
             f"at {rate:g} Hz (need at least {MIN_SAMPLES})",
+            raw.path,
+        )
+    if n > MAX_GRID:
+        raise LogError(
+            f"the signals span {end - start:.3g} s, over {MAX_GRID} samples at {rate:g} Hz "
+            "(a corrupt time stamp?)",
             raw.path,
         )
     k = np.arange(n)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.errors import LogError
+from omavctl.errors import LogError, library_reason
 from omavctl.logs.contract import TOPIC_MSGTYPES, merge_topics
 from omavctl.logs.messages import ROW_EXTRACTORS, rows_to_signals
 from omavctl.logs.stats import topic_info
@@ -39,25 +39,99 @@ FORMAT_LABELS = {
 _SUFFIX_KIND = {".bag": "ros1", ".mcap": "mcap", ".csv": "csv", ".db3": "ros2"}
 
 
+#: First bytes of each binary kind (what a file really is, whatever its name).
+_MAGIC = {
+    "ros1": b"#ROSBAG V2.0\n",
+    "mcap": b"\x89MCAP0\r\n",
+    "sqlite": b"SQLite format 3\x00",
+}
+_MAGIC_LABELS = {**FORMAT_LABELS, "sqlite": "ROS 2 sqlite3 storage file (.db3)"}
+
+
 def _reason(err: BaseException) -> str:
-    """One line describing ``err`` (its first line, else its type name)."""
-    text = str(err).strip().splitlines()
-    line = text[0].strip() if text else ""
-    if not line:
-        line = type(err).__name__
-    return line if len(line) <= 200 else line[:197] + "..."
+    """One line describing ``err`` for the user (no Python internals)."""
+    return library_reason(err)
+
+
+def _sniff(path: Path) -> str | None:
+    """The kind the first bytes of ``path`` announce (``_MAGIC`` keys), else None."""
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(16)
+    except OSError as err:
+        raise LogError(f"cannot read: {err.strerror or err}", path) from None
+    return next((kind for kind, magic in _MAGIC.items() if head.startswith(magic)), None)
+
+
+def _check_magic(path: Path, kind: str) -> None:
+    """Refuse a file whose content is not the format its name says."""
+    real = _sniff(path)
+    want = "sqlite" if path.suffix.lower() == ".db3" else kind
+    if real == want or (kind == "csv" and real is None):
+        return
+    label = _MAGIC_LABELS[want]
+    if real is not None:
+        raise LogError(f"not a {label}: the file is a {_MAGIC_LABELS[real]}", path)
+    raise LogError(f"not a readable {label}: the file does not start with its header", path)
+
+
+def _check_metadata(path: Path) -> None:
+    """A ROS 2 bag directory's metadata.yaml must hold rosbag2_bagfile_information."""
+    import yaml
+
+    meta = path / "metadata.yaml"
+    try:
+        tree = yaml.safe_load(meta.read_bytes())
+    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        raise LogError("not a readable ROS 2 bag: metadata.yaml is not valid YAML", path) from None
+    info = tree.get("rosbag2_bagfile_information") if isinstance(tree, dict) else None
+    if not isinstance(info, dict):
+        raise LogError(
+            "not a readable ROS 2 bag: metadata.yaml lacks 'rosbag2_bagfile_information'", path
+        )
+    problem = _metadata_problem(info)
+    if problem:
+        raise LogError(f"not a readable ROS 2 bag: metadata.yaml: {problem}", path)
+
+
+def _metadata_problem(info: dict[str, Any]) -> str | None:
+    """What is wrong with the fields of rosbag2_bagfile_information that are read."""
+    if not isinstance(info.get("version"), int) or isinstance(info.get("version"), bool):
+        return "'version' must be an integer"
+    if not isinstance(info.get("storage_identifier"), str):
+        return "'storage_identifier' must be a name"
+    files = info.get("relative_file_paths")
+    if not isinstance(files, list) or not all(isinstance(f, str) and f for f in files):
+        return "'relative_file_paths' must be a list of file names"
+    topics = info.get("topics_with_message_count")
+    if not isinstance(topics, list):
+        return "'topics_with_message_count' must be a list"
+    for i, entry in enumerate(topics):
+        meta = entry.get("topic_metadata") if isinstance(entry, dict) else None
+        where = f"'topics_with_message_count[{i}]"
+        if not isinstance(meta, dict):
+            return f"{where}.topic_metadata' must be a mapping"
+        for key in ("name", "type", "serialization_format"):
+            if not isinstance(meta.get(key), str) or not meta[key]:
+                return f"{where}.topic_metadata.{key}' must be a non-empty string"
+        count = entry.get("message_count")
+        if not isinstance(count, int) or isinstance(count, bool) or count < 0:
+            return f"{where}.message_count' must be a count"
+    return None
 
 
 def detect_format(path: Path) -> str:
     """Kind of log at ``path``: ``"ros1"``, ``"ros2"``, ``"mcap"`` or ``"csv"``.
 
     Raises :class:`LogError` for a missing path, a directory that is not a ROS 2
-    bag, an unknown suffix or an empty file.
+    bag, an unknown suffix, an empty file or a file whose content is another
+    format than its name says.
     """
     if not path.exists():
         raise LogError("file not found", path)
     if path.is_dir():
         if (path / "metadata.yaml").is_file():
+            _check_metadata(path)
             return "ros2"
         raise LogError("directory is not a ROS 2 bag (no metadata.yaml in it)", path)
     kind = _SUFFIX_KIND.get(path.suffix.lower())
@@ -75,6 +149,7 @@ def detect_format(path: Path) -> str:
     if size == 0:
         label = "CSV file" if kind == "csv" else f"readable {FORMAT_LABELS[kind]}"
         raise LogError(f"not a {label}: the file is empty", path)
+    _check_magic(path, kind)
     return kind
 
 

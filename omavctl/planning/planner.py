@@ -26,6 +26,7 @@ reference path (``fast=False``) see the same samples, test points and candidates
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -113,9 +114,12 @@ class PlanResult:
     task: Trajectory
     notes: list[str] = field(default_factory=list)
 
-    def best_trajectory(self) -> Trajectory:
+    def best_trajectory(self, task: str | Path | None = None) -> Trajectory:
+        """The chosen reference; ``task`` (the task file) is named when none is feasible."""
         if self.best < 0:
-            raise OmavctlError("no feasible candidate: lower --amplitude or --max-freq")
+            raise OmavctlError(
+                "no feasible candidate for this task: lower --amplitude or --max-freq", task
+            )
         return Trajectory(
             deviated_references(self.task, self.coefficients[self.best : self.best + 1])[0]
         )

@@ -1,33 +1,69 @@
-"""Text outputs of the planner: the ``--scores`` CSV."""
+"""Text outputs of the planner: the ``--scores`` CSV, and writing it with the reference."""
 
 from __future__ import annotations
 
+import hashlib
 import io
+import math
+from pathlib import Path
 
+import numpy as np
+
+from omavctl.atomic import atomic_paths
+from omavctl.errors import OmavctlError
 from omavctl.planning.candidates import coefficient_names
 from omavctl.planning.planner import PlanResult
+from omavctl.trajectory import Trajectory, format_trajectory
 
-__all__ = ["format_scores"]
+__all__ = ["format_scores", "write_plan"]
 
 
-def format_scores(result: PlanResult) -> str:
+def _num(v: float) -> str:
+    """A finite number as text; empty for NaN or infinity (never written)."""
+    return f"{v:.9g}" if math.isfinite(v) else ""
+
+
+def format_scores(result: PlanResult, reference_sha256: str | None = None) -> str:
     """CSV: candidate id, the 3*2*P coefficients (Hz and rad/s^2), cost, tracking,
-    feasible, reason, generation (of the search that proposed it; 0 for random).
+    feasible, reason, generation (of the search that proposed it; 0 for random) and,
+    when given, the sha256 of the reference CSV written with it (same in every row).
 
     Infeasible candidates have an empty cost. Deterministic for the same result.
     """
     k_count, _, p_count, _ = result.coefficients.shape
     names = coefficient_names(p_count)
     buf = io.StringIO()
-    buf.write(
-        ",".join(["candidate", *names, "cost", "tracking", "feasible", "reason", "generation"])
-        + "\n"
-    )
+    header = ["candidate", *names, "cost", "tracking", "feasible", "reason", "generation"]
+    if reference_sha256 is not None:
+        header.append("reference_sha256")
+    buf.write(",".join(header) + "\n")
     for k in range(k_count):
         coeffs = [f"{v:.9g}" for v in result.coefficients[k].reshape(-1)]
-        cost = f"{result.cost[k]:.9g}" if result.feasible[k] else ""
-        reason = result.reason[k].replace(",", ";")
-        row = [str(k), *coeffs, cost, f"{result.tracking[k]:.9g}"]
+        cost = _num(result.cost[k]) if result.feasible[k] else ""
+        reason = result.reason[k].replace(",", ";").replace("\n", " ")
+        row = [str(k), *coeffs, cost, _num(result.tracking[k])]
         row += ["true" if result.feasible[k] else "false", reason, str(result.generation[k])]
+        if reference_sha256 is not None:
+            row.append(reference_sha256)
         buf.write(",".join(row) + "\n")
     return buf.getvalue()
+
+
+def write_plan(out: Path, best: Trajectory, result: PlanResult, scores: Path | None) -> None:
+    """Write the planned reference and (optionally) the scores together.
+
+    The scores name the sha256 of the reference CSV in every row; both files are
+    renamed into place together (reference first), so a pair from different runs
+    can only be left by ``kill -9`` between two renames, and is then recognisable.
+    """
+    if not np.all(np.isfinite(best.data)) or not np.all(np.isfinite(result.coefficients)):
+        raise OmavctlError("the planned reference is not finite; try a smaller --amplitude")
+    text = format_trajectory(best)
+    if scores is None:
+        with atomic_paths(out) as (tmp,):
+            tmp.write_text(text)
+        return
+    digest = hashlib.sha256(text.encode()).hexdigest()
+    with atomic_paths(out, scores) as (tmp, tmp_scores):
+        tmp.write_text(text)
+        tmp_scores.write_text(format_scores(result, digest))
