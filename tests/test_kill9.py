@@ -21,21 +21,12 @@ import pytest
 from omavctl.errors import OmavctlError
 from omavctl.evaluate import load_evaluation
 
+try:  # tests/ as a package or as a rootdir on sys.path
+    from .fuzzkit.cases import FIT, PLAN
+except ImportError:
+    from fuzzkit.cases import FIT, PLAN
+
 OMAVCTL = str(Path(sys.executable).with_name("omavctl"))
-FIT = ["--points", "15", "--restarts", "0", "-q"]
-PLAN = [
-    "--candidates",
-    "4",
-    "--amplitude",
-    "0.2",
-    "--sims",
-    "2",
-    "--test-points",
-    "30",
-    "--points",
-    "5",
-    "-q",
-]
 
 #: command -> (old run, new run, outputs); both runs write the same outputs.
 COMMANDS = {
