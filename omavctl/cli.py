@@ -837,6 +837,14 @@ def plan(
     )
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
+    best_cost = float(result.cost[result.best])
+    if best_cost >= result.task_cost:
+        con.print(
+            f"warning: no candidate is more informative than flying the task again (best "
+            f"{100 * (best_cost / result.task_cost - 1):+.1f}% vs the task): fly the task, "
+            "or try more --candidates or --search cem",
+            markup=False,
+        )
     files = {"reference": str(out)}
     if scores is not None:
         files["scores"] = str(scores)
