@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omavctl.physics.controller import CommandRate
 from omavctl.planning.candidates import ReferenceStream
 from omavctl.planning.fused import FusedSamples
 from omavctl.planning.rollout import Progress, control_times
@@ -250,8 +251,7 @@ def rollout_batched(
     z = np.empty((d, sims, k_count))
     gout = np.empty((6, sims, k_count))
     u = np.empty((6, sims, k_count))
-    du = np.zeros((6, sims, k_count))  # the command's rate of change over the last step
-    u_prev: np.ndarray | None = None
+    rate = CommandRate(loop.dt)
     mu_last: np.ndarray | None = None
     torque_scale = model.input_scale[3:6, None]
     with np.errstate(over="ignore", invalid="ignore"):
@@ -263,14 +263,8 @@ def rollout_batched(
                     loop.x[:] = refs[0, 1:13, None, :]
                 u_f, target, a_star, l_x = loop.control(refs[j], rots[j])
                 omega = loop.x[9:12]
-                # command rate: of the model-free command (as the controller)
-                if u_prev is None:
-                    u_prev = np.concatenate([u_f, target])
-                else:
-                    np.subtract(u_f, u_prev[:3], out=du[:3])
-                    np.subtract(target, u_prev[3:], out=du[3:])
-                    du /= loop.dt
-                    u_prev[:3], u_prev[3:] = u_f, target
+                # command rate: of the model-free command, as the controller (CommandRate)
+                du = rate.update(np.concatenate([u_f, target]))
                 u[:3] = u_f
                 if mu_last is None:  # first step: the mean at u_tau = target
                     u[3:] = target

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from omavctl.physics.allocation import Allocation
-from omavctl.physics.controller import Controller, ControllerState
+from omavctl.physics.controller import CommandRate, Controller, ControllerState
 from omavctl.physics.rigid_body import cross, euler_rates, rotation_matrix, wrap_angle
 from omavctl.planning.gp import PathwiseSamples
 
@@ -129,8 +129,7 @@ def rollout(
     torque_scale = model.input_scale[3:6]
     max_tilt, max_err = np.deg2rad(limits[0]), np.deg2rad(limits[1])
     mu_last: np.ndarray | None = None
-    du = np.zeros((b_count, 6))  # the command's rate of change over the last step
-    u_prev: np.ndarray | None = None
+    rate = CommandRate(dt)
     alive = np.ones(b_count, dtype=bool)
 
     def mark(bad: np.ndarray | np.bool_, why: str) -> None:
@@ -144,10 +143,8 @@ def rollout(
         omega = x[:, 9:12]
         u_f, target = out.u[:, :3], out.u[:, 3:]
         u = out.u.copy()
-        # command rate: of the model-free command (as the controller, no algebraic loop)
-        if u_prev is not None:
-            du = (out.u - u_prev) / dt
-        u_prev = out.u.copy()
+        # command rate: of the model-free command, as the controller (CommandRate)
+        du = rate.update(out.u)
         if mu_last is None:  # first step: the mean at u_tau = target
             mu_last = samples.mean(model.normalise(model.gp_inputs(u, omega, du)))
             if model.effects:
