@@ -186,7 +186,9 @@ def test_model_improves_closed_loop_tracking(flights, fitted, vehicle, tmp_path)
     with_model = tracking_error(out, vehicle)
     print(f"tracking |a* - dw/dt| without {np.round(without, 4)}, with {np.round(with_model, 4)}")
     assert np.all(with_model < without)
-    assert with_model.mean() < 0.5 * without.mean()
+    # a fifth: the model must cancel most of the residual in closed loop (with a
+    # one-step command rate fed to the 12-input GP it cancelled a fifth only)
+    assert with_model.mean() < 0.2 * without.mean()
 
 
 # ----------------------------------------------------------- determinism
