@@ -638,6 +638,97 @@ def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
 
 
 # ----------------------------------------------------------------- evaluate
+def _read_log(
+    path: str | Path,
+    vehicle: Vehicle,
+    rate: float,
+    sg: SavitzkyGolay,
+    time_window: tuple[float | None, float | None] | None,
+) -> tuple[ResidualSamples, np.ndarray, dict[str, Any], list[dict[str, Any]]]:
+    """One log's residual samples (every registry regressor, out-of-control samples
+    removed), its attitude (n, 3) at them, its ``logs`` entry and its excluded spans."""
+    from omavctl.logs import read_vehicle_log
+
+    flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
+    _check_rate(flight, vehicle, rate)
+    extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
+    s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
+    loss = out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual)
+    p = Path(path)
+    spans = [{"log": p.name, "start": a, "end": b, "reason": why} for a, b, why in loss.spans]
+    if loss.any:
+        s = s.select(~loss.mask)
+    if s.n < 10 * sg.window:
+        raise LogError(
+            f"only {s.n} usable samples after gaps, edges, ground time and loss of control "
+            f"(need at least {10 * sg.window})",
+            flight.path,
+        )
+    attitude = flight.signals["attitude"][s.index] if flight.has("attitude") else np.zeros((s.n, 3))
+    log_json = {
+        "path": str(p),
+        "name": p.name,
+        "sha256": sha256_of(p),
+        "format": flight.format,
+        # absolute time of the series' t = 0 on the log's own clock
+        "t0": float(flight.t0),
+        "duration": float(flight.t[-1] - flight.t[0]),
+        "samples": s.n,
+        "samples_total": s.total,
+        "notes": list(flight.notes),
+    }
+    return s, attitude, log_json, spans
+
+
+def _model_metrics(
+    m: ResidualGP,
+    path: str,
+    samples: Sequence[ResidualSamples],
+    measured: np.ndarray,
+    nominal: np.ndarray,
+    log_id: np.ndarray,
+    log_names: Sequence[str],
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray, np.ndarray]:
+    """One model's ``models`` entry with its metrics (overall and per log), and its
+    effects prediction, residual mean and predictive std, each (n, 3)."""
+    residual = measured - nominal
+    eff_pred = np.concatenate([m.effects_samples(s) for s in samples])
+    gp_mean, gp_var = m.gp_predict(
+        np.concatenate([s.inputs(m.features) for s in samples]), noise=True
+    )
+    assert gp_var is not None
+    mean = eff_pred + gp_mean
+    std = np.sqrt(gp_var)
+    prior_std = np.broadcast_to(np.sqrt(m.signal_variance + m.noise_variance), std.shape)
+    metrics = {
+        "nominal": axis_metrics(measured, nominal, prior_std, residual),
+        "effects": axis_metrics(measured, nominal + eff_pred, prior_std, residual),
+        "model": axis_metrics(measured, nominal + mean, std, residual),
+    }
+    by_log = []
+    for i, name in enumerate(log_names):
+        sel = log_id == i
+        by_log.append(
+            {
+                "log": name,
+                "nominal": axis_metrics(measured[sel], nominal[sel], prior_std[sel], residual[sel]),
+                "model": axis_metrics(
+                    measured[sel], nominal[sel] + mean[sel], std[sel], residual[sel]
+                ),
+            }
+        )
+    entry = {
+        "path": path,
+        "name": Path(path).name,
+        "effects": {n: e.to_json() for n, e in m.effects.items()},
+        "features": m.features,
+        "n_train": m.n_train,
+        "metrics": metrics,
+        "metrics_by_log": by_log,
+    }
+    return entry, eff_pred, mean, std
+
+
 def evaluate(
     model_paths: Sequence[str | Path],
     log_paths: Sequence[str | Path],
@@ -645,7 +736,6 @@ def evaluate(
     progress: Progress | None = None,
 ) -> EvalResult:
     """Evaluate one or more models on one or more logs (see module docstring)."""
-    from omavctl.logs import read_vehicle_log
     from omavctl.model import load_model
 
     if not model_paths:
@@ -663,42 +753,11 @@ def evaluate(
     logs_json = []
     excluded: list[dict[str, Any]] = []
     for i, path in enumerate(log_paths):
-        flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
-        _check_rate(flight, vehicle, rate)
-        extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
-        s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
-        loss = out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual)
-        if loss.any:
-            s = s.select(~loss.mask)
-            excluded += [
-                {"log": Path(path).name, "start": a, "end": b, "reason": why}
-                for a, b, why in loss.spans
-            ]
-        if s.n < 10 * sg.window:
-            raise LogError(
-                f"only {s.n} usable samples after gaps, edges, ground time and loss of control "
-                f"(need at least {10 * sg.window})",
-                flight.path,
-            )
+        s, attitude_i, log_json, spans = _read_log(path, vehicle, rate, sg, time_window)
         samples.append(s)
-        attitudes.append(
-            flight.signals["attitude"][s.index] if flight.has("attitude") else np.zeros((s.n, 3))
-        )
-        p = Path(path)
-        logs_json.append(
-            {
-                "path": str(p),
-                "name": p.name,
-                "sha256": sha256_of(p),
-                "format": flight.format,
-                # absolute time of the series' t = 0 on the log's own clock
-                "t0": float(flight.t0),
-                "duration": float(flight.t[-1] - flight.t[0]),
-                "samples": s.n,
-                "samples_total": s.total,
-                "notes": list(flight.notes),
-            }
-        )
+        attitudes.append(attitude_i)
+        logs_json.append(log_json)
+        excluded += spans
         if progress is not None:
             progress("reading logs", (i + 1) / len(log_paths))
     measured = np.concatenate([s.omega_dot for s in samples])
@@ -721,44 +780,10 @@ def evaluate(
         "attitude": attitude,
     }
     for j, m in enumerate(models):
-        eff_pred = np.concatenate([m.effects_samples(s) for s in samples])
-        gp_mean, gp_var = m.gp_predict(
-            np.concatenate([s.inputs(m.features) for s in samples]), noise=True
+        entry, eff_pred, mean, std = _model_metrics(
+            m, mpaths[j], samples, measured, nominal, log_id, [lj["name"] for lj in logs_json]
         )
-        assert gp_var is not None
-        mean = eff_pred + gp_mean
-        std = np.sqrt(gp_var)
-        prior_std = np.broadcast_to(np.sqrt(m.signal_variance + m.noise_variance), std.shape)
-        metrics = {
-            "nominal": axis_metrics(measured, nominal, prior_std, residual),
-            "effects": axis_metrics(measured, nominal + eff_pred, prior_std, residual),
-            "model": axis_metrics(measured, nominal + mean, std, residual),
-        }
-        by_log = []
-        for i in range(len(samples)):
-            sel = log_id == i
-            by_log.append(
-                {
-                    "log": logs_json[i]["name"],
-                    "nominal": axis_metrics(
-                        measured[sel], nominal[sel], prior_std[sel], residual[sel]
-                    ),
-                    "model": axis_metrics(
-                        measured[sel], nominal[sel] + mean[sel], std[sel], residual[sel]
-                    ),
-                }
-            )
-        per_model.append(
-            {
-                "path": mpaths[j],
-                "name": Path(mpaths[j]).name,
-                "effects": {n: e.to_json() for n, e in m.effects.items()},
-                "features": m.features,
-                "n_train": m.n_train,
-                "metrics": metrics,
-                "metrics_by_log": by_log,
-            }
-        )
+        per_model.append(entry)
         series[f"effects_{j}"] = eff_pred
         series[f"mean_{j}"] = mean
         series[f"std_{j}"] = std
@@ -766,7 +791,7 @@ def evaluate(
             progress("predicting", (j + 1) / len(models))
 
     mean0 = series["mean_0"]
-    metrics0: dict[str, Any] = per_model[0]["metrics"]  # type: ignore[assignment]
+    metrics0: dict[str, Any] = per_model[0]["metrics"]
     err = residual - mean0
     names = feature_names("wrench")
     features = {names[k]: u[:, k] for k in range(6)}
