@@ -9,12 +9,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from omavctl.evaluate import evaluate
-from omavctl.fit import fit_model
+from omavctl.diagnose.evaluate import evaluate
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import save_model
 from omavctl.logs import write_log
-from omavctl.model import save_model
-from omavctl.plant import load_truth, simulate
-from omavctl.tasks import fig8
+from omavctl.sim.plant import load_truth, simulate
+from omavctl.sim.tasks import fig8
 from omavctl.vehicle import default_vehicle
 
 

@@ -5,13 +5,13 @@ Run: python benchmarks/bench_fit.py   (about 2-3 minutes on 2 cores)
 Three 60 s flights are simulated once (figure-8 tasks of different size and
 period, default actuator imperfections); the 10- and 30-log cases reuse them
 with fresh gyro and command noise per copy, so that no two logs are equal.
-Logs are passed to :func:`omavctl.fit.fit_model` already aligned (reading
+Logs are passed to :func:`omavctl.learn.fit.fit_model` already aligned (reading
 files is benchmarked in ``bench_read.py``). Defaults otherwise: 200 points,
 3 optimiser restarts, window 11.
 
 Peak memory is the tracemalloc peak of the fit (numpy buffers included); the
 largest distance matrix built by k-medoids is recorded by wrapping
-``omavctl.fit._sq_dist``: above ``KMEDOIDS_MAX_DIRECT`` samples it stays at
+``omavctl.learn.fit._sq_dist``: above ``KMEDOIDS_MAX_DIRECT`` samples it stays at
 the subsample size, never n x n.
 """
 
@@ -24,10 +24,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from omavctl import fit as fit_module
+from omavctl.learn import fit as fit_module
 from omavctl.logs import FlightLog, align
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.tasks import fig8
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
 from omavctl.vehicle import default_vehicle
 
 DURATION = 60.0

@@ -6,7 +6,7 @@ Run: python benchmarks/bench_kmedoids.py [--save X.npy | --load X.npy] [BACKEND 
 The 30 logs are those of ``bench_fit.py`` (three simulated 60 s figure-8
 flights, fresh gyro and command noise per copy). ``fit_model`` is run up to
 its training-point step and the normalised GP inputs it hands to
-:func:`omavctl.fit.select_points` are kept (``--save`` writes them, ``--load``
+:func:`omavctl.learn.fit.select_points` are kept (``--save`` writes them, ``--load``
 reads them instead of simulating, so that environments with different NumPy
 versions compare on the same matrix).
 
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from omavctl import fit as fit_module
+from omavctl.learn import fit as fit_module
 
 POINTS = 200
 N_LOGS = 30
@@ -103,7 +103,7 @@ def _banditpam(algorithm: str) -> Backend:
 
 
 def _rustpam_defaults(x: np.ndarray, k: int, seed: int) -> np.ndarray:
-    """rustpam with its default batch and swap cap (omavctl.kmedoids lifts both)."""
+    """rustpam with its default batch and swap cap (omavctl.learn.kmedoids lifts both)."""
     from rustpam import OneBatchPAM
 
     # distance="precomputed" fails in 0.2.1 (its labelling step reuses the matrix)
@@ -115,7 +115,7 @@ _KMEDOIDS = fit_module._kmedoids
 
 
 def _omavctl(x: np.ndarray, k: int, seed: int) -> np.ndarray:
-    """Whatever ``omavctl.fit._kmedoids`` calls in this checkout."""
+    """Whatever ``omavctl.learn.fit._kmedoids`` calls in this checkout."""
     return np.asarray(_KMEDOIDS(x, k))
 
 

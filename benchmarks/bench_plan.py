@@ -36,12 +36,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _data(workdir: Path) -> dict[str, Path]:
     """Task CSVs and the 200-point model, built once."""
-    from omavctl.fit import fit_model
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.model import save_model
     from omavctl.logs import align
-    from omavctl.model import save_model
-    from omavctl.plant import load_truth, simulate
-    from omavctl.tasks import fig8, pitch
-    from omavctl.trajectory import write_trajectory
+    from omavctl.sim.plant import load_truth, simulate
+    from omavctl.sim.tasks import fig8, pitch
+    from omavctl.sim.trajectory import write_trajectory
     from omavctl.vehicle import default_vehicle
 
     workdir.mkdir(parents=True, exist_ok=True)
@@ -64,9 +64,9 @@ def _case(spec: dict) -> dict:
 
     from threadpoolctl import threadpool_limits
 
-    from omavctl.model import load_model
+    from omavctl.learn.model import load_model
     from omavctl.planning import PlanSettings, plan
-    from omavctl.trajectory import read_trajectory
+    from omavctl.sim.trajectory import read_trajectory
 
     start = time.perf_counter()
     with threadpool_limits(1, user_api="blas"):

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import time
 
-from omavctl.plant import load_truth, simulate
-from omavctl.tasks import fig8
+from omavctl.sim.plant import load_truth, simulate
+from omavctl.sim.tasks import fig8
 from omavctl.vehicle import default_vehicle
 
 

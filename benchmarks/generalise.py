@@ -28,13 +28,13 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from omavctl.evaluate import evaluate
-from omavctl.fit import fit_model
+from omavctl.diagnose.evaluate import evaluate
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import save_model
+from omavctl.learn.signal import DEFAULT_FEATURES
 from omavctl.logs import write_log
-from omavctl.model import save_model
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.signal import DEFAULT_FEATURES
-from omavctl.tasks import fig8, wobble
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8, wobble
 from omavctl.vehicle import default_vehicle
 
 #: hidden effect -> truth ``effects`` entry

@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from omavctl.fit import fit_model
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import load_model, save_model
+from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_vehicle_log, write_log
-from omavctl.model import load_model, save_model
 from omavctl.planning import PlanSettings, plan
-from omavctl.plant import load_truth, simulate
-from omavctl.signal import SavitzkyGolay, residual_samples
-from omavctl.tasks import fig8
+from omavctl.sim.plant import load_truth, simulate
+from omavctl.sim.tasks import fig8
 from omavctl.vehicle import default_vehicle
 
 

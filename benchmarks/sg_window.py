@@ -23,10 +23,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import align
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.signal import SavitzkyGolay, residual_samples
-from omavctl.tasks import fig8
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
 from omavctl.vehicle import default_vehicle
 
 GYRO_NOISE = 0.003

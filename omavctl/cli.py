@@ -1,6 +1,6 @@
 """Command-line interface: parse, call one library function, render.
 
-Library errors (:class:`omavctl.errors.OmavctlError`) become one line
+Library errors (:class:`omavctl.base.errors.OmavctlError`) become one line
 ``error: <file>: <problem>`` on stderr and exit status 2, as usage errors
 (:mod:`omavctl.guard`); other failures exit 1. Heavy modules are imported
 inside the commands so that ``--help`` and ``--version`` stay fast.
@@ -16,8 +16,8 @@ from typing import Annotated, Any, TypeVar
 import typer
 
 from omavctl import __version__
-from omavctl.atomic import check_outputs
-from omavctl.errors import OmavctlError
+from omavctl.base.atomic import check_outputs
+from omavctl.base.errors import OmavctlError
 
 
 def _arguments_by_metavar() -> None:
@@ -131,7 +131,7 @@ Height = Annotated[float, typer.Option(help="Hover height (z), m.")]
 
 
 def _write_task(traj: Any, out: Path, quiet: bool, as_json: bool = False, name: str = "") -> None:
-    from omavctl.trajectory import write_trajectory
+    from omavctl.sim.trajectory import write_trajectory
 
     check_outputs([], [out])
     write_trajectory(out, traj)
@@ -163,7 +163,7 @@ def task_fig8(
     as_json: Json = False,
 ) -> None:
     """Attitude figure-8 at constant position: roll = A_r sin(wt), pitch = A_p sin(2wt)."""
-    from omavctl.tasks import fig8
+    from omavctl.sim.tasks import fig8
 
     _write_task(
         fig8(roll, pitch, period, duration, rate, ramp, height), out, quiet, as_json, "fig8"
@@ -184,7 +184,7 @@ def task_circle(
     as_json: Json = False,
 ) -> None:
     """Horizontal circle at level attitude, starting and ending at rest."""
-    from omavctl.tasks import circle
+    from omavctl.sim.tasks import circle
 
     _write_task(circle(radius, period, duration, rate, ramp, height), out, quiet, as_json, "circle")
 
@@ -205,7 +205,7 @@ def task_pitch(
     as_json: Json = False,
 ) -> None:
     """Pitching manoeuvre as in the paper (60 deg, 1 rad/s^2 by default)."""
-    from omavctl.tasks import pitch
+    from omavctl.sim.tasks import pitch
 
     _write_task(
         pitch(amplitude, max_acceleration, duration, rate, ramp, height),
@@ -230,7 +230,7 @@ def task_yaw(
     as_json: Json = False,
 ) -> None:
     """Yaw oscillation at level attitude (identifies servo_lag: small tilts, fast tilt rates)."""
-    from omavctl.tasks import yaw
+    from omavctl.sim.tasks import yaw
 
     _write_task(yaw(amplitude, period, duration, rate, ramp, height), out, quiet, as_json, "yaw")
 
@@ -251,7 +251,7 @@ def task_heave(
     as_json: Json = False,
 ) -> None:
     """Vertical oscillation at level attitude (identifies com_offset: thrust varies, no tilt)."""
-    from omavctl.tasks import heave
+    from omavctl.sim.tasks import heave
 
     _write_task(
         heave(amplitude, period, duration, rate, ramp, height), out, quiet, as_json, "heave"
@@ -280,7 +280,7 @@ def task_wobble(
     """Multi-sine attitude wobble: roll, pitch and yaw each a sum of three sines
     (frequencies 0.15-1 x bandwidth, random phases). Not periodic: fit on a figure-8,
     evaluate on a wobble to see whether a model holds on a flight it has not seen."""
-    from omavctl.tasks import wobble
+    from omavctl.sim.tasks import wobble
 
     _write_task(
         wobble(amplitude, bandwidth, duration, rate, ramp, height, seed),
@@ -342,9 +342,9 @@ def simulate(
 ) -> None:
     """Fly a reference in closed loop through the truth plant and write a flight log."""
     from omavctl.logs import write_log
-    from omavctl.plant import load_truth
-    from omavctl.plant import simulate as run
-    from omavctl.trajectory import read_trajectory
+    from omavctl.sim.plant import load_truth
+    from omavctl.sim.plant import simulate as run
+    from omavctl.sim.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
     check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)
@@ -353,7 +353,7 @@ def simulate(
     plant = load_truth(truth, veh)
     residual = None
     if model is not None:
-        from omavctl.model import check_vehicle, load_model
+        from omavctl.learn.model import check_vehicle, load_model
 
         residual = load_model(model)
         check_vehicle(residual, veh, model)
@@ -482,9 +482,9 @@ def fit(
     """
     from rich.progress import Progress
 
-    from omavctl.fit import fit_model
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.model import save_model
     from omavctl.logs import parse_time_window
-    from omavctl.model import save_model
     from omavctl.vehicle import load_vehicle
 
     check_outputs([*logs, vehicle, prior], [out])
@@ -510,7 +510,7 @@ def fit(
         )
     save_model(out, result.model)
     _render_fit(con, result.summary, out)
-    from omavctl.summary import fit_json
+    from omavctl.report.summary import fit_json
 
     _emit(as_json, fit_json(result.summary, out))
 
@@ -520,7 +520,7 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
     from rich.table import Table
     from rich.text import Text
 
-    from omavctl.fit import effect_unit
+    from omavctl.learn.fit import effect_unit
     from omavctl.physics.effects import get_effect
 
     units = summary.command_units
@@ -646,11 +646,11 @@ def evaluate(
     then the RMSE (rad/s^2) of the nominal model, nominal + effects and each model side
     by side. Writes the evaluation JSON, its .series.npz and an MCAP of the series.
     """
-    from omavctl.evaluate import evaluate as run
-    from omavctl.evaluate import series_path, write_evaluation
+    from omavctl.diagnose.evalio import series_path, write_evaluation
+    from omavctl.diagnose.evaluate import evaluate as run
     from omavctl.logs import parse_time_window
-    from omavctl.series_mcap import mcap_path, write_series_mcap
-    from omavctl.summary import evaluation_json, render_evaluation
+    from omavctl.report.series_mcap import mcap_path, write_series_mcap
+    from omavctl.report.summary import evaluation_json, render_evaluation
 
     window = parse_time_window(time_window) if time_window else None
     if out is None and model:
@@ -755,11 +755,11 @@ def plan(
     from rich.table import Table
     from threadpoolctl import threadpool_limits
 
-    from omavctl.model import check_vehicle, load_model
+    from omavctl.learn.model import check_vehicle, load_model
     from omavctl.planning import PlanSettings
     from omavctl.planning import plan as run
     from omavctl.planning.report import write_plan
-    from omavctl.trajectory import read_trajectory
+    from omavctl.sim.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
     check_outputs([task, model, vehicle], [out, scores, report_out])
@@ -849,7 +849,7 @@ def plan(
     if scores is not None:
         files["scores"] = str(scores)
     if report_out is not None:
-        from omavctl.plan_report import write_plan_report
+        from omavctl.report.plan import write_plan_report
 
         write_plan_report(report_out, ref, result)
         files["report"] = str(report_out)
@@ -909,7 +909,7 @@ def inspect(
     veh = load_vehicle(vehicle)
     ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
     render_inspect(ins, console(stdout=not as_json))
-    from omavctl.summary import inspect_json
+    from omavctl.report.summary import inspect_json
 
     _emit(as_json, inspect_json(ins))
 
@@ -957,8 +957,8 @@ def report(
     from rich.table import Table
     from rich.text import Text
 
-    from omavctl.evaluate import series_path
-    from omavctl.report import write_report
+    from omavctl.diagnose.evalio import series_path
+    from omavctl.report.evaluation import write_report
 
     check_outputs([*evaluations, *(series_path(e) for e in evaluations)], [out])
     con = _console(quiet)

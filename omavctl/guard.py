@@ -28,8 +28,8 @@ from typing import Any
 
 import typer
 
-from omavctl.atomic import Terminated, install_signal_cleanup
-from omavctl.errors import EXIT_BAD_INPUT, EXIT_FAILURE, OmavctlError
+from omavctl.base.atomic import Terminated, install_signal_cleanup
+from omavctl.base.errors import EXIT_BAD_INPUT, EXIT_FAILURE, OmavctlError
 
 __all__ = ["check_finite_options", "guarded", "run_app"]
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from omavctl.errors import ConfigError
+from omavctl.base.errors import ConfigError
 
 __all__ = [
     "FORCE_UNITS",
@@ -66,6 +66,20 @@ _UNIT_ALIASES = {
     "normalized": NORMALISED,
 }
 
+
+#: Names of the physical effects a vehicle file may list under ``effects:``
+#: (DESIGN.md section 2). The description knows only the names; what each one
+#: computes is :data:`omavctl.physics.effects.EFFECTS`, whose keys must be
+#: exactly these (checked when the registry is built).
+EFFECT_NAMES = (
+    "rotational_drag",
+    "com_offset",
+    "inertia_error",
+    "servo_lag",
+    "motor_lag",
+    "command_delay",
+    "gyro_bias",
+)
 
 #: Top-level keys whose value replaces the default's instead of being merged.
 _FREE_FORM = ("effects", "columns")
@@ -354,16 +368,14 @@ def _command_units(tree: dict[str, Any], path: Path | None) -> dict[str, str]:
 
 
 def _effect_names(value: Any, path: Path | None) -> tuple[str, ...]:
-    from omavctl.physics.effects import EFFECTS
-
     if value is None:
         return ()
     names = list(value) if isinstance(value, (list, dict)) else None
     if names is None:
         raise ConfigError("key 'effects' must be a list of effect names", path)
     for name in names:
-        if name not in EFFECTS:
-            known = ", ".join(sorted(EFFECTS))
+        if name not in EFFECT_NAMES:
+            known = ", ".join(sorted(EFFECT_NAMES))
             raise ConfigError(f"unknown effect '{name}' in 'effects' (known: {known})", path)
     return tuple(str(n) for n in names)
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.tasks import fig8
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
 from omavctl.vehicle import Vehicle, default_vehicle
 
 NO_NOISE = {"gyro": 0.0, "attitude": 0.0, "position": 0.0, "velocity": 0.0}

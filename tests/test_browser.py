@@ -15,13 +15,14 @@ from pathlib import Path
 
 import pytest
 
-from omavctl.evaluate import evaluate, write_evaluation
-from omavctl.fit import fit_model
+from omavctl.diagnose.evalio import write_evaluation
+from omavctl.diagnose.evaluate import evaluate
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import save_model
 from omavctl.logs import write_log
-from omavctl.model import save_model
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.report import write_report
-from omavctl.tasks import fig8
+from omavctl.report.evaluation import write_report
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
 
 CHROMIUM = os.environ.get("OMAVCTL_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
 ARGS = [
@@ -62,8 +63,8 @@ def reports(tmp_path_factory, vehicle) -> dict[str, Path]:
         write_evaluation(d / f"{name}.json", evaluate([d / f"{name}.npz"], [d / "held.mcap"]))
     write_report([d / "before.json", d / "after.json"], d / "report.html")
 
-    from omavctl.plan_report import write_plan_report
     from omavctl.planning import PlanSettings, plan
+    from omavctl.report.plan import write_plan_report
 
     task = fig8(20, 20, 4.0, 6.0, ramp=1.0)
     settings = PlanSettings(candidates=3, sims=1, test_points=100, points=20, seed=0)
@@ -73,7 +74,7 @@ def reports(tmp_path_factory, vehicle) -> dict[str, Path]:
 
 
 def save_and_load(path: Path):
-    from omavctl.model import load_model
+    from omavctl.learn.model import load_model
 
     return load_model(path)
 

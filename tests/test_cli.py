@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from omavctl import __version__
 from omavctl.cli import app
 from omavctl.logs import read_log
-from omavctl.trajectory import read_trajectory
+from omavctl.sim.trajectory import read_trajectory
 
 runner = CliRunner()
 

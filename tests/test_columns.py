@@ -13,8 +13,8 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from omavctl.base.errors import ConfigError, LogError
 from omavctl.cli import app
-from omavctl.errors import ConfigError, LogError
 from omavctl.logs import (
     RawLog,
     RawSeries,

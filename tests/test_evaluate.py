@@ -16,14 +16,15 @@ import pytest
 from typer.testing import CliRunner
 
 from omavctl.cli import app
-from omavctl.evaluate import MIN_EXPLAINED, evaluate, load_evaluation, write_evaluation
-from omavctl.fit import fit_model
+from omavctl.diagnose.evalio import load_evaluation, write_evaluation
+from omavctl.diagnose.evaluate import MIN_EXPLAINED, evaluate
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import save_model
+from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_vehicle_log, write_log
-from omavctl.model import save_model
 from omavctl.physics.effects import get_effect
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.signal import SavitzkyGolay, residual_samples
-from omavctl.tasks import fig8, heave, yaw
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8, heave, yaw
 
 runner = CliRunner()
 DURATION = 16.0

@@ -13,22 +13,22 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from omavctl import fit as fit_module
 from omavctl.cli import app
-from omavctl.fit import fit_model
-from omavctl.logs import align, read_log, read_raw, write_log
-from omavctl.model import load_model
-from omavctl.physics.rigid_body import euler_rates_to_body
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.signal import (
+from omavctl.learn import fit as fit_module
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import load_model
+from omavctl.learn.signal import (
     DEFAULT_FEATURES,
     DEFAULT_SG_ORDER,
     DEFAULT_SG_WINDOW,
     SavitzkyGolay,
     residual_samples,
 )
-from omavctl.tasks import fig8
-from omavctl.trajectory import Trajectory, write_trajectory
+from omavctl.logs import align, read_log, read_raw, write_log
+from omavctl.physics.rigid_body import euler_rates_to_body
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
+from omavctl.sim.trajectory import Trajectory, write_trajectory
 
 runner = CliRunner()
 

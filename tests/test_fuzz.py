@@ -32,9 +32,9 @@ SEED = int(os.environ.get("OMAVCTL_FUZZ_SEED", "2026"))
 def outcomes(tmp_path_factory: pytest.TempPathFactory) -> list[Outcome]:
     root = tmp_path_factory.mktemp("fuzz")
     base = build_base(root / "base")
-    import omavctl.evaluate
+    import omavctl.diagnose.evaluate
     import omavctl.planning
-    import omavctl.report  # noqa: F401
+    import omavctl.report.evaluation  # noqa: F401
 
     return run_all(iter_cases(SEED, CASES, base, root / "cases"), "fork", 60.0)
 

@@ -57,10 +57,10 @@ def test_the_band_covers_a_new_flight(outcomes, case, timing, fit_on):
 def test_a_clean_flight_of_an_ideal_plant_switches_the_gp_off(tmp_path):
     """Noise only: the GP has nothing to learn and says so (mean 0, variance the
     residual's mean square: the log's own derivative noise)."""
-    from omavctl.fit import fit_model
+    from omavctl.learn.fit import fit_model
     from omavctl.logs import align
-    from omavctl.plant import simulate, truth_from_tree
-    from omavctl.tasks import fig8
+    from omavctl.sim.plant import simulate, truth_from_tree
+    from omavctl.sim.tasks import fig8
     from omavctl.vehicle import default_vehicle
 
     vehicle = default_vehicle()
@@ -81,12 +81,12 @@ def test_clean_flights_claim_nothing(tmp_path, timing):
     held) or ten times faster (sampled: a sub-period lead the held-command model
     does not know): fit on a figure-8, evaluate on a wobble. Nothing is missing,
     nothing is claimed as learned."""
-    from omavctl.evaluate import evaluate
-    from omavctl.fit import fit_model
+    from omavctl.diagnose.evaluate import evaluate
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.model import save_model
     from omavctl.logs import write_log
-    from omavctl.model import save_model
-    from omavctl.plant import simulate, truth_from_tree
-    from omavctl.tasks import fig8, wobble
+    from omavctl.sim.plant import simulate, truth_from_tree
+    from omavctl.sim.tasks import fig8, wobble
     from omavctl.vehicle import default_vehicle
 
     vehicle = default_vehicle()

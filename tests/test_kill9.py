@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from omavctl.errors import OmavctlError
-from omavctl.evaluate import load_evaluation
+from omavctl.base.errors import OmavctlError
+from omavctl.diagnose.evalio import load_evaluation
 
 try:  # tests/ as a package or as a rootdir on sys.path
     from .fuzzkit.cases import FIT, PLAN

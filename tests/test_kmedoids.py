@@ -1,4 +1,4 @@
-"""k-medoids (omavctl.kmedoids, fit.select_points): PAM quality, determinism, and the
+"""k-medoids (omavctl.learn.kmedoids, fit.select_points): PAM quality, determinism, and the
 same points under NumPy 1 and NumPy 2 (.ci/run runs this file in both environments)."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import itertools
 import numpy as np
 import pytest
 
-from omavctl import fit as fit_module
-from omavctl.fit import _cost, select_points
-from omavctl.kmedoids import kmedoids
+from omavctl.learn import fit as fit_module
+from omavctl.learn.fit import _cost, select_points
+from omavctl.learn.kmedoids import kmedoids
 
 
 def curve(n: int) -> np.ndarray:

@@ -453,7 +453,7 @@ def test_custom_topic_names(tmp_path: Path, source: RawLog, name: str) -> None:
     assert {"/vehicle/gyro", "/vehicle/odom", "/ctrl/wrench", "/omav/reference"} <= topic_names
     assert "/omav/imu" not in topic_names
     assert_matches_source(align(raw), source)
-    from omavctl.errors import LogError
+    from omavctl.base.errors import LogError
 
     with pytest.raises(LogError, match=r"missing topic '/omav/imu' \(role body_rate\)"):
         read_log(path)
@@ -611,7 +611,7 @@ def test_column_map(tmp_path: Path) -> None:
 
 
 def test_column_map_errors(tmp_path: Path) -> None:
-    from omavctl.errors import ConfigError, LogError
+    from omavctl.base.errors import ConfigError, LogError
 
     path = tmp_path / "x.csv"
     path.write_text("time_us,gx\n1,2\n")

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omavctl.errors import ConfigError, LogError
+from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs import RawLog, RawSeries, read_log, read_raw, write_log
 from omavctl.logs.types import ROLE_COLUMNS
 

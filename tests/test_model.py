@@ -12,11 +12,11 @@ import pytest
 from scipy.signal import savgol_filter
 from typer.testing import CliRunner
 
+from omavctl.base.errors import ModelError
 from omavctl.cli import app
-from omavctl.errors import ModelError
-from omavctl.model import SCHEMA, EffectEstimate, ResidualGP, load_model, save_model
+from omavctl.learn.model import SCHEMA, EffectEstimate, ResidualGP, load_model, save_model
+from omavctl.learn.signal import SavitzkyGolay, feature_names, usable_segments
 from omavctl.physics.controller import Controller, ControllerState
-from omavctl.signal import SavitzkyGolay, feature_names, usable_segments
 
 runner = CliRunner()
 
@@ -240,8 +240,8 @@ def test_other_bad_files_are_one_clear_error(vehicle, tmp_path):
 
 # ------------------------------------------------------------- simulate --model
 def test_simulate_with_model_and_vehicle_mismatch(vehicle, tmp_path):
-    from omavctl.tasks import fig8
-    from omavctl.trajectory import write_trajectory
+    from omavctl.sim.tasks import fig8
+    from omavctl.sim.trajectory import write_trajectory
 
     ref = tmp_path / "ref.csv"
     write_trajectory(ref, fig8(roll_deg=10, pitch_deg=10, period=2.0, duration=2.0, ramp=1.0))
@@ -296,7 +296,7 @@ def test_hold_kernel_reproduces_the_derivative_of_held_accelerations():
 
 
 def test_rate_noise_is_recovered_from_second_differences():
-    from omavctl.signal import rate_noise
+    from omavctl.learn.signal import rate_noise
 
     rng = np.random.default_rng(5)
     t = np.arange(6000) * 0.01
@@ -315,7 +315,7 @@ def test_usable_segments_drop_edges_and_short_runs():
 
 @pytest.mark.parametrize(("window", "order"), [(4, 2), (1, 0), (11, 11), (11, 0)])
 def test_bad_filter_settings(window, order):
-    from omavctl.errors import ConfigError
+    from omavctl.base.errors import ConfigError
 
     with pytest.raises(ConfigError, match="--sg-"):
         SavitzkyGolay(window, order, 0.01)

@@ -16,7 +16,7 @@ from omavctl.physics.rigid_body import (
     rotation_to_euler,
     state_derivative,
 )
-from omavctl.plant import _Body
+from omavctl.sim.plant import _Body
 
 
 def test_rotation_euler_round_trip():

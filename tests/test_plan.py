@@ -7,15 +7,15 @@ import pytest
 from typer.testing import CliRunner
 
 from omavctl.cli import app
-from omavctl.fit import fit_model
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import SCHEMA, load_model, save_model
 from omavctl.logs import align
-from omavctl.model import SCHEMA, load_model, save_model
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
 from omavctl.planning.planner import PlanSettings, _test_points, plan
 from omavctl.planning.rollout import rollout
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.tasks import fig8
-from omavctl.trajectory import read_trajectory, write_trajectory
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
+from omavctl.sim.trajectory import read_trajectory, write_trajectory
 
 runner = CliRunner()
 

@@ -10,9 +10,9 @@ from scipy.stats import spearmanr
 from typer.testing import CliRunner
 
 from omavctl.cli import app
-from omavctl.fit import fit_model
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import ResidualGP, save_model
 from omavctl.logs import align
-from omavctl.model import ResidualGP, save_model
 from omavctl.planning import PlanSettings, plan
 from omavctl.planning.candidates import ReferenceStream, deviated_references, sample_coefficients
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
@@ -20,9 +20,9 @@ from omavctl.planning.planner import _test_points
 from omavctl.planning.rollout import control_times
 from omavctl.planning.scoring import batched_picks, integrated_variance, kmedoids_picks
 from omavctl.planning.simulate import Simulator
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.tasks import fig8
-from omavctl.trajectory import write_trajectory
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
+from omavctl.sim.trajectory import write_trajectory
 
 runner = CliRunner()
 SMALL = PlanSettings(candidates=5, sims=2, test_points=100, points=15)

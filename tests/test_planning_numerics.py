@@ -13,7 +13,7 @@ from omavctl.planning.candidates import (
 )
 from omavctl.planning.fused import FusedSamples
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data, se_kernel
-from omavctl.tasks import fig8
+from omavctl.sim.tasks import fig8
 
 
 def _gp(n=60, d=6, seed=0) -> GPAxes:

@@ -15,15 +15,15 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from omavctl.base.errors import ConfigError, ModelError
 from omavctl.cli import app
-from omavctl.errors import ConfigError, ModelError
-from omavctl.fit import GAIN_EFFECT, fit_model, torque_gain, upsampling_note
+from omavctl.learn.fit import GAIN_EFFECT, fit_model, torque_gain, upsampling_note
+from omavctl.learn.model import check_vehicle, load_model
 from omavctl.logs import RawLog, RawSeries, align, read_vehicle_log, write_log
 from omavctl.logs.contract import quaternion_from_euler
 from omavctl.logs.frames import FRD_TO_FLU
-from omavctl.model import check_vehicle, load_model
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.tasks import fig8
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
 from omavctl.vehicle import default_vehicle, load_vehicle
 
 REPO = Path(__file__).parents[1]

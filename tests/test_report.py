@@ -14,15 +14,16 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from omavctl.base.errors import OmavctlError
 from omavctl.cli import app
-from omavctl.errors import OmavctlError
-from omavctl.evaluate import evaluate, write_evaluation
-from omavctl.fit import fit_model
+from omavctl.diagnose.evalio import write_evaluation
+from omavctl.diagnose.evaluate import evaluate
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import save_model
 from omavctl.logs import write_log
-from omavctl.model import save_model
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.report import render_report, write_report
-from omavctl.tasks import fig8
+from omavctl.report.evaluation import render_report, write_report
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8
 
 runner = CliRunner()
 
@@ -199,7 +200,7 @@ def test_markdown_and_determinism(evals, tmp_path):
 
 
 def test_render_report_escapes_and_handles_unknown_torque_units(evals):
-    from omavctl.evaluate import load_evaluation
+    from omavctl.diagnose.evalio import load_evaluation
 
     tree, series = load_evaluation(evals / "before.json")
     tree["units"]["torque"] = "unknown"

@@ -18,9 +18,9 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from omavctl.atomic import atomic_paths, check_outputs
+from omavctl.base.atomic import atomic_paths, check_outputs
+from omavctl.base.errors import OutputError
 from omavctl.cli import app
-from omavctl.errors import OutputError
 
 runner = CliRunner()
 try:  # tests/ as a package or as a rootdir on sys.path
@@ -131,7 +131,7 @@ def test_output_directory_problems(work: Path) -> None:
 
 def test_unwritable_output_directory(work: Path) -> None:
     with pytest.raises(OutputError, match=r"^/proc/x\.csv: cannot write: "):
-        from omavctl.atomic import atomic_path
+        from omavctl.base.atomic import atomic_path
 
         with atomic_path("/proc/x.csv"):
             pass

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from omavctl.errors import ConfigError, TrajectoryError
+from omavctl.base.errors import ConfigError, TrajectoryError
 from omavctl.physics.rigid_body import euler_rates
-from omavctl.tasks import TASKS, circle, fig8, heave, pitch, yaw
-from omavctl.trajectory import (
+from omavctl.sim.tasks import TASKS, circle, fig8, heave, pitch, yaw
+from omavctl.sim.trajectory import (
     COLUMNS,
     Trajectory,
     format_trajectory,

@@ -10,12 +10,12 @@ import pytest
 from typer.testing import CliRunner
 
 from omavctl.cli import app
-from omavctl.fit import fit_model
+from omavctl.learn.fit import fit_model
+from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import align, write_log
 from omavctl.physics.effects import first_order_lag, shift_held
-from omavctl.plant import simulate, truth_from_tree
-from omavctl.signal import SavitzkyGolay, residual_samples
-from omavctl.tasks import fig8, wobble, yaw
+from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.tasks import fig8, wobble, yaw
 
 runner = CliRunner()
 
@@ -159,7 +159,7 @@ def test_clean_flights_lose_no_samples(vehicle):
         log = align(
             simulate(ref, vehicle, truth_from_tree({"timing": timing}, vehicle), seed=0).log
         )
-        from omavctl.control_loss import out_of_control
+        from omavctl.learn.control_loss import out_of_control
 
         s = residual_samples(log, vehicle, SavitzkyGolay(11, 2, 0.01))
         assert not out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual).any

@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import copy
 
-from omavctl.report import _param_lines
-from omavctl.verdict import (
+from omavctl.diagnose.verdict import (
     activity,
     change_lines,
     report_verdict,
     scores_of_files,
     verdict,
 )
+from omavctl.report.evaluation import _param_lines
 
 
 def _tree(rmse: dict, coverage: dict, missing: list[str], effects: dict | None = None) -> dict:

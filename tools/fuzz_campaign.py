@@ -47,9 +47,9 @@ def main() -> int:
     root = args.dir or Path(tempfile.mkdtemp(prefix="omavctl-fuzz-"))
     base = build_base(root / "base")
     import omavctl.cli
-    import omavctl.evaluate
+    import omavctl.diagnose.evaluate
     import omavctl.planning
-    import omavctl.report  # noqa: F401  (forked children start with everything imported)
+    import omavctl.report.evaluation  # noqa: F401  (forked children start with everything imported)
 
     start = time.monotonic()
     cases = iter_cases(args.seed, args.cases, base, root / f"seed{args.seed}", args.strategy)

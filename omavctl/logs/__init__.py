@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from omavctl.logs.align import DEFAULT_REQUIRED, align
 from omavctl.logs.columnmap import flatten_column_map, parse_column_map
@@ -37,14 +37,12 @@ from omavctl.logs.types import (
     ROLE_COLUMNS,
     ROLE_TOPIC,
     FlightLog,
+    LogLayout,
     RawLog,
     RawSeries,
     TopicInfo,
 )
 from omavctl.logs.write import write_log
-
-if TYPE_CHECKING:
-    from omavctl.vehicle import Vehicle
 
 __all__ = [
     "ANGLE_ROLES",
@@ -97,7 +95,7 @@ def read_log(
 
 def read_vehicle_log(
     path: str | Path,
-    vehicle: Vehicle,
+    vehicle: LogLayout,
     rate: float = 100.0,
     required: Sequence[str] = DEFAULT_REQUIRED,
     time_window: tuple[float | None, float | None] | None = None,

@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from omavctl.errors import LogError
+from omavctl.base.errors import LogError
 from omavctl.logs.contract import DEFAULT_TOPICS, wrap_angle
 from omavctl.logs.stats import find_gaps, stamp_stats
 from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, ROLE_TOPIC, FlightLog, RawLog

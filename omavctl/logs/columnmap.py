@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.errors import ConfigError, LogError
+from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs.contract import euler_from_quaternion
 from omavctl.logs.csvlog import CsvRead, csv_columns
 from omavctl.logs.stats import topic_info

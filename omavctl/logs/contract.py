@@ -11,7 +11,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from omavctl.errors import ConfigError
+from omavctl.base.errors import ConfigError
 from omavctl.logs.types import ROLE_COLUMNS, ROLE_TOPIC
 
 __all__ = [

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from omavctl.atomic import atomic_path
-from omavctl.errors import LogError
+from omavctl.base.atomic import atomic_path
+from omavctl.base.errors import LogError
 from omavctl.logs.stats import topic_info
 from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog, RawSeries
 

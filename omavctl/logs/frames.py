@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from omavctl.errors import ConfigError
+from omavctl.base.errors import ConfigError
 from omavctl.logs.types import ROLE_COLUMNS, RawLog, RawSeries
 
 __all__ = ["FRAMES", "FRD_TO_FLU", "check_frame", "convert_frame", "flip_quaternion"]

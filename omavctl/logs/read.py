@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.errors import LogError, library_reason
+from omavctl.base.errors import LogError, library_reason
 from omavctl.logs.contract import TOPIC_MSGTYPES, merge_topics
 from omavctl.logs.messages import ROW_EXTRACTORS, rows_to_signals
 from omavctl.logs.stats import topic_info

@@ -29,7 +29,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from omavctl.errors import ConfigError, LogError
+from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs.align import segments_of
 from omavctl.logs.types import FlightLog
 

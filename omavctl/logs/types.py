@@ -9,8 +9,10 @@ out-of-order stamps.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -18,10 +20,31 @@ __all__ = [
     "ROLE_COLUMNS",
     "ROLE_TOPIC",
     "FlightLog",
+    "LogLayout",
     "RawLog",
     "RawSeries",
     "TopicInfo",
 ]
+
+
+class LogLayout(Protocol):
+    """Where a vehicle's signals are in its logs (a :class:`~omavctl.vehicle.Vehicle` is one).
+
+    The log readers need only this much of a vehicle, so they do not depend on
+    the vehicle description: ``topics`` maps topic roles to topic names (bags),
+    ``columns`` is a column map for CSVs of another layout (empty: the wide
+    contract CSV), ``frame`` the body frame convention (``"FLU"`` or ``"FRD"``).
+    """
+
+    @property
+    def topics(self) -> Mapping[str, str]: ...
+
+    @property
+    def columns(self) -> Mapping[str, Any]: ...
+
+    @property
+    def frame(self) -> str: ...
+
 
 XYZ = ("x", "y", "z")
 RPY = ("roll", "pitch", "yaw")

@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.atomic import atomic_dir, atomic_path
-from omavctl.errors import LogError
+from omavctl.base.atomic import atomic_dir, atomic_path
+from omavctl.base.errors import LogError
 from omavctl.logs.contract import TOPIC_FRAMES, TOPIC_MSGTYPES, TOPIC_SIGNALS, merge_topics
 from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog
 

@@ -43,7 +43,7 @@ _INTEGRAL_LIMIT = np.array([0.5, 0.5, 0.5])
 class ResidualModel(Protocol):
     """Anything that predicts the angular-acceleration residual from inputs.
 
-    :class:`omavctl.model.ResidualGP` (the output of ``fit``) is one.
+    :class:`omavctl.learn.model.ResidualGP` (the output of ``fit``) is one.
     """
 
     def mean(

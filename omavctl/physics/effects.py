@@ -18,25 +18,39 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
-from omavctl.errors import ConfigError
+from omavctl.base.errors import ConfigError
+from omavctl.vehicle import EFFECT_NAMES
 
 if TYPE_CHECKING:
     from omavctl.physics.allocation import Allocation
-    from omavctl.plant import TruthParameters
 
 __all__ = [
     "EFFECTS",
     "Effect",
     "EffectContext",
     "Parameter",
+    "TruthConstants",
     "first_order_lag",
     "get_effect",
     "shift_held",
 ]
+
+
+class TruthConstants(Protocol):
+    """The constants of a truth plant an effect may change (:meth:`Effect.configure_truth`).
+
+    The simulator's :class:`~omavctl.sim.plant.TruthParameters` is one; the
+    physics does not depend on the simulator.
+    """
+
+    inertia: np.ndarray  # (3, 3) kg m^2
+    servo_time_constant: float  # s
+    motor_time_constant: float  # s
+    command_delay: float  # s
 
 
 @dataclass(frozen=True)
@@ -182,7 +196,7 @@ class Effect(ABC):
         return None
 
     def configure_truth(  # noqa: B027 - optional hook, a no-op for most effects
-        self, params: dict[str, np.ndarray], truth: TruthParameters
+        self, params: dict[str, np.ndarray], truth: TruthConstants
     ) -> None:
         """Change constants of the truth plant (inertia, actuator time constants)."""
 
@@ -463,6 +477,8 @@ EFFECTS: dict[str, Effect] = {
         GyroBias(),
     )
 }
+if tuple(EFFECTS) != EFFECT_NAMES:  # the description's names and the registry agree
+    raise ImportError(f"effect registry {tuple(EFFECTS)} != vehicle.EFFECT_NAMES {EFFECT_NAMES}")
 
 
 def get_effect(name: str) -> Effect:

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from omavctl.physics.rigid_body import euler_rates, euler_rates_to_body, rotation_matrix
-from omavctl.tasks import Envelope
-from omavctl.trajectory import Trajectory
+from omavctl.sim.tasks import Envelope
+from omavctl.sim.trajectory import Trajectory
 
 __all__ = [
     "ReferenceStream",

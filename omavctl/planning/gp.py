@@ -6,7 +6,7 @@ sample* from the GP posterior per simulation (the simulated "truth"), and
 (c) the posterior variance at test points after adding hypothetical data,
 without refitting. None of these is offered by a library for batched use, so
 they are written here on top of the hyperparameters of a fitted
-:class:`omavctl.model.ResidualGP`.
+:class:`omavctl.learn.model.ResidualGP`.
 
 Kernel (per axis a, normalised inputs z):
 ``k(z, z') = s_a^2 exp(-|(z - z') / l_a|^2 / 2)``, noise ``sigma_a^2``.
@@ -59,7 +59,7 @@ class GPAxes:
 
     @classmethod
     def from_model(cls, model) -> GPAxes:
-        """From a :class:`omavctl.model.ResidualGP` (inputs normalised here)."""
+        """From a :class:`omavctl.learn.model.ResidualGP` (inputs normalised here)."""
         return cls(
             inputs=model.normalise(model.inputs),
             targets=np.asarray(model.targets, float),

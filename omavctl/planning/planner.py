@@ -30,14 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from omavctl.errors import OmavctlError
+from omavctl.base.errors import OmavctlError
 from omavctl.planning.candidates import deviated_references, sample_coefficients
 from omavctl.planning.gp import GPAxes, PathwiseSamples
 from omavctl.planning.rollout import REASONS, Progress
 from omavctl.planning.scoring import Flights, Objective, VarianceObjective
 from omavctl.planning.search import CrossEntropy, generation_sizes
 from omavctl.planning.simulate import Batch, Simulator
-from omavctl.trajectory import Trajectory
+from omavctl.sim.trajectory import Trajectory
 
 __all__ = ["OBJECTIVES", "PlanResult", "PlanSettings", "plan"]
 

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from omavctl.atomic import atomic_paths
-from omavctl.errors import OmavctlError
+from omavctl.base.atomic import atomic_paths
+from omavctl.base.errors import OmavctlError
 from omavctl.planning.candidates import coefficient_names
 from omavctl.planning.planner import PlanResult
-from omavctl.trajectory import Trajectory, format_trajectory
+from omavctl.sim.trajectory import Trajectory, format_trajectory
 
 __all__ = ["format_scores", "write_plan"]
 

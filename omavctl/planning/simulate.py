@@ -25,7 +25,7 @@ from omavctl.planning.candidates import ReferenceStream, deviated_references
 from omavctl.planning.fused import FusedSamples
 from omavctl.planning.gp import PathwiseSamples
 from omavctl.planning.rollout import REASONS, Progress, rollout
-from omavctl.trajectory import Trajectory
+from omavctl.sim.trajectory import Trajectory
 
 __all__ = ["Batch", "Simulator"]
 

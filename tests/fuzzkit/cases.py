@@ -77,11 +77,12 @@ class Case:
 def build_base(base: Path) -> Path:
     """Write the valid inputs every case starts from (about 10 s)."""
     from omavctl.cli import app
-    from omavctl.evaluate import evaluate, write_evaluation
+    from omavctl.diagnose.evalio import write_evaluation
+    from omavctl.diagnose.evaluate import evaluate
     from omavctl.logs import write_log
-    from omavctl.plant import simulate, truth_from_tree
-    from omavctl.tasks import fig8
-    from omavctl.trajectory import write_trajectory
+    from omavctl.sim.plant import simulate, truth_from_tree
+    from omavctl.sim.tasks import fig8
+    from omavctl.sim.trajectory import write_trajectory
     from omavctl.vehicle import default_vehicle
 
     base.mkdir(parents=True, exist_ok=True)

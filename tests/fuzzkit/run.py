@@ -104,7 +104,9 @@ def _context() -> Any:
         import multiprocessing
 
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["omavctl.cli", "omavctl.evaluate", "omavctl.report"])
+        ctx.set_forkserver_preload(
+            ["omavctl.cli", "omavctl.diagnose.evaluate", "omavctl.report.evaluation"]
+        )
         _CONTEXT = ctx
     return _CONTEXT
 
@@ -147,27 +149,27 @@ def _finite_json(text: str) -> object:
 
 def check_output(path: Path, kind: str) -> str | None:
     """None when ``path`` is a finite, schema-valid output of ``kind``, else why not."""
-    from omavctl.errors import OmavctlError
+    from omavctl.base.errors import OmavctlError
 
     if not path.exists():
         return "output missing"
     try:
         if kind == "model":
-            from omavctl.model import load_model
+            from omavctl.learn.model import load_model
 
             m = load_model(path)
             mean, var = m.gp_predict(m.inputs[:5], noise=True)
             if not (np.all(np.isfinite(mean)) and var is not None and np.all(np.isfinite(var))):
                 return "model predicts non-finite values"
         elif kind == "eval":
-            from omavctl.report import load_for_report
+            from omavctl.report.evaluation import load_for_report
 
             _finite_json(path.read_text())
             _, series = load_for_report(path)
             if not all(np.all(np.isfinite(v)) for v in series.values() if v.dtype.kind == "f"):
                 return "series not finite"
         elif kind == "trajectory":
-            from omavctl.trajectory import read_trajectory
+            from omavctl.sim.trajectory import read_trajectory
 
             read_trajectory(path)
         elif kind == "scores":

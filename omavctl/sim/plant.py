@@ -63,13 +63,13 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.errors import ConfigError
+from omavctl.base.errors import ConfigError
 from omavctl.logs.types import RawLog, RawSeries
 from omavctl.physics.allocation import Allocation
 from omavctl.physics.controller import Controller, ControllerState, ResidualModel
 from omavctl.physics.effects import Effect, get_effect
 from omavctl.physics.rigid_body import rotation_matrix, wrap_angle
-from omavctl.trajectory import Trajectory
+from omavctl.sim.trajectory import Trajectory
 from omavctl.vehicle import Vehicle, load_yaml_mapping
 
 __all__ = [

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from omavctl.atomic import write_text_atomic
-from omavctl.errors import TrajectoryError
+from omavctl.base.atomic import write_text_atomic
+from omavctl.base.errors import TrajectoryError
 
 __all__ = [
     "COLUMNS",

@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import savgol_coeffs, savgol_filter
 
-from omavctl.errors import ConfigError, LogError
+from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
 from omavctl.physics.effects import EffectContext, get_effect

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.errors import ConfigError
+from omavctl.base.errors import ConfigError
 from omavctl.physics.rigid_body import euler_rates_to_body
-from omavctl.trajectory import COLUMNS, LIMITS, Trajectory
+from omavctl.sim.trajectory import COLUMNS, LIMITS, Trajectory
 
 _LIMITS = np.array([LIMITS[c] for c in COLUMNS])
 

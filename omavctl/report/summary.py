@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from omavctl.verdict import (
+from omavctl.diagnose.verdict import (
     AXES,
     change_lines,
     coverage_of,

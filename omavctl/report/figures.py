@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from omavctl.verdict import activity
+from omavctl.diagnose.verdict import activity
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

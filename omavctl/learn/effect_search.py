@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from omavctl.learn.signal import ResidualSamples
+from omavctl.learn.validation import cholesky_of_k
 from omavctl.physics.effects import get_effect
-from omavctl.signal import ResidualSamples
-from omavctl.validation import cholesky_of_k
 
 __all__ = ["BLOCK_SECONDS", "GRID", "GROUPS", "SearchResult", "search_effects"]
 
@@ -144,7 +144,7 @@ def search_effects(
     """Estimate every effect of ``searched`` exactly (see module docstring).
 
     ``samples`` must carry every named effect's context and the regressors of
-    ``linear`` (:func:`omavctl.signal.residual_samples` with those effects).
+    ``linear`` (:func:`omavctl.learn.signal.residual_samples` with those effects).
     """
     prob = _Problem(samples, linear)
     values = {name: 0.0 for name in searched}
@@ -184,7 +184,7 @@ def gls_search(
     explain (a smooth function of its inputs: rotor interference, say) biases it.
     Here, for a trial value, the residual at the training points (indices
     ``train_index`` into the stacked samples) minus the exact form is scored by
-    the generalised least squares of the joint step (:func:`omavctl.fit.joint_effects`):
+    the generalised least squares of the joint step (:func:`omavctl.learn.fit.joint_effects`):
     ``J = sum_a r_a^T K_a^-1 r_a + |(theta - m) / s|^2`` with the linear effects'
     theta profiled (x_linear (m, 3, p) their regressors there, prior (m, s)),
     ``K_a`` the GP covariance with hyperparameters ``hyper`` = (target means,

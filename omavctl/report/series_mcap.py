@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.atomic import atomic_path
-from omavctl.verdict import activity
+from omavctl.base.atomic import atomic_path
+from omavctl.diagnose.verdict import activity
 
 __all__ = ["TOPICS", "mcap_path", "write_series_mcap"]
 

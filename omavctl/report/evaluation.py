@@ -37,13 +37,13 @@ from typing import Any, TypeGuard
 
 import numpy as np
 
-from omavctl.atomic import atomic_path
-from omavctl.errors import OmavctlError
-from omavctl.report_figures import AXIS_COLOURS
-from omavctl.report_figures import png as _png
-from omavctl.report_figures import runs as _runs
-from omavctl.report_figures import style as _style
-from omavctl.verdict import get_path as _get
+from omavctl.base.atomic import atomic_path
+from omavctl.base.errors import OmavctlError
+from omavctl.diagnose.verdict import get_path as _get
+from omavctl.report.figures import AXIS_COLOURS
+from omavctl.report.figures import png as _png
+from omavctl.report.figures import runs as _runs
+from omavctl.report.figures import style as _style
 
 __all__ = [
     "FORMATS",
@@ -284,7 +284,7 @@ def check_evaluation(tree: Any, series: Mapping[str, np.ndarray], path: str | Pa
 
 def load_for_report(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """Load an evaluation JSON and its series and check them for the report."""
-    from omavctl.evaluate import load_evaluation
+    from omavctl.diagnose.evalio import load_evaluation
 
     tree, series = load_evaluation(path)
     check_evaluation(tree, series, path)
@@ -682,7 +682,7 @@ def _binned_section(tree: Mapping[str, Any], k: int, label: str, figures: bool) 
 
 
 def _worst_section(tree: Mapping[str, Any], k: int, label: str) -> list[Block]:
-    from omavctl.verdict import activity
+    from omavctl.diagnose.verdict import activity
 
     blocks: list[Block] = [Heading(3, label, f"worst-{k}")]
     segs = tree.get("worst_segments") or []
@@ -947,7 +947,7 @@ def _comparison_section(evals: Sequence[Evaluation], figures: bool) -> list[Bloc
 def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Document:
     """The report as format-neutral blocks; ``figures`` False leaves the PNGs empty
     (for formats that cannot show them)."""
-    from omavctl.report_top import figure_sections, verdict_section
+    from omavctl.report.top import figure_sections, verdict_section
 
     doc = Document("omavctl report")
     names = ", ".join(label for _, _, label in evals)
@@ -1257,7 +1257,7 @@ def write_report(
 
     ``fmt`` None follows ``out``'s suffix (.md -> Markdown, else HTML).
     """
-    from omavctl.evaluate import series_path
+    from omavctl.diagnose.evalio import series_path
 
     out = Path(out)
     fmt = format_from_suffix(out) if fmt is None else fmt
@@ -1287,7 +1287,7 @@ def write_report(
         )
         for (tree, _, label), p in zip(evals, paths, strict=True)
     ]
-    from omavctl.verdict import report_verdict
+    from omavctl.diagnose.verdict import report_verdict
 
     lines = report_verdict([(tree, label) for tree, _, label in evals])
     return ReportSummary(out, fmt, text.count("data:image/png;base64,"), summaries, lines)

@@ -5,7 +5,7 @@ Pipeline (each step a function; :func:`fit_model` runs them in order):
 1. :func:`read_flights` reads and aligns every log on the controller-rate grid
    (optionally restricted to a time window; a note when the body rate was
    logged slower than the grid).
-2. :func:`omavctl.signal.residual_samples` differentiates the body rate with
+2. :func:`omavctl.learn.signal.residual_samples` differentiates the body rate with
    the Savitzky-Golay filter per valid segment (dropping ``window // 2``
    samples at every segment edge and segments shorter than the window) and
    subtracts the nominal model, commands filtered like the derivative.
@@ -17,7 +17,7 @@ Pipeline (each step a function; :func:`fit_model` runs them in order):
    model's training points.
 5. :func:`fit_hyperparameters` maximises the marginal likelihood of one GP per
    axis (scikit-learn, squared-exponential ARD kernel plus white noise, restarts).
-6. The result is a :class:`omavctl.model.ResidualGP`; :func:`omavctl.model.save_model`
+6. The result is a :class:`omavctl.learn.model.ResidualGP`; :func:`omavctl.learn.model.save_model`
    writes it.
 
 A vehicle whose torque command is normalised (``command_units.torque:
@@ -44,13 +44,11 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from omavctl import __version__
-from omavctl.control_loss import out_of_control
-from omavctl.effect_search import SearchResult, gls_search, search_effects
-from omavctl.errors import ConfigError, LogError, ModelError
-from omavctl.logs.types import FlightLog
-from omavctl.model import EffectEstimate, ResidualGP, check_vehicle, load_model
-from omavctl.physics.effects import EFFECTS, get_effect
-from omavctl.signal import (
+from omavctl.base.errors import ConfigError, LogError, ModelError
+from omavctl.learn.control_loss import out_of_control
+from omavctl.learn.effect_search import SearchResult, gls_search, search_effects
+from omavctl.learn.model import EffectEstimate, ResidualGP, check_vehicle, load_model
+from omavctl.learn.signal import (
     DEFAULT_FEATURES,
     DEFAULT_SG_ORDER,
     DEFAULT_SG_WINDOW,
@@ -60,7 +58,7 @@ from omavctl.signal import (
     feature_names,
     residual_samples,
 )
-from omavctl.validation import (
+from omavctl.learn.validation import (
     BLOCK_SECONDS,
     FOLDS,
     KEEP_RATIO,
@@ -69,6 +67,8 @@ from omavctl.validation import (
     cross_validate,
     fold_of,
 )
+from omavctl.logs.types import FlightLog
+from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.vehicle import NORMALISED, Vehicle, default_vehicle
 
 __all__ = [
@@ -165,7 +165,7 @@ class AxisFit:
     r2: float = float("nan")
     rmse: float = float("nan")
     rmse_nominal: float = float("nan")
-    #: blocked cross-validation (:mod:`omavctl.validation`): whether the GP stays
+    #: blocked cross-validation (:mod:`omavctl.learn.validation`): whether the GP stays
     #: on, held-out RMSE of the GP and of physics only (rad/s^2), held-out
     #: 2-sigma coverage before calibration and the factor on the std after it
     gp_on: bool = True
@@ -336,8 +336,8 @@ def _sq_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _kmedoids(x: np.ndarray, k: int, seed: int = 0) -> np.ndarray:
-    """Indices (k,) of k-medoids of x (n, d), squared Euclidean (:mod:`omavctl.kmedoids`)."""
-    from omavctl.kmedoids import kmedoids
+    """Indices (k,) of k-medoids of x (n, d), squared Euclidean (:mod:`omavctl.learn.kmedoids`)."""
+    from omavctl.learn.kmedoids import kmedoids
 
     return kmedoids(x, k, seed)
 
@@ -354,7 +354,7 @@ def select_points(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str
     """Pick k training points among the rows of x (n, d) (normalised inputs) by k-medoids.
 
     Squared Euclidean distance (as in the paper); the library call is
-    :func:`omavctl.kmedoids.kmedoids` (eager-swap PAM, seeded random start).
+    :func:`omavctl.learn.kmedoids.kmedoids` (eager-swap PAM, seeded random start).
     Above :data:`KMEDOIDS_MAX_DIRECT` samples no n x n matrix is built: like
     CLARA, :data:`KMEDOIDS_DRAWS` seeded subsamples of
     ``max(KMEDOIDS_SUBSAMPLE, 4 k)`` samples (each holding the best medoids so
@@ -671,7 +671,7 @@ def fit_model(
         sg_window, sg_order: Savitzky-Golay window (odd, samples) and order.
         features: GP inputs: "wrench" (6-D scaled commanded wrench), "+rate" adds
             body rates, "+dtorque" the torque command's rate of change
-            (default :data:`omavctl.signal.DEFAULT_FEATURES`, 12-D).
+            (default :data:`omavctl.learn.signal.DEFAULT_FEATURES`, 12-D).
         seed: seeds subsampling and optimiser restarts; same inputs and seed,
             same model.
         restarts: extra optimiser starts per axis.
@@ -952,7 +952,7 @@ def fit_model(
         "kmedoids": {
             "points": points,
             "metric": "sqeuclidean",
-            "method": "eager-swap PAM, seeded random start (omavctl.kmedoids)",
+            "method": "eager-swap PAM, seeded random start (omavctl.learn.kmedoids)",
             "selection": kmethod,
             "max_direct": KMEDOIDS_MAX_DIRECT,
         },
@@ -1129,7 +1129,7 @@ def _effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
 def _search_step(
     samples: list[ResidualSamples], names: Sequence[str]
 ) -> tuple[list[ResidualSamples], dict[str, SearchResult]]:
-    """Estimate the effects of ``names`` that need a 1-D search (:mod:`omavctl.effect_search`)
+    """Estimate the effects of ``names`` that need a 1-D search (:mod:`omavctl.learn.effect_search`)
     and return the samples with their exact residual removed, and the estimates."""
     searched = [nm for nm in names if get_effect(nm).search is not None]
     if not searched:
@@ -1212,7 +1212,7 @@ def _validate(
     hyper: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     axes: list[AxisFit],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """Blocked cross-validation (:func:`omavctl.validation.cross_validate`) applied.
+    """Blocked cross-validation (:func:`omavctl.learn.validation.cross_validate`) applied.
 
     Returns the target means, signal and noise variances after switching off
     the axes whose GP does not help (mean 0, signal variance 0, noise variance

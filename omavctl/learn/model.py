@@ -72,8 +72,8 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
-from omavctl.atomic import atomic_path
-from omavctl.errors import ModelError, library_reason
+from omavctl.base.atomic import atomic_path
+from omavctl.base.errors import ModelError, library_reason
 from omavctl.physics.effects import EFFECTS, Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
@@ -160,7 +160,7 @@ def _vehicle_from_json(text: str, source: str) -> Vehicle:
 class ResidualGP:
     """Effects plus an independent GP per body axis (see module docstring).
 
-    Built by :func:`omavctl.fit.fit_model` or :func:`load_model`; the Cholesky
+    Built by :func:`omavctl.learn.fit.fit_model` or :func:`load_model`; the Cholesky
     factors and weights are computed once, at construction. Attributes (read-only by
     convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
     (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,),
@@ -351,7 +351,7 @@ class ResidualGP:
         targets still contain the effect (the model was fitted without it).
         Mirrors ``fit``: ordinary least squares first, the GP's target mean
         taken after removing it, then the generalised least squares of the
-        joint step (:func:`omavctl.fit.joint_effects`) with this model's
+        joint step (:func:`omavctl.learn.fit.joint_effects`) with this model's
         hyperparameters and prior N(0, diag prior_std^2). Returns theta (p,)
         and its covariance (p, p). ``fit`` also re-optimises the
         hyperparameters and reselects its points from every sample: this is
@@ -413,7 +413,7 @@ class ResidualGP:
         """Residual (N, 3) rad/s^2 the fitted effects cause on a time series ``ctx``.
 
         Per sample, not filtered: for a log use
-        :func:`omavctl.signal.residual_samples` (its held regressors) and
+        :func:`omavctl.learn.signal.residual_samples` (its held regressors) and
         :meth:`predict_samples`.
         """
         out = np.zeros((ctx.omega.shape[0], 3))
@@ -454,7 +454,7 @@ class ResidualGP:
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """Prediction (mean (n, 3), variance (n, 3)) for the residual of a log.
 
-        ``samples``: :class:`omavctl.signal.ResidualSamples` built with
+        ``samples``: :class:`omavctl.learn.signal.ResidualSamples` built with
         ``effects=`` this model's effect names (held regressors, held inputs),
         so that the prediction is filtered like the measured residual.
         ``variance=False`` skips the variance (None).

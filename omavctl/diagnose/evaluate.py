@@ -1,7 +1,7 @@
 """Compare models with measurements, find where they fail, name what is missing.
 
 For every log (aligned on the model's grid, Savitzky-Golay settings of the
-model, commands held like the derivative: :mod:`omavctl.signal`), the measured
+model, commands held like the derivative: :mod:`omavctl.learn.signal`), the measured
 angular acceleration is compared with three predictions:
 
 - ``nominal``: rigid body only (residual 0);
@@ -43,13 +43,13 @@ from typing import Any
 import numpy as np
 
 from omavctl import __version__
-from omavctl.control_loss import out_of_control
-from omavctl.errors import LogError, ModelError, OmavctlError
-from omavctl.fit import body_rate_rate, sha256_of
+from omavctl.base.errors import LogError, ModelError, OmavctlError
+from omavctl.learn.control_loss import out_of_control
+from omavctl.learn.fit import body_rate_rate, sha256_of
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
-from omavctl.model import ResidualGP
 from omavctl.physics.effects import EFFECTS, get_effect
-from omavctl.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.vehicle import Vehicle
 
 __all__ = [
@@ -59,9 +59,6 @@ __all__ = [
     "EvalResult",
     "diagnose",
     "evaluate",
-    "load_evaluation",
-    "series_path",
-    "write_evaluation",
 ]
 
 SCHEMA = "omavctl.eval/1"
@@ -396,7 +393,7 @@ def _grid(model: ResidualGP) -> tuple[float, SavitzkyGolay]:
     prov = model.provenance
     rate = float(prov.get("grid_rate_hz", model.vehicle.gains.rate_hz))
     sg_cfg = prov.get("savitzky_golay", {})
-    from omavctl.signal import DEFAULT_SG_ORDER, DEFAULT_SG_WINDOW
+    from omavctl.learn.signal import DEFAULT_SG_ORDER, DEFAULT_SG_WINDOW
 
     sg = SavitzkyGolay(
         int(sg_cfg.get("window", DEFAULT_SG_WINDOW)),
@@ -590,7 +587,7 @@ def diagnose(
 def _where(given: str, absolute: str | None) -> str:
     """A file recorded by fit (as given there, and absolute) as typed from here:
     the absolute record when it exists (fit may have run elsewhere), else as given."""
-    from omavctl.cliout import display_path
+    from omavctl.base.shell import display_path
 
     if absolute and Path(absolute).exists():
         return display_path(absolute)
@@ -603,7 +600,7 @@ def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
     Paths are valid from the current directory (the logs and vehicle file that fit
     read, the new model beside ``model_path``) and every word is shell-quoted.
     """
-    from omavctl.cliout import display_path, shell_join
+    from omavctl.base.shell import display_path, shell_join
 
     prov = model.provenance
     sources = [
@@ -736,7 +733,7 @@ def evaluate(
     progress: Progress | None = None,
 ) -> EvalResult:
     """Evaluate one or more models on one or more logs (see module docstring)."""
-    from omavctl.model import load_model
+    from omavctl.learn.model import load_model
 
     if not model_paths:
         raise OmavctlError("give at least one --model")
@@ -914,7 +911,3 @@ def finite_json(obj: Any) -> Any:
     if isinstance(obj, np.integer):
         return int(obj)
     return obj
-
-
-# Writing and reading live in omavctl.evalio; kept importable from here.
-from omavctl.evalio import load_evaluation, series_path, write_evaluation  # noqa: E402

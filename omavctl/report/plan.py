@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omavctl.atomic import atomic_path
-from omavctl.report_figures import png, style
+from omavctl.base.atomic import atomic_path
+from omavctl.report.figures import png, style
 
 if TYPE_CHECKING:
     from omavctl.planning.planner import PlanResult
-    from omavctl.trajectory import Trajectory
+    from omavctl.sim.trajectory import Trajectory
 
 __all__ = ["plan_document", "write_plan_report"]
 
@@ -91,7 +91,7 @@ def cost_figure(result: PlanResult) -> bytes:
 
 def plan_document(task: Trajectory, result: PlanResult) -> str:
     """The plan report as an HTML string."""
-    from omavctl.report import (
+    from omavctl.report.evaluation import (
         Cell,
         Document,
         FigureBlock,

@@ -4,7 +4,7 @@ The JSON (schema ``omavctl.eval/1``) names its series file and records, under
 ``series``, the series' content hash (``sha256`` over every array's name,
 dtype, shape and bytes, in key order) and a ``run_id`` that the ``.npz`` holds
 too (key ``run_id``). Both files are written under temporary names and renamed
-together (:func:`omavctl.atomic.atomic_paths`: JSON first, then the series),
+together (:func:`omavctl.base.atomic.atomic_paths`: JSON first, then the series),
 so a JSON is never beside the series of another run unless the process was
 killed between the two renames, and :func:`load_evaluation` refuses such a
 pair. Nothing non-finite is written: a NaN or infinity in the series or in an
@@ -25,11 +25,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from omavctl.atomic import atomic_paths
-from omavctl.errors import OmavctlError
+from omavctl.base.atomic import atomic_paths
+from omavctl.base.errors import OmavctlError
 
 if TYPE_CHECKING:
-    from omavctl.evaluate import EvalResult
+    from omavctl.diagnose.evaluate import EvalResult
 
 __all__ = ["load_evaluation", "series_digest", "series_path", "write_evaluation"]
 

@@ -1,6 +1,6 @@
 """The top of the report: the verdict, then the figures that explain it.
 
-Verdict sentences (:func:`omavctl.verdict.report_verdict`), then per evaluation
+Verdict sentences (:func:`omavctl.diagnose.verdict.report_verdict`), then per evaluation
 file the model error over time with the worst segments labelled, the signature
 of each named effect, the candidate effects' explained variance, and with
 several files the before/after bars.
@@ -13,8 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from omavctl import report_figures as rf
-from omavctl.report import (
+from omavctl.diagnose.verdict import report_verdict
+from omavctl.report import figures as rf
+from omavctl.report.evaluation import (
     Block,
     Bullets,
     Content,
@@ -24,7 +25,6 @@ from omavctl.report import (
     Inline,
     Span,
 )
-from omavctl.verdict import report_verdict
 
 __all__ = ["figure_sections", "verdict_section"]
 

@@ -23,7 +23,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from omavctl.errors import OutputError
+from omavctl.base.errors import OutputError
 
 __all__ = [
     "Terminated",

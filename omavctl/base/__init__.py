@@ -1,0 +1,1 @@
+"""Foundation: errors and atomic file output; imports nothing of omavctl."""

@@ -1,0 +1,1 @@
+"""Judging a model against flights: metrics, effect scoring, verdict, evaluation file."""

@@ -1,0 +1,1 @@
+"""Learning from logs: residuals, point selection, effect estimation, the GP, the model file."""

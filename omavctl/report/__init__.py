@@ -1,0 +1,1 @@
+"""Rendering: HTML reports, figures, terminal summaries, MCAP series."""

@@ -1,0 +1,1 @@
+"""The truth simulator: plant, tasks and reference trajectories."""
