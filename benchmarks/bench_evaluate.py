@@ -13,8 +13,9 @@ from omavctl.diagnose.evaluate import evaluate
 from omavctl.learn.fit import fit_model
 from omavctl.learn.model import save_model
 from omavctl.logs import write_log
-from omavctl.sim.plant import load_truth, simulate
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import load_truth
 from omavctl.vehicle import default_vehicle
 
 

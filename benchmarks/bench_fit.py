@@ -26,8 +26,9 @@ import numpy as np
 
 from omavctl.learn import fit as fit_module
 from omavctl.logs import FlightLog, align
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
 from omavctl.vehicle import default_vehicle
 
 DURATION = 60.0

@@ -39,9 +39,10 @@ def _data(workdir: Path) -> dict[str, Path]:
     from omavctl.learn.fit import fit_model
     from omavctl.learn.model import save_model
     from omavctl.logs import align
-    from omavctl.sim.plant import load_truth, simulate
+    from omavctl.sim.plant import simulate
     from omavctl.sim.tasks import fig8, pitch
     from omavctl.sim.trajectory import write_trajectory
+    from omavctl.sim.truth import load_truth
     from omavctl.vehicle import default_vehicle
 
     workdir.mkdir(parents=True, exist_ok=True)

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import time
 
-from omavctl.sim.plant import load_truth, simulate
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import load_truth
 from omavctl.vehicle import default_vehicle
 
 

@@ -33,8 +33,9 @@ from omavctl.learn.fit import fit_model
 from omavctl.learn.model import save_model
 from omavctl.learn.signal import DEFAULT_FEATURES
 from omavctl.logs import write_log
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8, wobble
+from omavctl.sim.truth import truth_from_tree
 from omavctl.vehicle import default_vehicle
 
 #: hidden effect -> truth ``effects`` entry

@@ -22,8 +22,9 @@ from omavctl.learn.model import load_model, save_model
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_vehicle_log, write_log
 from omavctl.planning import PlanSettings, plan
-from omavctl.sim.plant import load_truth, simulate
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import load_truth
 from omavctl.vehicle import default_vehicle
 
 

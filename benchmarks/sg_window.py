@@ -25,8 +25,9 @@ import numpy as np
 
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import align
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
 from omavctl.vehicle import default_vehicle
 
 GYRO_NOISE = 0.003

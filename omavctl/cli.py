@@ -342,9 +342,9 @@ def simulate(
 ) -> None:
     """Fly a reference in closed loop through the truth plant and write a flight log."""
     from omavctl.logs import write_log
-    from omavctl.sim.plant import load_truth
     from omavctl.sim.plant import simulate as run
     from omavctl.sim.trajectory import read_trajectory
+    from omavctl.sim.truth import load_truth
     from omavctl.vehicle import load_vehicle
 
     check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)

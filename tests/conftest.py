@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
 from omavctl.vehicle import Vehicle, default_vehicle
 
 NO_NOISE = {"gyro": 0.0, "attitude": 0.0, "position": 0.0, "velocity": 0.0}

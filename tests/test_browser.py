@@ -21,8 +21,9 @@ from omavctl.learn.fit import fit_model
 from omavctl.learn.model import save_model
 from omavctl.logs import write_log
 from omavctl.report.evaluation import write_report
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
 
 CHROMIUM = os.environ.get("OMAVCTL_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
 ARGS = [

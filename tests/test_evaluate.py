@@ -23,8 +23,9 @@ from omavctl.learn.model import save_model
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_vehicle_log, write_log
 from omavctl.physics.effects import get_effect
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8, heave, yaw
+from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 DURATION = 16.0

@@ -26,9 +26,10 @@ from omavctl.learn.signal import (
 )
 from omavctl.logs import align, read_log, read_raw, write_log
 from omavctl.physics.rigid_body import euler_rates_to_body
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import Trajectory, write_trajectory
+from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 

@@ -59,8 +59,9 @@ def test_a_clean_flight_of_an_ideal_plant_switches_the_gp_off(tmp_path):
     residual's mean square: the log's own derivative noise)."""
     from omavctl.learn.fit import fit_model
     from omavctl.logs import align
-    from omavctl.sim.plant import simulate, truth_from_tree
+    from omavctl.sim.plant import simulate
     from omavctl.sim.tasks import fig8
+    from omavctl.sim.truth import truth_from_tree
     from omavctl.vehicle import default_vehicle
 
     vehicle = default_vehicle()
@@ -85,8 +86,9 @@ def test_clean_flights_claim_nothing(tmp_path, timing):
     from omavctl.learn.fit import fit_model
     from omavctl.learn.model import save_model
     from omavctl.logs import write_log
-    from omavctl.sim.plant import simulate, truth_from_tree
+    from omavctl.sim.plant import simulate
     from omavctl.sim.tasks import fig8, wobble
+    from omavctl.sim.truth import truth_from_tree
     from omavctl.vehicle import default_vehicle
 
     vehicle = default_vehicle()

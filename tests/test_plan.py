@@ -13,9 +13,10 @@ from omavctl.logs import align
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
 from omavctl.planning.planner import PlanSettings, _test_points, plan
 from omavctl.planning.rollout import rollout
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import read_trajectory, write_trajectory
+from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 

@@ -20,9 +20,10 @@ from omavctl.planning.planner import _test_points
 from omavctl.planning.rollout import control_times
 from omavctl.planning.scoring import batched_picks, integrated_variance, kmedoids_picks
 from omavctl.planning.simulate import Simulator
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import write_trajectory
+from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 SMALL = PlanSettings(candidates=5, sims=2, test_points=100, points=15)

@@ -12,7 +12,7 @@ from omavctl.logs.types import ROLE_COLUMNS
 from omavctl.physics.allocation import Allocation
 from omavctl.physics.effects import EFFECTS, EffectContext
 from omavctl.physics.rigid_body import angular_acceleration
-from omavctl.sim.plant import load_truth, truth_from_tree
+from omavctl.sim.truth import load_truth, truth_from_tree
 
 WINDOW, ORDER, DT = 5, 2, 0.01
 

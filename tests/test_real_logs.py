@@ -22,8 +22,9 @@ from omavctl.learn.model import check_vehicle, load_model
 from omavctl.logs import RawLog, RawSeries, align, read_vehicle_log, write_log
 from omavctl.logs.contract import quaternion_from_euler
 from omavctl.logs.frames import FRD_TO_FLU
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
 from omavctl.vehicle import default_vehicle, load_vehicle
 
 REPO = Path(__file__).parents[1]

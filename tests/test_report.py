@@ -22,8 +22,9 @@ from omavctl.learn.fit import fit_model
 from omavctl.learn.model import save_model
 from omavctl.logs import write_log
 from omavctl.report.evaluation import render_report, write_report
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 

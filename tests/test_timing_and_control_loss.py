@@ -14,8 +14,9 @@ from omavctl.learn.fit import fit_model
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import align, write_log
 from omavctl.physics.effects import first_order_lag, shift_held
-from omavctl.sim.plant import simulate, truth_from_tree
+from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8, wobble, yaw
+from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 

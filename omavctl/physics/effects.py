@@ -43,7 +43,7 @@ __all__ = [
 class TruthConstants(Protocol):
     """The constants of a truth plant an effect may change (:meth:`Effect.configure_truth`).
 
-    The simulator's :class:`~omavctl.sim.plant.TruthParameters` is one; the
+    The simulator's :class:`~omavctl.sim.truth.TruthParameters` is one; the
     physics does not depend on the simulator.
     """
 

@@ -80,9 +80,10 @@ def build_base(base: Path) -> Path:
     from omavctl.diagnose.evalio import write_evaluation
     from omavctl.diagnose.evaluate import evaluate
     from omavctl.logs import write_log
-    from omavctl.sim.plant import simulate, truth_from_tree
+    from omavctl.sim.plant import simulate
     from omavctl.sim.tasks import fig8
     from omavctl.sim.trajectory import write_trajectory
+    from omavctl.sim.truth import truth_from_tree
     from omavctl.vehicle import default_vehicle
 
     base.mkdir(parents=True, exist_ok=True)
