@@ -18,7 +18,7 @@ import numpy as np
 from omavctl.base.errors import LogError
 from omavctl.logs.contract import DEFAULT_TOPICS, wrap_angle
 from omavctl.logs.stats import find_gaps, stamp_stats
-from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, ROLE_TOPIC, FlightLog, RawLog
+from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, ROLE_TOPIC, FlightLog, RawLog, RawSeries
 
 __all__ = ["DEFAULT_REQUIRED", "MIN_SAMPLES", "align", "interpolate", "segments_of"]
 
@@ -156,45 +156,82 @@ def align(
             notes.append(text)
 
     clean: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    gaps: dict[str, list[tuple[float, float]]] = {}
     for role, series in raw.series.items():
         if role not in ROLE_COLUMNS:
             note(f"unknown signal role '{role}' ignored")
             continue
-        label = _label(raw, role)
-        stamps = np.asarray(series.stamps, dtype=float).reshape(-1)
-        values = np.asarray(series.values, dtype=float).reshape(stamps.size, -1)
-        st = stamp_stats(stamps)
-        if st.out_of_order:
-            note(f"{label}: {st.out_of_order} out-of-order stamps (sorted)")
-        if st.duplicates:
-            note(f"{label}: {st.duplicates} duplicated stamps dropped (last kept)")
-        idx = st.order[st.keep]
-        s, v = stamps[idx], values[idx]
-        ok = np.isfinite(v).all(axis=1) & np.isfinite(s)
-        if not ok.all():
-            first = int(np.flatnonzero(~ok)[0])
-            if role in required:
-                raise LogError(
-                    f"non-finite value in {label} (role {role}) at t={s[first]:.3f} s",
-                    raw.path,
-                )
-            note(f"{label}: {int((~ok).sum())} samples of {role} with non-finite values dropped")
-            s, v = s[ok], v[ok]
-        s, v = _plausible(raw, role, s, v, role in required, note)
-        if s.size < 2:
-            if role in required:
-                raise LogError(
-                    f"too few samples in {label} (role {role}): {s.size}, need at least 2",
-                    raw.path,
-                )
-            note(f"{label}: {role} has {s.size} usable samples; not used")
-            continue
-        clean[role] = (s, v)
-        gaps[role] = find_gaps(s)
-
+        usable = _clean_series(raw, role, series, role in required, note)
+        if usable is not None:
+            clean[role] = usable
     if not clean:
         raise LogError("no usable signals in the log", raw.path)
+    start, n = _common_grid(raw, clean, rate)
+    t = np.arange(n) / rate
+    grid = start + t
+    signals = {role: interpolate(s, v, grid, role in ANGLE_ROLES) for role, (s, v) in clean.items()}
+    valid = _outside_gaps(raw, clean, grid, start, note)
+    invalid = int(n - valid.sum())
+    if invalid:
+        note(f"{invalid} of {n} grid samples inside gaps marked invalid")
+
+    return FlightLog(
+        path=raw.path,
+        format=raw.format,
+        t=t,
+        signals=signals,
+        valid=valid,
+        segments=segments_of(valid),
+        rate=float(rate),
+        topics=list(raw.topics),
+        notes=list(raw.notes) + notes,
+        t0=float(raw.t0) + float(start),
+    )
+
+
+def _clean_series(
+    raw: RawLog, role: str, series: RawSeries, required: bool, note: Callable[[str], None]
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Stamps (n,) and values (n, k) of one role, sorted, unique, finite and plausible.
+
+    ``None`` when an optional role keeps fewer than 2 samples; a required role
+    with non-finite values or too few samples raises :class:`LogError`.
+    """
+    label = _label(raw, role)
+    stamps = np.asarray(series.stamps, dtype=float).reshape(-1)
+    values = np.asarray(series.values, dtype=float).reshape(stamps.size, -1)
+    st = stamp_stats(stamps)
+    if st.out_of_order:
+        note(f"{label}: {st.out_of_order} out-of-order stamps (sorted)")
+    if st.duplicates:
+        note(f"{label}: {st.duplicates} duplicated stamps dropped (last kept)")
+    idx = st.order[st.keep]
+    s, v = stamps[idx], values[idx]
+    ok = np.isfinite(v).all(axis=1) & np.isfinite(s)
+    if not ok.all():
+        first = int(np.flatnonzero(~ok)[0])
+        if required:
+            raise LogError(
+                f"non-finite value in {label} (role {role}) at t={s[first]:.3f} s",
+                raw.path,
+            )
+        note(f"{label}: {int((~ok).sum())} samples of {role} with non-finite values dropped")
+        s, v = s[ok], v[ok]
+    s, v = _plausible(raw, role, s, v, required, note)
+    if s.size < 2:
+        if required:
+            raise LogError(
+                f"too few samples in {label} (role {role}): {s.size}, need at least 2",
+                raw.path,
+            )
+        note(f"{label}: {role} has {s.size} usable samples; not used")
+        return None
+    return s, v
+
+
+def _common_grid(
+    raw: RawLog, clean: dict[str, tuple[np.ndarray, np.ndarray]], rate: float
+) -> tuple[float, int]:
+    """Start (s, raw stamps) and length of the grid where every role has data."""
     start = max(s[0] for s, _ in clean.values())
     end = min(s[-1] for s, _ in clean.values())
     # tolerance: a span of 3 s read as 2.99999999999997 s still has its last sample
@@ -212,18 +249,25 @@ def align(
             "(a corrupt time stamp?)",
             raw.path,
         )
-    k = np.arange(n)
-    t = k / rate
-    grid = start + t
+    return float(start), int(n)
 
-    signals: dict[str, np.ndarray] = {}
+
+def _outside_gaps(
+    raw: RawLog,
+    clean: dict[str, tuple[np.ndarray, np.ndarray]],
+    grid: np.ndarray,
+    start: float,
+    note: Callable[[str], None],
+) -> np.ndarray:
+    """Valid mask (n,) of the grid: False strictly inside a gap of any role."""
+    n = grid.size
     # +1 where an invalid run starts, -1 where it ends; cumsum > 0 is invalid
     marks = np.zeros(n + 1, dtype=np.int64)
-    for role, (s, v) in clean.items():
-        signals[role] = interpolate(s, v, grid, role in ANGLE_ROLES)
-        if not gaps[role]:
+    for role, (s, _) in clean.items():
+        gaps = find_gaps(s)
+        if not gaps:
             continue
-        a, b = np.array(gaps[role]).T
+        a, b = np.array(gaps).T
         # grid points strictly inside (a, b): indices [lo, hi)
         lo = np.searchsorted(grid, a, side="right")
         hi = np.searchsorted(grid, b, side="left")
@@ -236,20 +280,4 @@ def align(
                 f"gap of {gb - ga:.2f} s at t={ga - start:.2f} s in {_label(raw, role)}: "
                 f"samples {i0}-{i1 - 1} excluded"
             )
-    valid = np.cumsum(marks[:n]) == 0
-    invalid = int(n - valid.sum())
-    if invalid:
-        note(f"{invalid} of {n} grid samples inside gaps marked invalid")
-
-    return FlightLog(
-        path=raw.path,
-        format=raw.format,
-        t=t,
-        signals=signals,
-        valid=valid,
-        segments=segments_of(valid),
-        rate=float(rate),
-        topics=list(raw.topics),
-        notes=list(raw.notes) + notes,
-        t0=float(raw.t0) + float(start),
-    )
+    return np.cumsum(marks[:n]) == 0
