@@ -68,78 +68,11 @@ def read_csv(path: Path, strict: bool = True) -> CsvRead:
     a NaN/inf cell is a :class:`LogError`; otherwise (for ``inspect``) they
     become notes, bad cells NaN.
     """
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise LogError("not a CSV file: it is not UTF-8 text", path) from None
-    except OSError as err:
-        raise LogError(f"cannot read: {err.strerror or err}", path) from err
-    first = text.split("\n", 1)[0].strip()
-    if not first:
-        raise LogError("not a CSV log: the first line must be a header starting with 't'", path)
-    header = [h.strip() for h in next(csv.reader([first]))]
-    seen: set[str] = set()
-    for name in header:
-        if name in seen:
-            raise LogError(f"duplicate column '{name}'", path)
-        seen.add(name)
-    if "t" not in header:
-        raise LogError("missing column 't' (time in s)", path)
-
+    text, header = _text_and_header(path)
     notes: list[str] = []
-    roles: list[str] = []
-    used = {"t"}
-    for role in ROLE_COLUMNS:
-        cols = csv_columns(role)
-        present = [c for c in cols if c in seen]
-        if not present:
-            continue
-        if len(present) < len(cols):
-            missing = [c for c in cols if c not in seen]
-            msg = f"missing column '{missing[0]}' (role {role} needs {', '.join(cols)})"
-            if strict:
-                raise LogError(msg, path)
-            notes.append(msg + f"; {role} not read")
-            continue
-        roles.append(role)
-        used.update(cols)
-    contract = {c for role in ROLE_COLUMNS for c in csv_columns(role)}
-    ignored = [h for h in header if h not in used and h not in contract]
-    if ignored:
-        notes.append(f"columns not in the contract ignored: {', '.join(ignored)}")
-
+    roles = _roles_present(path, header, strict, notes)
     names = ["t"] + [c for role in roles for c in csv_columns(role)]
-    usecols = [header.index(c) for c in names]
-    lines = text.splitlines()
-    data_lines = [i + 1 for i, line in enumerate(lines) if i > 0 and line.strip()]
-    if not data_lines:
-        raise LogError("no data rows below the header", path)
-    try:
-        data = np.loadtxt(
-            io.StringIO(text),
-            delimiter=",",
-            skiprows=1,
-            usecols=usecols,
-            ndmin=2,
-            dtype=float,
-            comments=None,
-        )
-    except ValueError as err:
-        msg = _first_bad_cell(text, header, usecols) or f"malformed rows ({_first_line(err)})"
-        if strict:
-            raise LogError(msg, path) from None
-        data = _lenient_parse(text, usecols)
-        notes.append(f"{msg}; unreadable cells read as NaN")
-
-    bad_cells = ~np.isfinite(data)
-    if bad_cells.any():
-        r, c = (int(x) for x in np.argwhere(bad_cells)[0])
-        value = "NaN" if np.isnan(data[r, c]) else "inf"
-        msg = f"{value} in column '{names[c]}' at row {r + 1} (line {data_lines[r]})"
-        if strict:
-            raise LogError(msg, path)
-        notes.append(f"{msg}; {int(bad_cells.sum())} non-finite cells in all")
-
+    data = _numeric_columns(path, text, header, names, strict, notes)
     finite_t = np.isfinite(data[:, 0])
     if not finite_t.any():
         raise LogError("column 't' has no numeric value", path)
@@ -162,6 +95,90 @@ def read_csv(path: Path, strict: bool = True) -> CsvRead:
             ranges[name] = (float(column.min()), float(column.max()))
     raw = RawLog(path=path, format="csv", t0=t0, series=series, topics=topics, notes=notes)
     return CsvRead(raw=raw, ranges=ranges)
+
+
+def _text_and_header(path: Path) -> tuple[str, list[str]]:
+    """The file's text and its header's column names (unique, with ``t``)."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise LogError("not a CSV file: it is not UTF-8 text", path) from None
+    except OSError as err:
+        raise LogError(f"cannot read: {err.strerror or err}", path) from err
+    first = text.split("\n", 1)[0].strip()
+    if not first:
+        raise LogError("not a CSV log: the first line must be a header starting with 't'", path)
+    header = [h.strip() for h in next(csv.reader([first]))]
+    seen: set[str] = set()
+    for name in header:
+        if name in seen:
+            raise LogError(f"duplicate column '{name}'", path)
+        seen.add(name)
+    if "t" not in header:
+        raise LogError("missing column 't' (time in s)", path)
+    return text, header
+
+
+def _roles_present(path: Path, header: list[str], strict: bool, notes: list[str]) -> list[str]:
+    """Roles whose columns are all in ``header``; partial roles raise (strict) or are noted."""
+    seen = set(header)
+    roles: list[str] = []
+    used = {"t"}
+    for role in ROLE_COLUMNS:
+        cols = csv_columns(role)
+        present = [c for c in cols if c in seen]
+        if not present:
+            continue
+        if len(present) < len(cols):
+            missing = [c for c in cols if c not in seen]
+            msg = f"missing column '{missing[0]}' (role {role} needs {', '.join(cols)})"
+            if strict:
+                raise LogError(msg, path)
+            notes.append(msg + f"; {role} not read")
+            continue
+        roles.append(role)
+        used.update(cols)
+    contract = {c for role in ROLE_COLUMNS for c in csv_columns(role)}
+    ignored = [h for h in header if h not in used and h not in contract]
+    if ignored:
+        notes.append(f"columns not in the contract ignored: {', '.join(ignored)}")
+    return roles
+
+
+def _numeric_columns(
+    path: Path, text: str, header: list[str], names: list[str], strict: bool, notes: list[str]
+) -> np.ndarray:
+    """The columns ``names`` as floats (rows, len(names)); bad cells raise (strict) or are NaN."""
+    usecols = [header.index(c) for c in names]
+    lines = text.splitlines()
+    data_lines = [i + 1 for i, line in enumerate(lines) if i > 0 and line.strip()]
+    if not data_lines:
+        raise LogError("no data rows below the header", path)
+    try:
+        data = np.loadtxt(
+            io.StringIO(text),
+            delimiter=",",
+            skiprows=1,
+            usecols=usecols,
+            ndmin=2,
+            dtype=float,
+            comments=None,
+        )
+    except ValueError as err:
+        msg = _first_bad_cell(text, header, usecols) or f"malformed rows ({_first_line(err)})"
+        if strict:
+            raise LogError(msg, path) from None
+        data = _lenient_parse(text, usecols)
+        notes.append(f"{msg}; unreadable cells read as NaN")
+    bad_cells = ~np.isfinite(data)
+    if bad_cells.any():
+        r, c = (int(x) for x in np.argwhere(bad_cells)[0])
+        value = "NaN" if np.isnan(data[r, c]) else "inf"
+        msg = f"{value} in column '{names[c]}' at row {r + 1} (line {data_lines[r]})"
+        if strict:
+            raise LogError(msg, path)
+        notes.append(f"{msg}; {int(bad_cells.sum())} non-finite cells in all")
+    return data
 
 
 def _first_line(err: BaseException) -> str:
