@@ -414,33 +414,21 @@ def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
     mapped: dict[str, str] = {}
     ranges: dict[str, tuple[float, float]] = {}
     for role in ROLE_COLUMNS:
-        keys = csv_columns(role)
         quat = role in QUATERNION_ROLES and quaternion_columns(role)[0] in specs
-        src_keys = quaternion_columns(role) if quat else keys
+        src_keys = quaternion_columns(role) if quat else csv_columns(role)
         if src_keys[0] not in specs:
             continue
         sources = [c for c in (specs[k].column for k in src_keys) if c is not None]
         mapped[role] = "columns " + ", ".join(sources) if sources else "constants"
         src = np.column_stack([column(k) for k in src_keys])
-        ok = has_t & np.isfinite(src).all(axis=1)
-        if quat:
-            ok &= np.linalg.norm(np.where(np.isfinite(src), src, 0.0), axis=1) > 0
-        if not ok.any():
-            why = "a non-zero quaternion" if quat else "values in all of its columns"
-            notes.append(f"{role}: no row has {why}; not read")
+        read = _mapped_role(role, src, quat, has_t, notes)
+        if read is None:
             continue
-        skipped = int(has_t.sum() - ok.sum())
-        if skipped:
-            notes.append(f"{role}: {skipped} rows with empty cells skipped")
-        if quat:
-            w, x, y, z = src[ok].T
-            values = euler_from_quaternion(np.column_stack([x, y, z, w]))
-        else:
-            values = src[ok]
+        ok, values = read
         stamps = t_all[ok] - t0
         series[role] = RawSeries(stamps=stamps, values=values)
         topics.append(topic_info(role, "csv columns (mapped)", stamps))
-        for j, key in enumerate(keys):
+        for j, key in enumerate(csv_columns(role)):
             ranges[key] = (float(values[:, j].min()), float(values[:, j].max()))
     raw = RawLog(
         path=path,
@@ -452,3 +440,28 @@ def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
         mapped=mapped,
     )
     return CsvRead(raw=raw, ranges=ranges)
+
+
+def _mapped_role(
+    role: str, src: np.ndarray, quat: bool, has_t: np.ndarray, notes: list[str]
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Rows (mask (n,)) of one role with a value in every source column, and the values.
+
+    ``src`` (n, k) holds the mapped source columns (w, x, y, z for a
+    quaternion, converted to ZYX Euler angles here). ``None`` (with a note)
+    when no row has them.
+    """
+    ok = has_t & np.isfinite(src).all(axis=1)
+    if quat:
+        ok &= np.linalg.norm(np.where(np.isfinite(src), src, 0.0), axis=1) > 0
+    if not ok.any():
+        why = "a non-zero quaternion" if quat else "values in all of its columns"
+        notes.append(f"{role}: no row has {why}; not read")
+        return None
+    skipped = int(has_t.sum() - ok.sum())
+    if skipped:
+        notes.append(f"{role}: {skipped} rows with empty cells skipped")
+    if quat:
+        w, x, y, z = src[ok].T
+        return ok, euler_from_quaternion(np.column_stack([x, y, z, w]))
+    return ok, src[ok]
