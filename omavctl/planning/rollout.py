@@ -105,74 +105,118 @@ def rollout(
     the attitude limit on roll and pitch and the attitude error beyond which a
     simulation diverged, degrees.
     """
-    vehicle = model.vehicle
-    rate = vehicle.gains.rate_hz
-    dt = 1.0 / rate
+    rate = model.vehicle.gains.rate_hz
     t = control_times(t_ref, rate)
     refs = _resample(refs, t_ref, t)
-    k_count, steps = refs.shape[0], t.size
-    b_count = k_count * sims
-    cand = np.repeat(np.arange(k_count), sims)
-    sample_idx = np.tile(np.arange(sims), k_count)
-    inertia, mass = vehicle.inertia, vehicle.mass
-    ctrl = Controller(vehicle)
-    state = ControllerState.zeros(b_count)
-    alloc = Allocation(vehicle)
-    x = refs[cand, 0, 1:13].copy()  # [p, eta, v, omega]
-    d = samples.gp.d
-    inputs = np.empty((b_count, steps, d))
-    gap = np.empty((b_count, steps))
-    track = np.zeros(b_count)
-    feasible = np.ones(b_count, dtype=bool)
-    reason = [""] * b_count
-    prev_tilt: np.ndarray | None = None
-    torque_scale = model.input_scale[3:6]
-    max_tilt, max_err = np.deg2rad(limits[0]), np.deg2rad(limits[1])
-    mu_last: np.ndarray | None = None
-    rate = CommandRate(dt)
-    alive = np.ones(b_count, dtype=bool)
+    loop = _ReferenceLoop(model, samples, refs, sims, limits, 1.0 / rate, substeps)
+    for i in range(t.size):
+        loop.step(i)
+        if progress is not None:
+            progress(label, (i + 1) / t.size)
+    return loop.result()
 
-    def mark(bad: np.ndarray | np.bool_, why: str) -> None:
-        for b in np.flatnonzero(bad & feasible):
-            reason[b] = why
-        feasible[bad] = False
 
-    for i in range(steps):
-        ref = refs[cand, i]
-        out = ctrl.step(state, x, ref, dt)
-        omega = x[:, 9:12]
-        u_f, target = out.u[:, :3], out.u[:, 3:]
-        u = out.u.copy()
-        # command rate: of the model-free command, as the controller (CommandRate)
-        du = rate.update(out.u)
-        if mu_last is None:  # first step: the mean at u_tau = target
-            mu_last = samples.mean(model.normalise(model.gp_inputs(u, omega, du)))
+class _ReferenceLoop:
+    """State of the K*M closed-loop simulations of :func:`rollout`, one control step at a time."""
+
+    def __init__(
+        self,
+        model,
+        samples: PathwiseSamples,
+        refs: np.ndarray,
+        sims: int,
+        limits: tuple[float, float],
+        dt: float,
+        substeps: int,
+    ) -> None:
+        vehicle = model.vehicle
+        self.model, self.samples, self.refs = model, samples, refs
+        self.dt, self.substeps = dt, substeps
+        k_count, self.steps = refs.shape[0], refs.shape[1]
+        b_count = k_count * sims
+        self.cand = np.repeat(np.arange(k_count), sims)
+        self.sample_idx = np.tile(np.arange(sims), k_count)
+        self.ctrl = Controller(vehicle)
+        self.state = ControllerState.zeros(b_count)
+        self.alloc = Allocation(vehicle)
+        self.x = refs[self.cand, 0, 1:13].copy()  # [p, eta, v, omega]
+        self.inputs = np.empty((b_count, self.steps, samples.gp.d))
+        self.gap = np.empty((b_count, self.steps))
+        self.track = np.zeros(b_count)
+        self.feasible = np.ones(b_count, dtype=bool)
+        self.reason = [""] * b_count
+        self.prev_tilt: np.ndarray | None = None
+        self.torque_scale = model.input_scale[3:6]
+        self.max_tilt, self.max_err = np.deg2rad(limits[0]), np.deg2rad(limits[1])
+        self.mu_last: np.ndarray | None = None
+        self.rate = CommandRate(dt)
+        self.alive = np.ones(b_count, dtype=bool)
+
+    def mark(self, bad: np.ndarray | np.bool_, why: str) -> None:
+        """Mark the simulations ``bad`` (B,) infeasible, with the first reason kept."""
+        for b in np.flatnonzero(bad & self.feasible):
+            self.reason[b] = why
+        self.feasible[bad] = False
+
+    def _model_torque(self, u: np.ndarray, omega: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """Correct ``u`` (B, 6) in place by the model mean; return the sampled mismatch (B, 3).
+
+        The torque command is the target minus the mean at the previous step's
+        command; g is the m-th posterior sample (plus static effects) at the
+        corrected command, whose mean is the next step's correction.
+        """
+        model, samples = self.model, self.samples
+        target = u[:, 3:].copy()
+        if self.mu_last is None:  # first step: the mean at u_tau = target
+            self.mu_last = samples.mean(model.normalise(model.gp_inputs(u, omega, du)))
             if model.effects:
-                mu_last = mu_last + model.effects_mean(u, omega)
-        u[:, 3:] = target - mu_last
+                self.mu_last = self.mu_last + model.effects_mean(u, omega)
+        u[:, 3:] = target - self.mu_last
         z = model.normalise(model.gp_inputs(u, omega, du))
-        g, mu_last = samples.evaluate(z, sample_idx)
+        g, self.mu_last = samples.evaluate(z, self.sample_idx)
         if model.effects:
             static = model.effects_mean(u, omega)
-            g, mu_last = g + static, mu_last + static
-        inputs[:, i] = z
-        gap[:, i] = np.linalg.norm(g / torque_scale, axis=1)
+            g, self.mu_last = g + static, self.mu_last + static
+        self._z = z
+        return g
+
+    def step(self, i: int) -> None:
+        """Advance every simulation by one control period at step ``i``."""
+        vehicle, x, dt = self.model.vehicle, self.x, self.dt
+        ref = self.refs[self.cand, i]
+        out = self.ctrl.step(self.state, x, ref, dt)
+        omega = x[:, 9:12]
+        u = out.u.copy()
+        # command rate: of the model-free command, as the controller (CommandRate)
+        du = self.rate.update(out.u)
+        g = self._model_torque(u, omega, du)
+        self.inputs[:, i] = self._z
+        self.gap[:, i] = np.linalg.norm(g / self.torque_scale, axis=1)
+        inertia = vehicle.inertia
         l_x = -cross(omega, omega @ inertia.T) @ vehicle.inertia_inv.T
         omega_dot = l_x + u[:, 3:] + g
-        track += np.abs(out.desired_angular - omega_dot).mean(axis=1)
-        wrench = np.concatenate([u_f * mass, u[:, 3:] @ inertia.T], axis=1)
-        res = alloc.allocate(wrench, prev_tilt, dt if prev_tilt is not None else None)
-        prev_tilt = res.tilt
-        mark(res.thrust_high.any(axis=1) | res.thrust_low.any(axis=1), "thrust limit")
-        mark(res.tilt_rate_exceeded.any(axis=1), "tilt rate limit")
-        _integrate(x, vehicle, wrench[:, :3], u[:, 3:] + g, dt, substeps)
-        att_err = np.abs(wrap_angle(x[:, 3:6] - refs[cand, min(i + 1, steps - 1), 4:7])).max(axis=1)
-        mark(np.abs(x[:, 3:5]).max(axis=1) > max_tilt, "attitude limit")
-        diverged = ~np.isfinite(x).all(axis=1) | (att_err > max_err)
-        mark(diverged, "diverged")
+        self.track += np.abs(out.desired_angular - omega_dot).mean(axis=1)
+        wrench = np.concatenate([out.u[:, :3] * vehicle.mass, u[:, 3:] @ inertia.T], axis=1)
+        period = dt if self.prev_tilt is not None else None
+        res = self.alloc.allocate(wrench, self.prev_tilt, period)
+        self.prev_tilt = res.tilt
+        self.mark(res.thrust_high.any(axis=1) | res.thrust_low.any(axis=1), "thrust limit")
+        self.mark(res.tilt_rate_exceeded.any(axis=1), "tilt rate limit")
+        _integrate(x, vehicle, wrench[:, :3], u[:, 3:] + g, dt, self.substeps)
+        self._check_attitude(i)
+
+    def _check_attitude(self, i: int) -> None:
+        """Mark attitude-limit breaches and divergence; freeze diverged rows finite."""
+        x, steps = self.x, self.steps
+        next_ref = self.refs[self.cand, min(i + 1, steps - 1), 4:7]
+        att_err = np.abs(wrap_angle(x[:, 3:6] - next_ref)).max(axis=1)
+        self.mark(np.abs(x[:, 3:5]).max(axis=1) > self.max_tilt, "attitude limit")
+        diverged = ~np.isfinite(x).all(axis=1) | (att_err > self.max_err)
+        self.mark(diverged, "diverged")
         if diverged.any():  # keep the batch finite: freeze diverged rows at the reference
-            alive &= ~diverged
-            x[~alive] = np.nan_to_num(x[~alive])
-        if progress is not None:
-            progress(label, (i + 1) / steps)
-    return Rollouts(inputs, gap, track / steps, feasible, reason)
+            self.alive &= ~diverged
+            x[~self.alive] = np.nan_to_num(x[~self.alive])
+
+    def result(self) -> Rollouts:
+        """The visited inputs, gaps, mean tracking error, feasibility and reasons."""
+        return Rollouts(self.inputs, self.gap, self.track / self.steps, self.feasible, self.reason)
