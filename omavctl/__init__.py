@@ -1,9 +1,9 @@
 """omavctl: learn residual models of an omnidirectional aerial vehicle from flight logs.
 
-The library is organised by concern (see ``docs/``): ``vehicle`` (parameters),
-``physics`` (rigid body, allocation, controller, effects), ``plant`` (truth
-simulator), ``trajectory`` (task CSVs), ``logs`` (reading and writing flight
-logs). ``cli`` only parses arguments, calls one library function and renders.
+The library is one package per pipeline stage, each importing only the ones
+below it (``docs/architecture.md``): ``base`` < ``logs`` < ``vehicle`` <
+``physics`` < ``sim`` < ``learn`` < ``diagnose`` < ``planning`` < ``report`` <
+``cli``. ``cli`` only parses arguments, calls one library function and renders.
 """
 
 from __future__ import annotations

@@ -184,3 +184,10 @@ def test_no_long_functions_or_modules(kind):
             if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
         ]
     assert offenders == []
+
+
+def test_the_architecture_page_draws_every_layer():
+    page = (PACKAGE.parent / "docs" / "architecture.md").read_text()
+    packages = {m for m in MODULES if m.count(".") == 1 and MODULES[m].name == "__init__.py"}
+    for package in sorted(packages):
+        assert f"{package.replace('.', '/')}/" in page, f"docs/architecture.md: {package}"
