@@ -79,6 +79,7 @@ EFFECT_NAMES = (
     "motor_lag",
     "command_delay",
     "gyro_bias",
+    "rotor_interference",
 )
 
 #: Top-level keys whose value replaces the default's instead of being merged.

@@ -79,12 +79,32 @@ class Allocation:
         a[3:, n:] = cross(r, z).T
         self.matrix = a  # (6, 12)
         self.pinv = np.linalg.pinv(a)  # (12, 6)
+        # neighbours of each arm: the pairs at +-1 index around the hexagon
+        self.neighbours = np.array([[(i - 1) % n, (i + 1) % n] for i in range(n)])
+        diff = r[None, :, :] - r[:, None, :]  # [k, j] = r_j - r_k
+        norm = np.linalg.norm(diff, axis=-1, keepdims=True)
+        self.pair_direction = np.divide(diff, norm, out=np.zeros_like(diff), where=norm > 0)
 
     # --- maps -------------------------------------------------------------
     def thrust_directions(self, tilt: np.ndarray) -> np.ndarray:
         """Unit thrust direction of each arm in body frame: (..., 6) -> (..., 6, 3)."""
         s, c = np.sin(tilt)[..., None], np.cos(tilt)[..., None]
         return s * self.arm_y + c * np.array([0.0, 0.0, 1.0])
+
+    def interference(self, tilt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Shapes (..., 6) of the two tilt-dependent thrust losses of each arm's pair.
+
+        ``wake``: ``sum_k max(0, -n_k . e_kj)^4`` over the two neighbouring pairs
+        k of arm j (the wake of pair k, blown along ``-n_k``, hits pair j when
+        pair k is tilted towards it); ``arm``: ``sin^2(alpha_j)`` (the pair's own
+        wash on its arm). The plant's efficiency is ``1 - rotor_rotor * wake -
+        rotor_arm * arm`` (:mod:`omavctl.sim.plant`, ``rotor_interference``).
+        """
+        n = self.thrust_directions(tilt)  # (..., 6, 3)
+        hit = np.clip(-np.einsum("...kc,kjc->...kj", n, self.pair_direction), 0.0, None) ** 4
+        cols = np.arange(tilt.shape[-1])
+        wake = hit[..., self.neighbours[:, 0], cols] + hit[..., self.neighbours[:, 1], cols]
+        return wake, np.sin(tilt) ** 2
 
     def forward(self, tilt: np.ndarray, rotor_thrust: np.ndarray) -> np.ndarray:
         """Body wrench [f, tau] (..., 6) from tilts (..., 6) rad and rotor thrusts (..., 12) N.

@@ -51,6 +51,8 @@ class TruthConstants(Protocol):
     servo_time_constant: float  # s
     motor_time_constant: float  # s
     command_delay: float  # s
+    rotor_rotor: float  # thrust loss of a pair in a neighbour's wake
+    rotor_arm: float  # thrust loss of a pair over its own tilted arm
 
 
 @dataclass(frozen=True)
@@ -399,6 +401,47 @@ class CommandDelay(Effect):
         truth.command_delay = float(params["tau_d"][0])
 
 
+class RotorInterference(Effect):
+    """Tilt-dependent thrust loss of the rotor pairs (aerodynamic interference).
+
+    Each pair's thrust is scaled by ``1 - rotor_rotor w_j - rotor_arm sin^2
+    alpha_j``: ``w_j = sum_k max(0, -n_k . e_kj)^4`` over the neighbouring
+    pairs k (pair k tilted towards pair j blows its wake onto it) and the
+    pair's own wash on its arm. The wrench lost is linear in the two
+    coefficients: residual ``-I^-1 [A(alpha) (F w)]_torque rotor_rotor - I^-1
+    [A(alpha) (F sin^2 alpha)]_torque rotor_arm`` with the commanded tilts
+    ``alpha`` and arm thrusts ``F`` of the allocation. Both dimensionless.
+
+    At small tilts it acts like a thrust-centre offset (a torque growing with
+    the force and the tilt): on flights of one kind it is easily taken for a
+    ``com_offset``; flights with large, varied tilts separate the two.
+    """
+
+    name = "rotor_interference"
+    summary = "tilt-dependent thrust loss: wake of neighbouring pairs, wash on the arm"
+    parameters = (
+        Parameter("rotor_rotor", 1, "1", "thrust loss of a pair fully in a neighbour's wake"),
+        Parameter("rotor_arm", 1, "1", "thrust loss of a pair tilted 90 deg over its arm"),
+    )
+    prior_std = 0.3
+    theta_range = (0.0, 1.0)
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        tilt, thrust = ctx.allocated
+        cols = []
+        for shape in ctx.allocation.interference(tilt):
+            rotor = np.repeat(thrust * shape / 2.0, 2, axis=-1)
+            cols.append(-ctx.angular(ctx.allocation.forward(tilt, rotor)))
+        return np.stack(cols, axis=-1)
+
+    def configure_truth(self, params, truth):
+        for key in ("rotor_rotor", "rotor_arm"):
+            value = float(params[key][0])
+            if not 0.0 <= value < 1.0:
+                raise ConfigError(f"'effects.rotor_interference.{key}' must be in [0, 1)")
+            setattr(truth, key, value)
+
+
 def first_order_lag(setpoint: np.ndarray, time_constant: float, dt: float) -> np.ndarray:
     """Mean over each period of a first-order lag following held setpoints.
 
@@ -475,6 +518,7 @@ EFFECTS: dict[str, Effect] = {
         MotorLag(),
         CommandDelay(),
         GyroBias(),
+        RotorInterference(),
     )
 }
 if tuple(EFFECTS) != EFFECT_NAMES:  # the description's names and the registry agree

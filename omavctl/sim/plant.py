@@ -84,22 +84,11 @@ class _Actuators:
         self.shaft = np.zeros(6)
         self.tilt = np.zeros(6)
         self.thrust = np.full(12, hover)
-        pos = alloc.arm_position
-        # neighbours of each arm: the pairs at +-1 index around the hexagon
-        self.neigh = np.array([[(i - 1) % 6, (i + 1) % 6] for i in range(6)])
-        diff = pos[None, :, :] - pos[:, None, :]  # [k, j] = r_j - r_k
-        norm = np.linalg.norm(diff, axis=-1, keepdims=True)
-        self.e_kj = np.divide(diff, norm, out=np.zeros_like(diff), where=norm > 0)
 
     def efficiency(self, tilt: np.ndarray) -> np.ndarray:
         """Per-arm thrust efficiency (..., 6) from tilts (..., 6)."""
-        t = self.truth
-        n = self.alloc.thrust_directions(tilt)  # (..., 6, 3)
-        # wake of pair k along -n_k hits pair j when -n_k . e_kj > 0
-        hit = np.clip(-np.einsum("...kc,kjc->...kj", n, self.e_kj), 0.0, None) ** 4
-        cols = np.arange(6)
-        loss_rr = hit[..., self.neigh[:, 0], cols] + hit[..., self.neigh[:, 1], cols]
-        return 1.0 - t.rotor_arm * np.sin(tilt) ** 2 - t.rotor_rotor * loss_rr
+        wake, arm = self.alloc.interference(tilt)
+        return 1.0 - self.truth.rotor_arm * arm - self.truth.rotor_rotor * wake
 
     def advance(
         self, tilt_cmd: np.ndarray, thrust_cmd: np.ndarray, dt: float, n: int
