@@ -41,7 +41,7 @@ effects:
 """
 KINDS = ("effects", "variance", "task")
 #: Largest angular-acceleration deviation of both plans' candidates, rad/s^2.
-AMPLITUDE = 4.0
+AMPLITUDE = 6.0
 
 
 def omavctl(*args: str) -> dict:
@@ -59,8 +59,7 @@ def _parameters(fit: dict) -> dict[str, tuple[float, float, float]]:
     eff = fit["effects"]
     drag, delay = eff["rotational_drag"], eff["command_delay"]
     out = {
-        f"D[{i}]": (drag["values"]["D"][i], drag["stderr"]["D"][i], TRUTH["D"][i])
-        for i in range(3)
+        f"D[{i}]": (drag["values"]["D"][i], drag["stderr"]["D"][i], TRUTH["D"][i]) for i in range(3)
     }
     out["tau_d"] = (delay["values"]["tau_d"][0], delay["stderr"]["tau_d"][0], TRUTH["tau_d"])
     return out
@@ -70,7 +69,9 @@ def _summary(params: dict[str, tuple[float, float, float]]) -> dict:
     rel_se = [se / abs(t) for _, se, t in params.values()]
     rel_err = [abs(v - t) / abs(t) for v, _, t in params.values()]
     return {
-        "parameters": {k: {"value": v, "stderr": se, "truth": t} for k, (v, se, t) in params.items()},
+        "parameters": {
+            k: {"value": v, "stderr": se, "truth": t} for k, (v, se, t) in params.items()
+        },
         "rel_se_gmean": math.exp(sum(math.log(x) for x in rel_se) / len(rel_se)),
         "max_rel_error": max(rel_err),
         "rel_errors": dict(zip(params, rel_err, strict=True)),
@@ -83,7 +84,7 @@ def run_case(
     duration: float = 20.0,
     candidates: int = 40,
     sims: int = 4,
-    amplitude: float = 4.0,
+    amplitude: float = AMPLITUDE,
 ) -> dict:
     """One seed of the benchmark (module docstring) in ``workdir``; its numbers."""
     w = Path(workdir)
@@ -91,15 +92,49 @@ def run_case(
     truth = w / "truth.yaml"
     truth.write_text(TRUTH_YAML)
     task, first = w / "fig8.csv", w / "first.csv"
-    omavctl("task", "fig8", "--roll", "26", "--pitch", "26", "--period", "8",
-            "--duration", str(duration), "--out", str(task))  # fmt: skip
-    omavctl("simulate", "--reference", str(task), "--truth", str(truth), "--seed", str(seed),
-            "--out", str(first))  # fmt: skip
+    omavctl(
+        "task",
+        "fig8",
+        "--roll",
+        "26",
+        "--pitch",
+        "26",
+        "--period",
+        "8",
+        "--duration",
+        str(duration),
+        "--out",
+        str(task),
+    )
+    omavctl(
+        "simulate",
+        "--reference",
+        str(task),
+        "--truth",
+        str(truth),
+        "--seed",
+        str(seed),
+        "--out",
+        str(first),
+    )
     model = w / "first.npz"
-    before = omavctl("fit", str(first), "--effects", EFFECTS, "--seed", str(seed),
-                     "--out", str(model))  # fmt: skip
-    plan_args = ["--task", str(task), "--model", str(model), "--candidates", str(candidates),
-                 "--sims", str(sims), "--amplitude", str(amplitude), "--seed", str(seed)]  # fmt: skip
+    before = omavctl(
+        "fit", str(first), "--effects", EFFECTS, "--seed", str(seed), "--out", str(model)
+    )
+    plan_args = [
+        "--task",
+        str(task),
+        "--model",
+        str(model),
+        "--candidates",
+        str(candidates),
+        "--sims",
+        str(sims),
+        "--amplitude",
+        str(amplitude),
+        "--seed",
+        str(seed),
+    ]
     out: dict = {"seed": seed, "first": _summary(_parameters(before)), "plans": {}}
     for kind in KINDS:
         reference = task
@@ -107,15 +142,45 @@ def run_case(
             reference = w / f"plan-{kind}.csv"
             extra = ["--effects", EFFECTS] if kind == "effects" else []
             t0 = time.perf_counter()
-            planned = omavctl("plan", *plan_args, "--objective", kind, *extra,
-                              "--scores", str(w / f"scores-{kind}.csv"), "--out", str(reference))  # fmt: skip
-            out["plans"][kind] = {"seconds": time.perf_counter() - t0, "best": planned["best"],
-                                  "expected": planned.get("effects")}  # fmt: skip
+            planned = omavctl(
+                "plan",
+                *plan_args,
+                "--objective",
+                kind,
+                *extra,
+                "--scores",
+                str(w / f"scores-{kind}.csv"),
+                "--out",
+                str(reference),
+            )
+            out["plans"][kind] = {
+                "seconds": time.perf_counter() - t0,
+                "best": planned["best"],
+                "expected": planned.get("effects"),
+            }
         second = w / f"second-{kind}.csv"
-        omavctl("simulate", "--reference", str(reference), "--truth", str(truth),
-                "--seed", str(100 + seed), "--out", str(second))  # fmt: skip
-        refit = omavctl("fit", str(first), str(second), "--effects", EFFECTS,
-                        "--seed", str(seed), "--out", str(w / f"second-{kind}.npz"))  # fmt: skip
+        omavctl(
+            "simulate",
+            "--reference",
+            str(reference),
+            "--truth",
+            str(truth),
+            "--seed",
+            str(100 + seed),
+            "--out",
+            str(second),
+        )
+        refit = omavctl(
+            "fit",
+            str(first),
+            str(second),
+            "--effects",
+            EFFECTS,
+            "--seed",
+            str(seed),
+            "--out",
+            str(w / f"second-{kind}.npz"),
+        )
         out[kind] = _summary(_parameters(refit))
     out["se_ratio_vs_task"] = out["task"]["rel_se_gmean"] / out["effects"]["rel_se_gmean"]
     out["se_ratio_vs_variance"] = out["variance"]["rel_se_gmean"] / out["effects"]["rel_se_gmean"]
@@ -143,14 +208,26 @@ def markdown(results: list[dict], seconds: float) -> str:
         for kind in ("first", *KINDS):
             s = r[kind]
             p = s["parameters"]
-            cells = [f"{p[f'D[{i}]']['value']:.4f} ± {p[f'D[{i}]']['stderr']:.4f}" for i in range(3)]
+            cells = [
+                f"{p[f'D[{i}]']['value']:.4f} ± {p[f'D[{i}]']['stderr']:.4f}" for i in range(3)
+            ]
             cells.append(f"{1e3 * p['tau_d']['value']:.1f} ± {1e3 * p['tau_d']['stderr']:.1f}")
-            name = {"first": "(first flight only)", "task": "the task again"}.get(kind, f"{kind} plan")
-            lines.append(f"| {r['seed']} | {name} | {s['rel_se_gmean']:.3f} | {' | '.join(cells)} | "
-                         f"{100 * s['max_rel_error']:.1f} % |")  # fmt: skip
-    lines += ["", "| seed | SE ratio task / effects | SE ratio variance / effects |", "|---|---|---|"]
+            name = {"first": "(first flight only)", "task": "the task again"}.get(
+                kind, f"{kind} plan"
+            )
+            lines.append(
+                f"| {r['seed']} | {name} | {s['rel_se_gmean']:.3f} | {' | '.join(cells)} | "
+                f"{100 * s['max_rel_error']:.1f} % |"
+            )
+    lines += [
+        "",
+        "| seed | SE ratio task / effects | SE ratio variance / effects |",
+        "|---|---|---|",
+    ]
     for r in results:
-        lines.append(f"| {r['seed']} | {r['se_ratio_vs_task']:.2f} | {r['se_ratio_vs_variance']:.2f} |")
+        lines.append(
+            f"| {r['seed']} | {r['se_ratio_vs_task']:.2f} | {r['se_ratio_vs_variance']:.2f} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -167,13 +244,18 @@ def main() -> None:
     results = []
     for s in args.seeds:
         r = run_case(
-            args.workdir / f"s{s}", s, candidates=args.candidates, sims=args.sims,
+            args.workdir / f"s{s}",
+            s,
+            candidates=args.candidates,
+            sims=args.sims,
             amplitude=args.amplitude,
-        )  # fmt: skip
+        )
         print(json.dumps({k: r[k] for k in ("seed", "se_ratio_vs_task", "se_ratio_vs_variance")}))
         for kind in ("first", *KINDS):
-            print(f"  {kind:9s} rel SE {r[kind]['rel_se_gmean']:.3f}  max rel error "
-                  f"{100 * r[kind]['max_rel_error']:.1f} %  {r[kind]['rel_errors']}")  # fmt: skip
+            print(
+                f"  {kind:9s} rel SE {r[kind]['rel_se_gmean']:.3f}  max rel error "
+                f"{100 * r[kind]['max_rel_error']:.1f} %  {r[kind]['rel_errors']}"
+            )
         results.append(r)
     text = markdown(results, time.perf_counter() - t0)
     (args.workdir / "results.json").write_text(json.dumps(results, indent=1))

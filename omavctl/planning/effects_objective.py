@@ -180,9 +180,7 @@ def _relative_se(information: np.ndarray) -> np.ndarray:
     return np.sqrt(np.clip(np.einsum("...ii->...i", cov), 0.0, None))
 
 
-def flight_regressors(
-    model, inputs: np.ndarray, names: Sequence[str], dt: float
-) -> np.ndarray:
+def flight_regressors(model, inputs: np.ndarray, names: Sequence[str], dt: float) -> np.ndarray:
     """Regressors (B, Ts, 3, p) of ``names`` along flights of normalised GP inputs
     (B, Ts, d) on a grid of ``dt`` s (the registry's code; derivatives by central
     differences)."""

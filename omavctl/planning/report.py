@@ -34,8 +34,9 @@ def _num(v: float) -> str:
 
 def format_scores(result: PlanResult, reference_sha256: str | None = None) -> str:
     """CSV: candidate id, the 3*2*P coefficients (Hz and rad/s^2), cost (of the ranking
-    objective), :data:`METRIC_COLUMNS`, tracking, feasible, reason, generation (of the search that proposed it; 0 for random) and,
-    when given, the sha256 of the reference CSV written with it (same in every row).
+    objective), :data:`METRIC_COLUMNS`, tracking, feasible, reason, generation (of the
+    search that proposed it; 0 for random) and, when given, the sha256 of the reference
+    CSV written with it (same in every row).
 
     Infeasible candidates have an empty cost. Deterministic for the same result.
     """
