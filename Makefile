@@ -4,6 +4,7 @@
 #   make test-numpy1   install with NumPy 1.26 into .venv-numpy1, run the k-medoids
 #                      agreement tests (the same training points as under NumPy 2)
 #   make generalise    the generalisation benchmark (docs/generalisation.md)
+#   make bench-effects the effects-plan benchmark (docs/plan-effects-results.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
@@ -11,7 +12,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo test test-numpy1 lint bench fuzz generalise clean
+.PHONY: install demo test test-numpy1 lint bench bench-effects fuzz generalise clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -50,6 +51,11 @@ fuzz: $(STAMP)
 # timings, both directions, and the shared real log (about 6 minutes on 2 cores)
 generalise: $(STAMP)
 	$(BIN)/python benchmarks/generalise.py
+
+# plan --objective effects against the variance plan and the task flown again, with
+# hidden drag and command delay (docs/plan-effects.md; about 1 minute per seed)
+bench-effects: $(STAMP)
+	$(BIN)/python benchmarks/bench_effects_plan.py --out docs/plan-effects-results.md
 
 test-numpy1: $(VENV1)/.installed
 	$(VENV1)/bin/pytest -q tests/test_kmedoids.py

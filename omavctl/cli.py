@@ -726,6 +726,26 @@ def plan(
             help="Worker processes for the simulations (see docs/planning-performance.md)."
         ),
     ] = 1,
+    objective: Annotated[
+        str,
+        typer.Option(
+            help="What ranks the candidates: 'variance' (the GP's posterior variance in the "
+            "task region, the paper) or 'effects' (D-optimal information about the named "
+            "effects' parameters, docs/plan-effects.md)."
+        ),
+    ] = "variance",
+    effects: Annotated[
+        str | None,
+        typer.Option(
+            metavar="A,B",
+            help="--objective effects: the effects to separate and pin down (default: those "
+            "--evaluation names as missing or ambiguous, else the model's fitted effects).",
+        ),
+    ] = None,
+    evaluation: Annotated[
+        Path | None,
+        typer.Option(metavar="EVAL.json", help="Evaluation whose missing effects to plan for."),
+    ] = None,
     scores: Annotated[
         Path | None,
         typer.Option(help="Write every candidate's coefficients, cost and feasibility as CSV."),
@@ -762,7 +782,12 @@ def plan(
     from omavctl.sim.trajectory import read_trajectory
     from omavctl.vehicle import load_vehicle
 
-    check_outputs([task, model, vehicle], [out, scores, report_out])
+    check_outputs([task, model, vehicle, evaluation], [out, scores, report_out])
+    named = tuple(e.strip() for e in effects.split(",") if e.strip()) if effects else ()
+    if not named and evaluation is not None:
+        from omavctl.planning.effects_objective import effects_from_evaluation
+
+        named = effects_from_evaluation(evaluation)
     for name, value in (
         ("--candidates", candidates),
         ("--sims", sims),
@@ -800,6 +825,8 @@ def plan(
         generations=generations,
         selection=selection,
         jobs=jobs,
+        objective=objective,
+        effects=named,
     )
     con = _console(quiet)
     # BLAS threads set once: one per process, so that worker processes (--jobs) and
@@ -826,7 +853,7 @@ def plan(
         table.add_row(
             str(k),
             f"{result.cost[k]:.4g}",
-            f"{100 * (result.cost[k] / result.task_cost - 1):+.1f}%",
+            f"{result.versus_task(result.cost[k]):+.1f}%",
             f"{result.tracking[k]:.3f}",
         )
     con.print(table)
@@ -837,11 +864,16 @@ def plan(
     )
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
+    from omavctl.planning.effects_objective import effects_summary
+
+    summary = effects_summary(result)
+    for line in summary["lines"] if summary else []:
+        con.print(line, markup=False)
     best_cost = float(result.cost[result.best])
     if best_cost >= result.task_cost:
         con.print(
             f"warning: no candidate is more informative than flying the task again (best "
-            f"{100 * (best_cost / result.task_cost - 1):+.1f}% vs the task): fly the task, "
+            f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, "
             "or try more --candidates or --search cem",
             markup=False,
         )
@@ -876,6 +908,8 @@ def plan(
                 for k in range(len(result.cost))
             ],
             "notes": list(result.notes),
+            "objective": result.objective,
+            "effects": {k: v for k, v in summary.items() if k != "lines"} if summary else None,
         },
     )
 

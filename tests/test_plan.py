@@ -80,7 +80,7 @@ def test_cli_plan_is_deterministic_and_writes_scores(setup):
         outs.append((out.read_bytes(), scores.read_bytes()))
     assert outs[0] == outs[1]
     header = outs[0][1].decode().splitlines()[0].split(",")
-    assert header[0] == "candidate" and len(header) == 1 + 12 + 6
+    assert header[0] == "candidate" and len(header) == 1 + 12 + 10
     assert header[-2:] == ["generation", "reference_sha256"]
     assert len(outs[0][1].decode().splitlines()) == 4
     read_trajectory(tmp / "a.csv")

@@ -25,8 +25,10 @@ reference path (``fast=False``) see the same samples, test points and candidates
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -63,17 +65,26 @@ class PlanSettings:
     search: str = "random"  # or "cem"
     generations: int = 5  # cem: generations the candidates are spent in
     selection: str = "batched"  # or "kmedoids" (per simulation, as fit)
-    objective: str = "variance"
+    objective: str = "variance"  # or "effects" (omavctl.planning.effects_objective)
+    effects: tuple[str, ...] = ()  # effects objective: () = the model's fitted effects
     fast: bool = True  # False: the straightforward reference path
     jobs: int = 1  # worker processes for the fast path
 
 
-def _variance_objective(gp: GPAxes, test: np.ndarray, settings: PlanSettings) -> Objective:
+def _variance_objective(model, gp: GPAxes, test: np.ndarray, settings: PlanSettings) -> Objective:
     return VarianceObjective(gp, test, settings.points, settings.selection, settings.seed)
 
 
-#: Objectives by name: (model GPs, test points, settings) -> objective.
-OBJECTIVES = {"variance": _variance_objective}
+def _effects_objective(model, gp: GPAxes, test: np.ndarray, settings: PlanSettings) -> Objective:
+    from omavctl.planning.effects_objective import EffectsObjective, resolve_effects
+
+    names = resolve_effects(model, settings.effects)
+    return EffectsObjective(model, gp, names, settings.points, settings.stride)
+
+
+#: Objectives by name: (model, model GPs, test points, settings) -> objective. Every
+#: objective that can be built for the model is computed; ``settings.objective`` ranks.
+OBJECTIVES = {"variance": _variance_objective, "effects": _effects_objective}
 
 
 def _test_points(
@@ -113,6 +124,23 @@ class PlanResult:
     test_points: np.ndarray
     task: Trajectory
     notes: list[str] = field(default_factory=list)
+    #: every computed objective's numbers per candidate, (K, ...) means over the M
+    #: simulations (inf/nan where infeasible): "variance", "effects", "effects_rel_se",
+    #: "effects_correlation", "effects_se" (K, p); and the task's own, (...)
+    metrics: dict[str, np.ndarray] = field(default_factory=dict)
+    task_metrics: dict[str, np.ndarray] = field(default_factory=dict)
+    objective: str = "variance"
+    #: the effects objective's prior (names, values, scale, information), when computed
+    effects: Any = None
+
+    def versus_task(self, cost: float) -> float:
+        """A cost against the task's, percent: for ``variance`` the ratio of posterior
+        variances; for ``effects`` the ratio of the geometric-mean standard errors
+        (``exp((cost - task) / 2p)``, p parameters), minus one."""
+        if self.objective == "effects" and self.effects is not None:
+            p = self.effects.values.size
+            return 100.0 * (math.exp((cost - self.task_cost) / (2 * p)) - 1.0)
+        return 100.0 * (cost / self.task_cost - 1.0) if self.task_cost else 0.0
 
     def best_trajectory(self, task: str | Path | None = None) -> Trajectory:
         """The chosen reference; ``task`` (the task file) is named when none is feasible."""
@@ -125,17 +153,63 @@ class PlanResult:
         )
 
 
-def _score(objective: Objective, batch: Batch) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Cost (K,) (inf unless every simulation is feasible), feasible (K,), reasons (K,)."""
+def _metrics(objectives: dict[str, Objective], flights: Flights) -> dict[str, np.ndarray]:
+    """Every objective's numbers (K, ...) for flights, means over the M simulations."""
+    out: dict[str, np.ndarray] = {}
+    for name, objective in objectives.items():
+        more = getattr(objective, "metrics", None)
+        values = more(flights) if more is not None else {name: objective(flights)}
+        out.update({key: v.mean(axis=1) for key, v in values.items()})
+    return out
+
+
+def _score(
+    objectives: dict[str, Objective], batch: Batch
+) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
+    """Metrics (K, ...) (cost inf, others nan unless every simulation is feasible),
+    feasible (K,), reasons (K,)."""
     feasible = (batch.code == 0).all(axis=1)
-    cost = np.full(feasible.shape, np.inf)
+    k_count = feasible.size
+    metrics: dict[str, np.ndarray] = {}
     if feasible.any():
         flights = Flights(
             batch.inputs[feasible], batch.tracking[feasible], batch.code[feasible] == 0
         )
-        cost[feasible] = objective(flights).mean(axis=1)
+        for key, v in _metrics(objectives, flights).items():
+            fill = np.inf if key in OBJECTIVES else np.nan
+            metrics[key] = np.full((k_count, *v.shape[1:]), fill)
+            metrics[key][feasible] = v
+    else:
+        metrics = {key: np.full(k_count, np.inf) for key in objectives}
     reasons = [", ".join(sorted({REASONS[c] for c in row if c})) for row in batch.code]
-    return cost, feasible, reasons
+    return metrics, feasible, reasons
+
+
+def _objectives(model, gp: GPAxes, test: np.ndarray, settings: PlanSettings) -> dict:
+    """The chosen objective first, then every other one that can be built for the model
+    (an effects objective without effects to plan for is left out)."""
+    out = {settings.objective: OBJECTIVES[settings.objective](model, gp, test, settings)}
+    for name, factory in OBJECTIVES.items():
+        if name not in out:
+            try:
+                out[name] = factory(model, gp, test, settings)
+            except OmavctlError:
+                continue
+    return out
+
+
+def _concat(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Metrics of the generations joined; a generation with none feasible lacks extras."""
+    keys = max(parts, key=len).keys()
+    out = {}
+    for key in keys:
+        have = [p[key] for p in parts if key in p]
+        width = have[0].shape[1:]
+        out[key] = np.concatenate(
+            [p[key] if key in p else np.full((len(next(iter(p.values()))), *width), np.nan)
+             for p in parts]
+        )  # fmt: skip
+    return out
 
 
 def _task_region(
@@ -150,11 +224,16 @@ def _task_region(
     return _test_points(visited, epsilon, settings.test_points, rng), float(epsilon)
 
 
-def _check(settings: PlanSettings) -> None:
+def _check(model, settings: PlanSettings) -> None:
     if settings.search not in ("random", "cem"):
         raise OmavctlError(f"unknown --search '{settings.search}' (random or cem)")
     if settings.objective not in OBJECTIVES:
-        raise OmavctlError(f"unknown objective '{settings.objective}'")
+        known = ", ".join(OBJECTIVES)
+        raise OmavctlError(f"unknown --objective '{settings.objective}' (known: {known})")
+    if settings.objective == "effects":  # before the simulations: bad effects fail fast
+        from omavctl.planning.effects_objective import resolve_effects
+
+        resolve_effects(model, settings.effects)
 
 
 def _proposer(settings: PlanSettings, rng: np.random.Generator):
@@ -183,7 +262,7 @@ def plan(
     progress: Progress | None = None,
 ) -> PlanResult:
     """Propose, simulate and score candidate references (see module docstring)."""
-    _check(settings)
+    _check(model, settings)
     seeds = np.random.SeedSequence(settings.seed).spawn(3)
     rng_gp, rng_test, rng_cand = (np.random.default_rng(s) for s in seeds)
     gp = GPAxes.from_model(model)
@@ -194,18 +273,19 @@ def plan(
     )
     sizes, propose = _proposer(settings, rng_cand)
     coeffs: list[np.ndarray] = []
-    parts: list[tuple[np.ndarray, np.ndarray, list[str], np.ndarray]] = []
-    objective: Objective | None = None
+    parts: list[tuple[dict[str, np.ndarray], np.ndarray, list[str], np.ndarray]] = []
+    objectives: dict[str, Objective] = {}
     for g, size in enumerate(sizes):
-        coeffs.append(propose(size, coeffs, [p[0] for p in parts]))
+        coeffs.append(propose(size, coeffs, [p[0][settings.objective] for p in parts]))
         label = "simulating" if g == 0 else f"generation {g + 1}/{len(sizes)}"
         batch = sim(coeffs[-1], with_task=g == 0, label=label)
-        if objective is None:
+        if not objectives:
             test, epsilon = _task_region(gp, batch, settings, rng_test)
-            objective = OBJECTIVES[settings.objective](gp, test, settings)
-            task_cost, notes = _task_cost(objective, batch, settings)
-        parts.append((*_score(objective, batch), batch.tracking.mean(axis=1)))
-    cost = np.concatenate([p[0] for p in parts])
+            objectives = _objectives(model, gp, test, settings)
+            task_metrics, notes = _task_cost(objectives, batch, settings)
+        parts.append((*_score(objectives, batch), batch.tracking.mean(axis=1)))
+    metrics = _concat([p[0] for p in parts])
+    cost = metrics[settings.objective]
     feasible = np.concatenate([p[1] for p in parts])
     return PlanResult(
         coefficients=np.concatenate(coeffs),
@@ -215,19 +295,23 @@ def plan(
         tracking=np.concatenate([p[3] for p in parts]),
         generation=np.repeat(np.arange(len(sizes)), sizes),
         best=int(np.argmin(cost)) if feasible.any() else -1,
-        task_cost=task_cost,
+        task_cost=float(task_metrics[settings.objective]),
         epsilon=epsilon,
         prior_variance=float(gp.posterior_variance(test).mean()),
         test_points=test,
         task=task,
         notes=notes,
+        metrics=metrics,
+        task_metrics=task_metrics,
+        objective=settings.objective,
+        effects=getattr(objectives.get("effects"), "prior", None),
     )
 
 
 def _task_cost(
-    objective: Objective, batch: Batch, settings: PlanSettings
-) -> tuple[float, list[str]]:
-    """The task's own cost (its M simulations scored like a candidate) and notes."""
+    objectives: dict[str, Objective], batch: Batch, settings: PlanSettings
+) -> tuple[dict[str, np.ndarray], list[str]]:
+    """The task's own metrics (its M simulations scored like a candidate) and notes."""
     assert batch.task_inputs is not None and batch.task_code is not None
     m = settings.sims
     flights = Flights(
@@ -237,4 +321,4 @@ def _task_cost(
     if batch.task_code.any():
         why = sorted({REASONS[c] for c in batch.task_code if c})
         notes.append("the task itself breaks limits in simulation: " + ", ".join(why))
-    return float(objective(flights).mean()), notes
+    return {k: v[0] for k, v in _metrics(objectives, flights).items()}, notes

@@ -15,7 +15,16 @@ from omavctl.planning.candidates import coefficient_names
 from omavctl.planning.planner import PlanResult
 from omavctl.sim.trajectory import Trajectory, format_trajectory
 
-__all__ = ["format_scores", "write_plan"]
+__all__ = ["METRIC_COLUMNS", "format_scores", "write_plan"]
+
+#: Columns after ``cost``: every objective's number for every candidate (empty when
+#: not computed for this model, or infeasible), whichever objective ranks.
+METRIC_COLUMNS = {
+    "variance_cost": "variance",
+    "effects_cost": "effects",
+    "effects_rel_se": "effects_rel_se",
+    "effects_max_correlation": "effects_correlation",
+}
 
 
 def _num(v: float) -> str:
@@ -24,16 +33,18 @@ def _num(v: float) -> str:
 
 
 def format_scores(result: PlanResult, reference_sha256: str | None = None) -> str:
-    """CSV: candidate id, the 3*2*P coefficients (Hz and rad/s^2), cost, tracking,
-    feasible, reason, generation (of the search that proposed it; 0 for random) and,
-    when given, the sha256 of the reference CSV written with it (same in every row).
+    """CSV: candidate id, the 3*2*P coefficients (Hz and rad/s^2), cost (of the ranking
+    objective), :data:`METRIC_COLUMNS`, tracking, feasible, reason, generation (of the
+    search that proposed it; 0 for random) and, when given, the sha256 of the reference
+    CSV written with it (same in every row).
 
     Infeasible candidates have an empty cost. Deterministic for the same result.
     """
     k_count, _, p_count, _ = result.coefficients.shape
     names = coefficient_names(p_count)
     buf = io.StringIO()
-    header = ["candidate", *names, "cost", "tracking", "feasible", "reason", "generation"]
+    header = ["candidate", *names, "cost", *METRIC_COLUMNS, "tracking", "feasible", "reason"]
+    header.append("generation")
     if reference_sha256 is not None:
         header.append("reference_sha256")
     buf.write(",".join(header) + "\n")
@@ -41,7 +52,11 @@ def format_scores(result: PlanResult, reference_sha256: str | None = None) -> st
         coeffs = [f"{v:.9g}" for v in result.coefficients[k].reshape(-1)]
         cost = _num(result.cost[k]) if result.feasible[k] else ""
         reason = result.reason[k].replace(",", ";").replace("\n", " ")
-        row = [str(k), *coeffs, cost, _num(result.tracking[k])]
+        extra = [
+            _num(result.metrics[key][k]) if key in result.metrics and result.feasible[k] else ""
+            for key in METRIC_COLUMNS.values()
+        ]
+        row = [str(k), *coeffs, cost, *extra, _num(result.tracking[k])]
         row += ["true" if result.feasible[k] else "false", reason, str(result.generation[k])]
         if reference_sha256 is not None:
             row.append(reference_sha256)

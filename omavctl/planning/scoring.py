@@ -46,6 +46,7 @@ __all__ = [
     "Flights",
     "Objective",
     "VarianceObjective",
+    "batched_pick_indices",
     "batched_picks",
     "integrated_variance",
     "kmedoids_picks",
@@ -118,26 +119,38 @@ def _refine(x: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return out.reshape(b, k)
 
 
-def batched_picks(inputs: np.ndarray, points: int, steps: int = 2, chunk: int = 512) -> np.ndarray:
-    """(B, points, d) points of every simulation (B, Ts, d), batched (module docstring).
-
-    Medoids start evenly spaced in time along the flight (k-medoids places them
-    by density, and a flight's density is its time), then ``steps`` alternating
-    k-medoids steps. Fewer samples than points: padded by repetition.
-    """
-    n_sets, n_samples, d = inputs.shape
+def batched_pick_indices(
+    inputs: np.ndarray, points: int, steps: int = 2, chunk: int = 512
+) -> np.ndarray:
+    """(B, k) sorted sample indices of the points of every simulation (B, Ts, d), k =
+    min(points, Ts): medoids evenly spaced in time along the flight (k-medoids places
+    them by density, and a flight's density is its time), then ``steps`` alternating
+    k-medoids steps (module docstring)."""
+    n_sets, n_samples, _ = inputs.shape
     k = min(points, n_samples)
-    out = np.empty((n_sets, points, d))
+    out = np.empty((n_sets, k), np.intp)
     start = ((np.arange(k) + 0.5) * n_samples / k).astype(np.intp)
     for lo in range(0, n_sets, chunk):
         x = np.asarray(inputs[lo : lo + chunk], np.float32)
-        b = x.shape[0]
-        idx = np.broadcast_to(start, (b, k)).copy()
+        idx = np.broadcast_to(start, (x.shape[0], k)).copy()
         for _ in range(steps):
             idx = _refine(x, idx)
         idx.sort(axis=1)
-        chosen = np.asarray(inputs[lo : lo + chunk], float)[np.arange(b)[:, None], idx]
-        out[lo : lo + b] = np.resize(chosen, (b, points, d)) if k < points else chosen
+        out[lo : lo + x.shape[0]] = idx
+    return out
+
+
+def batched_picks(inputs: np.ndarray, points: int, steps: int = 2, chunk: int = 512) -> np.ndarray:
+    """(B, points, d) points of every simulation (B, Ts, d) at
+    :func:`batched_pick_indices`. Fewer samples than points: padded by repetition."""
+    n_sets, _, d = inputs.shape
+    idx = batched_pick_indices(inputs, points, steps, chunk)
+    out = np.empty((n_sets, points, d))
+    for lo in range(0, n_sets, chunk):
+        b = min(chunk, n_sets - lo)
+        rows = np.arange(lo, lo + b)[:, None]
+        chosen = np.asarray(inputs[rows, idx[lo : lo + b]], float)
+        out[lo : lo + b] = np.resize(chosen, (b, points, d)) if idx.shape[1] < points else chosen
     return out
 
 

@@ -62,18 +62,22 @@ def cost_figure(result: PlanResult) -> bytes:
     with style():
         fig = Figure(figsize=(10, 3.8), dpi=100, layout="constrained")
         ax = fig.subplots()
-        finite = result.cost[feasible]
-        top = float(max(finite.max(initial=0.0), result.task_cost)) * 1.15 or 1.0
+        # the effects cost (-log det) is negative: show its expected relative SE instead
+        effects = result.objective == "effects" and "effects_rel_se" in result.metrics
+        value = result.metrics["effects_rel_se"] if effects else result.cost
+        task = float(result.task_metrics["effects_rel_se"]) if effects else result.task_cost
+        finite = value[feasible]
+        top = float(max(finite.max(initial=0.0), task)) * 1.15 or 1.0
         for pos, c in enumerate(order):
             if feasible[c]:
                 colour = "C3" if c == result.best else "C0"
-                ax.bar(pos, result.cost[c], color=colour, width=0.7)
+                ax.bar(pos, value[c], color=colour, width=0.7)
             else:
                 ax.bar(pos, top * 0.05, color="none", edgecolor="0.5", hatch="xx", width=0.7)
-        ax.axhline(result.task_cost, color="k", ls="--", lw=1.0)
+        ax.axhline(task, color="k", ls="--", lw=1.0)
         ax.set_xticks(np.arange(order.size), [str(c) for c in order], fontsize=7)
         ax.set_xlabel("candidate (sorted by cost; hatched: rejected)")
-        ax.set_ylabel("cost, (rad/s²)²")
+        ax.set_ylabel("expected relative SE (geo. mean)" if effects else "cost, (rad/s²)²")
         ax.set_ylim(0, top)
         ax.grid(True, axis="y", lw=0.3, alpha=0.6)
         from matplotlib.lines import Line2D
@@ -91,6 +95,7 @@ def cost_figure(result: PlanResult) -> bytes:
 
 def plan_document(task: Trajectory, result: PlanResult) -> str:
     """The plan report as an HTML string."""
+    from omavctl.planning.effects_objective import effects_summary
     from omavctl.report.evaluation import (
         Cell,
         Document,
@@ -102,19 +107,28 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     )
 
     best = result.best_trajectory()
-    gain = 100 * (result.cost[result.best] / result.task_cost - 1) if result.task_cost > 0 else 0
+    gain = result.versus_task(float(result.cost[result.best]))
     doc = Document("omavctl plan")
     doc.add(Heading(1, "omavctl plan"))
+    what = (
+        "the GP's mean posterior variance at test points of the task region after adding the "
+        "flight's data, (rad/s²)²"
+        if result.objective == "variance"
+        else "-log det of the information about the effects' parameters after the flight "
+        "(vs task: ratio of geometric-mean standard errors)"
+    )
     doc.add(
         Para(
             f"Most informative reference: candidate {result.best}, cost "
-            f"{result.cost[result.best]:.4g} (rad/s²)², {gain:+.1f} % against flying the task "
+            f"{result.cost[result.best]:.4g}, {gain:+.1f} % against flying the task "
             f"itself ({result.task_cost:.4g}); {int((~result.feasible).sum())} of "
-            f"{result.cost.size} candidates rejected. The cost is the GP's mean posterior "
-            "variance at test points of the task region after adding the flight's data: lower "
-            "means the flight teaches the model more."
+            f"{result.cost.size} candidates rejected. The cost ({result.objective}) is {what}: "
+            "lower means the flight teaches the model more."
         )
     )
+    summary = effects_summary(result)
+    for line in summary["lines"] if summary else []:
+        doc.add(Para(line.strip()))
     doc.add(
         FigureBlock(
             reference_figure(task, best, f"planned (candidate {result.best})"),
@@ -129,7 +143,7 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     )
     order = [int(c) for c in np.argsort(result.cost) if result.feasible[c]][:10]
     rows: list[list[Cell]] = [
-        [str(c), f"{result.cost[c]:.4g}", f"{100 * (result.cost[c] / result.task_cost - 1):+.1f} %",
+        [str(c), f"{result.cost[c]:.4g}", f"{result.versus_task(float(result.cost[c])):+.1f} %",
          f"{result.tracking[c]:.3f}"]
         for c in order
     ]  # fmt: skip
