@@ -111,14 +111,21 @@ def cases(tmp_path_factory, vehicle):
 
 @pytest.mark.parametrize("case", ["none", "none-heave", "none-small-fig8", "none-yaw"])
 def test_no_hidden_effect_nothing_is_missing(cases, case):
-    """The default plant's own imperfections (thrust spread, 5 ms lags, backlash,
-    interference) are real but small: nothing is called missing."""
+    """The default plant's own imperfections (thrust spread, 5 ms lags, backlash)
+    are real but small: nothing is called missing, except its rotor interference,
+    which is a registered effect the model lacks (named on the figure-8, whose
+    tilts excite it; not on the level heave)."""
     _, c = cases
     _, eval_log, model = c[case]
     tree = evaluate([model], [eval_log]).tree
-    assert tree["diagnosis"]["missing"] == []
-    assert tree["diagnosis"]["fit_command"] is None
+    missing = tree["diagnosis"]["missing"]
+    assert set(missing) <= {"rotor_interference"}
+    if case == "none-heave":
+        assert missing == []
+    assert (tree["diagnosis"]["fit_command"] is None) == (missing == [])
     for entry in tree["diagnosis"]["missing_effects"]:
+        if entry["name"] == "rotor_interference":
+            continue
         assert not entry["missing"]
         assert not (
             entry["explained_variance"] >= MIN_EXPLAINED

@@ -27,7 +27,7 @@ from omavctl.learn.signal import (
 from omavctl.logs import align, read_log, read_raw, write_log
 from omavctl.physics.rigid_body import euler_rates_to_body
 from omavctl.sim.plant import simulate
-from omavctl.sim.tasks import fig8
+from omavctl.sim.tasks import fig8, wobble
 from omavctl.sim.trajectory import Trajectory, write_trajectory
 from omavctl.sim.truth import truth_from_tree
 
@@ -147,6 +147,24 @@ def test_hidden_effect_is_recovered(vehicle, name, params, reference):
     # joint GLS standard errors (30-40 training points) are a few percent of the value
     assert np.all(stderr > 0) and np.all(stderr < 0.1 * np.abs(true))
     np.testing.assert_array_equal(result.model.effects[name].values[pname], value)
+
+
+def test_rotor_interference_is_recovered(vehicle):
+    """The two interference coefficients from one flight with varied tilts (the wobble).
+
+    Ideal actuators otherwise; the pair-wake coefficient is well determined, the
+    arm-wash one (a sin^2 of tilts of at most ~25 deg) less so."""
+    truth_params = {"rotor_rotor": [0.25], "rotor_arm": [0.04]}
+    tree = {"ideal": True, "effects": {"rotor_interference": truth_params}}
+    truth = truth_from_tree(tree, vehicle)
+    reference = wobble(amplitude_deg=25, bandwidth=0.8, duration=12.0, ramp=2.0)
+    flight = align(simulate(reference, vehicle, truth, seed=0).log)
+    result = fit_model([flight], vehicle, effects=["rotor_interference"], points=40, restarts=0)
+    est = result.summary.effects["rotor_interference"]
+    print({k: (np.round(v, 4), np.round(est.stderr[k], 4)) for k, v in est.values.items()})
+    np.testing.assert_allclose(est.values["rotor_rotor"], 0.25, rtol=0.10)
+    assert abs(est.values["rotor_arm"][0] - 0.04) < 0.02
+    assert 0 < est.stderr["rotor_rotor"][0] < 0.025
 
 
 def test_drag_with_rate_inputs(vehicle):
@@ -348,7 +366,7 @@ def test_bad_input_is_one_clear_line_and_no_output(flights, tmp_path, kind, make
         (
             ["--effects", "wind"],
             "error: unknown effect 'wind' (known: com_offset, command_delay, gyro_bias, "
-            "inertia_error, motor_lag, rotational_drag, servo_lag)",
+            "inertia_error, motor_lag, rotational_drag, rotor_interference, servo_lag)",
         ),
         (
             ["--features", "rate"],
