@@ -74,7 +74,12 @@ def worst_segments(
     log_names: Sequence[str],
     dt: float,
 ) -> list[dict[str, Any]]:
-    """Top non-overlapping sliding windows by RMSE of err (n, 3)."""
+    """Top non-overlapping sliding windows by RMSE of err (n, 3).
+
+    t (n,) times, log_id (n,) index into ``log_names``; context: name -> (n, k)
+    values whose mean |value| over each window is reported with it; dt the
+    grid step. At most :data:`WORST_COUNT` windows of :data:`WORST_WINDOW_SECONDS`.
+    """
     width = max(round(WORST_WINDOW_SECONDS / dt), 3)
     cands: list[tuple[float, int, int]] = []
     sq = (err**2).mean(axis=1)
@@ -114,7 +119,11 @@ def worst_segments(
 def binned_errors(
     err: np.ndarray, nominal_err: np.ndarray, features: dict[str, np.ndarray]
 ) -> dict[str, Any]:
-    """Error of the model and of the nominal model in quantile bins of each feature."""
+    """Error of the model and of the nominal model in quantile bins of each feature.
+
+    err, nominal_err (n, 3); features: name -> (n,) values, binned at
+    :data:`BINS` quantiles (features with fewer than 2 distinct bins left out).
+    """
     out: dict[str, Any] = {}
     for name, f in features.items():
         edges = np.unique(np.quantile(f, np.linspace(0, 1, BINS + 1)))
