@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from omavctl.base.atomic import atomic_path
+from omavctl.report.document import Cell, Document, FigureBlock, Heading, Para, Table, to_html
 from omavctl.report.figures import png, style
 
 if TYPE_CHECKING:
@@ -91,16 +92,6 @@ def cost_figure(result: PlanResult) -> bytes:
 
 def plan_document(task: Trajectory, result: PlanResult) -> str:
     """The plan report as an HTML string."""
-    from omavctl.report.evaluation import (
-        Cell,
-        Document,
-        FigureBlock,
-        Heading,
-        Para,
-        Table,
-        _html,
-    )
-
     best = result.best_trajectory()
     gain = 100 * (result.cost[result.best] / result.task_cost - 1) if result.task_cost > 0 else 0
     doc = Document("omavctl plan")
@@ -136,7 +127,7 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     doc.add(Table(["candidate", "cost", "vs task", "tracking, rad/s²"], rows))
     for note in result.notes:
         doc.add(Para(f"note: {note}", note=True))
-    return _html(doc)
+    return to_html(doc)
 
 
 def write_plan_report(out: str | Path, task: Trajectory, result: PlanResult) -> None:
