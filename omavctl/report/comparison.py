@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from omavctl.diagnose.verdict import get_path as _get
 from omavctl.report.document import Block, Cell, Lines, Para, Table
 from omavctl.report.load import Evaluation
-from omavctl.report.numbers import AXES, axes_of, num, percent_change
+from omavctl.report.numfmt import AXES, axes_of, num, percent_change
 from omavctl.report.overview import model_title
 
 __all__ = ["comparison_section"]

@@ -26,7 +26,7 @@ from omavctl.report.document import (
     Span,
     Table,
 )
-from omavctl.report.numbers import AXES, as_list, axes_of, finite, num, pct, torque_unit_unknown
+from omavctl.report.numfmt import AXES, as_list, axes_of, finite, num, pct, torque_unit_unknown
 
 __all__ = ["diagnosis_section"]
 

@@ -44,7 +44,7 @@ from omavctl.report.comparison import comparison_section
 from omavctl.report.diagnosis import diagnosis_section
 from omavctl.report.document import Bullets, Document, Heading, Para, Span, to_html, to_markdown
 from omavctl.report.load import Evaluation, load_for_report
-from omavctl.report.numbers import AXES, percent_change
+from omavctl.report.numfmt import AXES, percent_change
 from omavctl.report.overview import overview_table, summary_of
 from omavctl.report.residuals import binned_section, time_section, worst_section
 from omavctl.report.top import figure_sections, verdict_section

@@ -15,7 +15,7 @@ import numpy as np
 
 from omavctl.base.errors import OmavctlError
 from omavctl.diagnose.verdict import get_path as _get
-from omavctl.report.numbers import AXES, as_list, finite
+from omavctl.report.numfmt import AXES, as_list, finite
 
 __all__ = ["REQUIRED_SERIES", "Evaluation", "check_evaluation", "load_for_report"]
 

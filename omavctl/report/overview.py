@@ -16,7 +16,7 @@ import numpy as np
 from omavctl.diagnose.verdict import get_path as _get
 from omavctl.report.document import Block, Bullets, Cell, Content, Heading, Lines, Para, Span, Table
 from omavctl.report.load import Evaluation
-from omavctl.report.numbers import AXES, axes_of, num, torque_unit_unknown
+from omavctl.report.numfmt import AXES, axes_of, num, torque_unit_unknown
 
 __all__ = ["ACCEL_METRICS", "METRICS", "PREDICTIONS", "model_title", "overview_table", "summary_of"]
 

@@ -25,7 +25,7 @@ from omavctl.report.figures import AXIS_COLOURS
 from omavctl.report.figures import png as _png
 from omavctl.report.figures import runs as _runs
 from omavctl.report.figures import style as _style
-from omavctl.report.numbers import AXES, axes_of, finite, num
+from omavctl.report.numfmt import AXES, axes_of, finite, num
 
 __all__ = ["binned_section", "time_section", "worst_section"]
 
