@@ -162,7 +162,7 @@ def check_output(path: Path, kind: str) -> str | None:
             if not (np.all(np.isfinite(mean)) and var is not None and np.all(np.isfinite(var))):
                 return "model predicts non-finite values"
         elif kind == "eval":
-            from omavctl.report.evaluation import load_for_report
+            from omavctl.report.load import load_for_report
 
             _finite_json(path.read_text())
             _, series = load_for_report(path)
