@@ -17,6 +17,7 @@ Height = Annotated[float, typer.Option(help="Hover height (z), m.")]
 
 
 def _write_task(traj: Any, out: Path, quiet: bool, as_json: bool = False, name: str = "") -> None:
+    """Write ``traj`` to ``out`` (contract CSV), say so, and with --json print the figures."""
     from omavctl.sim.trajectory import write_trajectory
 
     check_outputs([], [out])
