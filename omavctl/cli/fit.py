@@ -101,26 +101,26 @@ def fit(
     residual is measured minus nominal (rigid body) angular acceleration, rad/s^2. The
     model file (.npz) is what evaluate, simulate --model and plan read.
     """
-    from omavctl.learn.run import effect_names, run_fit
+    from omavctl.learn.run import effect_names, prepare_fit
     from omavctl.report.summary import fit_json
 
+    job = prepare_fit(
+        logs,
+        out,
+        vehicle=vehicle,
+        effects=effect_names(effects),
+        prior=prior,
+        time_window=time_window,
+        points=points,
+        sg_window=sg_window,
+        sg_order=sg_order,
+        features=features,
+        restarts=restarts,
+        seed=seed,
+    )
     con = console(quiet)
     with _stage_bar(con, quiet) as progress:
-        result = run_fit(
-            logs,
-            out,
-            vehicle=vehicle,
-            effects=effect_names(effects),
-            prior=prior,
-            time_window=time_window,
-            points=points,
-            sg_window=sg_window,
-            sg_order=sg_order,
-            features=features,
-            restarts=restarts,
-            seed=seed,
-            progress=progress,
-        )
+        result = job.run(progress)
     _render_fit(con, result.summary, out)
     emit(as_json, fit_json(result.summary, out))
 

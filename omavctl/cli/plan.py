@@ -113,7 +113,7 @@ def plan(
     test points of the task region after adding its data (lower = more informative).
     """
     from omavctl.planning import PlanSettings
-    from omavctl.planning.run import run_plan
+    from omavctl.planning.run import prepare_plan
 
     settings = PlanSettings(
         candidates=candidates,
@@ -130,18 +130,12 @@ def plan(
         selection=selection,
         jobs=jobs,
     )
+    job = prepare_plan(
+        task, model, out, settings, vehicle=vehicle, scores=scores, report=report_out
+    )
     con = console(quiet)
     with _stage_bars(con, quiet) as progress:
-        result = run_plan(
-            task,
-            model,
-            out,
-            settings,
-            vehicle=vehicle,
-            scores=scores,
-            report=report_out,
-            progress=progress,
-        )
+        result = job.run(progress)
     files = _render_plan(con, result, out, scores, report_out)
     emit(as_json, _plan_json(result, files))
 

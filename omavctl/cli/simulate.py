@@ -65,20 +65,20 @@ def simulate(
     as_json: Json = False,
 ) -> None:
     """Fly a reference in closed loop through the truth plant and write a flight log."""
-    from omavctl.learn.fly import run_simulation
+    from omavctl.learn.fly import prepare_simulation
 
+    job = prepare_simulation(
+        reference,
+        out,
+        truth=truth,
+        vehicle=vehicle,
+        model=model,
+        seed=seed,
+        physics_rate=physics_rate,
+    )
     con = console(quiet)
     with progress_bar(con, quiet, "simulating") as progress:
-        result = run_simulation(
-            reference,
-            out,
-            truth=truth,
-            vehicle=vehicle,
-            model=model,
-            seed=seed,
-            physics_rate=physics_rate,
-            progress=progress,
-        )
+        result = job.run(progress)
     _render_simulation(con, result, out)
     emit(as_json, _simulation_json(result, out))
 

@@ -1,28 +1,30 @@
 """Plan from files (``omavctl plan``): task CSV and model file in, reference CSV out.
 
-:func:`run_plan` does the command's work in the order the command checks it:
-the outputs are refused before any work, then the option values, the model
-(and that it fits ``--vehicle``) and the task are read, the candidates are
-planned (:func:`omavctl.planning.planner.plan`) and the most informative
-reference and the scores are written (:func:`omavctl.planning.report.write_plan`).
+Two steps, so that a caller can show progress only while the candidates are
+flown: :func:`prepare_plan` refuses bad outputs and option values before any
+work and reads the model (checked against ``--vehicle``) and the task;
+:meth:`PlanJob.run` plans (:func:`omavctl.planning.planner.plan`) and writes
+the most informative reference and the scores
+(:func:`omavctl.planning.report.write_plan`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
 from omavctl.base.atomic import check_outputs
 from omavctl.base.errors import OmavctlError
-from omavctl.learn.model import check_vehicle, load_model
+from omavctl.learn.model import ResidualGP, check_vehicle, load_model
 from omavctl.planning.planner import PlanResult, PlanSettings, plan
 from omavctl.planning.report import write_plan
 from omavctl.planning.rollout import Progress
-from omavctl.sim.trajectory import read_trajectory
+from omavctl.sim.trajectory import Trajectory, read_trajectory
 from omavctl.vehicle import load_vehicle
 
-__all__ = ["check_plan_settings", "run_plan"]
+__all__ = ["PlanJob", "check_plan_settings", "prepare_plan"]
 
 
 def check_plan_settings(settings: PlanSettings) -> None:
@@ -51,7 +53,31 @@ def check_plan_settings(settings: PlanSettings) -> None:
         raise OmavctlError(f"--epsilon must be in (0, 1000] normalised units, got {epsilon}")
 
 
-def run_plan(
+@dataclass(frozen=True)
+class PlanJob:
+    """A plan ready to run: the outputs and options checked, the model and task read."""
+
+    model: ResidualGP
+    task: Trajectory
+    task_path: Path
+    settings: PlanSettings
+    out: Path
+    scores: Path | None
+
+    def run(self, progress: Progress | None = None) -> PlanResult:
+        """Plan, then write the most informative reference to ``out`` (and the scores).
+
+        ``progress`` gets (stage, fraction done). The result's ``task`` is the task.
+        """
+        # BLAS threads set once: one per process, so that worker processes (--jobs) and
+        # BLAS do not fight over the cores and timings are stable (threadpoolctl)
+        with threadpool_limits(limits=1, user_api="blas"):
+            result = plan(self.model, self.task, self.settings, progress)
+        write_plan(self.out, result.best_trajectory(self.task_path), result, self.scores)
+        return result
+
+
+def prepare_plan(
     task: Path,
     model: Path,
     out: Path,
@@ -60,14 +86,13 @@ def run_plan(
     vehicle: Path | None = None,
     scores: Path | None = None,
     report: Path | None = None,
-    progress: Progress | None = None,
-) -> PlanResult:
-    """Plan the most informative reference for ``task`` and write it to ``out``.
+) -> PlanJob:
+    """Refuse bad outputs and option values, read the model (checked against
+    ``vehicle`` when given) and the task.
 
-    ``scores``: also write every candidate's coefficients, cost and feasibility
-    (CSV). ``report`` is only checked as an output here (the plan report is
-    rendered by :func:`omavctl.report.plan.write_plan_report`). ``progress`` gets
-    (stage, fraction done). The result's ``task`` is the task trajectory read.
+    ``scores``: where every candidate's coefficients, cost and feasibility go (CSV).
+    ``report`` is only checked as an output here (the plan report is rendered by
+    :func:`omavctl.report.plan.write_plan_report`).
     """
     check_outputs([task, model, vehicle], [out, scores, report])
     check_plan_settings(settings)
@@ -75,9 +100,4 @@ def run_plan(
     if vehicle is not None:
         check_vehicle(mdl, load_vehicle(vehicle), vehicle)
     ref = read_trajectory(task)
-    # BLAS threads set once: one per process, so that worker processes (--jobs) and
-    # BLAS do not fight over the cores and timings are stable (threadpoolctl)
-    with threadpool_limits(limits=1, user_api="blas"):
-        result = plan(mdl, ref, settings, progress)
-    write_plan(out, result.best_trajectory(task), result, scores)
-    return result
+    return PlanJob(mdl, ref, task, settings, out, scores)
