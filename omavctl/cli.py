@@ -353,7 +353,7 @@ def simulate(
     plant = load_truth(truth, veh)
     residual = None
     if model is not None:
-        from omavctl.learn.model import check_vehicle, load_model
+        from omavctl.learn.model_file import check_vehicle, load_model
 
         residual = load_model(model)
         check_vehicle(residual, veh, model)
@@ -483,7 +483,7 @@ def fit(
     from rich.progress import Progress
 
     from omavctl.learn.fit import fit_model
-    from omavctl.learn.model import save_model
+    from omavctl.learn.model_file import save_model
     from omavctl.logs import parse_time_window
     from omavctl.vehicle import load_vehicle
 
@@ -520,7 +520,7 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
     from rich.table import Table
     from rich.text import Text
 
-    from omavctl.learn.fit import effect_unit
+    from omavctl.learn.fit_notes import effect_unit
     from omavctl.physics.effects import get_effect
 
     units = summary.command_units
@@ -755,7 +755,7 @@ def plan(
     from rich.table import Table
     from threadpoolctl import threadpool_limits
 
-    from omavctl.learn.model import check_vehicle, load_model
+    from omavctl.learn.model_file import check_vehicle, load_model
     from omavctl.planning import PlanSettings
     from omavctl.planning import plan as run
     from omavctl.planning.report import write_plan

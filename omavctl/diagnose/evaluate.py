@@ -45,7 +45,7 @@ import numpy as np
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
 from omavctl.learn.control_loss import out_of_control
-from omavctl.learn.fit import body_rate_rate, sha256_of
+from omavctl.learn.flights import body_rate_rate, sha256_of
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
@@ -733,7 +733,7 @@ def evaluate(
     progress: Progress | None = None,
 ) -> EvalResult:
     """Evaluate one or more models on one or more logs (see module docstring)."""
-    from omavctl.learn.model import load_model
+    from omavctl.learn.model_file import load_model
 
     if not model_paths:
         raise OmavctlError("give at least one --model")
