@@ -84,8 +84,9 @@ class EffectEstimate:
 class ResidualGP:
     """Effects plus an independent GP per body axis (see module docstring).
 
-    Built by :func:`omavctl.learn.fit.fit_model` or :func:`load_model`; the Cholesky
-    factors and weights are computed once, at construction. Attributes (read-only by
+    Built by :func:`omavctl.learn.fit.fit_model` or
+    :func:`omavctl.learn.model_file.load_model`; the Cholesky factors and weights
+    are computed once, at construction. Attributes (read-only by
     convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
     (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,),
     ``target_mean`` (3,), ``signal_variance`` (3,), ``length_scales`` (3, d),
@@ -275,7 +276,7 @@ class ResidualGP:
         targets still contain the effect (the model was fitted without it).
         Mirrors ``fit``: ordinary least squares first, the GP's target mean
         taken after removing it, then the generalised least squares of the
-        joint step (:func:`omavctl.learn.fit.joint_effects`) with this model's
+        joint step (:func:`omavctl.learn.effect_fit.joint_effects`) with this model's
         hyperparameters and prior N(0, diag prior_std^2). Returns theta (p,)
         and its covariance (p, p). ``fit`` also re-optimises the
         hyperparameters and reselects its points from every sample: this is
@@ -405,7 +406,7 @@ class ResidualGP:
 
     # ----------------------------------------------------------- persistence
     def to_arrays(self) -> dict[str, np.ndarray]:
-        """The file's arrays by key (see module docstring)."""
+        """The file's arrays by key (:mod:`omavctl.learn.model_file` lists them)."""
         effects = {name: est.to_json() for name, est in sorted(self.effects.items())}
         return {
             "schema": np.array(SCHEMA),
