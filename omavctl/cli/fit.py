@@ -164,7 +164,7 @@ def _effects_table(summary: Any) -> Any:
     from rich.table import Table
     from rich.text import Text
 
-    from omavctl.learn.fit import effect_unit
+    from omavctl.learn.fit_notes import effect_unit
     from omavctl.physics.effects import get_effect
 
     units = summary.command_units

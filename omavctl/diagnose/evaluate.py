@@ -43,7 +43,7 @@ from omavctl.diagnose.metrics import (
     worst_segments,
 )
 from omavctl.learn.control_loss import out_of_control
-from omavctl.learn.fit import body_rate_rate, sha256_of
+from omavctl.learn.flights import body_rate_rate, sha256_of
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
@@ -354,7 +354,7 @@ def evaluate(
     then per model j ``effects_<j>``, ``mean_<j>``, ``std_<j>`` (n, 3), then
     ``desired`` and ``regressor_<name>`` when known.
     """
-    from omavctl.learn.model import load_model
+    from omavctl.learn.model_file import load_model
 
     if not model_paths:
         raise OmavctlError("give at least one --model")

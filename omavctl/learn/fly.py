@@ -17,7 +17,8 @@ from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
 from omavctl.base.errors import OmavctlError
-from omavctl.learn.model import ResidualGP, check_vehicle, load_model
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.model_file import check_vehicle, load_model
 from omavctl.logs import write_log
 from omavctl.sim.plant import SimulationResult, simulate
 from omavctl.sim.trajectory import Trajectory, read_trajectory

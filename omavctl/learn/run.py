@@ -15,7 +15,7 @@ from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
 from omavctl.learn.fit import FitResult, Progress, fit_model
-from omavctl.learn.model import save_model
+from omavctl.learn.model_file import save_model
 from omavctl.logs import parse_time_window
 from omavctl.vehicle import Vehicle, load_vehicle
 

@@ -17,7 +17,8 @@ from threadpoolctl import threadpool_limits
 
 from omavctl.base.atomic import check_outputs
 from omavctl.base.errors import OmavctlError
-from omavctl.learn.model import ResidualGP, check_vehicle, load_model
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.model_file import check_vehicle, load_model
 from omavctl.planning.planner import PlanResult, PlanSettings, plan
 from omavctl.planning.report import write_plan
 from omavctl.planning.rollout import Progress

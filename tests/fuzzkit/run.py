@@ -155,7 +155,7 @@ def check_output(path: Path, kind: str) -> str | None:
         return "output missing"
     try:
         if kind == "model":
-            from omavctl.learn.model import load_model
+            from omavctl.learn.model_file import load_model
 
             m = load_model(path)
             mean, var = m.gp_predict(m.inputs[:5], noise=True)
