@@ -85,12 +85,20 @@ def run_case(
     candidates: int = 40,
     sims: int = 4,
     amplitude: float = AMPLITUDE,
+    ideal: bool = False,
 ) -> dict:
-    """One seed of the benchmark (module docstring) in ``workdir``; its numbers."""
+    """One seed of the benchmark (module docstring) in ``workdir``; its numbers.
+
+    ``ideal``: actuators without imperfections (no lags, interference, spread,
+    backlash), so that the hidden delay is the plant's only delay.
+    """
     w = Path(workdir)
     w.mkdir(parents=True, exist_ok=True)
     truth = w / "truth.yaml"
-    truth.write_text(TRUTH_YAML)
+    truth.write_text(
+        TRUTH_YAML
+        + ("ideal: true                # actuators without imperfections\n" if ideal else "")
+    )
     task, first = w / "fig8.csv", w / "first.csv"
     omavctl(
         "task",
@@ -239,6 +247,9 @@ def main() -> None:
     ap.add_argument("--sims", type=int, default=4)
     ap.add_argument("--amplitude", type=float, default=AMPLITUDE)
     ap.add_argument("--out", type=Path, default=None, help="Write the Markdown results here.")
+    ap.add_argument(
+        "--ideal", action="store_true", help="ideal actuators: the hidden delay is the only one"
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
     results = []
@@ -249,6 +260,7 @@ def main() -> None:
             candidates=args.candidates,
             sims=args.sims,
             amplitude=args.amplitude,
+            ideal=args.ideal,
         )
         print(json.dumps({k: r[k] for k in ("seed", "se_ratio_vs_task", "se_ratio_vs_variance")}))
         for kind in ("first", *KINDS):

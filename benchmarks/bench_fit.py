@@ -11,7 +11,7 @@ files is benchmarked in ``bench_read.py``). Defaults otherwise: 200 points,
 
 Peak memory is the tracemalloc peak of the fit (numpy buffers included); the
 largest distance matrix built by k-medoids is recorded by wrapping
-``omavctl.learn.fit._sq_dist``: above ``KMEDOIDS_MAX_DIRECT`` samples it stays at
+``omavctl.learn.points._sq_dist``: above ``KMEDOIDS_MAX_DIRECT`` samples it stays at
 the subsample size, never n x n.
 """
 
@@ -25,6 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from omavctl.learn import fit as fit_module
+from omavctl.learn import points as points_module
 from omavctl.logs import FlightLog, align
 from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
@@ -63,13 +64,13 @@ def main() -> None:
     print(f"simulated {len(base)} flights of {DURATION:g} s in {time.perf_counter() - t0:.1f} s")
     rng = np.random.default_rng(0)
     largest = [0]
-    original = fit_module._sq_dist
+    original = points_module._sq_dist
 
     def recording(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         largest[0] = max(largest[0], a.shape[0] * b.shape[0])
         return original(a, b)
 
-    fit_module._sq_dist = recording  # type: ignore[assignment]
+    points_module._sq_dist = recording  # type: ignore[assignment]
     print(
         f"{'logs':>4} {'samples':>8} {'fit s':>7} {'k-medoids s':>11} {'GP s':>6} "
         f"{'peak MiB':>9} {'largest D':>12} {'n x n would be':>15}  selection"
@@ -91,7 +92,7 @@ def main() -> None:
             f"{s.timings['gp']:6.1f} {peak / 2**20:9.0f} {f'{side}x{side}':>12} "
             f"{n * n * 8 / 2**30:12.1f} GiB  {s.kmedoids}"
         )
-        assert largest[0] < n * n or n <= fit_module.KMEDOIDS_MAX_DIRECT
+        assert largest[0] < n * n or n <= points_module.KMEDOIDS_MAX_DIRECT
     maxrss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"process peak RSS {maxrss:.0f} MiB; total {time.perf_counter() - t0:.0f} s")
 

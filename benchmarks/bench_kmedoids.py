@@ -6,7 +6,7 @@ Run: python benchmarks/bench_kmedoids.py [--save X.npy | --load X.npy] [BACKEND 
 The 30 logs are those of ``bench_fit.py`` (three simulated 60 s figure-8
 flights, fresh gyro and command noise per copy). ``fit_model`` is run up to
 its training-point step and the normalised GP inputs it hands to
-:func:`omavctl.learn.fit.select_points` are kept (``--save`` writes them, ``--load``
+:func:`omavctl.learn.points.select_points` are kept (``--save`` writes them, ``--load``
 reads them instead of simulating, so that environments with different NumPy
 versions compare on the same matrix).
 
@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from omavctl.learn import fit as fit_module
+from omavctl.learn import fit_steps
+from omavctl.learn import points as points_module
 
 POINTS = 200
 N_LOGS = 30
@@ -58,23 +60,23 @@ def fit_inputs() -> np.ndarray:
     base = _flights()
     rng = np.random.default_rng(0)
     logs = [_variant(base[k % len(base)], k, rng) for k in range(N_LOGS)]
-    original = fit_module.select_points
+    original = fit_steps.select_points
 
     def capture(x: np.ndarray, k: int, seed: int = 0) -> tuple[np.ndarray, str]:
         raise _Captured(x.copy())
 
-    fit_module.select_points = capture  # type: ignore[assignment]
+    fit_steps.select_points = capture  # type: ignore[assignment]
     try:
         fit_module.fit_model(logs, seed=0)
     except _Captured as c:
         return c.x
     finally:
-        fit_module.select_points = original  # type: ignore[assignment]
+        fit_steps.select_points = original  # type: ignore[assignment]
     raise RuntimeError("fit_model did not reach select_points")
 
 
 def _sq(x: np.ndarray) -> np.ndarray:
-    return fit_module._sq_dist(x, x)
+    return points_module._sq_dist(x, x)
 
 
 def _sklearn_extra(method: str) -> Backend:
@@ -111,11 +113,11 @@ def _rustpam_defaults(x: np.ndarray, k: int, seed: int) -> np.ndarray:
     return np.asarray(km.fit(x).medoid_indices_, dtype=np.int64)
 
 
-_KMEDOIDS = fit_module._kmedoids
+_KMEDOIDS = points_module._kmedoids
 
 
 def _omavctl(x: np.ndarray, k: int, seed: int) -> np.ndarray:
-    """Whatever ``omavctl.learn.fit._kmedoids`` calls in this checkout."""
+    """Whatever ``omavctl.learn.points._kmedoids`` calls in this checkout."""
     return np.asarray(_KMEDOIDS(x, k))
 
 
@@ -132,16 +134,16 @@ DEFAULT = ("omavctl", "sklearn-extra-alternate", "rustpam-defaults", "banditpam-
 
 
 def _clara(backend: Backend, x: np.ndarray) -> np.ndarray:
-    original = fit_module._kmedoids
+    original = points_module._kmedoids
 
     def step(sub: np.ndarray, k: int, *_: object) -> np.ndarray:
         return backend(sub, k, 0)
 
-    fit_module._kmedoids = step  # type: ignore[assignment]
+    points_module._kmedoids = step  # type: ignore[assignment]
     try:
-        return fit_module.select_points(x, POINTS, seed=0)[0]
+        return points_module.select_points(x, POINTS, seed=0)[0]
     finally:
-        fit_module._kmedoids = original  # type: ignore[assignment]
+        points_module._kmedoids = original  # type: ignore[assignment]
 
 
 def main() -> None:
@@ -170,7 +172,7 @@ def main() -> None:
                 print(f"{name}: not importable ({exc})")
                 break
             assert len(np.unique(medoids)) == POINTS, name
-            cost = fit_module._cost(xs, xs[medoids])
+            cost = points_module._cost(xs, xs[medoids])
             rows.append((case, name, cost))
             head = ",".join(str(i) for i in medoids[:4])
             print(

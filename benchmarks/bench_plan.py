@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def _data(workdir: Path) -> dict[str, Path]:
     """Task CSVs and the 200-point model, built once."""
     from omavctl.learn.fit import fit_model
-    from omavctl.learn.model import save_model
+    from omavctl.learn.model_file import save_model
     from omavctl.logs import align
     from omavctl.sim.plant import simulate
     from omavctl.sim.tasks import fig8, pitch
@@ -65,7 +65,7 @@ def _case(spec: dict) -> dict:
 
     from threadpoolctl import threadpool_limits
 
-    from omavctl.learn.model import load_model
+    from omavctl.learn.model_file import load_model
     from omavctl.planning import PlanSettings, plan
     from omavctl.sim.trajectory import read_trajectory
 

@@ -30,7 +30,7 @@ from threadpoolctl import threadpool_limits
 
 from omavctl.diagnose.evaluate import evaluate
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import save_model
+from omavctl.learn.model_file import save_model
 from omavctl.learn.signal import DEFAULT_FEATURES
 from omavctl.logs import write_log
 from omavctl.sim.plant import simulate

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import load_model, save_model
+from omavctl.learn.model_file import load_model, save_model
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_vehicle_log, write_log
 from omavctl.planning import PlanSettings, plan

@@ -18,7 +18,7 @@ import pytest
 from omavctl.diagnose.evalio import write_evaluation
 from omavctl.diagnose.evaluate import evaluate
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import save_model
+from omavctl.learn.model_file import save_model
 from omavctl.logs import write_log
 from omavctl.report.evaluation import write_report
 from omavctl.sim.plant import simulate
@@ -75,7 +75,7 @@ def reports(tmp_path_factory, vehicle) -> dict[str, Path]:
 
 
 def save_and_load(path: Path):
-    from omavctl.learn.model import load_model
+    from omavctl.learn.model_file import load_model
 
     return load_model(path)
 

@@ -17,9 +17,10 @@ from typer.testing import CliRunner
 
 from omavctl.cli import app
 from omavctl.diagnose.evalio import load_evaluation, write_evaluation
-from omavctl.diagnose.evaluate import MIN_EXPLAINED, evaluate
+from omavctl.diagnose.evaluate import evaluate
+from omavctl.diagnose.scoring import MIN_EXPLAINED
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import save_model
+from omavctl.learn.model_file import save_model
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_vehicle_log, write_log
 from omavctl.physics.effects import get_effect

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 from omavctl.cli import app
 from omavctl.learn import fit as fit_module
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import load_model
+from omavctl.learn.model_file import load_model
 from omavctl.learn.signal import (
     DEFAULT_FEATURES,
     DEFAULT_SG_ORDER,

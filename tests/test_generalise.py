@@ -84,7 +84,7 @@ def test_clean_flights_claim_nothing(tmp_path, timing):
     nothing is claimed as learned."""
     from omavctl.diagnose.evaluate import evaluate
     from omavctl.learn.fit import fit_model
-    from omavctl.learn.model import save_model
+    from omavctl.learn.model_file import save_model
     from omavctl.logs import write_log
     from omavctl.sim.plant import simulate
     from omavctl.sim.tasks import fig8, wobble

@@ -1,4 +1,4 @@
-"""k-medoids (omavctl.learn.kmedoids, fit.select_points): PAM quality, determinism, and the
+"""k-medoids (omavctl.learn.kmedoids, points.select_points): PAM quality, determinism, and the
 same points under NumPy 1 and NumPy 2 (.ci/run runs this file in both environments)."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import itertools
 import numpy as np
 import pytest
 
-from omavctl.learn import fit as fit_module
-from omavctl.learn.fit import _cost, select_points
+from omavctl.learn import points as points_module
 from omavctl.learn.kmedoids import kmedoids
+from omavctl.learn.points import _cost, select_points
 
 
 def curve(n: int) -> np.ndarray:
@@ -42,8 +42,8 @@ def test_same_points_as_recorded_direct():
 
 
 def test_same_points_as_recorded_subsampled(monkeypatch):
-    monkeypatch.setattr(fit_module, "KMEDOIDS_MAX_DIRECT", 300)
-    monkeypatch.setattr(fit_module, "KMEDOIDS_SUBSAMPLE", 200)
+    monkeypatch.setattr(points_module, "KMEDOIDS_MAX_DIRECT", 300)
+    monkeypatch.setattr(points_module, "KMEDOIDS_SUBSAMPLE", 200)
     idx, how = select_points(curve(900), 10, seed=3)
     assert idx.tolist() == GOLDEN_SUBSAMPLED
     assert "3 seeded subsamples of 200 of 900" in how

@@ -14,7 +14,8 @@ from typer.testing import CliRunner
 
 from omavctl.base.errors import ModelError
 from omavctl.cli import app
-from omavctl.learn.model import SCHEMA, EffectEstimate, ResidualGP, load_model, save_model
+from omavctl.learn.model import SCHEMA, EffectEstimate, ResidualGP
+from omavctl.learn.model_file import load_model, save_model
 from omavctl.learn.signal import SavitzkyGolay, feature_names, usable_segments
 from omavctl.physics.controller import Controller, ControllerState
 

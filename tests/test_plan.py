@@ -8,7 +8,8 @@ from typer.testing import CliRunner
 
 from omavctl.cli import app
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import SCHEMA, load_model, save_model
+from omavctl.learn.model import SCHEMA
+from omavctl.learn.model_file import load_model, save_model
 from omavctl.logs import align
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
 from omavctl.planning.planner import PlanSettings, _test_points, plan

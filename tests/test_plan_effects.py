@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from omavctl.cli import app
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import save_model
+from omavctl.learn.model_file import save_model
 from omavctl.logs import align
 from omavctl.planning.effects_objective import (
     EffectsPrior,

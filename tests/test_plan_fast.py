@@ -11,7 +11,8 @@ from typer.testing import CliRunner
 
 from omavctl.cli import app
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import ResidualGP, save_model
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.model_file import save_model
 from omavctl.logs import align
 from omavctl.planning import PlanSettings, plan
 from omavctl.planning.candidates import ReferenceStream, deviated_references, sample_coefficients

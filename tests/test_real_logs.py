@@ -17,8 +17,10 @@ from typer.testing import CliRunner
 
 from omavctl.base.errors import ConfigError, ModelError
 from omavctl.cli import app
-from omavctl.learn.fit import GAIN_EFFECT, fit_model, torque_gain, upsampling_note
-from omavctl.learn.model import check_vehicle, load_model
+from omavctl.learn.effect_fit import GAIN_EFFECT, torque_gain
+from omavctl.learn.fit import fit_model
+from omavctl.learn.flights import upsampling_note
+from omavctl.learn.model_file import check_vehicle, load_model
 from omavctl.logs import RawLog, RawSeries, align, read_vehicle_log, write_log
 from omavctl.logs.contract import quaternion_from_euler
 from omavctl.logs.frames import FRD_TO_FLU

@@ -19,7 +19,7 @@ from omavctl.cli import app
 from omavctl.diagnose.evalio import write_evaluation
 from omavctl.diagnose.evaluate import evaluate
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import save_model
+from omavctl.learn.model_file import save_model
 from omavctl.logs import write_log
 from omavctl.report.evaluation import render_report, write_report
 from omavctl.sim.plant import simulate

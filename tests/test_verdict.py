@@ -13,7 +13,7 @@ from omavctl.diagnose.verdict import (
     scores_of_files,
     verdict,
 )
-from omavctl.report.evaluation import _param_lines
+from omavctl.report.diagnosis import _param_lines
 
 
 def _tree(rmse: dict, coverage: dict, missing: list[str], effects: dict | None = None) -> dict:

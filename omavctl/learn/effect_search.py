@@ -184,7 +184,8 @@ def gls_search(
     explain (a smooth function of its inputs: rotor interference, say) biases it.
     Here, for a trial value, the residual at the training points (indices
     ``train_index`` into the stacked samples) minus the exact form is scored by
-    the generalised least squares of the joint step (:func:`omavctl.learn.fit.joint_effects`):
+    the generalised least squares of the joint step
+    (:func:`omavctl.learn.effect_fit.joint_effects`):
     ``J = sum_a r_a^T K_a^-1 r_a + |(theta - m) / s|^2`` with the linear effects'
     theta profiled (x_linear (m, 3, p) their regressors there, prior (m, s)),
     ``K_a`` the GP covariance with hyperparameters ``hyper`` = (target means,

@@ -1,4 +1,4 @@
-"""The k-medoids library call behind :func:`omavctl.learn.fit.select_points`.
+"""The k-medoids library call behind :func:`omavctl.learn.points.select_points`.
 
 rustpam's ``OneBatchPAM`` (MIT licence, a Rust core with wheels for NumPy 1
 and 2) with its batch set to all samples, so that every sample is both a swap

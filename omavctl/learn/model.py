@@ -16,65 +16,21 @@ kernel on normalised inputs ``zn = (z - input_mean) / input_scale``::
 Predictions are computed here in numpy (Cholesky of ``K + sigma^2 I``), so
 loading and using a model never needs scikit-learn.
 
-File format (``.npz``, schema ``omavctl.model/1``; loadable with
-``numpy.load(allow_pickle=False)``; strings are numpy unicode scalars, JSON for
-structured data):
-
-=================  ==========  ==================================================
-key                shape       meaning
-=================  ==========  ==================================================
-schema             ()          ``"omavctl.model/1"``
-features           ()          ``"wrench"`` or ``"wrench+rate"``
-input_names        (d,)        GP input columns (``fx/m`` ... ``wz``)
-train_inputs       (n, d)      training inputs z, physical units
-train_targets      (n, 3)      residual minus effects at the inputs, rad/s^2
-input_mean         (d,)        input normalisation: zn = (z - mean) / scale
-input_scale        (d,)
-target_mean        (3,)        constant prior mean per axis, rad/s^2
-signal_variance    (3,)        s^2 per axis, (rad/s^2)^2
-length_scales      (3, d)      l per axis and input, in normalised input units
-noise_variance     (3,)        sigma^2 per axis, (rad/s^2)^2
-latent_scale       (3,)        optional: factor on the posterior (latent) variance
-                               in predictions, fit's extrapolation calibration
-                               (absent: 1). An axis whose GP ``fit`` switched off
-                               has signal_variance 0 and target_mean 0.
-effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..]}}``
-vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
-provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
-                               GP fitting settings, seed, omavctl version
-regressor_<name>   (n, 3, p)   optional, one per registered effect: its regressor
-                               at the training points (held like the residual);
-                               ``evaluate`` uses them to score effects the GP may
-                               have partly absorbed
-=================  ==========  ==================================================
-
-Version history: ``omavctl.model/1`` (omavctl 0.1); the optional
-``regressor_<name>`` keys were added within version 1 (readers that do not
-know them ignore them; files without them load, their diagnosis then ignores
-what the GP absorbed).
-
-Files are written deterministically (fixed zip timestamps, sorted JSON):
-the same inputs give the same bytes.
+The file that holds it (schema ``omavctl.model/1``): :mod:`omavctl.learn.model_file`.
 """
 
 from __future__ import annotations
 
-import io
 import json
 import math
-import re
-import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
-from omavctl.base.atomic import atomic_path
-from omavctl.base.errors import ModelError, library_reason
-from omavctl.physics.effects import EFFECTS, Effect, EffectContext, get_effect
+from omavctl.physics.effects import Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
 
@@ -82,33 +38,12 @@ __all__ = [
     "SCHEMA",
     "EffectEstimate",
     "ResidualGP",
-    "check_vehicle",
-    "load_model",
-    "save_model",
 ]
 
 SCHEMA_NAME = "omavctl.model"
 SCHEMA_VERSION = 1
 SCHEMA = f"{SCHEMA_NAME}/{SCHEMA_VERSION}"
 
-#: Keys of the model file, in the order they are written.
-_KEYS = (
-    "schema",
-    "features",
-    "input_names",
-    "train_inputs",
-    "train_targets",
-    "input_mean",
-    "input_scale",
-    "target_mean",
-    "signal_variance",
-    "length_scales",
-    "noise_variance",
-    "effects",
-    "vehicle",
-    "provenance",
-)
-_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 #: Query rows per block in predictions (bounds the (B, n) kernel matrix).
 _CHUNK = 4096
 
@@ -146,22 +81,12 @@ class EffectEstimate:
         return out
 
 
-def _vehicle_from_json(text: str, source: str) -> Vehicle:
-    """The vehicle stored in a model (its merged YAML tree as JSON)."""
-    # vehicle.py has no public "vehicle from a tree" yet; _build validates the tree.
-    from omavctl.vehicle import _build
-
-    tree = json.loads(text)
-    if not isinstance(tree, dict):
-        raise ValueError("vehicle is not a mapping")
-    return _build(tree, None, source)
-
-
 class ResidualGP:
     """Effects plus an independent GP per body axis (see module docstring).
 
-    Built by :func:`omavctl.learn.fit.fit_model` or :func:`load_model`; the Cholesky
-    factors and weights are computed once, at construction. Attributes (read-only by
+    Built by :func:`omavctl.learn.fit.fit_model` or
+    :func:`omavctl.learn.model_file.load_model`; the Cholesky factors and weights
+    are computed once, at construction. Attributes (read-only by
     convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
     (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,),
     ``target_mean`` (3,), ``signal_variance`` (3,), ``length_scales`` (3, d),
@@ -351,7 +276,7 @@ class ResidualGP:
         targets still contain the effect (the model was fitted without it).
         Mirrors ``fit``: ordinary least squares first, the GP's target mean
         taken after removing it, then the generalised least squares of the
-        joint step (:func:`omavctl.learn.fit.joint_effects`) with this model's
+        joint step (:func:`omavctl.learn.effect_fit.joint_effects`) with this model's
         hyperparameters and prior N(0, diag prior_std^2). Returns theta (p,)
         and its covariance (p, p). ``fit`` also re-optimises the
         hyperparameters and reselects its points from every sample: this is
@@ -481,7 +406,7 @@ class ResidualGP:
 
     # ----------------------------------------------------------- persistence
     def to_arrays(self) -> dict[str, np.ndarray]:
-        """The file's arrays by key (see module docstring)."""
+        """The file's arrays by key (:mod:`omavctl.learn.model_file` lists them)."""
         effects = {name: est.to_json() for name, est in sorted(self.effects.items())}
         return {
             "schema": np.array(SCHEMA),
@@ -501,255 +426,3 @@ class ResidualGP:
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
             **{f"regressor_{k}": v for k, v in sorted(self.train_regressors.items())},
         }
-
-
-# ---------------------------------------------------------------- save / load
-def save_model(path: str | Path, model: ResidualGP) -> None:
-    """Write ``model`` to ``path`` (.npz) atomically and deterministically."""
-    arrays = model.to_arrays()
-    keys = [*_KEYS, *sorted(k for k in arrays if k not in _KEYS)]
-    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED) as zf:
-        for key in keys:
-            arr = np.asarray(arrays[key])
-            if arr.dtype.hasobject:  # pragma: no cover - guarded by construction
-                raise ModelError(f"refusing to write object array '{key}'", path)
-            if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
-                raise ModelError(f"refusing to write non-finite values in '{key}'", path)
-            buf = io.BytesIO()
-            np.lib.format.write_array(buf, arr, allow_pickle=False)
-            info = zipfile.ZipInfo(f"{key}.npy", date_time=_ZIP_DATE)
-            info.external_attr = 0o644 << 16
-            info.compress_type = zipfile.ZIP_STORED
-            zf.writestr(info, buf.getvalue())
-
-
-def _check_schema(value: str, path: Path) -> None:
-    m = re.fullmatch(r"(.+)/(\d+)", value)
-    if m is None or m.group(1) != SCHEMA_NAME:
-        raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
-    version = int(m.group(2))
-    if version > SCHEMA_VERSION:
-        raise ModelError(f"schema '{value}' is newer than this omavctl supports ({SCHEMA})", path)
-    if version < 1:
-        raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
-
-
-def _read_members(path: Path) -> dict[str, np.ndarray]:
-    """Every array of the npz, refusing pickles and object arrays."""
-    try:
-        with path.open("rb") as f:
-            head = f.read(4)
-    except IsADirectoryError:
-        raise ModelError("is a directory, not a model file (.npz)", path) from None
-    except OSError as err:
-        raise ModelError(f"cannot read: {err.strerror or err}", path) from None
-    if head[:1] == b"\x80":
-        raise ModelError("contains pickled data; refusing to load", path)
-    if not zipfile.is_zipfile(path):
-        raise ModelError("not an omavctl model: expected an .npz (zip) file", path)
-    try:
-        with zipfile.ZipFile(path) as zf:
-            for info in zf.infolist():
-                if not info.filename.endswith(".npy"):
-                    raise ModelError(
-                        f"unexpected member '{info.filename}': not an omavctl model", path
-                    )
-                with zf.open(info) as f:
-                    version = np.lib.format.read_magic(f)
-                    if version == (1, 0):
-                        _, _, dtype = np.lib.format.read_array_header_1_0(f)
-                    else:
-                        _, _, dtype = np.lib.format.read_array_header_2_0(f)
-                if dtype.hasobject:
-                    raise ModelError("contains pickled data; refusing to load", path)
-        out: dict[str, np.ndarray] = {}
-        with np.load(path, allow_pickle=False) as npz:
-            for key in npz.files:
-                out[key] = np.asarray(npz[key])
-        return out
-    except ModelError:
-        raise
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as err:
-        text = str(err)
-        if "pickle" in text:
-            raise ModelError("contains pickled data; refusing to load", path) from None
-        raise ModelError(f"corrupt model file: {library_reason(err)}", path) from None
-
-
-def _text(arrays: Mapping[str, np.ndarray], key: str, path: Path) -> str:
-    arr = arrays[key]
-    if arr.shape != () or arr.dtype.kind != "U":
-        raise ModelError(f"key '{key}' must be a string", path)
-    return str(arr)
-
-
-def _json(arrays: Mapping[str, np.ndarray], key: str, path: Path) -> Any:
-    try:
-        return json.loads(_text(arrays, key, path))
-    except json.JSONDecodeError as err:
-        raise ModelError(f"key '{key}' is not valid JSON: {err.msg}", path) from None
-
-
-def _float(
-    arrays: Mapping[str, np.ndarray], key: str, shape: tuple[int, ...], path: Path
-) -> np.ndarray:
-    arr = arrays[key]
-    if arr.dtype.kind not in "fi" or arr.shape != shape:
-        raise ModelError(f"key '{key}' must be numbers of shape {shape}, got {arr.shape}", path)
-    arr = arr.astype(float)
-    if not np.all(np.isfinite(arr)):
-        raise ModelError(f"key '{key}' has non-finite values", path)
-    if arr.size and np.max(np.abs(arr)) > MAX_MAGNITUDE:
-        raise ModelError(
-            f"key '{key}' holds implausible values (up to {np.max(np.abs(arr)):.3g})", path
-        )
-    return arr
-
-
-#: Largest magnitude of any number in a model: normalised inputs, rad/s^2 targets,
-#: variances and effect parameters are all far below it; beyond is a corrupt file.
-MAX_MAGNITUDE = 1e12
-
-
-def _effects_from_json(tree: Any, path: Path) -> dict[str, EffectEstimate]:
-    if not isinstance(tree, dict):
-        raise ModelError("key 'effects' must map effect names to parameters", path)
-    out: dict[str, EffectEstimate] = {}
-    for name, params in tree.items():
-        try:
-            effect = get_effect(name)
-        except Exception:
-            raise ModelError(f"unknown effect '{name}' in the model", path) from None
-        values, stderr = {}, {}
-        for p in effect.parameters:
-            try:
-                values[p.name] = np.asarray(params[p.name], dtype=float).reshape(p.size)
-                stderr[p.name] = np.asarray(params[f"{p.name}_stderr"], dtype=float).reshape(p.size)
-            except (KeyError, TypeError, ValueError):
-                raise ModelError(
-                    f"effect '{name}': parameter '{p.name}' missing or not {p.size} number(s)",
-                    path,
-                ) from None
-            both = np.concatenate([values[p.name], stderr[p.name]])
-            both = np.nan_to_num(both, nan=0.0, posinf=0.0, neginf=0.0)
-            if not np.all(np.isfinite(values[p.name])) or np.any(np.abs(both) > MAX_MAGNITUDE):
-                raise ModelError(
-                    f"effect '{name}': parameter '{p.name}' is not finite or implausible", path
-                )
-        out[name] = EffectEstimate(name, values, stderr)
-    return out
-
-
-def load_model(path: str | Path) -> ResidualGP:
-    """Read a model file; :class:`ModelError` for anything but a valid ``omavctl.model/1``.
-
-    Refuses: a missing file, a file that is not an npz, pickled data or object
-    arrays, a missing or unknown schema, a newer schema, missing keys, wrong
-    shapes, non-finite values.
-    """
-    p = Path(path)
-    if not p.exists():
-        raise ModelError("file not found", p)
-    arrays = _read_members(p)
-    if "schema" not in arrays:
-        raise ModelError("no 'schema' key: not an omavctl model", p)
-    _check_schema(_text(arrays, "schema", p), p)
-    missing = [k for k in _KEYS if k not in arrays]
-    if missing:
-        raise ModelError(f"missing keys: {', '.join(missing)}", p)
-    features = _text(arrays, "features", p)
-    names_arr = arrays["input_names"]
-    if names_arr.ndim != 1 or names_arr.dtype.kind != "U":
-        raise ModelError("key 'input_names' must be a list of strings", p)
-    names = tuple(str(x) for x in names_arr)
-    d = len(names)
-    expected_d = {
-        "wrench": 6,
-        "wrench+rate": 9,
-        "wrench+dtorque": 9,
-        "wrench+rate+dtorque": 12,
-    }.get(features)
-    if expected_d != d:
-        raise ModelError(f"features '{features}' do not match {d} input names", p)
-    n = arrays["train_inputs"].shape[0] if arrays["train_inputs"].ndim == 2 else -1
-    if n < 1:
-        raise ModelError("key 'train_inputs' must be a non-empty (n, d) array", p)
-    inputs = _float(arrays, "train_inputs", (n, d), p)
-    targets = _float(arrays, "train_targets", (n, 3), p)
-    scale = _float(arrays, "input_scale", (d,), p)
-    sv = _float(arrays, "signal_variance", (3,), p)
-    ls = _float(arrays, "length_scales", (3, d), p)
-    nv = _float(arrays, "noise_variance", (3,), p)
-    if np.any(scale <= 0) or np.any(sv < 0) or np.any(ls <= 0) or np.any(nv < 0):
-        raise ModelError("scales, variances and length scales must be positive", p)
-    if np.any((sv == 0) & (nv <= 0)):
-        raise ModelError("an axis with its GP off (signal variance 0) needs a noise variance", p)
-    latent = _float(arrays, "latent_scale", (3,), p) if "latent_scale" in arrays else None
-    if latent is not None and np.any(latent <= 0):
-        raise ModelError("key 'latent_scale' must be positive", p)
-    try:
-        vehicle = _vehicle_from_json(_text(arrays, "vehicle", p), f"model {p.name}")
-    except ModelError:
-        raise
-    except (ValueError, KeyError, TypeError) as err:  # includes ConfigError, JSON errors
-        raise ModelError(f"key 'vehicle' is not a valid vehicle: {err}", p) from None
-    provenance = _json(arrays, "provenance", p)
-    if not isinstance(provenance, dict):
-        raise ModelError("key 'provenance' must be a JSON object", p)
-    regressors = {}
-    for key in sorted(arrays):
-        if not key.startswith("regressor_"):
-            continue
-        name = key[len("regressor_") :]
-        if name not in EFFECTS:
-            continue  # an effect this omavctl does not know: its regressor is unused
-        size = get_effect(name).n_theta
-        regressors[name] = _float(arrays, key, (n, 3, size), p)
-    try:
-        return ResidualGP(
-            vehicle=vehicle,
-            features=features,
-            input_names=names,
-            inputs=inputs,
-            targets=targets,
-            input_mean=_float(arrays, "input_mean", (d,), p),
-            input_scale=scale,
-            target_mean=_float(arrays, "target_mean", (3,), p),
-            signal_variance=sv,
-            length_scales=ls,
-            noise_variance=nv,
-            latent_scale=latent,
-            effects=_effects_from_json(_json(arrays, "effects", p), p),
-            provenance=provenance,
-            train_regressors=regressors,
-        )
-    except (np.linalg.LinAlgError, ValueError) as err:
-        reason = library_reason(err, "its arrays do not fit together")
-        raise ModelError(f"inconsistent model: {reason}", p) from None
-
-
-def check_vehicle(model: ResidualGP, vehicle: Vehicle, path: str | Path | None = None) -> None:
-    """ModelError unless ``vehicle`` has the mass, inertia and command units the model
-    was fitted for (the inputs u = [f/m, I^-1 tau] depend on them)."""
-    mv = model.vehicle
-    if not (
-        math.isclose(mv.mass, vehicle.mass, rel_tol=1e-9)
-        and np.allclose(mv.inertia, vehicle.inertia, rtol=1e-9, atol=0)
-    ):
-        raise ModelError(
-            f"model was fitted for a vehicle of mass {mv.mass:g} kg and inertia diagonal "
-            f"{np.round(np.diag(mv.inertia), 6).tolist()} kg m^2; this vehicle has "
-            f"{vehicle.mass:g} kg and {np.round(np.diag(vehicle.inertia), 6).tolist()} kg m^2",
-            path,
-        )
-    if mv.command_units != vehicle.command_units:
-        raise ModelError(
-            f"model was fitted for commands in {_units(mv.command_units)}; this vehicle's "
-            f"commands are in {_units(vehicle.command_units)} (command_units)",
-            path,
-        )
-
-
-def _units(units: Mapping[str, str]) -> str:
-    """``"torque N m, force N"``: command units for messages."""
-    return ", ".join(f"{k} {units.get(k, '?')}" for k in ("torque", "force"))

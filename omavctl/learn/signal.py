@@ -45,7 +45,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
-from omavctl.physics.effects import EffectContext, get_effect
+from omavctl.physics.effects import Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import angular_acceleration
 from omavctl.vehicle import Vehicle
 
@@ -334,80 +334,122 @@ def residual_samples(
     alloc = allocation
     if eff and alloc is None:
         alloc = Allocation(vehicle)
-    contexts: list[tuple[EffectContext, slice]] = []
-    inertia, inertia_inv = vehicle.inertia, vehicle.inertia_inv
-
-    parts: dict[str, list[np.ndarray]] = {
-        k: [] for k in ("index", "omega", "u", "du", "omega_dot", "nominal", "residual")
-    }
-    reg_parts: dict[str, list[np.ndarray]] = {name: [] for name in effects}
-    second_differences: list[np.ndarray] = []
     extra = dict(extra or {})
-    held_parts: dict[str, list[np.ndarray]] = {name: [] for name in extra}
-    for a, b, ka, kb in kept:
-        omega = flight.signals["body_rate"][a:b]
-        force = flight.signals["force_command"][a:b]
-        torque = flight.signals["torque_command"][a:b]
-        keep = slice(ka - a, kb - a)
-        nominal = angular_acceleration(omega, torque, inertia, inertia_inv)
-        omega_dot = sg.derivative(omega)
-        held_nominal = sg.hold(nominal)
-        second_differences.append(np.diff(omega, 2, axis=0))
-        parts["index"].append(np.arange(ka, kb))
-        parts["omega"].append(sg.hold(omega)[keep])
-        u = scaled_wrench(force, torque, vehicle)
-        parts["u"].append(sg.hold(u)[keep])
-        parts["du"].append(sg.hold(sg.derivative(u))[keep])
-        parts["omega_dot"].append(omega_dot[keep])
-        parts["nominal"].append(held_nominal[keep])
-        parts["residual"].append((omega_dot - held_nominal)[keep])
-        if eff:
-            assert alloc is not None
-            ctx = EffectContext(
-                omega=omega,
-                force=force,
-                torque=torque,
-                omega_dot_nominal=nominal,
-                inertia=inertia,
-                dt=sg.dt,
-                allocation=alloc,
-                derivative=sg.derivative,
-                torque_normalised=vehicle.torque_normalised,
-            )
-            for e in eff:
-                reg_parts[e.name].append(sg.hold(e.regressor(ctx))[keep])
-            contexts.append((ctx, keep))
-        for name, role in extra.items():
-            held_parts[name].append(sg.hold(flight.signals[role][a:b])[keep])
+    parts = _Parts.empty(effects, extra)
+    for segment in kept:
+        _add_segment(parts, flight, vehicle, sg, segment, eff, alloc, extra)
+    return _assemble(flight, parts, extra, sg, (edge, short))
 
-    def cat(chunks: list[np.ndarray], tail: tuple[int, ...]) -> np.ndarray:
-        return np.concatenate(chunks) if chunks else np.empty((0, *tail))
 
-    index = cat(parts["index"], ()).astype(np.int64)
+@dataclass
+class _Parts:
+    """Per-segment pieces of :class:`ResidualSamples`, concatenated by :func:`_assemble`."""
+
+    arrays: dict[str, list[np.ndarray]]
+    regressors: dict[str, list[np.ndarray]]
+    held: dict[str, list[np.ndarray]]
+    second_differences: list[np.ndarray]
+    contexts: list[tuple[EffectContext, slice]]
+
+    @classmethod
+    def empty(cls, effects: Sequence[str], extra: Mapping[str, str]) -> _Parts:
+        keys = ("index", "omega", "u", "du", "omega_dot", "nominal", "residual")
+        return cls(
+            {k: [] for k in keys}, {name: [] for name in effects}, {n: [] for n in extra}, [], []
+        )
+
+
+def _add_segment(
+    parts: _Parts,
+    flight: FlightLog,
+    vehicle: Vehicle,
+    sg: SavitzkyGolay,
+    segment: tuple[int, int, int, int],
+    eff: Sequence[Effect],
+    alloc: Allocation | None,
+    extra: Mapping[str, str],
+) -> None:
+    """Append one kept segment ``(start, stop, keep_start, keep_stop)`` to ``parts``:
+    derivative, held nominal acceleration, held inputs, effect regressors and roles."""
+    a, b, ka, kb = segment
+    inertia, inertia_inv = vehicle.inertia, vehicle.inertia_inv
+    omega = flight.signals["body_rate"][a:b]
+    force = flight.signals["force_command"][a:b]
+    torque = flight.signals["torque_command"][a:b]
+    keep = slice(ka - a, kb - a)
+    nominal = angular_acceleration(omega, torque, inertia, inertia_inv)
+    omega_dot = sg.derivative(omega)
+    held_nominal = sg.hold(nominal)
+    parts.second_differences.append(np.diff(omega, 2, axis=0))
+    parts.arrays["index"].append(np.arange(ka, kb))
+    parts.arrays["omega"].append(sg.hold(omega)[keep])
+    u = scaled_wrench(force, torque, vehicle)
+    parts.arrays["u"].append(sg.hold(u)[keep])
+    parts.arrays["du"].append(sg.hold(sg.derivative(u))[keep])
+    parts.arrays["omega_dot"].append(omega_dot[keep])
+    parts.arrays["nominal"].append(held_nominal[keep])
+    parts.arrays["residual"].append((omega_dot - held_nominal)[keep])
+    if eff:
+        assert alloc is not None
+        ctx = EffectContext(
+            omega=omega,
+            force=force,
+            torque=torque,
+            omega_dot_nominal=nominal,
+            inertia=inertia,
+            dt=sg.dt,
+            allocation=alloc,
+            derivative=sg.derivative,
+            torque_normalised=vehicle.torque_normalised,
+        )
+        for e in eff:
+            parts.regressors[e.name].append(sg.hold(e.regressor(ctx))[keep])
+        parts.contexts.append((ctx, keep))
+    for name, role in extra.items():
+        parts.held[name].append(sg.hold(flight.signals[role][a:b])[keep])
+
+
+def _cat(chunks: list[np.ndarray], tail: tuple[int, ...]) -> np.ndarray:
+    """The chunks concatenated along time, or an empty (0, *tail) array."""
+    return np.concatenate(chunks) if chunks else np.empty((0, *tail))
+
+
+def _assemble(
+    flight: FlightLog,
+    parts: _Parts,
+    extra: Mapping[str, str],
+    sg: SavitzkyGolay,
+    dropped: tuple[int, int],
+) -> ResidualSamples:
+    """The samples of every kept segment of ``flight`` together; ``dropped``: samples
+    dropped at segment edges and in segments shorter than the window."""
+    arrays = parts.arrays
+    index = _cat(arrays["index"], ()).astype(np.int64)
     regressors = {
-        name: cat(chunks, (3, get_effect(name).n_theta)) for name, chunks in reg_parts.items()
+        name: _cat(chunks, (3, get_effect(name).n_theta))
+        for name, chunks in parts.regressors.items()
     }
     held = {
-        name: cat(held_parts[name], (flight.signals[role].shape[1],))
+        name: _cat(parts.held[name], (flight.signals[role].shape[1],))
         for name, role in extra.items()
     }
     return ResidualSamples(
         path=flight.path,
         index=index,
         t=flight.t[index],
-        omega=cat(parts["omega"], (3,)),
-        u=cat(parts["u"], (6,)),
-        du=cat(parts["du"], (6,)),
-        omega_dot=cat(parts["omega_dot"], (3,)),
-        nominal=cat(parts["nominal"], (3,)),
-        residual=cat(parts["residual"], (3,)),
+        omega=_cat(arrays["omega"], (3,)),
+        u=_cat(arrays["u"], (6,)),
+        du=_cat(arrays["du"], (6,)),
+        omega_dot=_cat(arrays["omega_dot"], (3,)),
+        nominal=_cat(arrays["nominal"], (3,)),
+        residual=_cat(arrays["residual"], (3,)),
         regressors=regressors,
         held=held,
-        rate_noise=rate_noise(cat(second_differences, (3,))),
+        rate_noise=rate_noise(_cat(parts.second_differences, (3,))),
         total=int(flight.t.size),
         in_gaps=int((~flight.valid).sum()),
-        edge_dropped=edge,
-        short_dropped=short,
-        contexts=contexts,
+        edge_dropped=dropped[0],
+        short_dropped=dropped[1],
+        contexts=parts.contexts,
         sg=sg,
     )

@@ -5,7 +5,7 @@ integrated over the task region (mean over the S test points and the three
 axes) after adding the points ``fit`` would pick from the flight, averaged
 over the M simulations. Two ways to pick the points:
 
-* ``kmedoids`` (reference): :func:`omavctl.learn.fit.select_points` per simulation,
+* ``kmedoids`` (reference): :func:`omavctl.learn.points.select_points` per simulation,
   exactly what ``fit`` does; about 25 ms per simulation in a Python loop.
 * ``batched`` (default): all simulations at once: medoids evenly spaced in
   time, then two steps of the alternating k-medoids update (assign to the
@@ -75,7 +75,7 @@ def kmedoids_picks(inputs: np.ndarray, points: int, seed: int) -> np.ndarray:
 
     Fewer samples than points: padded by repetition (adds no information beyond noise).
     """
-    from omavctl.learn.fit import select_points
+    from omavctl.learn.points import select_points
 
     out = np.empty((inputs.shape[0], points, inputs.shape[2]))
     for b in range(inputs.shape[0]):

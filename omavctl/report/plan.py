@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from omavctl.base.atomic import atomic_path
+from omavctl.report.document import Cell, Document, FigureBlock, Heading, Para, Table, to_html
 from omavctl.report.figures import png, style
 
 if TYPE_CHECKING:
@@ -96,15 +97,6 @@ def cost_figure(result: PlanResult) -> bytes:
 def plan_document(task: Trajectory, result: PlanResult) -> str:
     """The plan report as an HTML string."""
     from omavctl.planning.effects_objective import effects_summary
-    from omavctl.report.evaluation import (
-        Cell,
-        Document,
-        FigureBlock,
-        Heading,
-        Para,
-        Table,
-        _html,
-    )
 
     best = result.best_trajectory()
     gain = result.versus_task(float(result.cost[result.best]))
@@ -150,7 +142,7 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     doc.add(Table(["candidate", "cost", "vs task", "tracking, rad/s²"], rows))
     for note in result.notes:
         doc.add(Para(f"note: {note}", note=True))
-    return _html(doc)
+    return to_html(doc)
 
 
 def write_plan_report(out: str | Path, task: Trajectory, result: PlanResult) -> None:

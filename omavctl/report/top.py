@@ -15,16 +15,8 @@ import numpy as np
 
 from omavctl.diagnose.verdict import report_verdict
 from omavctl.report import figures as rf
-from omavctl.report.evaluation import (
-    Block,
-    Bullets,
-    Content,
-    Evaluation,
-    FigureBlock,
-    Heading,
-    Inline,
-    Span,
-)
+from omavctl.report.document import Block, Bullets, Content, FigureBlock, Heading, Inline, Span
+from omavctl.report.load import Evaluation
 
 __all__ = ["figure_sections", "verdict_section"]
 

@@ -155,14 +155,14 @@ def check_output(path: Path, kind: str) -> str | None:
         return "output missing"
     try:
         if kind == "model":
-            from omavctl.learn.model import load_model
+            from omavctl.learn.model_file import load_model
 
             m = load_model(path)
             mean, var = m.gp_predict(m.inputs[:5], noise=True)
             if not (np.all(np.isfinite(mean)) and var is not None and np.all(np.isfinite(var))):
                 return "model predicts non-finite values"
         elif kind == "eval":
-            from omavctl.report.evaluation import load_for_report
+            from omavctl.report.load import load_for_report
 
             _finite_json(path.read_text())
             _, series = load_for_report(path)

@@ -1,0 +1,85 @@
+"""``omavctl evaluate``: compare models with a flight: verdict, errors, missing physics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from omavctl.cli.app import app
+from omavctl.cli.common import Json, Quiet, console, emit, reports_errors
+
+Logs = Annotated[
+    list[Path],
+    typer.Argument(
+        metavar="LOG...",
+        help="Flight logs to compare the models with (ROS 1 .bag, ROS 2 bag directory, "
+        ".mcap or .csv); best not the ones the model was fitted on.",
+    ),
+]
+Models = Annotated[
+    list[Path],
+    typer.Option(
+        "--model",
+        "-m",
+        metavar="MODEL.npz",
+        help="Model written by fit (repeat to compare several models side by side; the "
+        "first one is diagnosed).",
+    ),
+]
+EvalOut = Annotated[
+    Path | None,
+    typer.Option(
+        "--out",
+        "-o",
+        metavar="EVAL.json",
+        help="Evaluation JSON (schema omavctl.eval/1); time series go to "
+        "<stem>.series.npz beside it. Default: <model stem>.eval.json beside the first "
+        "model.",
+    ),
+]
+Mcap = Annotated[
+    Path | None,
+    typer.Option(
+        "--mcap",
+        metavar="SERIES.mcap",
+        help="MCAP file of the time series for Foxglove/PlotJuggler (measured, predicted, "
+        "2σ band, nominal, physics-only, worst-segment markers; JSON channels on the log's "
+        "own time stamps). Default: <stem>.series.mcap beside the evaluation JSON.",
+    ),
+]
+TimeWindow = Annotated[
+    str | None,
+    typer.Option(
+        metavar="START:END",
+        help="Only samples with START <= t < END (s from log start), e.g. 15: or 2.5:10.",
+    ),
+]
+
+
+@app.command(short_help="Compare models with a flight: verdict, errors, missing physics.")
+@reports_errors
+def evaluate(
+    logs: Logs,
+    model: Models,
+    out: EvalOut = None,
+    mcap: Mcap = None,
+    time_window: TimeWindow = None,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Compare models with measured angular accelerations, find where they fail, and
+    diagnose which physical effect is missing.
+
+    Prints the verdict first (what is missing and the fit command that adds it, where
+    the model fails and what the vehicle was doing, whether its 2σ band can be trusted),
+    then the RMSE (rad/s^2) of the nominal model, nominal + effects and each model side
+    by side. Writes the evaluation JSON, its .series.npz and an MCAP of the series.
+    """
+    from omavctl.report.run import run_evaluation
+    from omavctl.report.summary import evaluation_json, render_evaluation
+
+    run = run_evaluation(logs, model, out, mcap, time_window)
+    render_evaluation(console(quiet), run.result.tree, run.files)
+    emit(as_json, evaluation_json(run.result.tree, run.files))

@@ -1,0 +1,215 @@
+"""``omavctl fit``: learn a residual model (effects + GP) from flight logs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from omavctl.cli.app import app
+from omavctl.cli.common import Json, Quiet, VehicleOpt, console, emit, reports_errors
+
+Logs = Annotated[
+    list[Path],
+    typer.Argument(
+        metavar="LOG...",
+        help="Flight logs: ROS 1 .bag, ROS 2 bag directories, .mcap or wide .csv.",
+    ),
+]
+ModelOut = Annotated[
+    Path,
+    typer.Option(
+        "--out",
+        "-o",
+        metavar="MODEL.npz",
+        help="Output model file (.npz, schema omavctl.model/1).",
+    ),
+]
+Effects = Annotated[
+    str | None,
+    typer.Option(
+        help="Physical effects to estimate by least squares and subtract before the GP: "
+        "comma-separated registry names, e.g. rotational_drag,com_offset (an unknown name "
+        "lists the known ones). Default: the vehicle YAML's 'effects:' list.",
+    ),
+]
+Points = Annotated[
+    int, typer.Option(help="GP training points chosen from the new logs by k-medoids.")
+]
+Prior = Annotated[
+    Path | None,
+    typer.Option(
+        help="Earlier model (.npz): its training points are kept and the new ones added "
+        "(hyperparameters are re-fitted). Needs the same --features and effects.",
+    ),
+]
+SgWindow = Annotated[
+    int,
+    typer.Option(
+        help="Savitzky-Golay window for the body-rate derivative, samples at the "
+        "controller rate (odd; window//2 samples are dropped at each segment edge).",
+    ),
+]
+SgOrder = Annotated[int, typer.Option(help="Savitzky-Golay polynomial order.")]
+Features = Annotated[
+    str,
+    typer.Option(
+        help="GP inputs: 'wrench' (scaled commanded wrench [f/m, I^-1 tau], 6-D, the "
+        "paper's), 'wrench+rate' (adds body rates), 'wrench+dtorque' (adds the torque "
+        "command's rate of change) or 'wrench+rate+dtorque' (both, 12-D: the default, "
+        "chosen on held-out flights, docs/generalisation.md).",
+    ),
+]
+Restarts = Annotated[
+    int, typer.Option(help="Extra starts of the marginal-likelihood optimiser per axis.")
+]
+Seed = Annotated[int, typer.Option(help="Random seed (k-medoids subsampling, optimiser restarts).")]
+TimeWindow = Annotated[
+    str | None,
+    typer.Option(
+        help="Only samples with START <= t < END (s from each log's start), as START:END "
+        "(either may be empty, e.g. 6.5:15 or 15:). Default: the whole flight.",
+    ),
+]
+
+
+@app.command(short_help="Learn a residual model (effects + GP) from flight logs.")
+@reports_errors
+def fit(
+    logs: Logs,
+    out: ModelOut,
+    vehicle: VehicleOpt = None,
+    effects: Effects = None,
+    points: Points = 200,
+    prior: Prior = None,
+    sg_window: SgWindow = 11,
+    sg_order: SgOrder = 2,
+    features: Features = "wrench+rate+dtorque",
+    restarts: Restarts = 3,
+    seed: Seed = 0,
+    time_window: TimeWindow = None,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Learn the residual model from flight logs: physical effects by least squares, then
+    one Gaussian process per body axis on what remains.
+
+    Angular accelerations come from the body rates by a Savitzky-Golay derivative; the
+    residual is measured minus nominal (rigid body) angular acceleration, rad/s^2. The
+    model file (.npz) is what evaluate, simulate --model and plan read.
+    """
+    from omavctl.learn.run import effect_names, prepare_fit
+    from omavctl.report.summary import fit_json
+
+    job = prepare_fit(
+        logs,
+        out,
+        vehicle=vehicle,
+        effects=effect_names(effects),
+        prior=prior,
+        time_window=time_window,
+        points=points,
+        sg_window=sg_window,
+        sg_order=sg_order,
+        features=features,
+        restarts=restarts,
+        seed=seed,
+    )
+    con = console(quiet)
+    with _stage_bar(con, quiet) as progress:
+        result = job.run(progress)
+    _render_fit(con, result.summary, out)
+    emit(as_json, fit_json(result.summary, out))
+
+
+@contextmanager
+def _stage_bar(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]:
+    """One transient progress bar whose label is the current stage of the fit."""
+    from rich.progress import Progress
+
+    with Progress(console=con, transient=True, disable=quiet) as bar:
+        job = bar.add_task("fitting", total=1.0)
+        yield lambda stage, f: bar.update(job, description=stage, completed=f)
+
+
+def _render_fit(con: Any, summary: Any, out: Path) -> None:
+    """Print the fit summary: data used, effects, GP hyperparameters, training fit."""
+    for log in summary.logs:
+        dropped = log.edge_dropped + log.short_dropped
+        con.print(
+            f"{log.path}: {log.used} of {log.samples} samples used "
+            f"({log.in_gaps} invalid: in gaps, on the ground or outside the time window; "
+            f"{dropped} at segment edges or in short segments)"
+        )
+        for note in log.notes:
+            con.print(f"  note: {note}", markup=False)
+    prior = f" + {summary.points_prior} from the prior" if summary.points_prior else ""
+    con.print(
+        f"training points: {summary.points_new} new{prior} ({summary.kmedoids}); "
+        f"Savitzky-Golay window {summary.sg_window}, order {summary.sg_order}"
+    )
+    if summary.effects:
+        con.print(_effects_table(summary))
+    con.print(_gp_table(summary))
+    for note in summary.notes:
+        con.print(f"note: {note}", markup=False)
+    con.print(f"wrote {out} ({summary.points} training points, {summary.samples} samples)")
+
+
+def _effects_table(summary: Any) -> Any:
+    """The estimated effect parameters (and torque command gains) with standard errors."""
+    from rich.table import Table
+    from rich.text import Text
+
+    from omavctl.learn.fit_notes import effect_unit
+    from omavctl.physics.effects import get_effect
+
+    units = summary.command_units
+    eff = Table(title="effects (least squares, value ± standard error)", title_justify="left")
+    for col in ("effect", "parameter", "value ± std. error", "unit"):
+        eff.add_column(col)
+    for name, est in summary.effects.items():
+        for p in get_effect(name).parameters:
+            labels = "xyz" if p.size == 3 else [str(i) for i in range(p.size)]
+            for i, (v, e) in enumerate(zip(est.values[p.name], est.stderr[p.name], strict=True)):
+                label = p.name if p.size == 1 else f"{p.name}_{labels[i]}"
+                unit = effect_unit(name, p.unit, units)
+                eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", Text(unit))
+    if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
+        gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
+        for axis, g, e in gains:
+            eff.add_row(
+                "torque command gain",
+                f"gain_{axis} = 1/scale_{axis}",
+                f"{g:.4g} ± {e:.2g}",
+                Text("N m per command unit (assumed inertia)"),
+            )
+    return eff
+
+
+def _gp_table(summary: Any) -> Any:
+    """The GP of each axis: hyperparameters, training and held-out errors."""
+    from rich.table import Table
+
+    gp = Table(title=f"GP per axis (inputs: {summary.features})", title_justify="left")
+    gp.add_column("")
+    for axis in "xyz":
+        gp.add_column(axis, justify="right")
+    gp.add_row("signal std, rad/s^2", *(f"{a.signal_std:.4g}" for a in summary.axes))
+    gp.add_row("noise std, rad/s^2", *(f"{a.noise_std:.4g}" for a in summary.axes))
+    for j, name in enumerate(summary.input_names):
+        gp.add_row(
+            f"length scale {name} (normalised)",
+            *(f"{a.length_scales[j]:.3g}" for a in summary.axes),
+        )
+    gp.add_row("training R^2", *(f"{a.r2:.3f}" for a in summary.axes))
+    gp.add_row("training RMSE, rad/s^2", *(f"{a.rmse:.4g}" for a in summary.axes))
+    gp.add_row("RMS without model, rad/s^2", *(f"{a.rmse_nominal:.4g}" for a in summary.axes))
+    gp.add_row("GP on (held-out blocks)", *("yes" if a.gp_on else "off" for a in summary.axes))
+    gp.add_row("held-out RMSE GP, rad/s^2", *(f"{a.cv_rmse_gp:.4g}" for a in summary.axes))
+    gp.add_row("held-out RMSE physics", *(f"{a.cv_rmse_physics:.4g}" for a in summary.axes))
+    gp.add_row("held-out within 2σ", *(f"{a.cv_coverage:.0%}" for a in summary.axes))
+    return gp

@@ -1,0 +1,41 @@
+"""``omavctl inspect``: list a log's topics, rates, gaps and contract roles."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from omavctl.cli.app import app
+from omavctl.cli.common import Json, VehicleOpt, emit, reports_errors
+
+Log = Annotated[
+    Path,
+    typer.Argument(
+        metavar="LOG", help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap or .csv."
+    ),
+]
+
+
+@app.command(short_help="List a log's topics, rates, gaps and contract roles.")
+@reports_errors
+def inspect(log: Log, vehicle: VehicleOpt = None, as_json: Json = False) -> None:
+    """List topics, types, counts, rates, duration, gaps and contract roles of a log.
+
+    The listing goes to stdout (one row per topic, never wrapped in a pipe, so
+    `omavctl inspect LOG | grep TOPIC` works); with --json it goes to stderr and stdout
+    holds one JSON object.
+
+    A CSV of another layout without a column map in --vehicle: list its columns with
+    ranges and suggest a column map.
+    """
+    from omavctl.cliout import console
+    from omavctl.logs import inspect_log, render_inspect
+    from omavctl.report.summary import inspect_json
+    from omavctl.vehicle import load_vehicle
+
+    veh = load_vehicle(vehicle)
+    ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
+    render_inspect(ins, console(stdout=not as_json))
+    emit(as_json, inspect_json(ins))

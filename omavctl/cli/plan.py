@@ -1,0 +1,280 @@
+"""``omavctl plan``: plan the most informative next reference for a task.
+
+The options are declared once below as ``Annotated`` aliases; a new option is
+one alias, one parameter of :func:`plan` and one field of ``PlanSettings``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from omavctl.cli.app import app
+from omavctl.cli.common import Json, Quiet, VehicleOpt, console, emit, reports_errors
+
+Task = Annotated[
+    Path, typer.Option("--task", metavar="CSV", help="Task trajectory CSV to learn for.")
+]
+ModelIn = Annotated[
+    Path, typer.Option("--model", metavar="MODEL.npz", help="Current model (.npz from fit).")
+]
+ReferenceOut = Annotated[
+    Path,
+    typer.Option("--out", "-o", metavar="CSV", help="Most informative reference, trajectory CSV."),
+]
+Candidates = Annotated[int, typer.Option(help="Candidate references K.")]
+Sims = Annotated[
+    int, typer.Option(help="Simulations M per candidate (one GP posterior sample each).")
+]
+Frequencies = Annotated[int, typer.Option(help="Frequencies P per axis.")]
+MaxFreq = Annotated[float, typer.Option(help="Highest deviation frequency, Hz.")]
+Amplitude = Annotated[float, typer.Option(help="Largest angular-acceleration deviation, rad/s^2.")]
+Epsilon = Annotated[
+    float | None,
+    typer.Option(
+        help="Radius of the task region around visited inputs, normalised input units "
+        "(default: mean distance between commanded and achieved input, the paper's heuristic)."
+    ),
+]
+TestPoints = Annotated[int, typer.Option(help="Test points S in the task region.")]
+Points = Annotated[
+    int, typer.Option(help="Training points a flight would add (k-medoids per simulation).")
+]
+Search = Annotated[
+    str,
+    typer.Option(
+        help="How candidates are proposed: 'random' (all at once, the paper) or 'cem' "
+        "(cross-entropy method over the Fourier coefficients in --generations "
+        "generations, same number of simulations)."
+    ),
+]
+Generations = Annotated[int, typer.Option(help="Generations of --search cem.")]
+Selection = Annotated[
+    str,
+    typer.Option(
+        help="How the points a flight would add are picked: 'batched' (farthest-point + "
+        "k-medoids steps, all simulations at once) or 'kmedoids' (as fit, per "
+        "simulation, slow)."
+    ),
+]
+Jobs = Annotated[
+    int,
+    typer.Option(help="Worker processes for the simulations (see docs/planning-performance.md)."),
+]
+Objective = Annotated[
+    str,
+    typer.Option(
+        help="What ranks the candidates: 'variance' (the GP's posterior variance in the "
+        "task region, the paper) or 'effects' (D-optimal information about the named "
+        "effects' parameters, docs/plan-effects.md)."
+    ),
+]
+EffectsOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--effects",
+        metavar="A,B",
+        help="--objective effects: the effects to separate and pin down (default: those "
+        "--evaluation names as missing or ambiguous, else the model's fitted effects).",
+    ),
+]
+EvaluationOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--evaluation",
+        metavar="EVAL.json",
+        help="Evaluation whose missing effects to plan for.",
+    ),
+]
+Scores = Annotated[
+    Path | None,
+    typer.Option(help="Write every candidate's coefficients, cost and feasibility as CSV."),
+]
+Seed = Annotated[int, typer.Option(help="Random seed (deviations, GP samples, test points).")]
+ReportOut = Annotated[
+    Path | None,
+    typer.Option(
+        "--report",
+        metavar="PLAN.html",
+        help="Also write an HTML report: the task and the planned reference over time, "
+        "and every candidate's cost.",
+    ),
+]
+
+
+@app.command(short_help="Plan the most informative next reference for a task.")
+@reports_errors
+def plan(
+    task: Task,
+    model: ModelIn,
+    out: ReferenceOut,
+    vehicle: VehicleOpt = None,
+    candidates: Candidates = 20,
+    sims: Sims = 8,
+    frequencies: Frequencies = 2,
+    max_freq: MaxFreq = 2.0,
+    amplitude: Amplitude = 1.0,
+    epsilon: Epsilon = None,
+    test_points: TestPoints = 500,
+    points: Points = 40,
+    search: Search = "random",
+    generations: Generations = 5,
+    selection: Selection = "batched",
+    jobs: Jobs = 1,
+    objective: Objective = "variance",
+    effects: EffectsOpt = None,
+    evaluation: EvaluationOpt = None,
+    scores: Scores = None,
+    seed: Seed = 0,
+    report_out: ReportOut = None,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Plan the most informative next reference: the task plus a sampled Fourier deviation.
+
+    Each of K candidates is flown M times in closed-loop simulation with GP posterior
+    samples; its cost is the mean posterior variance ((rad/s^2)^2) the GP would have at
+    test points of the task region after adding its data (lower = more informative).
+    """
+    from omavctl.planning import PlanSettings
+    from omavctl.planning.run import prepare_plan
+
+    settings = PlanSettings(
+        candidates=candidates,
+        sims=sims,
+        frequencies=frequencies,
+        max_freq=max_freq,
+        amplitude=amplitude,
+        epsilon=epsilon,
+        test_points=test_points,
+        points=points,
+        seed=seed,
+        search=search,
+        generations=generations,
+        selection=selection,
+        jobs=jobs,
+        objective=objective,
+        effects=tuple(e.strip() for e in effects.split(",") if e.strip()) if effects else (),
+    )
+    job = prepare_plan(
+        task,
+        model,
+        out,
+        settings,
+        vehicle=vehicle,
+        scores=scores,
+        report=report_out,
+        evaluation=evaluation,
+    )
+    con = console(quiet)
+    with _stage_bars(con, quiet) as progress:
+        result = job.run(progress)
+    files = _render_plan(con, result, out, scores, report_out)
+    emit(as_json, _plan_json(result, files))
+
+
+@contextmanager
+def _stage_bars(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]:
+    """Transient progress bars, one per stage of the plan as the stages come."""
+    from rich.progress import Progress
+
+    with Progress(console=con, transient=True, disable=quiet) as bar:
+        stages: dict[str, Any] = {}
+
+        def progress(stage: str, fraction: float) -> None:
+            if stage not in stages:
+                stages[stage] = bar.add_task(stage, total=1.0)
+            bar.update(stages[stage], completed=fraction)
+
+        yield progress
+
+
+def _render_plan(
+    con: Any, result: Any, out: Path, scores: Path | None, report_out: Path | None
+) -> dict[str, str]:
+    """Print the best candidates and the plan's figures, write the HTML report if asked;
+    returns the files written."""
+    con.print(_candidates_table(result))
+    rejected = int((~result.feasible).sum())
+    con.print(
+        f"task cost {result.task_cost:.4g} (prior {result.prior_variance:.4g}), "
+        f"epsilon {result.epsilon:.3g}; {rejected}/{len(result.cost)} candidates rejected"
+    )
+    for note in result.notes:
+        con.print(f"note: {note}", markup=False)
+    from omavctl.planning.effects_objective import effects_summary
+
+    summary = effects_summary(result)
+    for line in summary["lines"] if summary else []:
+        con.print(line, markup=False)
+    best_cost = float(result.cost[result.best])
+    if best_cost >= result.task_cost:
+        con.print(
+            f"warning: no candidate is more informative than flying the task again (best "
+            f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, "
+            "or try more --candidates or --search cem",
+            markup=False,
+        )
+    files = {"reference": str(out)}
+    if scores is not None:
+        files["scores"] = str(scores)
+    if report_out is not None:
+        from omavctl.report.plan import write_plan_report
+
+        write_plan_report(report_out, result.task, result)
+        files["report"] = str(report_out)
+        con.print(f"wrote {report_out} (plan report)")
+    con.print(f"wrote {out} (candidate {result.best})")
+    return files
+
+
+def _candidates_table(result: Any) -> Any:
+    """The five most informative feasible candidates, cost relative to the task."""
+    from rich.table import Table
+
+    table = Table(title="most informative candidates (lower cost = more informative)")
+    for col in ("id", "cost", "vs task", "tracking rad/s^2"):
+        table.add_column(col, justify="right")
+    order = [int(k) for k in result.cost.argsort() if result.feasible[k]][:5]
+    for k in order:
+        table.add_row(
+            str(k),
+            f"{result.cost[k]:.4g}",
+            f"{result.versus_task(result.cost[k]):+.1f}%",
+            f"{result.tracking[k]:.3f}",
+        )
+    return table
+
+
+def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
+    """The --json object of plan: files, the best candidate, every candidate's cost,
+    the objective and (for the effects objective) the effects' expected errors."""
+    from omavctl.planning.effects_objective import effects_summary
+
+    summary = effects_summary(result)
+    return {
+        "command": "plan",
+        "files": files,
+        "best": int(result.best),
+        "best_cost": float(result.cost[result.best]),
+        "task_cost": float(result.task_cost),
+        "prior_variance": float(result.prior_variance),
+        "epsilon": float(result.epsilon),
+        "rejected": int((~result.feasible).sum()),
+        "candidates": [
+            {
+                "id": k,
+                "cost": float(result.cost[k]),
+                "tracking": float(result.tracking[k]),
+                "feasible": bool(result.feasible[k]),
+            }
+            for k in range(len(result.cost))
+        ],
+        "notes": list(result.notes),
+        "objective": result.objective,
+        "effects": {k: v for k, v in summary.items() if k != "lines"} if summary else None,
+    }

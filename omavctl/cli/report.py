@@ -1,0 +1,124 @@
+"""``omavctl report``: render evaluations as one HTML/Markdown report, verdict first."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from omavctl.cli.app import app
+from omavctl.cli.common import Json, Quiet, console, emit, reports_errors
+
+Evaluations = Annotated[
+    list[Path],
+    typer.Argument(
+        metavar="EVAL.json...",
+        help="Evaluation files (.json written by evaluate, with their .series.npz next "
+        "to them); with several, the report compares them, relative to the first.",
+    ),
+]
+ReportOut = Annotated[
+    Path,
+    typer.Option(
+        "--out",
+        "-o",
+        metavar="REPORT",
+        help="Output report (one self-contained .html, or .md).",
+    ),
+]
+Format = Annotated[
+    str | None,
+    typer.Option(
+        "--format",
+        help="'html' (figures embedded, no network) or 'md' (tables only, no figures). "
+        "Default: from --out's suffix (.md -> md, else html).",
+    ),
+]
+
+
+@app.command(short_help="Render evaluations as one HTML/Markdown report, verdict first.")
+@reports_errors
+def report(
+    evaluations: Evaluations,
+    out: ReportOut,
+    fmt: Format = None,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Render evaluation files as one report, verdict first.
+
+    The verdict (what is missing, how much the error falls with it added, where the
+    model fails, whether its uncertainty can be trusted), then figures: error over time
+    with the worst segments labelled, measured vs predicted with the 2σ band, effect
+    signatures, candidate effects' explained variance, before/after per axis; then the
+    summary tables, residual vs feature, the diagnosis with the fit command.
+    """
+    from omavctl.report.run import run_report
+
+    con = console(quiet)
+    with con.status("rendering report"):
+        summary = run_report(evaluations, out, fmt)
+    _render_report(con, summary, out)
+    emit(as_json, _report_json(summary, out))
+
+
+def _render_report(con: Any, summary: Any, out: Path) -> None:
+    """Print the verdict, the RMSE per axis of each evaluation, the change and the fit
+    command that adds the top missing effect."""
+    from rich.table import Table
+    from rich.text import Text
+
+    con.print(Text("verdict", style="bold"))
+    for line in summary.verdict:
+        con.print(Text(f"  {line.plain()}"))
+    table = Table(title="model RMSE per axis, rad/s^2", title_justify="left")
+    table.add_column("evaluation")
+    for axis in "xyz":
+        table.add_column(axis, justify="right")
+    table.add_column("top missing effect")
+    for ev in summary.evaluations:
+        table.add_row(
+            Text(ev.label),
+            *(f"{ev.model_rmse[a]:.4g}" for a in "xyz"),
+            Text(ev.missing[0] if ev.missing else "none"),
+        )
+    con.print(table)
+    if len(summary.evaluations) > 1:
+        change = summary.change()
+        con.print(
+            f"change {summary.evaluations[0].label} -> {summary.evaluations[-1].label}: "
+            + ", ".join(f"{a} {change[a]}" for a in "xyz"),
+            markup=False,
+        )
+    last = summary.evaluations[-1]
+    if last.missing and last.fit_command:
+        con.print(f"to add {last.missing[0]} to {last.label}'s model:", markup=False)
+        con.print(f"  {last.fit_command}", markup=False)
+    figures = f", {summary.figures} figures" if summary.fmt == "html" else ""
+    con.print(f"wrote {out} ({summary.fmt}{figures})", markup=False)
+
+
+def _report_json(summary: Any, out: Path) -> dict[str, Any]:
+    """The --json object of report: the file, its format, each evaluation, the verdict."""
+    return {
+        "command": "report",
+        "files": {"report": str(out)},
+        "format": summary.fmt,
+        "figures": summary.figures,
+        "evaluations": [
+            {
+                "label": ev.label,
+                "path": ev.path,
+                "model_rmse": ev.model_rmse,
+                "missing": ev.missing,
+                "fit_command": ev.fit_command,
+            }
+            for ev in summary.evaluations
+        ],
+        "change": summary.change() if len(summary.evaluations) > 1 else None,
+        "verdict": [
+            {"key": ln.key, "about": ln.who, "text": ln.text, "command": ln.command}
+            for ln in summary.verdict
+        ],
+    }

@@ -1,0 +1,239 @@
+"""The ``diagnosis`` of an evaluation: what the model misses, in physical terms.
+
+Every registered effect not in the model is scored against the model's
+remaining error (:func:`omavctl.diagnose.scoring.score_effects`); the best
+missing one is accepted, what it explains removed and the others rescored
+(forward selection, up to 3). Structure left after that (correlation with
+an input or state feature, a spectral peak) is reported as unexplained. The
+same ranking on the nominal residual says what the GP (with the effects) has
+learned, in physical terms. :func:`fit_command` is the ``omavctl fit``
+command that adds the top missing effect.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from omavctl.diagnose.metrics import AXES
+from omavctl.diagnose.scoring import MIN_EXPLAINED, MIN_NOISE_RATIO, MIN_T, score_effects
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
+from omavctl.physics.effects import EFFECTS, get_effect
+
+__all__ = [
+    "BLOCK_SECONDS",
+    "diagnose",
+    "fit_command",
+    "measurement_noise",
+    "unexplained_structure",
+]
+
+#: Alternating train/test blocks of the diagnosis, s.
+BLOCK_SECONDS = 2.0
+
+
+def _blocks(t: np.ndarray, log_id: np.ndarray, seconds: float) -> np.ndarray:
+    """Block number (n,) of each sample: consecutive ``seconds`` windows per log."""
+    out = np.empty(t.size, dtype=np.int64)
+    offset = 0
+    for lid in np.unique(log_id):
+        sel = log_id == lid
+        b = np.floor((t[sel] - t[sel].min()) / seconds).astype(np.int64)
+        out[sel] = b + offset
+        offset = int(out[sel].max()) + 1
+    return out
+
+
+def unexplained_structure(
+    residual: np.ndarray, features: dict[str, np.ndarray], dt: float, min_corr: float = 0.3
+) -> list[dict[str, Any]]:
+    """Structure in a residual (n, 3) that remains: feature correlations and spectral peaks.
+
+    features: name -> (n,) values. A correlation counts when |r| >= min_corr;
+    a spectral peak when a Welch periodogram bin above 0.2 Hz holds more than
+    10x the median power and more than 10% of the total.
+    """
+    from scipy.signal import welch
+
+    out: list[dict[str, Any]] = []
+    for i, axis in enumerate(AXES):
+        r = residual[:, i]
+        if r.std() == 0:
+            continue
+        for name, f in features.items():
+            if f.std() == 0:
+                continue
+            c = float(np.corrcoef(r, f)[0, 1])
+            if abs(c) >= min_corr:
+                out.append(
+                    {"kind": "feature correlation", "axis": axis, "feature": name, "correlation": c}
+                )
+        nper = min(r.size, 512)
+        if nper >= 64:
+            freq, power = welch(r - r.mean(), fs=1.0 / dt, nperseg=nper)
+            keep = freq > 0.2
+            if keep.any():
+                j = int(np.argmax(np.where(keep, power, -np.inf)))
+                ratio = float(power[j] / max(np.median(power[keep]), 1e-300))
+                share = float(power[j] / max(power.sum(), 1e-300))
+                if ratio > 10 and share > 0.1:
+                    out.append(
+                        {
+                            "kind": "spectral peak",
+                            "axis": axis,
+                            "frequency_hz": float(freq[j]),
+                            "power_ratio": ratio,
+                            "power_share": share,
+                        }
+                    )
+    out.sort(key=lambda d: -abs(d.get("correlation", 0.0)))
+    return out
+
+
+def measurement_noise(
+    samples: Sequence[ResidualSamples], sg: SavitzkyGolay, model: ResidualGP
+) -> float:
+    """Noise std (rad/s^2) of the measured angular acceleration.
+
+    The body-rate noise of the logs (:attr:`ResidualSamples.rate_noise`, from
+    second differences, median over logs and axes) through the derivative
+    filter's noise gain ``||h||``; the model's noise std (median over axes of
+    the GP's) when the logs do not tell. The GP's noise also holds whatever
+    fast structure it could not fit, and it can be near 0 when its training
+    flight was smooth enough for it to interpolate: the log's is the
+    measurement's own.
+    """
+    rates = np.array([s.rate_noise for s in samples], dtype=float)
+    if np.isfinite(rates).any():
+        return float(np.nanmedian(rates)) * sg.noise_gain
+    return float(np.median(np.sqrt(model.noise_variance)))
+
+
+def diagnose(
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    model_mean: np.ndarray,
+    model_std: np.ndarray,
+    features: dict[str, np.ndarray],
+    sg: SavitzkyGolay,
+) -> dict[str, Any]:
+    """The ``diagnosis`` section (see module docstring).
+
+    samples: the residual samples of every log built with every registry
+    effect's regressor; model_mean (n, 3) the model's residual prediction on
+    the concatenated samples and model_std (n, 3) its predictive std.
+    """
+    residual = np.concatenate([s.residual for s in samples])
+    t = np.concatenate([s.t for s in samples])
+    log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
+    blocks = _blocks(t, log_id, BLOCK_SECONDS)
+    regs = {n: np.concatenate([s.regressors[n] for s in samples]) for n in EFFECTS}
+    # The GP was trained on data that contained any missing effect: on this data
+    # it predicts k(z, Z) (K + s^2 I)^-1 X_train theta of it. The model's error is
+    # therefore linear in theta through X - smooth(X_train) (exact for the GP
+    # mean with fixed hyperparameters).
+    z = np.concatenate([s.inputs(model.features) for s in samples])
+    candidates = {}
+    refit = {}
+    for n, r in regs.items():
+        if n in model.effects:
+            continue
+        if n in model.train_regressors:
+            r = r - model.smooth(z, model.train_regressors[n])
+            refit[n] = model.basis_estimate(
+                model.train_regressors[n], np.full(r.shape[2], get_effect(n).prior_std)
+            )[0]
+        candidates[n] = r
+    remaining = residual - model_mean
+    noise = measurement_noise(samples, sg, model)
+    floor = MIN_NOISE_RATIO * noise
+    missing = score_effects(remaining, candidates, blocks, model_std, floor, refit)
+    # forward selection: accept the best missing effect, remove what it explains,
+    # rescore the others on what is left (so one cause is not reported thrice)
+    accepted: list[dict[str, Any]] = []
+    after = remaining
+    pool = dict(candidates)
+    ranking = missing
+    while ranking and ranking[0].missing and len(accepted) < 3:
+        best = ranking[0]
+        accepted.append({"name": best.name, "explained_variance": best.explained_variance})
+        after = after - best.contribution
+        pool.pop(best.name)
+        ranking = score_effects(after, pool, blocks, model_std, floor, refit)
+    # what the physics-free residual behaves like, with the same materiality: an
+    # "effect" below the measurement's own noise is not claimed as learned
+    learned = score_effects(residual, regs, blocks, noise_floor=floor)
+    unexplained = unexplained_structure(after, features, sg.dt)
+    return {
+        "method": {
+            "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
+            "standard_errors": "delete-one-block jackknife",
+            "min_explained_variance": MIN_EXPLAINED,
+            "min_t_value": MIN_T,
+            "min_contribution_rms": floor,
+            "measurement_noise_std": noise,
+            "refit": "parameters fitted to the model's own training points as fit --effects "
+            "would (GP hyperparameters kept); a missing effect must lower the error with them",
+            "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
+            "selection": "forward: best missing effect removed, others rescored, up to 3",
+        },
+        "missing_effects": [s.to_json() for s in missing],
+        "missing": [a["name"] for a in accepted],
+        "missing_steps": accepted,
+        "unexplained": unexplained,
+        "learned": [s.to_json() for s in learned],
+    }
+
+
+def _where(given: str, absolute: str | None) -> str:
+    """A file recorded by fit (as given there, and absolute) as typed from here:
+    the absolute record when it exists (fit may have run elsewhere), else as given."""
+    from omavctl.base.shell import display_path
+
+    if absolute and Path(absolute).exists():
+        return display_path(absolute)
+    return display_path(given) if Path(given).exists() else given
+
+
+def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
+    """The ``omavctl fit`` command that refits ``model`` with ``effect`` added.
+
+    Paths are valid from the current directory (the logs and vehicle file that fit
+    read, the new model beside ``model_path``) and every word is shell-quoted.
+    """
+    from omavctl.base.shell import display_path, shell_join
+
+    prov = model.provenance
+    sources = [
+        _where(str(s.get("path") or s.get("name")), s.get("abspath"))
+        for s in prov.get("sources", [])
+        if s.get("path") or s.get("name")
+    ]
+    effects = [*model.effects, effect]
+    stem = Path(display_path(model_path)).with_suffix("")
+    parts = ["omavctl", "fit", *sources]
+    parts += ["--effects", ",".join(effects), "--out", f"{stem}+{effect}.npz"]
+    kmed = prov.get("kmedoids", {})
+    if "points" in kmed:
+        parts += ["--points", str(kmed["points"])]
+    sg = prov.get("savitzky_golay", {})
+    if sg:
+        parts += ["--sg-window", str(sg.get("window")), "--sg-order", str(sg.get("order"))]
+    if model.features != "wrench":
+        parts += ["--features", model.features]
+    if "seed" in prov:
+        parts += ["--seed", str(prov["seed"])]
+    window = prov.get("time_window")
+    if window and any(w is not None for w in window):
+        lo, hi = window
+        parts += [
+            "--time-window",
+            f"{'' if lo is None else f'{lo:g}'}:{'' if hi is None else f'{hi:g}'}",
+        ]
+    if prov.get("vehicle_path"):
+        parts += ["--vehicle", _where(str(prov["vehicle_path"]), prov.get("vehicle_abspath"))]
+    return shell_join(parts)

@@ -1,0 +1,213 @@
+"""How well a prediction matches the measurements, and where it fails.
+
+Metrics per axis (rad/s^2): RMSE, MAE, R^2 of the residual (1 - SSE / SS of
+the nominal residual about its mean: the fraction of the nominal model's
+error the prediction explains), mean predicted std, fraction of samples
+within 2 sigma, and negative log predictive density. Where the model fails:
+the worst time windows (:func:`worst_segments`) and its error in quantile
+bins of each feature (:func:`binned_errors`). What a reader must know before
+trusting a model on the logs: :func:`quality_flags`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "AXES",
+    "MAX_RATIO",
+    "MIN_COVERAGE",
+    "axis_metrics",
+    "binned_errors",
+    "finite_json",
+    "quality_flags",
+    "worst_segments",
+]
+
+AXES = ("x", "y", "z")
+#: Sliding window of the worst-segment search, s; segments reported.
+WORST_WINDOW_SECONDS = 1.0
+WORST_COUNT = 5
+#: Quantile bins of the residual-vs-feature tables.
+BINS = 10
+
+#: Held-out 2-sigma coverage below which the model's uncertainty is overconfident.
+MIN_COVERAGE = 0.8
+#: Model RMSE above this multiple of physics-only (nominal + effects) is flagged.
+MAX_RATIO = 1.05
+
+
+def axis_metrics(
+    measured: np.ndarray, predicted: np.ndarray, std: np.ndarray, reference: np.ndarray
+) -> dict[str, dict[str, float]]:
+    """Per-axis metrics of a prediction.
+
+    measured, predicted (n, 3) angular accelerations; std (n, 3) predictive std;
+    reference (n, 3) the nominal residual (for R^2). Returns
+    ``{metric: {"x": .., "y": .., "z": ..}}``.
+    """
+    err = measured - predicted
+    sse = (err**2).sum(axis=0)
+    sst = ((reference - reference.mean(axis=0)) ** 2).sum(axis=0)
+    var = np.maximum(std, 1e-12) ** 2
+    nlpd = 0.5 * np.log(2 * np.pi * var) + err**2 / (2 * var)
+    out = {
+        "rmse": np.sqrt((err**2).mean(axis=0)),
+        "mae": np.abs(err).mean(axis=0),
+        "r2": 1.0 - sse / np.maximum(sst, 1e-300),
+        "mean_std": std.mean(axis=0),
+        "coverage_2sigma": (np.abs(err) <= 2 * std).mean(axis=0),
+        "nlpd": nlpd.mean(axis=0),
+    }
+    return {k: {a: float(v[i]) for i, a in enumerate(AXES)} for k, v in out.items()}
+
+
+def worst_segments(
+    t: np.ndarray,
+    log_id: np.ndarray,
+    err: np.ndarray,
+    context: dict[str, np.ndarray],
+    log_names: Sequence[str],
+    dt: float,
+) -> list[dict[str, Any]]:
+    """Top non-overlapping sliding windows by RMSE of err (n, 3).
+
+    t (n,) times, log_id (n,) index into ``log_names``; context: name -> (n, k)
+    values whose mean |value| over each window is reported with it; dt the
+    grid step. At most :data:`WORST_COUNT` windows of :data:`WORST_WINDOW_SECONDS`.
+    """
+    width = max(round(WORST_WINDOW_SECONDS / dt), 3)
+    cands: list[tuple[float, int, int]] = []
+    sq = (err**2).mean(axis=1)
+    for lid in np.unique(log_id):
+        idx = np.flatnonzero(log_id == lid)
+        # contiguous runs (kept samples are consecutive grid indices within segments)
+        breaks = np.flatnonzero(np.diff(t[idx]) > 1.5 * dt) + 1
+        for run in np.split(idx, breaks):
+            if run.size < width:
+                continue
+            c = np.concatenate([[0.0], np.cumsum(sq[run])])
+            mse = (c[width:] - c[:-width]) / width
+            for s in np.argsort(-mse)[: 20 * WORST_COUNT]:
+                cands.append((float(mse[s]), int(run[s]), int(run[s + width - 1])))
+    cands.sort(reverse=True)
+    chosen: list[tuple[float, int, int]] = []
+    for mse, a, b in cands:
+        if all(b < ca or a > cb for _, ca, cb in chosen):
+            chosen.append((mse, a, b))
+        if len(chosen) == WORST_COUNT:
+            break
+    out = []
+    for _, a, b in chosen:
+        sel = slice(a, b + 1)
+        seg: dict[str, Any] = {
+            "log": log_names[int(log_id[a])],
+            "start": float(t[a]),
+            "end": float(t[b]),
+            "rmse": {ax: float(np.sqrt((err[sel, i] ** 2).mean())) for i, ax in enumerate(AXES)},
+        }
+        for name, values in context.items():
+            seg[name] = [float(v) for v in np.abs(values[sel]).mean(axis=0)]
+        out.append(seg)
+    return out
+
+
+def binned_errors(
+    err: np.ndarray, nominal_err: np.ndarray, features: dict[str, np.ndarray]
+) -> dict[str, Any]:
+    """Error of the model and of the nominal model in quantile bins of each feature.
+
+    err, nominal_err (n, 3); features: name -> (n,) values, binned at
+    :data:`BINS` quantiles (features with fewer than 2 distinct bins left out).
+    """
+    out: dict[str, Any] = {}
+    for name, f in features.items():
+        edges = np.unique(np.quantile(f, np.linspace(0, 1, BINS + 1)))
+        if edges.size < 3:
+            continue
+        which = np.clip(np.searchsorted(edges, f, side="right") - 1, 0, edges.size - 2)
+        nb = edges.size - 1
+        count = np.bincount(which, minlength=nb)
+        entry: dict[str, Any] = {
+            "edges": edges.tolist(),
+            "centers": ((edges[:-1] + edges[1:]) / 2).tolist(),
+            "count": count.tolist(),
+        }
+        for label, e in (("model", err), ("nominal", nominal_err)):
+            mean = np.stack([np.bincount(which, e[:, i], nb) for i in range(3)]) / np.maximum(
+                count, 1
+            )
+            ms = np.stack([np.bincount(which, e[:, i] ** 2, nb) for i in range(3)]) / np.maximum(
+                count, 1
+            )
+            entry[f"{label}_mean"] = {a: mean[i].tolist() for i, a in enumerate(AXES)}
+            entry[f"{label}_rms"] = {a: np.sqrt(ms[i]).tolist() for i, a in enumerate(AXES)}
+        out[name] = entry
+    return out
+
+
+def quality_flags(
+    metrics: dict[str, Any], excluded: Sequence[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """What a reader must know before trusting the model on these logs.
+
+    ``overconfident``: 2-sigma coverage below :data:`MIN_COVERAGE` on an axis;
+    ``worse_than_physics``: the model's RMSE above :data:`MAX_RATIO` x that of
+    nominal + effects (the GP hurts); ``out_of_control``: samples excluded.
+    """
+    flags: list[dict[str, Any]] = []
+    for a in AXES:
+        cov = metrics["model"]["coverage_2sigma"][a]
+        if cov < MIN_COVERAGE:
+            flags.append(
+                {
+                    "code": "overconfident",
+                    "axis": a,
+                    "value": cov,
+                    "message": f"axis {a}: the 2-sigma band covers {cov:.0%} of the "
+                    "measurements (should be about 95 %): the model's uncertainty is "
+                    "overconfident here",
+                }
+            )
+        phys = metrics["effects"]["rmse"][a]
+        mod = metrics["model"]["rmse"][a]
+        if phys > 0 and mod > MAX_RATIO * phys:
+            flags.append(
+                {
+                    "code": "worse_than_physics",
+                    "axis": a,
+                    "value": mod / phys,
+                    "message": f"axis {a}: the model's error is {mod / phys:.2f}x that of "
+                    "its physics alone: the GP does not transfer to these logs",
+                }
+            )
+    for span in excluded:
+        flags.append(
+            {
+                "code": "out_of_control",
+                "axis": None,
+                "value": span["end"] - span["start"],
+                "message": f"{span['log']}: {span['start']:.2f}-{span['end']:.2f} s out of "
+                f"control ({span['reason']}): kept out of the metrics and the diagnosis",
+            }
+        )
+    return flags
+
+
+def finite_json(obj: Any) -> Any:
+    """``obj`` with every non-finite float replaced by None (JSON has no NaN/Infinity)."""
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.ndarray):
+        return finite_json(obj.tolist())
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj

@@ -1,0 +1,138 @@
+"""What ``fit``'s summary says about its effects and command units, in words.
+
+:func:`effect_unit` is also how the CLI shows a parameter's unit when the
+commands are normalised.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from omavctl.learn.effect_fit import GAIN_EFFECT, EffectFit, torque_gain
+from omavctl.learn.effect_search import SearchResult
+from omavctl.physics.effects import get_effect
+from omavctl.vehicle import NORMALISED, Vehicle
+
+__all__ = ["effect_notes", "effect_unit", "search_notes", "unit_notes"]
+
+#: Effects whose regressor is a lag of the commanded wrench: with a normalised
+#: torque their time constant is estimated times the command gain.
+_COMMAND_LAGS = ("servo_lag", "motor_lag")
+
+
+def effect_unit(name: str, unit: str, command_units: Mapping[str, str]) -> str:
+    """The unit of a parameter of effect ``name`` for display, given the command units.
+
+    With a normalised torque command, ``N m`` becomes ``[torque unit]`` (as in
+    the report); ``com_offset``'s ``r`` (a torque per force) becomes
+    ``[torque unit]/N``, ``N m/[force unit]`` or ``[torque unit]/[force unit]``;
+    the lags of effects that act through the commanded wrench (``servo_lag``,
+    ``motor_lag``) come out multiplied by the unknown gain: ``s (x torque gain)``.
+    """
+    torque = command_units.get("torque") == NORMALISED
+    force = command_units.get("force") == NORMALISED
+    if name == "com_offset" and unit == "m" and (torque or force):
+        num = "[torque unit]" if torque else "N m"
+        return f"{num}/{'[force unit]' if force else 'N'}"
+    if name in _COMMAND_LAGS and torque:
+        return f"{unit} (x torque gain)"
+    if torque:
+        return unit.replace("N m", "[torque unit]")
+    return unit
+
+
+def unit_notes(
+    vehicle: Vehicle,
+    added: Sequence[str],
+    gain: np.ndarray | None,
+    gain_se: np.ndarray | None,
+) -> list[str]:
+    """What the summary says about normalised commands and the fitted gain."""
+    notes = []
+    if added:
+        notes.append(
+            f"torque command is normalised (command_units.torque): {', '.join(added)} added "
+            "to estimate its per-axis gain (torque = gain x command)"
+        )
+    if gain is not None and gain_se is not None:
+        diag = np.diag(vehicle.inertia)
+        shown = ", ".join(
+            f"{a} {g:.4g} ± {e:.2g} ({g / i:.4g} rad/s^2 per unit)"
+            for a, g, e, i in zip("xyz", gain, gain_se, diag, strict=True)
+        )
+        notes.append(
+            f"torque command gain (N m per command unit with the assumed inertia; the log "
+            f"determines only gain / inertia): {shown}"
+        )
+        bad = [a for a, g in zip("xyz", gain, strict=True) if not (np.isfinite(g) and g > 0)]
+        if bad:
+            notes.append(
+                f"torque command gain not positive on axis {', '.join(bad)}: check the sign "
+                "of the torque columns and the frame (FLU/FRD) in the vehicle YAML"
+            )
+        notes.append(
+            "torque units are unknown: parameters in N m are shown in [torque unit] "
+            "(relative to the assumed inertia)"
+        )
+    if vehicle.force_normalised:
+        notes.append(
+            "force command is normalised (command_units.force): the GP inputs f/m are a "
+            "scaled thrust feature, not an acceleration in m/s^2"
+        )
+    return notes
+
+
+def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
+    """Warnings about effect parameters the logs do not determine.
+
+    With ``torque_normalised`` ``inertia_error`` is the command gain: the
+    warning is about a gain within two standard errors of zero.
+    """
+    notes = []
+    for name, est in eff.estimates.items():
+        effect = get_effect(name)
+        if name == GAIN_EFFECT and torque_normalised:
+            gain, se = torque_gain(est)
+            axes = [a for a, g, e in zip("xyz", gain, se, strict=True) if not abs(g) >= 2 * e]
+            if axes:
+                notes.append(
+                    f"torque command gain on axis {', '.join(axes)} within 2 standard errors "
+                    "of zero: the logs barely excite it (or the GP explains the same trend)"
+                )
+            continue
+        if not effect.identifiable:
+            notes.append(
+                f"{name} is not identifiable from angular accelerations (see its docs): "
+                "its estimate is unreliable"
+            )
+            continue
+        for p in effect.parameters:
+            weak = np.flatnonzero(np.abs(est.values[p.name]) < 2.0 * est.stderr[p.name])
+            if weak.size:
+                which = ", ".join(f"{p.name}[{i}]" for i in weak)
+                notes.append(
+                    f"{name}: {which} within 2 standard errors of zero: the logs barely excite "
+                    "it or the effect is absent"
+                )
+    return notes
+
+
+def search_notes(found: Mapping[str, SearchResult]) -> list[str]:
+    """What the summary says about effects estimated by a 1-D search."""
+    notes = []
+    for r in found.values():
+        p = get_effect(r.name).parameters[0]
+        notes.append(
+            f"{r.name}: {p.name} = {r.value * 1e3:.1f} ± {r.stderr * 1e3:.1f} ms "
+            "(exact form, 1-D search jointly with the GP and the linear effects)"
+        )
+        if r.at_bound:
+            lo, hi = get_effect(r.name).search  # type: ignore[misc]
+            notes.append(
+                f"{r.name}: {p.name} at the edge of its search interval "
+                f"({lo * 1e3:g} to {hi * 1e3:g} ms): the logs do not determine it, or "
+                "the effect is absent"
+            )
+    return notes

@@ -1,0 +1,230 @@
+"""The flights ``fit`` learns from: read, aligned, and turned into residual samples.
+
+:func:`read_flights` reads and aligns every log on the controller-rate grid
+(optionally restricted to a time window; a note when the body rate was logged
+slower than the grid, :func:`upsampling_note`). :func:`read_samples` builds
+each log's residual (:func:`omavctl.learn.signal.residual_samples`), drops the
+spans where the vehicle was out of control and refuses logs without usable
+samples. :func:`source_of` is what a model's provenance records of a log.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from omavctl.base.errors import LogError
+from omavctl.learn.control_loss import out_of_control
+from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, residual_samples
+from omavctl.logs.types import FlightLog
+from omavctl.physics.effects import EFFECTS
+from omavctl.vehicle import Vehicle
+
+__all__ = [
+    "RATE_TOLERANCE",
+    "REQUIRED_ROLES",
+    "LogSummary",
+    "body_rate_rate",
+    "log_samples",
+    "read_flights",
+    "read_samples",
+    "sha256_of",
+    "source_of",
+    "upsampling_note",
+]
+
+#: Roles fit needs from every log.
+REQUIRED_ROLES = ("body_rate", "force_command", "torque_command")
+#: A body rate logged below this fraction of the grid rate is noted as upsampled
+#: (the tolerance absorbs jitter in the median step).
+RATE_TOLERANCE = 0.95
+
+
+@dataclass
+class LogSummary:
+    """What one log contributed: grid samples, samples used, and what was dropped."""
+
+    path: Path
+    samples: int
+    used: int
+    in_gaps: int
+    edge_dropped: int
+    short_dropped: int
+    notes: list[str] = field(default_factory=list)
+
+
+def read_flights(
+    logs: Sequence[str | Path | FlightLog],
+    vehicle: Vehicle,
+    time_window: tuple[float | None, float | None] | None = None,
+) -> list[FlightLog]:
+    """Read and align every log on the controller-rate grid (``read_vehicle_log``:
+    the vehicle's topics, column map and frame; ground and idle time excluded;
+    only ``start <= t < end`` s from each log's start with ``time_window``).
+
+    A log whose body rate was recorded below the grid rate gets a note (its grid
+    samples are interpolated, see :func:`upsampling_note`). Already aligned
+    :class:`FlightLog` objects are passed through (the window still applies).
+    Raises LogError for an unreadable log, one lacking the body rate or the
+    wrench command, or an empty window.
+    """
+    from omavctl.logs import read_vehicle_log, restrict_window
+
+    out = []
+    for item in logs:
+        if isinstance(item, FlightLog):
+            flight = item if time_window is None else restrict_window(item, time_window)
+        else:
+            flight = read_vehicle_log(
+                item,
+                vehicle,
+                rate=vehicle.gains.rate_hz,
+                required=REQUIRED_ROLES,
+                time_window=time_window,
+            )
+        note = upsampling_note(flight, vehicle)
+        if note is not None:
+            flight = replace(flight, notes=[*flight.notes, note])
+        out.append(flight)
+    return out
+
+
+def body_rate_rate(flight: FlightLog, vehicle: Vehicle) -> float | None:
+    """Median rate (Hz) at which the log recorded the body rate, if the reader saw it.
+
+    The source is the ``body_rate`` column group of a CSV or the vehicle's
+    ``imu`` topic of a bag (:attr:`FlightLog.topics`).
+    """
+    names = {"body_rate", vehicle.topics.get("imu", "")}
+    rates = [info.rate for info in flight.topics if info.name in names and info.rate > 0]
+    return min(rates) if rates else None
+
+
+def upsampling_note(flight: FlightLog, vehicle: Vehicle) -> str | None:
+    """A note when the body rate was logged below the grid rate, else None.
+
+    Below :data:`RATE_TOLERANCE` x the grid rate the aligned body rate is
+    mostly linear interpolation between logged samples: the Savitzky-Golay
+    derivative then differentiates the interpolant (piecewise constant slopes),
+    the window spans fewer real samples than it says, and the residual's noise
+    level is not the one the defaults were chosen for (docs/fit.md).
+    """
+    rate = body_rate_rate(flight, vehicle)
+    grid = flight.rate
+    if rate is None or rate >= RATE_TOLERANCE * grid:
+        return None
+    return (
+        f"body rate logged at {rate:.1f} Hz (median step), below the {grid:g} Hz grid "
+        f"(controller.rate_hz): {1 - rate / grid:.0%} of the grid samples are interpolated "
+        "between logged samples and the Savitzky-Golay derivative sees the interpolation; "
+        f"set controller.rate_hz to at most {math.floor(rate):d} Hz in the vehicle YAML to "
+        "fit at the log's own rate"
+    )
+
+
+def sha256_of(path: Path) -> str:
+    """sha256 of a file, or of a directory's files (relative names and contents, sorted)."""
+    h = hashlib.sha256()
+    if path.is_dir():
+        for f in sorted(p for p in path.rglob("*") if p.is_file()):
+            h.update(str(f.relative_to(path)).encode())
+            h.update(b"\0")
+            h.update(hashlib.sha256(f.read_bytes()).digest())
+        return h.hexdigest()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def source_of(item: str | Path | FlightLog) -> dict[str, Any]:
+    """Name, path (as given and absolute) and sha256 of a log (or model) for provenance."""
+    path = item.path if isinstance(item, FlightLog) else Path(item)
+    digest = sha256_of(path) if path.exists() else None
+    # the path as given and absolute: evaluate prints the fit command that refits
+    # with another effect from the same logs, with paths valid where it runs
+    return {
+        "name": path.name,
+        "path": str(path),
+        "abspath": str(path.resolve()),
+        "sha256": digest,
+    }
+
+
+def log_samples(
+    item: str | Path | FlightLog,
+    vehicle: Vehicle,
+    sg: SavitzkyGolay,
+    time_window: tuple[float | None, float | None] | None = None,
+) -> tuple[ResidualSamples, LogSummary]:
+    """One log's residual samples (out-of-control spans removed) and its summary.
+
+    Every registered effect's regressor is built: the fitted ones are
+    estimated, all are stored at the training points for evaluate's diagnosis.
+    Raises LogError for a log without usable samples or with non-finite values.
+    """
+    flight = read_flights([item], vehicle, time_window)[0]
+    s = residual_samples(flight, vehicle, sg, tuple(EFFECTS))
+    loss = out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual)
+    if loss.any:
+        s = s.select(~loss.mask)
+        flight = replace(
+            flight,
+            notes=[
+                *flight.notes,
+                *(
+                    f"{a:.2f}-{b:.2f} s out of control ({why}): not used"
+                    for a, b, why in loss.spans
+                ),
+            ],
+        )
+    if s.n == 0:
+        longest = max((b - a for a, b in flight.segments), default=0)
+        raise LogError(
+            f"no usable samples: --sg-window {sg.window} needs a valid segment of at "
+            f"least {sg.window} samples, the longest has {longest}",
+            flight.path,
+        )
+    arrays = [s.residual, s.u, s.omega, *s.regressors.values()]
+    if not all(np.all(np.isfinite(a)) for a in arrays):
+        raise LogError("non-finite values in the residual or the wrench command", flight.path)
+    summary = LogSummary(
+        flight.path, s.total, s.n, s.in_gaps, s.edge_dropped, s.short_dropped, list(flight.notes)
+    )
+    return s, summary
+
+
+def read_samples(
+    logs: Sequence[str | Path | FlightLog],
+    vehicle: Vehicle,
+    sg: SavitzkyGolay,
+    time_window: tuple[float | None, float | None] | None,
+    points: int,
+    report: Callable[[str, float], None],
+) -> tuple[list[ResidualSamples], list[LogSummary]]:
+    """Every log's samples and summary (:func:`log_samples`), reporting progress per log.
+
+    Raises LogError when all logs together have fewer than ``points`` samples.
+    """
+    samples: list[ResidualSamples] = []
+    summaries: list[LogSummary] = []
+    for i, item in enumerate(logs):
+        s, summary = log_samples(item, vehicle, sg, time_window)
+        samples.append(s)
+        summaries.append(summary)
+        report("reading logs", (i + 1) / len(logs))
+    n_total = sum(s.n for s in samples)
+    if n_total < points:
+        where = summaries[0].path if len(summaries) == 1 else None
+        raise LogError(
+            f"too few samples for --points {points}: {n_total} usable "
+            f"sample{'s' if n_total != 1 else ''} after dropping gaps and filter edges",
+            where,
+        )
+    return samples, summaries

@@ -1,0 +1,265 @@
+"""Section 5 of the report: the diagnosis.
+
+How candidate effects are scored, the effects named missing, the ranking of
+every candidate (explained variance, parameters with standard errors, t value,
+plausibility, ambiguity), the ``omavctl fit`` command that adds the top one,
+the structure no registered effect explains, and what the nominal model's
+residual resembles (what the GP has learned, in physical terms).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from omavctl.diagnose.verdict import get_path as _get
+from omavctl.report.document import (
+    Block,
+    Bullets,
+    Cell,
+    Code,
+    Content,
+    Heading,
+    Inline,
+    Lines,
+    Para,
+    Span,
+    Table,
+)
+from omavctl.report.numfmt import AXES, as_list, axes_of, finite, num, pct, torque_unit_unknown
+
+__all__ = ["diagnosis_section"]
+
+
+def _unit(unit: str, torque_unknown: bool) -> str:
+    """A parameter unit for display ('' for dimensionless)."""
+    if unit == "1":
+        return ""
+    if torque_unknown and "N m" in unit:
+        return unit.replace("N m", "[torque unit]")
+    return unit
+
+
+def _effect_units(tree: Mapping[str, Any]) -> dict[str, dict[str, str]]:
+    """Parameter units per effect name, from the diagnosis entries."""
+    out: dict[str, dict[str, str]] = {}
+    for key in ("learned", "missing_effects"):
+        for entry in _get(tree, "diagnosis", key, default=[]) or []:
+            if isinstance(entry, Mapping) and isinstance(entry.get("units"), Mapping):
+                out.setdefault(str(entry.get("name")), {}).update(
+                    {str(k): str(v) for k, v in entry["units"].items()}
+                )
+    return out
+
+
+def _param_lines(
+    params: Mapping[str, Any], units: Mapping[str, str], torque_unknown: bool
+) -> tuple[Content, ...]:
+    """'name_axis = value ± stderr unit' per parameter component; components whose
+    ``excited`` flag is false are left out (and named as such)."""
+    names = [k for k in params if k != "excited" and not str(k).endswith("_stderr")]
+    values = {k: as_list(params[k]) for k in names}
+    excited = params.get("excited")
+    total = sum(len(v) for v in values.values())
+    if not (isinstance(excited, list) and len(excited) == total):
+        excited = [True] * total
+    lines: list[Content] = []
+    skipped: list[str] = []
+    offset = 0
+    for k in names:
+        vals = values[k]
+        errs = as_list(params.get(f"{k}_stderr", []))
+        if len(vals) == 3:
+            labels = [f"{k}_{a}" for a in AXES]
+        elif len(vals) == 1:
+            labels = [str(k)]
+        else:
+            labels = [f"{k}_{i}" for i in range(len(vals))]
+        unit = _unit(str(units.get(k, "")), torque_unknown)
+        for i, v in enumerate(vals):
+            if not excited[offset + i]:
+                skipped.append(labels[i])
+                continue
+            err = f" ± {num(errs[i], 2)}" if i < len(errs) else ""
+            note = ""
+            if i < len(errs) and finite(errs[i]) and errs[i] == 0 and finite(v) and v != 0:
+                # the jackknife spread collapses at a bound of the plausible range
+                err, note = "", " (at its bound: no std. error)"
+            lines.append(f"{labels[i]} = {num(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
+        offset += len(vals)
+    if skipped:
+        lines.append(Span(f"not excited: {', '.join(skipped)}", "em"))
+    return tuple(lines)
+
+
+def _flag(v: Any) -> str:
+    return "yes" if v is True else "no" if v is False else "n/a"
+
+
+def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> Table:
+    rows: list[list[Cell]] = []
+    for i, e in enumerate(entries):
+        if not isinstance(e, Mapping):
+            continue
+        ev_axis = e.get("explained_variance_per_axis")
+        per_axis = (
+            Lines(tuple(f"{a} {pct(v)}" for a, v in zip(AXES, axes_of(ev_axis), strict=True)))
+            if isinstance(ev_axis, Mapping)
+            else "n/a"
+        )
+        name: tuple[Inline, ...] = (Span(str(e.get("name", "?")), "code"),)
+        if e.get("identifiable") is False:
+            name = (*name, Span(" (not identifiable)", "em"))
+        missing = e.get("missing")
+        rows.append(
+            [
+                str(i + 1),
+                name,
+                pct(e.get("explained_variance")),
+                per_axis,
+                Lines(
+                    _param_lines(e.get("parameters") or {}, e.get("units") or {}, torque_unknown)
+                ),
+                num(e.get("t_value"), 3),
+                _flag(e.get("significant")),
+                _flag(e.get("plausible")),
+                (Span(what.upper(), "strong"),) if missing is True else _flag(missing),
+                ", ".join(str(x) for x in e.get("ambiguous_with", []) or []) or "–",
+            ]
+        )
+    return Table(
+        columns=[
+            "#",
+            "effect",
+            "explained variance",
+            "per axis",
+            "parameters ± std. error",
+            "t value",
+            "significant",
+            "plausible",
+            what,
+            "ambiguous with",
+        ],
+        rows=rows,
+        align="rlrrrrllll",
+    )
+
+
+def _unexplained_items(items: Sequence[Any]) -> list[Content]:
+    out: list[Content] = []
+    for it in items:
+        if not isinstance(it, Mapping):
+            continue
+        kind = str(it.get("kind", "structure"))
+        axis = it.get("axis", "?")
+        if kind == "feature correlation":
+            out.append(
+                f"axis {axis}: correlation {num(it.get('correlation'), 3)} with feature "
+                f"{it.get('feature', '?')}"
+            )
+        elif kind == "spectral peak":
+            out.append(
+                f"axis {axis}: spectral peak at {num(it.get('frequency_hz'), 3)} Hz "
+                f"({pct(it.get('power_share'))} of the power, "
+                f"{num(it.get('power_ratio'), 3)}× the median)"
+            )
+        else:
+            rest = ", ".join(f"{k} {_fmt_any(v)}" for k, v in it.items() if k != "kind")
+            out.append(f"{kind}: {rest}")
+    return out
+
+
+def _fmt_any(v: Any) -> str:
+    return num(v) if isinstance(v, int | float) and not isinstance(v, bool) else str(v)
+
+
+def diagnosis_section(
+    tree: Mapping[str, Any], k: int, label: str, learned_as: str | None = None
+) -> list[Block]:
+    """The diagnosis of evaluation ``k``: method, missing effects, their ranking, the fit
+    command, unexplained structure and what the nominal residual resembles. With
+    ``learned_as`` (the label of an earlier file with the same ranking) that last ranking
+    is not repeated."""
+    blocks: list[Block] = [Heading(3, label, f"diagnosis-{k}")]
+    diag = tree.get("diagnosis")
+    if not isinstance(diag, Mapping):
+        return [*blocks, Para("No diagnosis in this evaluation.", note=True)]
+    torque_unknown = torque_unit_unknown(tree)
+    method = diag.get("method") or {}
+    if method:
+        blocks.append(
+            Para(
+                "Every registered effect not in the model is fitted to the model's remaining "
+                f"error and scored on held-out data ({method.get('split', 'held-out blocks')}; "
+                f"standard errors: {method.get('standard_errors', 'n/a')}). An effect is "
+                "missing when it explains at least "
+                f"{pct(method.get('min_explained_variance'))} of the held-out error, its "
+                f"estimate is significant (t ≥ {num(method.get('min_t_value'), 3)}) and "
+                "physically plausible."
+            )
+        )
+    missing = [str(x) for x in diag.get("missing", []) or []]
+    if missing:
+        blocks.append(
+            Para(("Missing: ", *(s for name in missing for s in (Span(name, "strong"), " ")))[:-1])
+        )
+    else:
+        blocks.append(Para("No registered effect is missing from this model."))
+    entries = diag.get("missing_effects") or []
+    if entries:
+        blocks.append(Heading(4, "Candidate missing effects, best first"))
+        blocks.append(_ranking_table(entries, torque_unknown, "missing"))
+    command = diag.get("fit_command")
+    if isinstance(command, str) and command:
+        top = missing[0] if missing else "the top effect"
+        blocks.append(Heading(4, f"Command that adds {top}"))
+        blocks.append(Code(command))
+    unexplained = _unexplained_items(diag.get("unexplained") or [])
+    blocks.append(Heading(4, "Unexplained structure"))
+    if unexplained:
+        blocks.append(
+            Para(
+                "Structure the model's error keeps after the top missing effect, which no "
+                "registered effect explains:"
+            )
+        )
+        blocks.append(Bullets(unexplained))
+    else:
+        blocks.append(Para("None found (no feature correlation, no spectral peak)."))
+    blocks += _learned_blocks(diag.get("learned") or [], learned_as, torque_unknown)
+    return blocks
+
+
+def _learned_blocks(
+    learned: Sequence[Any], learned_as: str | None, torque_unknown: bool
+) -> list[Block]:
+    """'What the nominal model's residual resembles': the ranking fitted to the nominal
+    residual, or with ``learned_as`` a note that it is the same as for that file."""
+    blocks: list[Block] = []
+    if learned and learned_as is not None:
+        blocks.append(Heading(4, "What the nominal model's residual resembles"))
+        blocks.append(
+            Para(
+                f"Same as for {learned_as}: this ranking is fitted to the nominal model's "
+                "residual on the same logs, so it does not depend on the model.",
+                note=True,
+            )
+        )
+    elif learned:
+        blocks.append(Heading(4, "What the nominal model's residual resembles"))
+        found = [
+            str(e.get("name"))
+            for e in learned
+            if isinstance(e, Mapping) and e.get("missing") is True
+        ]
+        text = (
+            "The same ranking on the nominal model's residual (measured − rigid body): which "
+            "physical effects the data shows beyond the nominal model, whatever the model "
+            "learned. A high rank is not proof that the effect is present: effects whose "
+            "signatures look alike stand in for one another."
+        )
+        if found:
+            text += " Resembles most: " + ", ".join(found) + "."
+        blocks.append(Para(text))
+        blocks.append(_ranking_table(learned, torque_unknown, "learned"))
+    return blocks

@@ -1,0 +1,184 @@
+"""Section 1 of the report, the summary: what was evaluated and how well.
+
+An overview table (one row per evaluation file: logs, models, samples, nominal
+and model RMSE per axis, the top missing effect), then per file its logs and
+models, the grid and units, the metrics of every prediction (nominal, nominal +
+effects, model) per axis, the tracking error and the RMSE per log.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from omavctl.diagnose.verdict import get_path as _get
+from omavctl.report.document import Block, Bullets, Cell, Content, Heading, Lines, Para, Span, Table
+from omavctl.report.load import Evaluation
+from omavctl.report.numfmt import AXES, axes_of, num, torque_unit_unknown
+
+__all__ = ["ACCEL_METRICS", "METRICS", "PREDICTIONS", "model_title", "overview_table", "summary_of"]
+
+
+#: Prediction kinds of the metrics tables, with their titles.
+PREDICTIONS = (
+    ("nominal", "nominal"),
+    ("effects", "nominal + effects"),
+    ("model", "model"),
+)
+#: Metrics of the summary table: key, title.
+METRICS = (
+    ("rmse", "RMSE"),
+    ("mae", "MAE"),
+    ("r2", "R² (of the nominal residual)"),
+    ("mean_std", "mean predicted std"),
+    ("coverage_2sigma", "within 2σ (fraction)"),
+    ("nlpd", "NLPD (nats/sample)"),
+)
+#: Metrics in rad/s^2 (the others are dimensionless or nats).
+ACCEL_METRICS = {"rmse", "mae", "mean_std"}
+
+
+def overview_table(evals: Sequence[Evaluation]) -> list[Block]:
+    """One table, a row per evaluation: its logs, models, number of samples, nominal and
+    model RMSE per axis and the top missing effect."""
+    rows: list[list[Cell]] = []
+    for tree, series, label in evals:
+        logs = tree.get("logs", [])
+        models = tree.get("models", [])
+        missing = _get(tree, "diagnosis", "missing", default=[]) or []
+        rows.append(
+            [
+                label,
+                Lines(tuple(str(_get(lg, "name", default="?")) for lg in logs)),
+                Lines(tuple(model_title(m) for m in models)) if models else "n/a",
+                str(int(np.asarray(series["t"]).size)),
+                *(num(v) for v in axes_of(_get(tree, "metrics", "nominal", "rmse"))),
+                *(num(v) for v in axes_of(_get(tree, "metrics", "model", "rmse"))),
+                (Span(str(missing[0]), "code"),) if missing else "none",
+            ]
+        )
+    return [
+        Table(
+            columns=["evaluation", "logs", "models", "samples", *AXES, *AXES, "top missing effect"],
+            groups=[("", 4), ("nominal RMSE, rad/s²", 3), ("model RMSE, rad/s²", 3), ("", 1)],
+            rows=rows,
+            align="lllrrrrrrrl",
+        )
+    ]
+
+
+def model_title(m: Mapping[str, Any]) -> str:
+    """'name (effect, effect)' of a model entry of an evaluation JSON."""
+    effects = list((m.get("effects") or {}).keys())
+    eff = ", ".join(effects) if effects else "no effects"
+    return f"{m.get('name', '?')} ({eff})"
+
+
+def _metrics_table(tree: Mapping[str, Any]) -> Table:
+    """Metric rows; per prediction (nominal, + effects, model [per model]) x, y, z."""
+    by_model = tree.get("metrics_by_model")
+    if not isinstance(by_model, list) or not by_model:
+        by_model = [tree.get("metrics", {})]
+    models = tree.get("models", []) or []
+    cols: list[tuple[str, Mapping[str, Any]]] = [("nominal", _get(by_model[0], "nominal"))]
+    for j, metrics in enumerate(by_model):
+        suffix = ""
+        if len(by_model) > 1:
+            suffix = f" [{_get(models, j, 'name', default=f'model {j + 1}')}]"
+        for key, title in PREDICTIONS[1:]:
+            if _get(metrics, key) is not None:
+                cols.append((title + suffix, metrics[key]))
+    rows: list[list[Cell]] = []
+    for key, title in METRICS:
+        name = f"{title}, rad/s²" if key in ACCEL_METRICS else title
+        row: list[Cell] = [name]
+        for _, m in cols:
+            row += [num(v) for v in axes_of(_get(m, key))]
+        rows.append(row)
+    return Table(
+        columns=["metric", *(a for _ in cols for a in AXES)],
+        groups=[("", 1), *((title, 3) for title, _ in cols)],
+        rows=rows,
+    )
+
+
+def summary_of(
+    tree: Mapping[str, Any], series: Mapping[str, np.ndarray], k: int, label: str
+) -> list[Block]:
+    """The summary of evaluation ``k`` (``label``): its logs and models, grid and units,
+    the metrics table, the tracking error and the RMSE per log. ``series`` maps names to
+    arrays of one row per sample (``t``: (n,)); only the number of samples is shown."""
+    blocks: list[Block] = [Heading(3, label, f"summary-{k}")]
+    logs = tree.get("logs", [])
+    items: list[Content] = []
+    for lg in logs:
+        text = (
+            f"{lg.get('name', '?')} ({lg.get('format', '?')}, {num(lg.get('duration'))} s, "
+            f"{lg.get('samples', '?')} of {lg.get('samples_total', '?')} samples used)"
+        )
+        items.append(("log ", Span(str(lg.get("path", lg.get("name", "?"))), "code"), ": " + text))
+        for note in lg.get("notes", []) or []:
+            items.append(f"note on {lg.get('name', '?')}: {note}")
+    for m in tree.get("models", []) or []:
+        effects = ", ".join((m.get("effects") or {}).keys()) or "none"
+        items.append(
+            (
+                "model ",
+                Span(str(m.get("path", m.get("name", "?"))), "code"),
+                f": effects {effects}; GP inputs {m.get('features', '?')}; "
+                f"{m.get('n_train', '?')} training points",
+            )
+        )
+    sg = tree.get("savitzky_golay") or {}
+    items.append(
+        f"{int(np.asarray(series['t']).size)} samples on a "
+        f"{num(tree.get('grid_rate_hz'))} Hz grid; "
+        f"angular acceleration by Savitzky-Golay (window {sg.get('window', '?')}, "
+        f"order {sg.get('order', '?')})"
+    )
+    acc = _get(tree, "units", "acceleration", default="rad/s^2")
+    if torque_unit_unknown(tree):
+        items.append(
+            f"units: angular accelerations in {acc}; torques are in unknown units (the "
+            "log's torque scale is not known), so parameters involving torque are shown "
+            "in [torque unit] instead of N·m"
+        )
+    else:
+        items.append(f"units: angular accelerations in {acc}, torques in N·m")
+    blocks.append(Bullets(items))
+    blocks.append(_metrics_table(tree))
+    tracking = tree.get("tracking")
+    if isinstance(tracking, Mapping):
+        blocks.append(
+            Table(
+                columns=["tracking error", *AXES, "mean"],
+                rows=[
+                    [
+                        "mean |a* − measured|, rad/s²",
+                        *(num(v) for v in axes_of(tracking)),
+                        num(tracking.get("mean")),
+                    ]
+                ],
+            )
+        )
+    else:
+        blocks.append(Para("No desired acceleration in the logs: no tracking error.", note=True))
+    by_log = tree.get("metrics_by_log") or []
+    if len(by_log) > 1:
+        blocks.append(
+            Table(
+                columns=["log", *AXES, *AXES],
+                groups=[("", 1), ("nominal RMSE, rad/s²", 3), ("model RMSE, rad/s²", 3)],
+                rows=[
+                    [
+                        str(entry.get("log", "?")),
+                        *(num(v) for v in axes_of(_get(entry, "nominal", "rmse"))),
+                        *(num(v) for v in axes_of(_get(entry, "model", "rmse"))),
+                    ]
+                    for entry in by_log
+                ],
+            )
+        )
+    return blocks
