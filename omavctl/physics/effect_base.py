@@ -1,0 +1,189 @@
+"""The base of every physical effect: parameters, the signals a regressor sees, the class.
+
+:mod:`omavctl.physics.effects` holds the registry; the effects themselves are
+there (body effects) and in :mod:`omavctl.physics.actuator_effects` (timing and
+actuator effects).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
+
+import numpy as np
+
+from omavctl.base.errors import ConfigError
+
+if TYPE_CHECKING:
+    from omavctl.physics.allocation import Allocation
+
+__all__ = ["Effect", "EffectContext", "Parameter", "TruthConstants"]
+
+
+class TruthConstants(Protocol):
+    """The constants of a truth plant an effect may change (:meth:`Effect.configure_truth`).
+
+    The simulator's :class:`~omavctl.sim.truth.TruthParameters` is one; the
+    physics does not depend on the simulator.
+    """
+
+    inertia: np.ndarray  # (3, 3) kg m^2
+    servo_time_constant: float  # s
+    motor_time_constant: float  # s
+    command_delay: float  # s
+    rotor_rotor: float  # thrust loss of a pair in a neighbour's wake
+    rotor_arm: float  # thrust loss of a pair over its own tilted arm
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One named parameter of an effect: ``size`` values in ``unit``."""
+
+    name: str
+    size: int
+    unit: str
+    description: str
+
+
+@dataclass
+class EffectContext:
+    """The signals an effect's regressor may use, on a uniform grid.
+
+    omega (N, 3) measured body rate rad/s; force (N, 3) commanded force N;
+    torque (N, 3) commanded torque N m; omega_dot_nominal (N, 3) rad/s^2;
+    dt grid step s; ``allocation`` the vehicle's allocation;
+    ``derivative`` a callable differentiating (N, k) arrays along time
+    (``fit`` passes its Savitzky-Golay derivative so that every signal is
+    filtered alike). ``torque_normalised``: the torque command is in unknown
+    units (vehicle ``command_units.torque: normalised``); ``torque`` is then
+    that command, and ``inertia_error`` estimates its per-axis gain.
+    """
+
+    omega: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    omega_dot_nominal: np.ndarray
+    inertia: np.ndarray
+    dt: float
+    allocation: Allocation
+    derivative: Any
+    torque_normalised: bool = False
+
+    @property
+    def inertia_inv(self) -> np.ndarray:
+        return np.linalg.inv(self.inertia)
+
+    @cached_property
+    def allocated(self) -> tuple[np.ndarray, np.ndarray]:
+        """Commanded tilts (N, 6) rad (unwrapped in time) and arm thrusts (N, 6) N."""
+        wrench = np.concatenate([self.force, self.torque], axis=-1)
+        res = self.allocation.allocate(wrench)
+        return np.unwrap(res.tilt, axis=0), res.arm_thrust
+
+    def angular(self, wrench_delta: np.ndarray) -> np.ndarray:
+        """Angular acceleration (..., 3) caused by a body wrench change (..., 6)."""
+        return wrench_delta[..., 3:] @ self.inertia_inv.T
+
+
+class Effect(ABC):
+    """Base class. Subclasses set ``name``, ``summary``, ``parameters`` and
+    implement :meth:`regressor`."""
+
+    name: ClassVar[str]
+    summary: ClassVar[str]
+    parameters: ClassVar[tuple[Parameter, ...]]
+    #: Whether its parameters can be recovered from angular accelerations alone.
+    identifiable: ClassVar[bool] = True
+    #: Prior standard deviation of each estimation parameter theta in ``fit``'s
+    #: joint effects + GP estimate: wide for what is physically plausible, so
+    #: that a parameter the data do not excite stays near 0.
+    prior_std: ClassVar[float]
+    #: Physically plausible range of theta, used as bounds by ``evaluate``'s
+    #: diagnosis (a missing effect must explain the error with possible values).
+    theta_range: ClassVar[tuple[float, float]] = (-np.inf, np.inf)
+    #: Search interval of the effect's one physical parameter when it enters the
+    #: residual nonlinearly (time constants, delays): ``fit`` then estimates it
+    #: exactly by a 1-D search over :meth:`exact` with the linear parameters of
+    #: the other effects profiled out. None: linear in theta (least squares).
+    #: The :meth:`regressor` of such an effect is its first-order linearisation
+    #: (theta = the parameter), used by ``evaluate``'s diagnosis to detect it.
+    search: ClassVar[tuple[float, float] | None] = None
+
+    # --- estimation --------------------------------------------------------
+    @property
+    def n_theta(self) -> int:
+        return sum(p.size for p in self.parameters)
+
+    @abstractmethod
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        """Regressor X, shape (N, 3, n_theta): residual ~= X @ theta."""
+
+    def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
+        """Residual (N, 3) rad/s^2 of the exact nonlinear form at parameter ``value``.
+
+        Per control period (commands held), before the Savitzky-Golay hold
+        kernel. Only for effects with :attr:`search`.
+        """
+        raise NotImplementedError(f"{self.name} has no exact nonlinear form")
+
+    def to_parameters(
+        self, theta: np.ndarray, cov: np.ndarray
+    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Physical parameters and standard errors from ``theta`` (p,) and its covariance
+        (p, p). Default: theta are the parameters."""
+        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        i = 0
+        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        for p in self.parameters:
+            out[p.name] = (theta[i : i + p.size].copy(), se[i : i + p.size].copy())
+            i += p.size
+        return out
+
+    def to_theta(self, params: dict[str, np.ndarray]) -> np.ndarray:
+        """Inverse of :meth:`to_parameters` (values only)."""
+        return np.concatenate(
+            [np.atleast_1d(np.asarray(params[p.name], float)) for p in self.parameters]
+        )
+
+    # --- simulation (truth plant) -----------------------------------------
+    def validate(self, params: Any, where: str = "effects") -> dict[str, np.ndarray]:
+        """Check a parameter mapping from a YAML file; returns arrays per parameter."""
+        if not isinstance(params, dict):
+            raise ConfigError(f"'{where}.{self.name}' must map parameter names to values")
+        names = {p.name: p for p in self.parameters}
+        for key in params:
+            if key not in names:
+                raise ConfigError(
+                    f"unknown parameter '{where}.{self.name}.{key}' (expected: {', '.join(names)})"
+                )
+        out = {}
+        for p in self.parameters:
+            if p.name not in params:
+                raise ConfigError(f"missing parameter '{where}.{self.name}.{p.name}' ({p.unit})")
+            try:
+                arr = np.asarray(params[p.name], dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise ConfigError(f"'{where}.{self.name}.{p.name}' must be numbers") from None
+            if arr.size != p.size or not np.all(np.isfinite(arr)):
+                raise ConfigError(
+                    f"'{where}.{self.name}.{p.name}' must be {p.size} finite number(s)"
+                )
+            out[p.name] = arr
+        return out
+
+    def body_torque(
+        self, params: dict[str, np.ndarray], omega: np.ndarray, force: np.ndarray
+    ) -> np.ndarray | None:
+        """Extra torque (..., 3) N m on the true body; None if the effect adds none."""
+        return None
+
+    def configure_truth(  # noqa: B027 - optional hook, a no-op for most effects
+        self, params: dict[str, np.ndarray], truth: TruthConstants
+    ) -> None:
+        """Change constants of the truth plant (inertia, actuator time constants)."""
+
+    def gyro_offset(self, params: dict[str, np.ndarray]) -> np.ndarray | None:
+        """Constant offset (3,) rad/s added to the measured body rate, or None."""
+        return None
