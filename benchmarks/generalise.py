@@ -9,7 +9,7 @@ GP must never make it worse) and the 2-sigma coverage of the model's
 predictive band (honest uncertainty: 0.85-0.99). Then the shared real logs.
 
     python benchmarks/generalise.py [--quick] [--features wrench,wrench+rate]
-        [--effects-fit] [--out docs/generalisation-results.md]
+        [--cases none,rotational_drag] [--timings 100Hz-held] [--workdir DIR]
 
 ``make generalise`` runs it; ``tests/test_generalise.py`` pins a subset.
 """
