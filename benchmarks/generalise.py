@@ -92,6 +92,12 @@ def fly_pair(workdir: Path, case: str, timing: str, duration: float = DURATION) 
     return out
 
 
+def known_effects(case: str) -> list[str]:
+    """The effects a model of ``case`` has once the diagnosis was followed: the
+    plant's rotor interference and the hidden effect."""
+    return ["rotor_interference"] + ([] if case == "none" else [case])
+
+
 def run_direction(
     workdir: Path,
     logs: dict[str, Path],
@@ -107,7 +113,8 @@ def run_direction(
     result = fit_model(
         [logs[fit_on]], points=points, features=features, effects=list(effects), restarts=1
     )
-    model_path = workdir / f"{case}-{timing}-{fit_on}-{features}.npz"
+    tag = "".join(f"+{e}" for e in effects)
+    model_path = workdir / f"{case}-{timing}-{fit_on}-{features}{tag}.npz"
     save_model(model_path, result.model)
     tree = evaluate([model_path], [logs[other]]).tree
     phys = np.array([tree["metrics"]["effects"]["rmse"][a] for a in "xyz"])
@@ -160,6 +167,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cases", default=",".join(EFFECT_CASES))
     ap.add_argument("--timings", default=",".join(TIMINGS))
     ap.add_argument("--workdir", type=Path, default=None, help="keep the logs here")
+    ap.add_argument(
+        "--with-effects",
+        action="store_true",
+        help="fit the hidden effect and rotor_interference too (the model after the "
+        "diagnosis was followed)",
+    )
     args = ap.parse_args(argv)
     duration = 10.0 if args.quick else DURATION
     timings = ["100Hz-held"] if args.quick else args.timings.split(",")
@@ -178,7 +191,10 @@ def main(argv: list[str] | None = None) -> int:
                 for timing in timings:
                     logs = fly_pair(workdir, case, timing, duration)
                     for fit_on in logs:
-                        o = run_direction(workdir, logs, fit_on, case, timing, features)
+                        effects = known_effects(case) if args.with_effects else ()
+                        o = run_direction(
+                            workdir, logs, fit_on, case, timing, features, effects=effects
+                        )
                         rows.append((features, o))
                         ok = bool(np.all(o.ratio <= 1.05)) and bool(
                             np.all((o.coverage >= 0.85) & (o.coverage <= 0.99))
