@@ -145,6 +145,8 @@ class EffectsPrior:
     values: np.ndarray
     scale: np.ndarray
     information: np.ndarray
+    #: names of the effects the model has fitted (the others start at fit's prior, 0)
+    fitted: tuple[str, ...] = ()
 
     @classmethod
     def from_model(cls, model, gp: GPAxes, names: Sequence[str]) -> EffectsPrior:
@@ -168,7 +170,8 @@ class EffectsPrior:
         for a in range(3):
             w = solve_triangular(gp.chol[a], x[:, a, :], lower=True)
             info += w.T @ w
-        return cls(tuple(names), np.concatenate(values), s, info * np.outer(s, s))
+        fitted = tuple(n for n in names if n in model.effects)
+        return cls(tuple(names), np.concatenate(values), s, info * np.outer(s, s), fitted)
 
     def standard_errors(self, information: np.ndarray) -> np.ndarray:
         """Standard errors (..., p) of theta in its units from scaled information (..., p, p)."""
@@ -307,6 +310,30 @@ def _finite(values: np.ndarray) -> list[float | None]:
     return [float(v) if math.isfinite(v) else None for v in np.asarray(values, float).ravel()]
 
 
+def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
+    """The summary's first line: what the flight is expected to do for ``names``.
+
+    "separate" only when the largest cross-effect correlation falls; a flight that
+    pins the parameters down while correlating them more says so.
+    """
+    separates = len(names) > 1 and corr["after"] < corr["before"]
+    kind = "separate and pin down" if separates else "pin down"
+    line = (
+        f"effects: the flight (candidate {result.best}, ranked by --objective "
+        f"{result.objective}) is expected to {kind} {', '.join(names)}: relative standard "
+        f"error (geometric mean) {rel['before']:.3g} now, {rel['after']:.3g} after it, "
+        f"{rel['task']:.3g} after flying the task again"
+    )
+    if len(names) > 1:
+        line += (
+            f"; largest cross-effect correlation {corr['before']:.2f} now, "
+            f"{corr['after']:.2f} after it, {corr['task']:.2f} after the task"
+        )
+        if corr["after"] > corr["before"]:
+            line += " (the flight correlates them more: it does not tell them apart)"
+    return line
+
+
 def effects_summary(result) -> dict | None:
     """What a plan (:class:`~omavctl.planning.planner.PlanResult`) expects for the
     effects: per parameter the standard errors before, after the chosen flight and
@@ -330,19 +357,17 @@ def effects_summary(result) -> dict | None:
         "after": float(result.metrics["effects_correlation"][k]),
         "task": float(result.task_metrics["effects_correlation"]),
     }
-    kind = "separate and pin down" if len(prior.names) > 1 else "pin down"
-    lines = [
-        f"effects: the flight (candidate {k}, ranked by --objective {result.objective}) is "
-        f"expected to {kind} {', '.join(prior.names)}: relative standard error (geometric "
-        f"mean) {rel['before']:.3g} now, {rel['after']:.3g} after it, {rel['task']:.3g} after "
-        f"flying the task again; largest cross-effect correlation {corr['before']:.2f} now, "
-        f"{corr['after']:.2f} after it, {corr['task']:.2f} after the task",
-    ]
+    lines = [_headline(result, prior.names, rel, corr)]
     labels = parameter_labels(prior.names)
+    owner = np.concatenate([np.full(get_effect(n).n_theta, n) for n in prior.names])
     for i, label in enumerate(labels):
+        now = (
+            f"{prior.values[i]:.4g} ± {before[i]:.3g} now"
+            if owner[i] in prior.fitted
+            else f"not in the model (prior ± {before[i]:.3g})"
+        )
         lines.append(
-            f"  {label}: {prior.values[i]:.4g} +- {before[i]:.3g} now, +- {after[i]:.3g} "
-            f"after the flight, +- {task[i]:.3g} after the task"
+            f"  {label}: {now}, ± {after[i]:.3g} after the flight, ± {task[i]:.3g} after the task"
         )
     return {
         "names": list(prior.names),
