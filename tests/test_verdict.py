@@ -151,3 +151,12 @@ def test_parameter_at_a_bound_is_not_shown_as_plus_minus_zero():
     assert lines == ("tau = 0.2 s (at its bound: no std. error)",)
     lines = _param_lines({"D": [0.04, 0.0, 0.0], "D_stderr": [0.004, 0.0, 0.0]}, {}, False)
     assert lines[0] == "D_x = 0.04 ± 0.004" and lines[1] == "D_y = 0 ± 0"
+
+
+def test_activity_speaks_of_thrust_in_g_only_when_the_force_is_in_newtons():
+    from omavctl.diagnose.verdict import activity
+
+    seg = {"attitude_deg": [1.0, 1.0, 0.0], "rate": [0.0, 0.0, 0.0], "u": [0.0, 0.0, 14.7]}
+    assert activity(seg).endswith("thrust 1.50 g")
+    # a normalised throttle (PX4 thrust 0..1): its u is not an acceleration
+    assert "thrust" not in activity({**seg, "thrust_known": False})

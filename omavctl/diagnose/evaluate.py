@@ -326,8 +326,13 @@ def _failures(
     features: dict[str, np.ndarray],
     log_names: Sequence[str],
     dt: float,
+    thrust_known: bool = True,
 ) -> dict[str, Any]:
-    """``worst_segments`` and ``binned``: where the first model's error is largest."""
+    """``worst_segments`` and ``binned``: where the first model's error is largest.
+
+    ``thrust_known``: False when the force command is normalised (its ``u`` is not
+    an acceleration, so no segment may speak of thrust in g).
+    """
     residual = series["measured"] - series["nominal"]
     err = residual - series["mean_0"]
     context = {
@@ -335,10 +340,10 @@ def _failures(
         "rate": series["omega"],
         "u": series["u"],
     }
-    return {
-        "worst_segments": worst_segments(series["t"], series["log"], err, context, log_names, dt),
-        "binned": binned_errors(err, residual, features),
-    }
+    segments = worst_segments(series["t"], series["log"], err, context, log_names, dt)
+    for seg in segments:
+        seg["thrust_known"] = thrust_known
+    return {"worst_segments": segments, "binned": binned_errors(err, residual, features)}
 
 
 def evaluate(
@@ -390,7 +395,7 @@ def evaluate(
         "metrics_by_log": per_model[0]["metrics_by_log"],
         "metrics_by_model": [pm["metrics"] for pm in per_model],
         "tracking": tracking,
-        **_failures(series, features, log_names, sg.dt),
+        **_failures(series, features, log_names, sg.dt, not model.vehicle.force_normalised),
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
         "flags": quality_flags(per_model[0]["metrics"], excluded),

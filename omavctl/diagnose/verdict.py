@@ -124,7 +124,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
 # --------------------------------------------------------------- where/why
 def activity(seg: Mapping[str, Any]) -> str:
     """What the vehicle was doing in a worst segment, in words: tilt, the fastest
-    rotation, thrust (from the segment's mean |attitude|, |rate|, |wrench|)."""
+    rotation, thrust (from the segment's mean |attitude|, |rate|, |wrench|; no thrust
+    when the segment says its force command is normalised, ``thrust_known``)."""
     att = [_num(v) or 0.0 for v in (seg.get("attitude_deg") or [])][:3]
     rate = [_num(v) or 0.0 for v in (seg.get("rate") or [])][:3]
     u = [_num(v) or 0.0 for v in (seg.get("u") or [])]
@@ -140,7 +141,7 @@ def activity(seg: Mapping[str, Any]) -> str:
         parts.append(f"{('rolling', 'pitching', 'yawing')[k]} at {rate[k]:.2f} rad/s")
     elif rate:
         parts.append("barely rotating")
-    if len(u) >= 3 and u[2] > 0:
+    if len(u) >= 3 and u[2] > 0 and seg.get("thrust_known", True) is not False:
         g = u[2] / 9.81
         if abs(g - 1.0) >= 0.15:
             parts.append(f"thrust {g:.2f} g")
