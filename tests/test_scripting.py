@@ -61,7 +61,10 @@ def work(tmp_path_factory) -> Path:
     ):
         _run(shlex.split(args), cwd=w)
     stdout, _ = _run(
-        shlex.split("fit logs/train.bag --points 40 --restarts 0 --out models/gp.npz --json"),
+        shlex.split(
+            "fit logs/train.bag --effects rotor_interference --points 40 --restarts 0 "
+            "--out models/gp.npz --json"
+        ),
         cwd=w,
     )
     fit = _one_json(stdout)
@@ -123,7 +126,9 @@ def test_evaluate_default_out_json_and_fit_command_from_a_subdirectory(work):
     assert set(obj["models"][0]["rmse"]) == {"x", "y", "z"}
     # the printed command runs as printed from here, and writes beside the model
     command = obj["fit_command"]
-    assert command.startswith("omavctl fit ../logs/train.bag --effects rotational_drag ")
+    assert command.startswith(
+        "omavctl fit ../logs/train.bag --effects rotor_interference,rotational_drag "
+    )
     words = shlex.split(command)
     out = _run([*words[1:], "--restarts", "0", "-q"], cwd=sub)
     assert out == ("", "")
@@ -134,8 +139,8 @@ def test_fit_command_is_shell_quoted(work, tmp_path):
     odd = tmp_path / "my flights"
     odd.mkdir()
     (odd / "train it.bag").write_bytes((work / "logs" / "train.bag").read_bytes())
-    _run(["fit", str(odd / "train it.bag"), "--points", "30", "--restarts", "0",
-          "--out", str(odd / "m 1.npz"), "-q"])  # fmt: skip
+    _run(["fit", str(odd / "train it.bag"), "--effects", "rotor_interference", "--points", "30",
+          "--restarts", "0", "--out", str(odd / "m 1.npz"), "-q"])  # fmt: skip
     stdout, _ = _run(
         ["evaluate", str(work / "logs" / "held.mcap"), "--model", str(odd / "m 1.npz"), "--json"]
     )
@@ -153,7 +158,8 @@ def test_fit_command_is_shell_quoted(work, tmp_path):
 def test_several_models_side_by_side(work):
     _run(
         shlex.split(
-            "fit logs/train.bag --effects rotational_drag --points 40 --restarts 0 "
+            "fit logs/train.bag --effects rotor_interference,rotational_drag --points 40 "
+            "--restarts 0 "
             "--out models/drag.npz -q"
         ),
         cwd=work,
