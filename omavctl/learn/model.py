@@ -385,7 +385,32 @@ class ResidualGP:
         ``variance=False`` skips the variance (None).
         """
         mean, var = self.gp_predict(samples.inputs(self.features), noise=noise, variance=variance)
+        if var is not None and self.effects:
+            var = var + self.effects_variance(samples)
         return mean + self.effects_samples(samples), var
+
+    def effects_variance(self, samples: Any) -> np.ndarray:
+        """Variance (n, 3) of the effects' residual on a log's samples from their
+        parameters' standard errors: ``sum_j (d r / d theta_j)^2 se_j^2``.
+
+        The predictive variance of a GP with explicit basis functions includes
+        ``X Sigma_theta X^T``: an effect fitted on a flight that hardly excites it
+        extrapolates with a band that grows with its regressor. Parameters are
+        taken as independent (the file stores standard errors, not the
+        covariance); the sensitivity of each is a difference of the prediction
+        one standard error away (exact for linear effects).
+        """
+        out = np.zeros((samples.n, 3))
+        for est in self.effects.values():
+            base = _effect_residual(samples, est, est.values)
+            for pname, se in est.stderr.items():
+                for j in range(se.size):
+                    if not (np.isfinite(se[j]) and se[j] > 0):
+                        continue
+                    moved = {k: v.copy() for k, v in est.values.items()}
+                    moved[pname][j] += se[j]
+                    out += (_effect_residual(samples, est, moved) - base) ** 2
+        return out
 
     def effects_samples(self, samples: Any) -> np.ndarray:
         """Residual (n, 3) the fitted effects cause on a log's samples (held).
@@ -394,14 +419,8 @@ class ResidualGP:
         1-D search (lags, delay: :attr:`Effect.search`) through their exact form.
         """
         out = np.zeros((samples.n, 3))
-        for name, est in self.effects.items():
-            if est.effect.search is not None:
-                value = float(est.values[est.effect.parameters[0].name][0])
-                out += samples.exact(name, value)
-                continue
-            if name not in samples.regressors:
-                raise ValueError(f"samples lack the regressor of effect '{name}'")
-            out += samples.regressors[name] @ est.theta
+        for est in self.effects.values():
+            out += _effect_residual(samples, est, est.values)
         return out
 
     # ----------------------------------------------------------- persistence
@@ -426,3 +445,19 @@ class ResidualGP:
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
             **{f"regressor_{k}": v for k, v in sorted(self.train_regressors.items())},
         }
+
+
+def _effect_residual(
+    samples: Any, est: EffectEstimate, values: dict[str, np.ndarray]
+) -> np.ndarray:
+    """Residual (n, 3) of one fitted effect at parameter ``values`` on a log's samples.
+
+    Linear effects through their held regressors; effects estimated by a 1-D
+    search (lags, delay: :attr:`Effect.search`) through their exact form.
+    """
+    effect = est.effect
+    if effect.search is not None:
+        return samples.exact(est.name, float(values[effect.parameters[0].name][0]))
+    if est.name not in samples.regressors:
+        raise ValueError(f"samples lack the regressor of effect '{est.name}'")
+    return samples.regressors[est.name] @ effect.to_theta(values)
