@@ -320,3 +320,34 @@ def test_bad_filter_settings(window, order):
 
     with pytest.raises(ConfigError, match="--sg-"):
         SavitzkyGolay(window, order, 0.01)
+
+
+def test_the_band_includes_the_effects_parameter_uncertainty(vehicle, short_fig8):
+    """A GP with explicit basis functions predicts with variance ``X Sigma X^T`` on top
+    of the GP's: with drag (linear in D) and its standard errors, the added variance
+    is ``sum_j (X_j se_j)^2`` on every sample, and it grows with the regressor."""
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.signal import SavitzkyGolay, residual_samples
+    from omavctl.logs import align
+    from omavctl.sim.plant import simulate
+    from omavctl.sim.truth import truth_from_tree
+
+    truth = truth_from_tree(
+        {"ideal": True, "effects": {"rotational_drag": {"D": [0.05] * 3}}}, vehicle
+    )
+    flight = align(simulate(short_fig8, vehicle, truth, seed=0).log)
+    model = fit_model([flight], vehicle, effects=["rotational_drag"], points=20, restarts=0).model
+    samples = residual_samples(
+        flight, vehicle, SavitzkyGolay(11, 2, 0.01), effects=["rotational_drag"]
+    )
+    se = model.effects["rotational_drag"].stderr["D"]
+    assert np.all(se > 0)
+    x = samples.regressors["rotational_drag"]  # (n, 3, 3)
+    expected = ((x * se[None, None, :]) ** 2).sum(axis=2)
+    np.testing.assert_allclose(model.effects_variance(samples), expected, rtol=1e-9, atol=1e-15)
+    _, var = model.predict_samples(samples)
+    _, gp_var = model.gp_predict(samples.inputs(model.features))
+    assert var is not None and gp_var is not None
+    np.testing.assert_allclose(var, gp_var + expected, rtol=1e-12)
+    size = np.abs(x).sum(axis=(1, 2))
+    assert expected[size.argmax()].sum() > 100 * expected[size.argmin()].sum()
