@@ -139,6 +139,19 @@ def test_simulate_output_directory_missing(task_csv, tmp_path):
     assert _error_line(result) == f"error: {out.parent}: output directory does not exist"
 
 
+@pytest.mark.parametrize("name", ["x.txt", "flight.cvs", "log.db3"])
+def test_simulate_unknown_log_kind_is_refused_before_flying(task_csv, tmp_path, name):
+    """A mistyped extension is not written as a ROS 2 bag directory of that name."""
+    out = tmp_path / name
+    result = runner.invoke(app, ["simulate", "-r", str(task_csv), "-o", str(out)])
+    suffix = out.suffix
+    assert _error_line(result) == (
+        f"error: {out}: unknown log kind '{suffix}': write a directory (ROS 2 bag), "
+        ".bag (ROS 1), .mcap or .csv"
+    )
+    assert result.exit_code == 2 and not out.exists()
+
+
 def test_task_bad_option_is_one_line(tmp_path):
     result = runner.invoke(
         app, ["task", "fig8", "--duration", "1", "--out", str(tmp_path / "t.csv")]

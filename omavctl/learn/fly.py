@@ -20,6 +20,7 @@ from omavctl.base.errors import OmavctlError
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.model_file import check_vehicle, load_model
 from omavctl.logs import write_log
+from omavctl.logs.write import output_kind
 from omavctl.sim.plant import SimulationResult, simulate
 from omavctl.sim.trajectory import Trajectory, read_trajectory
 from omavctl.sim.truth import TruthParameters, load_truth
@@ -74,6 +75,7 @@ def prepare_simulation(
     directory is allowed as output when ``out`` has no suffix (a ROS 2 bag).
     """
     check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)
+    output_kind(out)  # an unknown extension is refused before the flight is flown
     veh = load_vehicle(vehicle)
     ref = read_trajectory(reference)
     plant = load_truth(truth, veh)

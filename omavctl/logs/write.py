@@ -33,12 +33,28 @@ from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog
 __all__ = ["output_kind", "write_log"]
 
 
+_KINDS = {".csv": "csv", ".bag": "ros1", ".mcap": "mcap"}
+
+
 def output_kind(path: Path) -> str:
-    """``"csv"``, ``"ros1"``, ``"mcap"`` or ``"ros2"`` (directory) for an output path."""
+    """``"csv"``, ``"ros1"``, ``"mcap"`` or ``"ros2"`` (directory) for an output path.
+
+    A name ending in another extension (one starting with a letter: ``.txt``,
+    ``.db3``, a mistyped ``.cvs``) is refused rather than written as a ROS 2 bag
+    directory of that name; directories and names like ``run.2`` are ROS 2 bags.
+    """
     suffix = path.suffix.lower()
     if path.is_dir():
         return "ros2"
-    return {".csv": "csv", ".bag": "ros1", ".mcap": "mcap"}.get(suffix, "ros2")
+    if suffix in _KINDS:
+        return _KINDS[suffix]
+    if suffix[1:2].isalpha():
+        raise LogError(
+            f"unknown log kind '{path.suffix}': write a directory (ROS 2 bag), "
+            ".bag (ROS 1), .mcap or .csv",
+            path,
+        )
+    return "ros2"
 
 
 @dataclass
