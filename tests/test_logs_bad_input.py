@@ -347,3 +347,14 @@ def test_write_refuses_to_replace_a_non_bag_directory(tmp_path: Path) -> None:
     write_log(bag, make_raw(duration=0.5))
     write_log(bag, make_raw(duration=1.0))  # an existing bag is replaced
     assert read_log(bag).t.size == 101
+
+
+def test_library_internals_of_a_truncated_mcap_are_not_shown():
+    """The mcap reader's record-length complaint about a truncated file is internals."""
+    from omavctl.base.errors import library_reason
+
+    text = (
+        "unknown (opcode 151) record has length 6048615774535352343 that exceeds limit 4294967296"
+    )
+    assert library_reason(ValueError(text)) == "the file is damaged or truncated"
+    assert library_reason(ValueError("file is empty")) == "file is empty"

@@ -71,7 +71,7 @@ class OutputError(OmavctlError):
 _INTERNAL = re.compile(
     r"codec|decode|NoneType|subscriptable|attribute|object|index|out of range|unpack|"
     r"buffer|struct|assert|magic|\(\d+, \d+|0x[0-9a-f]+|byte|position \d+|expected \d+|"
-    r"reshape|broadcast|[A-Z]\w*Error",
+    r"reshape|broadcast|opcode|record has|exceeds limit|\d{10,}|[A-Z]\w*Error",
     re.IGNORECASE,
 )
 
