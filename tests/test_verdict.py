@@ -150,7 +150,11 @@ def test_parameter_at_a_bound_is_not_shown_as_plus_minus_zero():
     lines = _param_lines({"tau": [0.2], "tau_stderr": [0.0]}, {"tau": "s"}, False)
     assert lines == ("tau = 0.2 s (at its bound: no std. error)",)
     lines = _param_lines({"D": [0.04, 0.0, 0.0], "D_stderr": [0.004, 0.0, 0.0]}, {}, False)
-    assert lines[0] == "D_x = 0.04 ± 0.004" and lines[1] == "D_y = 0 ± 0"
+    assert lines[0] == "D_x = 0.04 ± 0.004"
+    assert lines[1] == "D_y = 0 (at its bound: no std. error)"
+    # a rounding-sized spread is no standard error either
+    lines = _param_lines({"tau_d": [-0.02], "tau_d_stderr": [1e-17]}, {"tau_d": "s"}, False)
+    assert lines == ("tau_d = -0.02 s (at its bound: no std. error)",)
 
 
 def test_activity_speaks_of_thrust_in_g_only_when_the_force_is_in_newtons():

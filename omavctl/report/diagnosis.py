@@ -82,8 +82,9 @@ def _param_lines(
                 continue
             err = f" ± {num(errs[i], 2)}" if i < len(errs) else ""
             note = ""
-            if i < len(errs) and finite(errs[i]) and errs[i] == 0 and finite(v) and v != 0:
-                # the jackknife spread collapses at a bound of the plausible range
+            if i < len(errs) and finite(errs[i]) and finite(v) and errs[i] <= 1e-9 * max(1, abs(v)):
+                # the jackknife spread collapses (to 0 or rounding) at a bound of the
+                # plausible range, 0 included (drag, lags)
                 err, note = "", " (at its bound: no std. error)"
             lines.append(f"{labels[i]} = {num(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
         offset += len(vals)
