@@ -113,6 +113,14 @@ def test_cli_effects_plan_scores_both_objectives_and_is_deterministic(setup):
     for r in feasible:  # both objectives for every candidate; the effects one ranks
         assert float(r["variance_cost"]) > 0 and r["cost"] == r["effects_cost"]
         assert 0 < float(r["effects_rel_se"]) and 0 <= float(r["effects_max_correlation"]) <= 1
+    # --json carries the same numbers per candidate as the scores CSV
+    for r, c in zip(rows, outs[0][2]["candidates"], strict=True):
+        for column in ("variance_cost", "effects_cost", "effects_rel_se"):
+            assert (c[column] is None) == (r[column] == "")
+            if c[column] is not None:
+                assert abs(c[column] - float(r[column])) <= 1e-8 * max(1.0, abs(c[column]))
+        reason = (c["reason"] or "").replace(",", ";")
+        assert c["feasible"] == (r["feasible"] == "true") and reason == r["reason"]
     best = min(feasible, key=lambda r: float(r["effects_cost"]))
     summary = outs[0][2]["effects"]
     assert outs[0][2]["best"] == int(best["candidate"])

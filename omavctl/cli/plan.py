@@ -298,6 +298,24 @@ def _candidates_table(result: Any) -> Any:
     return table
 
 
+def _candidate_json(result: Any, k: int) -> dict[str, Any]:
+    """One candidate of --json: its cost, every objective's number (as the scores CSV;
+    null where not computed or infeasible), tracking, feasibility and the reason."""
+    import math
+
+    from omavctl.planning.report import METRIC_COLUMNS
+
+    out: dict[str, Any] = {"id": k, "cost": float(result.cost[k])}
+    for column, key in METRIC_COLUMNS.items():
+        values = result.metrics.get(key)
+        v = float(values[k]) if values is not None and result.feasible[k] else math.nan
+        out[column] = v if math.isfinite(v) else None
+    out["tracking"] = float(result.tracking[k])
+    out["feasible"] = bool(result.feasible[k])
+    out["reason"] = result.reason[k] or None
+    return out
+
+
 def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
     """The --json object of plan: files, the best candidate, every candidate's cost,
     the objective and (for the effects objective) the effects' expected errors."""
@@ -313,15 +331,7 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
         "prior_variance": float(result.prior_variance),
         "epsilon": float(result.epsilon),
         "rejected": int((~result.feasible).sum()),
-        "candidates": [
-            {
-                "id": k,
-                "cost": float(result.cost[k]),
-                "tracking": float(result.tracking[k]),
-                "feasible": bool(result.feasible[k]),
-            }
-            for k in range(len(result.cost))
-        ],
+        "candidates": [_candidate_json(result, k) for k in range(len(result.cost))],
         "notes": list(result.notes),
         "objective": result.objective,
         "envelope": envelope(result.best_trajectory()) if result.best >= 0 else None,
