@@ -63,6 +63,7 @@ def _error_line(result) -> str:
     assert result.exit_code == 2, text
     assert "Traceback" not in text
     assert len(text.splitlines()) == 1, text
+    assert result.output == text + "\n", repr(result.output)  # nothing else, no blank line
     return text
 
 

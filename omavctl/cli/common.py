@@ -56,10 +56,11 @@ def emit(as_json: bool, obj: dict[str, Any]) -> None:
 
 @contextmanager
 def progress_bar(con: Any, quiet: bool, label: str) -> Iterator[Callable[[float], None]]:
-    """A transient progress bar on ``con`` (none with --quiet): yields ``update(fraction)``."""
+    """A transient progress bar on ``con`` (none with --quiet or when ``con`` is not a
+    terminal: a log file gets no bar and no blank line): yields ``update(fraction)``."""
     from rich.progress import Progress
 
-    with Progress(console=con, transient=True, disable=quiet) as bar:
+    with Progress(console=con, transient=True, disable=quiet or not con.is_terminal) as bar:
         job = bar.add_task(label, total=1.0)
         yield lambda fraction: bar.update(job, completed=fraction)
 

@@ -130,7 +130,7 @@ def _stage_bar(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]:
     """One transient progress bar whose label is the current stage of the fit."""
     from rich.progress import Progress
 
-    with Progress(console=con, transient=True, disable=quiet) as bar:
+    with Progress(console=con, transient=True, disable=quiet or not con.is_terminal) as bar:
         job = bar.add_task("fitting", total=1.0)
         yield lambda stage, f: bar.update(job, description=stage, completed=f)
 

@@ -182,7 +182,7 @@ def _stage_bars(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]
     """Transient progress bars, one per stage of the plan as the stages come."""
     from rich.progress import Progress
 
-    with Progress(console=con, transient=True, disable=quiet) as bar:
+    with Progress(console=con, transient=True, disable=quiet or not con.is_terminal) as bar:
         stages: dict[str, Any] = {}
 
         def progress(stage: str, fraction: float) -> None:
