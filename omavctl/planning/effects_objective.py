@@ -127,11 +127,24 @@ def resolve_effects(model, named: Sequence[str]) -> tuple[str, ...]:
 
 
 def parameter_labels(names: Sequence[str]) -> list[str]:
-    """``effect.parameter[i]`` per estimation parameter theta of ``names``."""
+    """A label per estimation parameter theta of ``names``: ``effect.parameter`` with
+    ``_x``/``_y``/``_z`` for a body-axis triple (as the reports write them) or ``[i]``.
+
+    An effect whose theta is not its physical parameter (``inertia_error``: theta =
+    1/scale - 1) is labelled ``theta`` so that no value is read in the wrong unit.
+    """
+    from omavctl.physics.effect_base import Effect
+
     out = []
     for name in names:
-        for p in get_effect(name).parameters:
-            out += [f"{name}.{p.name}" + (f"[{i}]" if p.size > 1 else "") for i in range(p.size)]
+        eff = get_effect(name)
+        physical = type(eff).to_theta is Effect.to_theta
+        for p in eff.parameters:
+            base = f"{name}.{p.name if physical else 'theta'}"
+            if p.size == 3:
+                out += [f"{base}_{a}" for a in "xyz"]
+            else:
+                out += [base + (f"[{i}]" if p.size > 1 else "") for i in range(p.size)]
     return out
 
 
