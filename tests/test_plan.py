@@ -135,18 +135,18 @@ def test_plan_summary_names_the_planned_envelope_and_warns_of_a_long_yaw_turn():
     warned when it turns yaw (or rotates) far beyond it."""
     from types import SimpleNamespace
 
-    from omavctl.cli.plan import _envelope_lines, envelope
+    from omavctl.planning.envelope import envelope, envelope_lines
     from omavctl.sim.tasks import yaw
 
     task = fig8(duration=8.0, ramp=1.0)
     gentle = SimpleNamespace(best=0, task=task, best_trajectory=lambda: task)
-    lines = _envelope_lines(gentle)
+    lines = envelope_lines(gentle)
     assert len(lines) == 1 and lines[0].startswith("planned reference: |roll| <= ")
     turn = yaw(300, 4.0, duration=8.0)  # +-300 deg
     e = envelope(turn)
     assert 590 < e["yaw_range_deg"] <= 600 and e["max_abs_roll_deg"] < 1
     wild = SimpleNamespace(best=0, task=task, best_trajectory=lambda: turn)
-    lines = _envelope_lines(wild)
+    lines = envelope_lines(wild)
     warning = "warning: the planned reference turns yaw through"
     assert any(line.startswith(warning) for line in lines)
-    assert _envelope_lines(SimpleNamespace(best=-1, task=task)) == []
+    assert envelope_lines(SimpleNamespace(best=-1, task=task)) == []

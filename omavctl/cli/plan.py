@@ -216,7 +216,9 @@ def _render_plan(
     summary = effects_summary(result)
     for line in summary["lines"] if summary else []:
         con.print(line, markup=False)
-    for line in _envelope_lines(result):
+    from omavctl.planning.envelope import envelope_lines
+
+    for line in envelope_lines(result):
         con.print(line, markup=False)
     best_cost = float(result.cost[result.best])
     if best_cost >= result.task_cost:
@@ -237,47 +239,6 @@ def _render_plan(
         con.print(f"wrote {report_out} (plan report)")
     con.print(f"wrote {out} (candidate {result.best})")
     return files
-
-
-def envelope(traj: Any) -> dict[str, float]:
-    """Largest |roll| and |pitch|, yaw range (deg) and body rate (rad/s) of a reference."""
-    import numpy as np
-
-    deg = np.rad2deg(traj.euler)
-    return {
-        "max_abs_roll_deg": float(np.abs(deg[:, 0]).max()),
-        "max_abs_pitch_deg": float(np.abs(deg[:, 1]).max()),
-        "yaw_range_deg": float(np.ptp(deg[:, 2])),
-        "max_body_rate": float(np.linalg.norm(traj.body_rate, axis=1).max()),
-    }
-
-
-def _envelope_lines(result: Any) -> list[str]:
-    """Where the planned reference goes beside the task: what a flight engineer checks
-    before flying it; a warning when it turns yaw much further than the task."""
-    if result.best < 0:
-        return []
-    plan, task = envelope(result.best_trajectory()), envelope(result.task)
-    lines = [
-        f"planned reference: |roll| <= {plan['max_abs_roll_deg']:.0f} deg, |pitch| <= "
-        f"{plan['max_abs_pitch_deg']:.0f} deg, yaw through {plan['yaw_range_deg']:.0f} deg, "
-        f"body rate <= {plan['max_body_rate']:.2f} rad/s (the task: "
-        f"{task['max_abs_roll_deg']:.0f}, {task['max_abs_pitch_deg']:.0f}, "
-        f"{task['yaw_range_deg']:.0f} deg, {task['max_body_rate']:.2f} rad/s)"
-    ]
-    if plan["yaw_range_deg"] > max(180.0, 2.0 * task["yaw_range_deg"]):
-        lines.append(
-            f"warning: the planned reference turns yaw through {plan['yaw_range_deg']:.0f} "
-            "deg: check the flight area and cables before flying it, or lower --amplitude "
-            "(slow deviations integrate to large angles)"
-        )
-    if plan["max_body_rate"] > max(3.0, 3.0 * task["max_body_rate"]):
-        lines.append(
-            f"warning: the planned reference rotates at up to {plan['max_body_rate']:.1f} "
-            f"rad/s, {plan['max_body_rate'] / max(task['max_body_rate'], 1e-9):.0f}x the task's: "
-            "check the vehicle can fly it, or lower --amplitude or --max-freq"
-        )
-    return lines
 
 
 def _candidates_table(result: Any) -> Any:
@@ -320,6 +281,7 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
     """The --json object of plan: files, the best candidate, every candidate's cost,
     the objective and (for the effects objective) the effects' expected errors."""
     from omavctl.planning.effects_objective import effects_summary
+    from omavctl.planning.envelope import envelope
 
     summary = effects_summary(result)
     return {

@@ -73,8 +73,8 @@ def cost_figure(result: PlanResult) -> bytes:
             if feasible[c]:
                 colour = "C3" if c == result.best else "C0"
                 ax.bar(pos, value[c], color=colour, width=0.7)
-            else:
-                ax.bar(pos, top * 0.05, color="none", edgecolor="0.5", hatch="xx", width=0.7)
+            else:  # full height, so that it does not read as a small (good) cost
+                ax.axvspan(pos - 0.35, pos + 0.35, facecolor="0.93", edgecolor="0.6", hatch="xx")
         ax.axhline(task, color="k", ls="--", lw=1.0)
         ax.set_xticks(np.arange(order.size), [str(c) for c in order], fontsize=7)
         ax.set_xlabel("candidate (sorted by cost; hatched: rejected)")
@@ -87,7 +87,7 @@ def cost_figure(result: PlanResult) -> bytes:
         handles = [
             Patch(color="C3", label=f"chosen (candidate {result.best})"),
             Patch(color="C0", label="feasible candidate"),
-            Patch(facecolor="none", edgecolor="0.5", hatch="xx", label="rejected"),
+            Patch(facecolor="0.93", edgecolor="0.6", hatch="xx", label="rejected (no cost)"),
             Line2D([], [], color="k", ls="--", label="the task itself"),
         ]
         fig.legend(handles=handles, loc="outside upper center", ncol=4, fontsize=8, frameon=False)
@@ -97,6 +97,7 @@ def cost_figure(result: PlanResult) -> bytes:
 def plan_document(task: Trajectory, result: PlanResult) -> str:
     """The plan report as an HTML string."""
     from omavctl.planning.effects_objective import effects_summary
+    from omavctl.planning.envelope import envelope_lines
 
     best = result.best_trajectory()
     gain = result.versus_task(float(result.cost[result.best]))
@@ -121,6 +122,8 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     summary = effects_summary(result)
     for line in summary["lines"] if summary else []:
         doc.add(Para(line.strip()))
+    for line in envelope_lines(result):
+        doc.add(Para(line))
     doc.add(
         FigureBlock(
             reference_figure(task, best, f"planned (candidate {result.best})"),

@@ -1,0 +1,48 @@
+"""Where a planned reference goes, beside the task: what to check before flying it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["envelope", "envelope_lines"]
+
+
+def envelope(traj: Any) -> dict[str, float]:
+    """Largest |roll| and |pitch|, yaw range (deg) and body rate (rad/s) of a reference."""
+    deg = np.rad2deg(traj.euler)
+    return {
+        "max_abs_roll_deg": float(np.abs(deg[:, 0]).max()),
+        "max_abs_pitch_deg": float(np.abs(deg[:, 1]).max()),
+        "yaw_range_deg": float(np.ptp(deg[:, 2])),
+        "max_body_rate": float(np.linalg.norm(traj.body_rate, axis=1).max()),
+    }
+
+
+def envelope_lines(result: Any) -> list[str]:
+    """Where the planned reference goes beside the task: what a flight engineer checks
+    before flying it; a warning when it turns yaw much further than the task."""
+    if result.best < 0:
+        return []
+    plan, task = envelope(result.best_trajectory()), envelope(result.task)
+    lines = [
+        f"planned reference: |roll| <= {plan['max_abs_roll_deg']:.0f} deg, |pitch| <= "
+        f"{plan['max_abs_pitch_deg']:.0f} deg, yaw through {plan['yaw_range_deg']:.0f} deg, "
+        f"body rate <= {plan['max_body_rate']:.2f} rad/s (the task: "
+        f"{task['max_abs_roll_deg']:.0f}, {task['max_abs_pitch_deg']:.0f}, "
+        f"{task['yaw_range_deg']:.0f} deg, {task['max_body_rate']:.2f} rad/s)"
+    ]
+    if plan["yaw_range_deg"] > max(180.0, 2.0 * task["yaw_range_deg"]):
+        lines.append(
+            f"warning: the planned reference turns yaw through {plan['yaw_range_deg']:.0f} "
+            "deg: check the flight area and cables before flying it, or lower --amplitude "
+            "(slow deviations integrate to large angles)"
+        )
+    if plan["max_body_rate"] > max(3.0, 3.0 * task["max_body_rate"]):
+        lines.append(
+            f"warning: the planned reference rotates at up to {plan['max_body_rate']:.1f} "
+            f"rad/s, {plan['max_body_rate'] / max(task['max_body_rate'], 1e-9):.0f}x the task's: "
+            "check the vehicle can fly it, or lower --amplitude or --max-freq"
+        )
+    return lines
