@@ -157,6 +157,10 @@ def test_task_bad_option_is_one_line(tmp_path):
         app, ["task", "fig8", "--duration", "1", "--out", str(tmp_path / "t.csv")]
     )
     assert _error_line(result) == "error: --duration (1.0 s) must be at least twice --ramp (2.0 s)"
+    result = runner.invoke(
+        app, ["task", "fig8", "--duration", "-5", "--out", str(tmp_path / "t.csv")]
+    )
+    assert _error_line(result) == "error: --duration must be > 0 s, got -5"
 
 
 def test_inspect_missing_log(tmp_path):

@@ -69,6 +69,8 @@ def _check(duration: float, ramp: float, rate: float) -> None:
             f"--duration ({duration:g} s) at --rate {rate:g} Hz gives more than "
             f"{MAX_SAMPLES} samples"
         )
+    if not duration > 0:
+        raise ConfigError(f"--duration must be > 0 s, got {duration:g}")
     if ramp <= 0:
         raise ConfigError(f"--ramp must be > 0, got {ramp}")
     if duration < 2 * ramp:
