@@ -10,8 +10,10 @@ __all__ = ["envelope", "envelope_lines"]
 
 
 def envelope(traj: Any) -> dict[str, float]:
-    """Largest |roll| and |pitch|, yaw range (deg) and body rate (rad/s) of a reference."""
-    deg = np.rad2deg(traj.euler)
+    """Largest |roll| and |pitch|, the yaw turned through (deg, unwrapped) and the largest
+    body rate (rad/s) of a reference (:class:`~omavctl.sim.trajectory.Trajectory`:
+    ``euler`` (N, 3) rad, ``body_rate`` (N, 3) rad/s)."""
+    deg = np.rad2deg(np.unwrap(traj.euler, axis=0))
     return {
         "max_abs_roll_deg": float(np.abs(deg[:, 0]).max()),
         "max_abs_pitch_deg": float(np.abs(deg[:, 1]).max()),
