@@ -142,7 +142,7 @@ h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;margin-top:2em}h3{margin-top:
 div.tw{max-width:100%;overflow-x:auto}
 table{border-collapse:collapse;margin:.6em 0;font-size:.85em}
 th,td{border:1px solid #ccc;padding:.2em .5em;vertical-align:top;text-align:left}
-th{background:#f2f2f2}td.n{text-align:right;font-variant-numeric:tabular-nums}
+th{background:#f2f2f2}td.n{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
 pre{background:#f6f6f6;border:1px solid #ddd;padding:.6em;white-space:pre-wrap;
 overflow-wrap:anywhere}
 code{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:.95em}
