@@ -228,7 +228,10 @@ def candidates_figure(entries: Sequence[Mapping[str, Any]], threshold: float | N
         if threshold is not None:
             ax.axvline(threshold, color="k", ls="--", lw=0.8)
         ax.set_yticks(y, names)
-        ax.set_xlim(0, 1.35)
+        ax.set_xlim(0, 1.35)  # room right of 1 for the labels, but no scale there
+        ticks = np.linspace(0.0, 1.0, 6)
+        ax.set_xticks(ticks, [f"{100 * v:.0f} %" for v in ticks])
+        ax.axvline(1.0, color="0.6", lw=0.8)
         ax.set_xlabel("explained variance of the model's error, held-out blocks")
         from matplotlib.lines import Line2D
         from matplotlib.patches import Patch
