@@ -167,3 +167,15 @@ def test_inspect_missing_log(tmp_path):
     missing = tmp_path / "nope.bag"
     result = runner.invoke(app, ["inspect", str(missing)])
     assert _error_line(result) == f"error: {missing}: file not found"
+
+
+def test_simulate_says_when_the_actuators_could_not_follow(task_csv, tmp_path):
+    """A reference the actuators cannot fly is named as such; a normal one is not."""
+    calm = runner.invoke(app, ["simulate", "-r", str(task_csv), "-o", str(tmp_path / "a.csv")])
+    assert calm.exit_code == 0 and "more than the actuators give" not in calm.output
+    wild = tmp_path / "wild.csv"
+    args = ["task", "fig8", "--roll", "60", "--pitch", "60", "--period", "2", "--duration", "6"]
+    assert runner.invoke(app, [*args, "--ramp", "1", "--out", str(wild), "-q"]).exit_code == 0
+    result = runner.invoke(app, ["simulate", "-r", str(wild), "-o", str(tmp_path / "w.csv")])
+    assert result.exit_code == 0, result.output
+    assert "% of the steps asked for more than the actuators give" in result.output

@@ -92,6 +92,13 @@ def _render_simulation(con: Any, result: Any, out: Path) -> None:
         f"max attitude error {math.degrees(result.max_attitude_error):.2f} deg, "
         f"{result.infeasible_steps}/{result.steps} steps beyond actuator limits"
     )
+    if result.steps and result.infeasible_steps > 0.05 * result.steps:
+        con.print(
+            f"note: {100 * result.infeasible_steps / result.steps:.0f} % of the steps asked "
+            "for more than the actuators give (thrust or tilt-rate limit): there the applied "
+            "wrench differs from the command and the vehicle may not follow its reference",
+            markup=False,
+        )
     if result.diverged:
         con.print(
             f"[bold red]warning:[/] the vehicle lost control at {result.diverged_at:.2f} s; "
