@@ -103,3 +103,28 @@ def test_clean_flights_claim_nothing(tmp_path, timing):
     assert diag["missing"] == [] and diag["fit_command"] is None
     assert not any(e["missing"] for e in diag["learned"])
     assert not [f for f in tree["flags"] if f["code"] == "worse_than_physics"]
+
+
+def test_the_verdict_says_when_a_flight_leaves_the_training_inputs(tmp_path):
+    """Hidden inertia error, fit on the figure-8, evaluate on the wobble: nearly all of
+    the wobble lies beyond the figure-8's inputs, and the band that covers the errors
+    inside them does not outside. The other way round the flight stays inside."""
+    from omavctl.diagnose.evaluate import evaluate
+    from omavctl.diagnose.verdict import verdict
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.model_file import save_model
+
+    logs = fly_pair(tmp_path, "inertia_error", "100Hz-held")
+    envelopes = {}
+    for fit_on, other in (("fig8", "wobble"), ("wobble", "fig8")):
+        model = tmp_path / f"{fit_on}.npz"
+        save_model(model, fit_model([logs[fit_on]], points=100, restarts=1).model)
+        tree = evaluate([model], [logs[other]]).tree
+        envelopes[fit_on] = (tree["envelope"], [ln for ln in verdict(tree) if ln.key == "envelope"])
+    env, lines = envelopes["fig8"]
+    print(env)
+    assert env["outside_fraction"] > 0.5 and "(I^-1 tau)x" in env["beyond"]
+    assert env["coverage_outside"]["x"] < 0.8 < env["coverage_inside"]["x"]
+    assert len(lines) == 1 and "the model extrapolates" in lines[0].text
+    env, lines = envelopes["wobble"]
+    assert env["outside_fraction"] < 0.25 and lines == []

@@ -40,6 +40,7 @@ from omavctl.diagnose.metrics import (
     axis_metrics,
     binned_errors,
     quality_flags,
+    training_envelope,
     worst_segments,
 )
 from omavctl.learn.control_loss import out_of_control
@@ -401,5 +402,18 @@ def evaluate(
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
         "flags": quality_flags(per_model[0]["metrics"], excluded),
+        "envelope": _envelope(model, samples, series),
     }
     return EvalResult(tree=tree, series=series)
+
+
+def _envelope(
+    model: ResidualGP, samples: Sequence[ResidualSamples], series: dict[str, np.ndarray]
+) -> dict[str, Any] | None:
+    """The first model's training envelope against the logs (:func:`training_envelope`);
+    None for a model without training points."""
+    if model.n_train == 0:
+        return None
+    inputs = np.concatenate([s.inputs(model.features) for s in samples])
+    error = series["measured"] - series["nominal"] - series["mean_0"]
+    return training_envelope(model.inputs, inputs, list(model.input_names), error, series["std_0"])

@@ -211,3 +211,44 @@ def finite_json(obj: Any) -> Any:
     if isinstance(obj, np.integer):
         return int(obj)
     return obj
+
+
+#: A held-out sample is outside the training envelope when one of its GP inputs
+#: lies beyond the training points' [min, max] by more than this fraction of it.
+ENVELOPE_MARGIN = 0.25
+
+
+def training_envelope(
+    train_inputs: np.ndarray,
+    inputs: np.ndarray,
+    names: Sequence[str],
+    error: np.ndarray,
+    std: np.ndarray,
+) -> dict[str, Any]:
+    """How much of a flight lies beyond the inputs a model was trained on, and the
+    model's 2-sigma coverage inside and outside that envelope.
+
+    train_inputs (m, d) the model's training inputs and inputs (n, d) the flight's,
+    in the same (unnormalised) units; error (n, 3) measured minus predicted residual,
+    std (n, 3) the predictive std. ``beyond`` gives, per input that leaves the
+    envelope, the largest excursion in units of its training range.
+    """
+    lo, hi = train_inputs.min(axis=0), train_inputs.max(axis=0)
+    span = np.maximum(hi - lo, 1e-12)
+    beyond = np.maximum((lo - inputs) / span, (inputs - hi) / span).clip(min=0.0)
+    outside = (beyond > ENVELOPE_MARGIN).any(axis=1)
+    within = np.abs(error) <= 2.0 * std
+
+    def coverage(sel: np.ndarray) -> dict[str, float | None]:
+        n = int(sel.sum())
+        return {a: float(within[sel, i].mean()) if n else None for i, a in enumerate(AXES)}
+
+    worst = beyond.max(axis=0) if inputs.size else np.zeros(len(names))
+    order = np.argsort(-worst)
+    return {
+        "margin": ENVELOPE_MARGIN,
+        "outside_fraction": float(outside.mean()) if outside.size else 0.0,
+        "beyond": {names[j]: float(worst[j]) for j in order if worst[j] > ENVELOPE_MARGIN},
+        "coverage_inside": coverage(~outside),
+        "coverage_outside": coverage(outside),
+    }

@@ -38,7 +38,7 @@ COVERAGE_UNDER = 0.995
 @dataclass(frozen=True)
 class Line:
     """One sentence of the verdict: ``key`` (missing, change, fails, uncertainty,
-    excluded, flag), its text, which file it is about (``who``, '' for the only one)
+    envelope, excluded, flag), its text, which file it is about (``who``, '' for the only one)
     and a command to run (the fit command that adds the missing effect)."""
 
     key: str
@@ -209,6 +209,41 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
     return Line("uncertainty", text)
 
 
+#: Share of a flight outside the model's training inputs from which the verdict says so.
+ENVELOPE_SHARE = 0.25
+
+
+def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
+    """How much of the flight left the inputs the model was trained on, and whether
+    its band still covers the errors there (``envelope`` of the evaluation)."""
+    env = tree.get("envelope")
+    if not isinstance(env, Mapping):
+        return None
+    share = _num(env.get("outside_fraction"))
+    if share is None or share < ENVELOPE_SHARE:
+        return None
+    beyond = env.get("beyond") or {}
+    most = ", ".join(
+        f"{name} {v:.1f}×" for name, v in list(beyond.items())[:2] if _num(v) is not None
+    )
+    out, inside = env.get("coverage_outside") or {}, env.get("coverage_inside") or {}
+    low = [a for a in AXES if (v := _num(out.get(a))) is not None and v < COVERAGE_MIN]
+    text = (
+        f"{_pct(share)} of the samples lie outside the inputs the model was trained on "
+        f"(furthest, in training ranges beyond them: {most})"
+    )
+    if low:
+        there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
+        here = ", ".join(f"{a} {_pct(v)}" for a in low if (v := _num(inside.get(a))) is not None)
+        text += (
+            f"; there the 2σ band covers only {there} (inside: {here or 'no samples'}): "
+            "the model extrapolates; fly a flight that covers these inputs and fit on both."
+        )
+    else:
+        text += "; its band still covers the errors there."
+    return Line("envelope", text)
+
+
 def _excluded_line(tree: Mapping[str, Any]) -> Line | None:
     spans = [s for s in tree.get("excluded_spans") or [] if isinstance(s, Mapping)]
     if not spans:
@@ -238,7 +273,12 @@ def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
 def verdict(tree: Mapping[str, Any]) -> list[Line]:
     """The verdict of one evaluation: missing, where it fails, uncertainty, flags."""
     lines = [_missing_line(tree)]
-    for line in (_fails_line(tree), _uncertainty_line(tree), _excluded_line(tree)):
+    for line in (
+        _fails_line(tree),
+        _uncertainty_line(tree),
+        _envelope_line(tree),
+        _excluded_line(tree),
+    ):
         if line is not None:
             lines.append(line)
     return lines + _flag_lines(tree)

@@ -29,6 +29,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "change": "Error change",
         "fails": "Where it fails",
         "uncertainty": "Uncertainty",
+        "envelope": "Outside the training inputs",
         "excluded": "Excluded",
         "flag": "Warning",
     }
