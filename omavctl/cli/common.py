@@ -54,13 +54,18 @@ def emit(as_json: bool, obj: dict[str, Any]) -> None:
         emit_json(obj)
 
 
-@contextmanager
-def progress_bar(con: Any, quiet: bool, label: str) -> Iterator[Callable[[float], None]]:
-    """A transient progress bar on ``con`` (none with --quiet or when ``con`` is not a
-    terminal: a log file gets no bar and no blank line): yields ``update(fraction)``."""
+def transient_progress(con: Any, quiet: bool) -> Any:
+    """A transient rich ``Progress`` on ``con``: disabled with --quiet or when ``con`` is
+    not a terminal (a log file gets no bar and no blank line before an error)."""
     from rich.progress import Progress
 
-    with Progress(console=con, transient=True, disable=quiet or not con.is_terminal) as bar:
+    return Progress(console=con, transient=True, disable=quiet or not con.is_terminal)
+
+
+@contextmanager
+def progress_bar(con: Any, quiet: bool, label: str) -> Iterator[Callable[[float], None]]:
+    """One transient progress bar (:func:`transient_progress`): yields ``update(fraction)``."""
+    with transient_progress(con, quiet) as bar:
         job = bar.add_task(label, total=1.0)
         yield lambda fraction: bar.update(job, completed=fraction)
 

@@ -10,7 +10,15 @@ from typing import Annotated, Any
 import typer
 
 from omavctl.cli.app import app
-from omavctl.cli.common import Json, Quiet, VehicleOpt, console, emit, reports_errors
+from omavctl.cli.common import (
+    Json,
+    Quiet,
+    VehicleOpt,
+    console,
+    emit,
+    reports_errors,
+    transient_progress,
+)
 
 Logs = Annotated[
     list[Path],
@@ -128,9 +136,7 @@ def fit(
 @contextmanager
 def _stage_bar(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]:
     """One transient progress bar whose label is the current stage of the fit."""
-    from rich.progress import Progress
-
-    with Progress(console=con, transient=True, disable=quiet or not con.is_terminal) as bar:
+    with transient_progress(con, quiet) as bar:
         job = bar.add_task("fitting", total=1.0)
         yield lambda stage, f: bar.update(job, description=stage, completed=f)
 

@@ -14,7 +14,15 @@ from typing import Annotated, Any
 import typer
 
 from omavctl.cli.app import app
-from omavctl.cli.common import Json, Quiet, VehicleOpt, console, emit, reports_errors
+from omavctl.cli.common import (
+    Json,
+    Quiet,
+    VehicleOpt,
+    console,
+    emit,
+    reports_errors,
+    transient_progress,
+)
 
 Task = Annotated[
     Path, typer.Option("--task", metavar="CSV", help="Task trajectory CSV to learn for.")
@@ -180,9 +188,7 @@ def plan(
 @contextmanager
 def _stage_bars(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]:
     """Transient progress bars, one per stage of the plan as the stages come."""
-    from rich.progress import Progress
-
-    with Progress(console=con, transient=True, disable=quiet or not con.is_terminal) as bar:
+    with transient_progress(con, quiet) as bar:
         stages: dict[str, Any] = {}
 
         def progress(stage: str, fraction: float) -> None:

@@ -14,6 +14,8 @@ from omavctl.cli.common import Json, Quiet, console, emit, reports_errors
 Out = Annotated[Path, typer.Option("--out", "-o", metavar="CSV", help="Output trajectory CSV.")]
 Rate = Annotated[float, typer.Option(help="Sample rate of the CSV, Hz.")]
 Height = Annotated[float, typer.Option(help="Hover height (z), m.")]
+Duration = Annotated[float, typer.Option(help="Total duration, s.")]
+Ramp = Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")]
 
 
 def _write_task(traj: Any, out: Path, quiet: bool, as_json: bool = False, name: str = "") -> None:
@@ -42,8 +44,8 @@ def task_fig8(
     roll: Annotated[float, typer.Option(help="Roll amplitude, deg.")] = 26.0,
     pitch: Annotated[float, typer.Option(help="Pitch amplitude, deg.")] = 26.0,
     period: Annotated[float, typer.Option(help="Period of one figure-8, s.")] = 8.0,
-    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 24.0,
-    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    duration: Duration = 24.0,
+    ramp: Ramp = 2.0,
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
@@ -63,7 +65,7 @@ def task_circle(
     out: Out,
     radius: Annotated[float, typer.Option(help="Circle radius, m.")] = 1.0,
     period: Annotated[float, typer.Option(help="Time per lap at full speed, s.")] = 6.0,
-    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 24.0,
+    duration: Duration = 24.0,
     ramp: Annotated[float, typer.Option(help="Smooth speed-up/slow-down ramp, s.")] = 3.0,
     rate: Rate = 100.0,
     height: Height = 1.0,
@@ -84,8 +86,8 @@ def task_pitch(
     max_acceleration: Annotated[
         float, typer.Option(help="Pitch acceleration amplitude A w^2, rad/s^2 (sets the period).")
     ] = 1.0,
-    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 30.0,
-    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 3.0,
+    duration: Duration = 30.0,
+    ramp: Ramp = 3.0,
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
@@ -109,8 +111,8 @@ def task_yaw(
     out: Out,
     amplitude: Annotated[float, typer.Option(help="Yaw amplitude, deg.")] = 30.0,
     period: Annotated[float, typer.Option(help="Period of the oscillation, s.")] = 4.0,
-    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 20.0,
-    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    duration: Duration = 20.0,
+    ramp: Ramp = 2.0,
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
@@ -130,8 +132,8 @@ def task_heave(
     out: Out,
     amplitude: Annotated[float, typer.Option(help="Vertical amplitude, m.")] = 0.2,
     period: Annotated[float, typer.Option(help="Period of the oscillation, s.")] = 3.0,
-    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 20.0,
-    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    duration: Duration = 20.0,
+    ramp: Ramp = 2.0,
     rate: Rate = 100.0,
     height: Height = 1.0,
     quiet: Quiet = False,
@@ -156,8 +158,8 @@ def task_wobble(
         float, typer.Option(help="Sum of the sine amplitudes per axis, deg (yaw half).")
     ] = 15.0,
     bandwidth: Annotated[float, typer.Option(help="Highest sine frequency, Hz.")] = 0.8,
-    duration: Annotated[float, typer.Option(help="Total duration, s.")] = 20.0,
-    ramp: Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")] = 2.0,
+    duration: Duration = 20.0,
+    ramp: Ramp = 2.0,
     seed: Annotated[int, typer.Option(help="Draws the frequencies and phases.")] = 0,
     rate: Rate = 100.0,
     height: Height = 1.0,
