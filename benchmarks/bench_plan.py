@@ -15,7 +15,9 @@ peak resident memory (ru_maxrss) are printed.
    k-medoids selection on both paths, so the costs must agree), with the
    ratio, and the reference's time per candidate;
 2. the fast path on ``--candidates`` x 8 simulations (the issue's target),
-   ``--repeat`` times with --jobs 1 and once with --jobs 2: best, median;
+   ``--repeat`` times with the default --jobs (one process per core) and once
+   with --jobs 1 (whose costs must be identical): best, median, CPU seconds; then
+   the ``omavctl plan`` command line itself;
 3. random sampling against ``--search cem`` at the same number of simulations
    (``--search-candidates`` x 4) on the figure-8 and the pitch task.
 """
@@ -75,8 +77,10 @@ def _case(spec: dict) -> dict:
         settings = replace(PlanSettings(), **spec["settings"])
         result = plan(model, task, settings)
     usage = resource.getrusage
+    me, kids = usage(resource.RUSAGE_SELF), usage(resource.RUSAGE_CHILDREN)
     return {
         "wall": time.perf_counter() - start,
+        "cpu": me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime,
         "peak_mib": usage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "workers_peak_mib": usage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
         "best": float(result.cost[result.best]) if result.best >= 0 else None,
@@ -99,6 +103,34 @@ def _run(spec: dict) -> dict:
 
 def _spec(paths: dict[str, Path], task: str, **settings) -> dict:
     return {"model": str(paths["model.npz"]), "task": str(paths[task]), "settings": settings}
+
+
+def _cores() -> int:
+    from omavctl.planning.workers import available_cores
+
+    return available_cores()
+
+
+def _cli(paths: dict[str, Path], n: int) -> None:
+    """The issue's command line itself, timed from outside (wall, CPU of the process
+    tree, peak RSS of the largest process)."""
+    out = paths["model.npz"].parent
+    exe = Path(sys.executable).with_name("omavctl")
+    args = [str(exe), "plan", "--task", str(paths["fig8.csv"]), "--model"]
+    args += [str(paths["model.npz"]), "--out", str(out / "next.csv"), "--scores"]
+    args += [str(out / "scores.csv"), "--candidates", str(n), "--sims", "8", "-q"]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run(args, check=True)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    rows = len((out / "scores.csv").read_text().splitlines()) - 1
+    print(
+        f"CLI: omavctl plan --candidates {n} --sims 8 --scores ...: {wall:.1f} s wall, "
+        f"{cpu:.1f} s CPU, largest process {after.ru_maxrss / 1024:.0f} MiB, {rows} rows in "
+        "--scores"
+    )
 
 
 def main() -> None:
@@ -127,26 +159,29 @@ def main() -> None:
     print(f"reference per candidate: {ref['wall'] / k:.1f} s")
 
     n = args.candidates
-    print(f"\n2. fast, fig8 24 s, {n} candidates x 8 (batched selection)")
-    walls = []
+    print(f"\n2. fast, fig8 24 s, {n} candidates x 8 (batched selection), default --jobs (0: "
+          f"one per core, {_cores()} here)")  # fmt: skip
+    walls, costs = [], []
     for i in range(args.repeat):
         r = _run(_spec(paths, "fig8.csv", candidates=n, sims=8))
         walls.append(r["wall"])
+        costs.append(r["cost"])
         print(
-            f"run {i + 1}: {r['wall']:.1f} s, peak {r['peak_mib']:.0f} MiB, "
-            f"{r['feasible']}/{n} feasible, load {os.getloadavg()[0]:.1f}"
+            f"run {i + 1}: {r['wall']:.1f} s wall, {r['cpu']:.1f} s CPU, peak {r['peak_mib']:.0f} "
+            f"MiB parent, {r['workers_peak_mib']:.0f} MiB largest worker, {r['feasible']}/{n} "
+            f"feasible, load {os.getloadavg()[0]:.1f}"
         )
     walls.sort()
     print(f"best {walls[0]:.1f} s, median {walls[len(walls) // 2]:.1f} s")
-    r = _run(_spec(paths, "fig8.csv", candidates=n, sims=8, jobs=2))
-    print(
-        f"--jobs 2: {r['wall']:.1f} s, peak {r['peak_mib']:.0f} MiB parent, "
-        f"{r['workers_peak_mib']:.0f} MiB largest worker"
-    )
+    r = _run(_spec(paths, "fig8.csv", candidates=n, sims=8, jobs=1))
+    print(f"--jobs 1: {r['wall']:.1f} s wall, {r['cpu']:.1f} s CPU, peak {r['peak_mib']:.0f} MiB")
+    same = all(c == r["cost"] for c in costs)
+    print(f"every candidate's cost identical with --jobs 1 and the default: {same}")
     print(
         f"reference extrapolated: {ref['wall'] / k * n:.0f} s; "
         f"ratio {ref['wall'] / k * n / walls[0]:.0f}x"
     )
+    _cli(paths, n)
 
     m = args.search_candidates
     print(f"\n3. random vs cem at {m} candidates x 4 simulations (best cost, lower is better)")

@@ -162,6 +162,22 @@ def test_fused_float32_samples_agree_with_the_float64_evaluation(noise):
         assert np.abs(out[:3].T - sample).max() < 1e-3 * np.abs(sample).max()
 
 
+def test_fused_answer_does_not_depend_on_how_the_batch_is_split():
+    """Bit for bit: plan's results must not depend on --jobs (the blocks are padded to
+    one width, so BLAS computes every column with the same kernel)."""
+    gp = _gp(n=50, seed=17)
+    fused = FusedSamples(PathwiseSamples(gp, 2, np.random.default_rng(18)), chunk=128)
+    z = np.random.default_rng(19).normal(size=(6, 301))
+    fused.set_batch(301)
+    whole = fused.evaluate(z, 1)
+    parts = [fused.evaluate(z[:, lo:hi], 1) for lo, hi in ((0, 37), (37, 200), (200, 301))]
+    np.testing.assert_array_equal(np.concatenate(parts, axis=1), whole)
+    fused.set_batch(5)
+    assert fused.width == 64
+    with pytest.raises(ValueError, match="multiple of 64"):
+        FusedSamples(PathwiseSamples(gp, 1, np.random.default_rng(0)), chunk=100)
+
+
 def test_fused_samples_without_signal_on_an_axis_give_the_constant():
     gp = _gp(n=30, seed=15)
     gp = GPAxes(

@@ -71,7 +71,10 @@ Selection = Annotated[
 ]
 Jobs = Annotated[
     int,
-    typer.Option(help="Worker processes for the simulations (see docs/planning-performance.md)."),
+    typer.Option(
+        help="Worker processes for the simulations and the scoring; 0: one per usable "
+        "core. The plan does not depend on it (docs/planning-performance.md)."
+    ),
 ]
 Objective = Annotated[
     str,
@@ -132,7 +135,7 @@ def plan(
     search: Search = "random",
     generations: Generations = 5,
     selection: Selection = "batched",
-    jobs: Jobs = 1,
+    jobs: Jobs = 0,
     objective: Objective = "variance",
     effects: EffectsOpt = None,
     evaluation: EvaluationOpt = None,

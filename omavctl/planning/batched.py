@@ -76,13 +76,24 @@ def _rotation(c: np.ndarray, s: np.ndarray) -> list[np.ndarray]:
     ]  # fmt: skip
 
 
+def _apply(matrix: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """matrix (r, c) times x (c, M, K) as elementwise products and sums, not BLAS: a
+    column's arithmetic is then the same in any batch (BLAS kernels, chosen by
+    shape, round differently), so that plans do not depend on ``--jobs``."""
+    rows = []
+    for row in matrix:
+        terms = [row[j] * x[j] for j in np.flatnonzero(row)]
+        rows.append(sum(terms[1:], terms[0]) if terms else np.zeros_like(x[0]))
+    return np.stack(rows)
+
+
 def _gyro(w: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarray) -> np.ndarray:
     """l(w) = -I^-1 (w x I w) for w (3, M, K)."""
-    iw = np.tensordot(inertia, w, axes=1)
+    iw = _apply(inertia, w)
     cr = np.stack(
         [w[1] * iw[2] - w[2] * iw[1], w[2] * iw[0] - w[0] * iw[2], w[0] * iw[1] - w[1] * iw[0]]
     )
-    return -np.tensordot(inertia_inv, cr, axes=1)
+    return -_apply(inertia_inv, cr)
 
 
 class _Loop:
@@ -137,8 +148,8 @@ class _Loop:
     def allocate(self, u_f: np.ndarray, u_tau: np.ndarray) -> None:
         """Thrust and tilt-rate limits of the wrench; marks violations."""
         v = self.v
-        wrench = np.concatenate([u_f * v.mass, np.tensordot(v.inertia, u_tau, axes=1)])
-        sc = np.tensordot(self.pinv, wrench, axes=1)  # (12, M, K)
+        wrench = np.concatenate([u_f * v.mass, _apply(v.inertia, u_tau)])
+        sc = _apply(self.pinv, wrench)  # (12, M, K)
         thrust = np.sqrt(sc[:6] ** 2 + sc[6:] ** 2)
         half = thrust / 2.0
         bad = ((half > v.max_thrust + _TOL) | (half < v.min_thrust - _TOL)).any(axis=0)

@@ -33,20 +33,32 @@ from omavctl.planning.gp import PathwiseSamples
 
 __all__ = ["FusedSamples"]
 
+#: columns per padded block: a multiple of every BLAS kernel's tile width
+_LANES = 64
+
 
 class FusedSamples:
     """The M pathwise samples and the posterior mean of ``samples``, fused, float32.
 
     ``evaluate(z, m)`` takes normalised inputs z (d, R) (column-major batch, any
     float dtype) of one sample index m and returns (6, R) float64: rows 0-2 the
-    sample, rows 3-5 the posterior mean. ``chunk`` bounds the work buffer to
-    (3D + 3n, chunk) float32 so that it stays in cache.
+    sample, rows 3-5 the posterior mean. ``chunk`` (a multiple of 64) bounds the
+    work buffer to (3D + 3n, chunk) float32 so that it stays in cache.
+
+    A column's answer does not depend on R or on its place in the batch, to the
+    bit: every block is padded with zero columns to the same width
+    (:meth:`set_batch`), so that every GEMM has one shape and BLAS one kernel (its
+    kernels for other shapes and for ragged edges round differently). ``plan``
+    relies on it: its results do not depend on how the candidates are split over
+    ``--jobs``.
     """
 
     def __init__(self, samples: PathwiseSamples, chunk: int = 256) -> None:
         gp = samples.gp
         d, n = gp.d, gp.n
         n_samples, n_feat = samples.w.shape[1], samples.w.shape[2]
+        if chunk % _LANES:
+            raise ValueError(f"chunk must be a multiple of {_LANES}, got {chunk}")
         self.d, self.n, self.features, self.chunk = d, n, n_feat, chunk
         self.mean_offset = np.asarray(gp.mean, float)
         rows = 3 * n_feat + 3 * n
@@ -73,24 +85,34 @@ class FusedSamples:
         self._x = np.empty((d + 4, chunk), np.float32)
         self._p = np.empty((rows, chunk), np.float32)
         self._o = np.empty((6, chunk), np.float32)
+        self.width = chunk
+
+    def set_batch(self, columns: int) -> None:
+        """Fix the block width for batches of up to ``columns`` columns: the smallest
+        multiple of 64 that holds them, at most ``chunk``. Every GEMM of
+        :meth:`evaluate` then has the same shape until the next call, so that a column's
+        answer does not depend on how the batch was split (BLAS picks its kernels by
+        shape, and they round differently)."""
+        self.width = min(self.chunk, -(-max(columns, 1) // _LANES) * _LANES)
 
     def evaluate(self, z: np.ndarray, m: int, out: np.ndarray | None = None) -> np.ndarray:
         """Sample m and posterior mean (6, R) float64 at normalised inputs z (d, R)."""
-        d, r_count = self.d, z.shape[1]
+        d, r_count, wp = self.d, z.shape[1], self.width
         if out is None:
             out = np.empty((6, r_count))
-        for lo in range(0, r_count, self.chunk):
-            hi = min(lo + self.chunk, r_count)
+        x, p, o = self._x[:, :wp], self._p[:, :wp], self._o[:, :wp]
+        for lo in range(0, r_count, wp):
+            hi = min(lo + wp, r_count)
             w = hi - lo
-            x, p, o = self._x[:, :w], self._p[:, :w], self._o[:, :w]
-            x[:d] = z[:, lo:hi]
+            x[:d, :w] = z[:, lo:hi]
+            x[:d, w:] = 0.0
             np.matmul(self.inv_l2, x[:d] * x[:d], out=x[d : d + 3])
             x[d + 3] = 1.0
             np.matmul(self.w_t, x, out=p)
             np.cos(p[self._cos], out=p[self._cos])
             np.exp(p[self._exp], out=p[self._exp])
             np.matmul(self.v_t[m], p, out=o)
-            out[:, lo:hi] = o
+            out[:, lo:hi] = o[:, :w]
         out[:3] += self.mean_offset[:, None]
         out[3:] += self.mean_offset[:, None]
         return out

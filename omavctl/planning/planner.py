@@ -26,6 +26,7 @@ reference path (``fast=False``) see the same samples, test points and candidates
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,6 +40,7 @@ from omavctl.planning.rollout import REASONS, Progress
 from omavctl.planning.scoring import Flights, Objective, VarianceObjective
 from omavctl.planning.search import CrossEntropy, generation_sizes
 from omavctl.planning.simulate import Batch, Simulator
+from omavctl.planning.workers import available_cores, run_tasks
 from omavctl.sim.trajectory import Trajectory
 
 __all__ = ["OBJECTIVES", "PlanResult", "PlanSettings", "plan"]
@@ -58,7 +60,7 @@ class PlanSettings:
     test_points: int = 500
     points: int = 40
     seed: int = 0
-    rff_features: int = 256
+    rff_features: int = 128  # per axis; ranks candidates as 256 do (docs/planning-performance.md)
     max_tilt_deg: float = 80.0  # attitude limit on roll and pitch
     max_error_deg: float = 30.0  # attitude error beyond which a simulation diverged
     stride: int = 4  # points are picked among every stride-th simulated sample
@@ -68,7 +70,7 @@ class PlanSettings:
     objective: str = "variance"  # or "effects" (omavctl.planning.effects_objective)
     effects: tuple[str, ...] = ()  # effects objective: () = the model's fitted effects
     fast: bool = True  # False: the straightforward reference path
-    jobs: int = 1  # worker processes for the fast path
+    jobs: int = 0  # worker processes; 0: one per usable core (results do not depend on it)
 
 
 def _variance_objective(model, gp: GPAxes, test: np.ndarray, settings: PlanSettings) -> Objective:
@@ -163,26 +165,45 @@ def _metrics(objectives: dict[str, Objective], flights: Flights) -> dict[str, np
     return out
 
 
+#: Candidates per scoring task: the same pieces for every ``--jobs``, so that the
+#: scores do not depend on it (an objective's arithmetic may depend on its batch)
+SCORE_CHUNK = 32
+
+
 def _score(
-    objectives: dict[str, Objective], batch: Batch
+    objectives: dict[str, Objective],
+    batch: Batch,
+    jobs: int = 1,
+    progress: Progress | None = None,
+    label: str = "scoring",
 ) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
     """Metrics (K, ...) (cost inf, others nan unless every simulation is feasible),
-    feasible (K,), reasons (K,)."""
+    feasible (K,), reasons (K,); pieces of SCORE_CHUNK candidates over ``jobs``
+    processes."""
     feasible = (batch.code == 0).all(axis=1)
-    k_count = feasible.size
-    metrics: dict[str, np.ndarray] = {}
-    if feasible.any():
-        flights = Flights(
-            batch.inputs[feasible], batch.tracking[feasible], batch.code[feasible] == 0
-        )
-        for key, v in _metrics(objectives, flights).items():
-            fill = np.inf if key in OBJECTIVES else np.nan
-            metrics[key] = np.full((k_count, *v.shape[1:]), fill)
-            metrics[key][feasible] = v
-    else:
-        metrics = {key: np.full(k_count, np.inf) for key in objectives}
+    pieces = [slice(lo, lo + SCORE_CHUNK) for lo in range(0, feasible.size, SCORE_CHUNK)]
+
+    def piece(i: int, report: Callable[[float], None]) -> dict[str, np.ndarray]:
+        return _score_piece(objectives, batch, feasible, pieces[i])
+
+    metrics = _concat(run_tasks(piece, len(pieces), jobs, progress, label))
     reasons = [", ".join(sorted({REASONS[c] for c in row if c})) for row in batch.code]
     return metrics, feasible, reasons
+
+
+def _score_piece(
+    objectives: dict[str, Objective], batch: Batch, feasible: np.ndarray, part: slice
+) -> dict[str, np.ndarray]:
+    """Metrics of the candidates ``part`` (see :func:`_score`)."""
+    ok = feasible[part]
+    if not ok.any():
+        return {key: np.full(ok.size, np.inf) for key in objectives}
+    flights = Flights(batch.inputs[part][ok], batch.tracking[part][ok], batch.code[part][ok] == 0)
+    metrics: dict[str, np.ndarray] = {}
+    for key, v in _metrics(objectives, flights).items():
+        metrics[key] = np.full((ok.size, *v.shape[1:]), np.inf if key in OBJECTIVES else np.nan)
+        metrics[key][ok] = v
+    return metrics
 
 
 def _objectives(model, gp: GPAxes, test: np.ndarray, settings: PlanSettings) -> dict:
@@ -268,9 +289,8 @@ def plan(
     gp = GPAxes.from_model(model)
     samples = PathwiseSamples(gp, settings.sims, rng_gp, settings.rff_features)
     limits = (settings.max_tilt_deg, settings.max_error_deg)
-    sim = Simulator(
-        model, samples, task, settings.stride, limits, settings.fast, settings.jobs, progress
-    )
+    jobs = settings.jobs or available_cores()
+    sim = Simulator(model, samples, task, settings.stride, limits, settings.fast, jobs, progress)
     sizes, propose = _proposer(settings, rng_cand)
     coeffs: list[np.ndarray] = []
     parts: list[tuple[dict[str, np.ndarray], np.ndarray, list[str], np.ndarray]] = []
@@ -283,7 +303,9 @@ def plan(
             test, epsilon = _task_region(gp, batch, settings, rng_test)
             objectives = _objectives(model, gp, test, settings)
             task_metrics, notes = _task_cost(objectives, batch, settings)
-        parts.append((*_score(objectives, batch), batch.tracking.mean(axis=1)))
+        scoring = "scoring" if len(sizes) == 1 else f"scoring {g + 1}/{len(sizes)}"
+        scored = _score(objectives, batch, jobs, progress, scoring)
+        parts.append((*scored, batch.tracking.mean(axis=1)))
     metrics = _concat([p[0] for p in parts])
     cost = metrics[settings.objective]
     feasible = np.concatenate([p[1] for p in parts])

@@ -37,10 +37,11 @@ def check_plan_settings(settings: PlanSettings) -> None:
         ("--test-points", settings.test_points),
         ("--frequencies", settings.frequencies),
         ("--generations", settings.generations),
-        ("--jobs", settings.jobs),
     ):
         if value < 1:
             raise OmavctlError(f"{name} must be at least 1, got {value}")
+    if settings.jobs < 0:
+        raise OmavctlError(f"--jobs must be 0 (one per core) or more, got {settings.jobs}")
     if settings.search not in ("random", "cem"):
         raise OmavctlError(f"--search must be 'random' or 'cem', got '{settings.search}'")
     if settings.selection not in ("batched", "kmedoids"):

@@ -7,16 +7,18 @@ mean commanded-achieved gap that sets epsilon). The fast path simulates the
 task as candidate 0 of the same batch; the reference path flies it on its own
 and every candidate one after the other (:func:`~omavctl.planning.rollout.rollout`).
 
-``jobs > 1`` splits the candidates over worker processes (fork), each running
-the fast path on its share with one BLAS thread; the arrays come back through
-pipes. The per-simulation results do not depend on the split.
+``jobs > 1`` splits the candidates over worker processes
+(:mod:`~omavctl.planning.workers`), each running the fast path on its share with
+one BLAS thread; the arrays come back through pipes. The per-simulation results do
+not depend on the split, to the bit: every operation of a step is column-wise
+(candidates are columns), and the fused GP product pads its blocks to whole BLAS
+tiles (:mod:`~omavctl.planning.fused`).
 """
 
 from __future__ import annotations
 
-import multiprocessing
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -25,6 +27,7 @@ from omavctl.planning.candidates import ReferenceStream, deviated_references
 from omavctl.planning.fused import FusedSamples
 from omavctl.planning.gp import PathwiseSamples
 from omavctl.planning.rollout import REASONS, Progress, rollout
+from omavctl.planning.workers import run_tasks
 from omavctl.sim.trajectory import Trajectory
 
 __all__ = ["Batch", "Simulator"]
@@ -42,19 +45,6 @@ class Batch:
     task_inputs: np.ndarray | None = None
     task_gap: float | None = None
     task_code: np.ndarray | None = None
-
-
-_WORKER: dict[str, Any] = {}
-
-
-def _work(args: tuple[np.ndarray, bool]) -> BatchRollouts:
-    """Worker body: the fast rollout of a share of the candidates (one BLAS thread)."""
-    from threadpoolctl import threadpool_limits
-
-    sim: Simulator = _WORKER["sim"]
-    coeffs, with_task = args
-    with threadpool_limits(1):
-        return sim.fast_rollout(coeffs, with_task, None)
 
 
 class Simulator:
@@ -85,21 +75,27 @@ class Simulator:
         """Simulate candidates coeffs (K, 3, P, 2) (and the task first when with_task)."""
         if not self.fast:
             return self._reference(coeffs, with_task, label)
-        if self.jobs <= 1 or coeffs.shape[0] < 2 * self.jobs:
-            roll = self.fast_rollout(coeffs, with_task, label)
-        else:
-            roll = self._parallel(coeffs, with_task)
+        shares = np.array_split(coeffs, max(1, min(self.jobs, coeffs.shape[0] // 2)))
+        assert self.fused is not None
+        self.fused.set_batch(coeffs.shape[0] + with_task)  # one GEMM shape for every share
+
+        def share(i: int, report: Callable[[float], None]) -> BatchRollouts:
+            return self.fast_rollout(shares[i], with_task and i == 0, lambda _, f: report(f))
+
+        parts = run_tasks(share, len(shares), self.jobs, self.progress, label)
         first = 1 if with_task else 0
         return Batch(
-            inputs=roll.picks[first:],
-            tracking=roll.tracking[first:],
-            code=roll.code[first:],
-            task_inputs=roll.task_inputs,
-            task_gap=roll.task_gap,
-            task_code=roll.code[0] if with_task else None,
+            inputs=np.concatenate([p.picks for p in parts])[first:],
+            tracking=np.concatenate([p.tracking for p in parts])[first:],
+            code=np.concatenate([p.code for p in parts])[first:],
+            task_inputs=parts[0].task_inputs,
+            task_gap=parts[0].task_gap,
+            task_code=parts[0].code[0] if with_task else None,
         )
 
-    def fast_rollout(self, coeffs: np.ndarray, with_task: bool, label: str | None) -> BatchRollouts:
+    def fast_rollout(
+        self, coeffs: np.ndarray, with_task: bool, progress: Progress | None = None
+    ) -> BatchRollouts:
         """The fast path on coeffs; with_task prepends the task as candidate 0."""
         assert self.fused is not None
         if with_task:
@@ -115,27 +111,7 @@ class Simulator:
             self.stride,
             self.limits,
             keep_task=with_task,
-            progress=self.progress if label else None,
-            label=label or "",
-        )
-
-    def _parallel(self, coeffs: np.ndarray, with_task: bool) -> BatchRollouts:
-        shares = np.array_split(coeffs, self.jobs)
-        _WORKER["sim"] = self
-        ctx = multiprocessing.get_context("fork")
-        try:
-            with ctx.Pool(self.jobs) as pool:
-                parts = pool.map(_work, [(c, with_task and i == 0) for i, c in enumerate(shares)])
-        finally:
-            _WORKER.clear()
-        if self.progress is not None:
-            self.progress("simulating", 1.0)
-        return BatchRollouts(
-            picks=np.concatenate([p.picks for p in parts]),
-            tracking=np.concatenate([p.tracking for p in parts]),
-            code=np.concatenate([p.code for p in parts]),
-            task_inputs=parts[0].task_inputs,
-            task_gap=parts[0].task_gap,
+            progress=progress,
         )
 
     def _reference(self, coeffs: np.ndarray, with_task: bool, label: str) -> Batch:
