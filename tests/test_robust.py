@@ -289,6 +289,63 @@ def test_signal_removes_temporary_files(work: Path, tmp_path: Path, sig) -> None
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]
 
 
+def _children(pid: int) -> set[int]:
+    """Process ids whose parent is pid (Linux /proc)."""
+    out = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.add(int(stat.parent.name))
+    return out
+
+
+def _alive(pids: set[int]) -> set[int]:
+    """Those of pids still running (not gone, not zombies)."""
+    alive = set()
+    for pid in pids:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if state != "Z":
+            alive.add(pid)
+    return alive
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGKILL])
+def test_signal_mid_plan_ends_its_workers(work: Path, tmp_path: Path, sig) -> None:
+    """plan --jobs 2 stopped while its workers simulate: the usual exit and message, no
+    output, no traceback from a worker, and no worker left running (after kill -9
+    too: they notice their parent is gone)."""
+    out = tmp_path / "p.csv"
+    args = ["plan", "--task", str(work / "task.csv"), "--model", str(work / "m.npz")]
+    args += ["--out", str(out), "--candidates", "400", "--sims", "8", "--jobs", "2", "-q"]
+    proc = subprocess.Popen([OMAVCTL, *args], stderr=subprocess.PIPE, text=True)
+    workers: set[int] = set()
+    deadline = time.monotonic() + 60
+    while len(workers) < 2 and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+        workers = _children(proc.pid)
+    assert len(workers) == 2, "the workers did not start"
+    time.sleep(0.5)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    expected = {
+        signal.SIGTERM: (143, "error: terminated"),
+        signal.SIGINT: (130, "error: interrupted"),
+        signal.SIGKILL: (-9, ""),
+    }
+    assert (proc.returncode, err.strip()) == expected[sig]
+    assert not out.exists()
+    deadline = time.monotonic() + 5
+    while _alive(workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(workers)
+
+
 # ------------------------------------------------------------ the failure path itself
 def test_guard_hides_warnings_and_internal_errors(capsys: pytest.CaptureFixture[str]) -> None:
     import warnings

@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
+import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -37,6 +40,23 @@ def available_cores() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
         return max(1, os.cpu_count() or 1)
+
+
+def _worker_init(parent: int) -> None:
+    """Worker initialiser. The parent handles Ctrl-C and SIGTERM (and cleans up its
+    outputs); a worker inherits the parent's handlers through fork, which would raise
+    in it when the pool ends it, so it takes the defaults (SIGINT ignored). A worker
+    whose parent died (kill -9) ends itself within half a second instead of waiting
+    for tasks forever."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
 
 
 def _call(i: int) -> Any:
@@ -79,16 +99,22 @@ def run_tasks(
     ctx = multiprocessing.get_context("fork")
     shared = ctx.RawArray("d", count)
     _STATE.update(fn=fn, shared=shared)
+    pool = ctx.Pool(min(jobs, count), initializer=_worker_init, initargs=(os.getpid(),))
     try:
-        with ctx.Pool(min(jobs, count)) as pool:
-            pending = pool.map_async(_call, range(count), chunksize=1)
-            while not pending.ready():
-                pending.wait(0.2)
-                done[:] = shared[:]
-                show()
-            results = pending.get()
+        pending = pool.map_async(_call, range(count), chunksize=1)
+        while not pending.ready():
+            pending.wait(0.2)
+            done[:] = shared[:]
+            show()
+        results = pending.get()
+    except BaseException:  # an error, Ctrl-C or SIGTERM: end the workers now
+        pool.terminate()
+        pool.join()
+        raise
     finally:
         _STATE.clear()
+    pool.close()  # the workers finish on their own
+    pool.join()
     done[:] = [1.0] * count
     show()
     return list(results)
