@@ -1,6 +1,6 @@
 """Time and peak memory of ``fit`` for 1, 10 and 30 logs of 60 s each.
 
-Run: python benchmarks/bench_fit.py   (about 2-3 minutes on 2 cores)
+Run: python benchmarks/bench_fit.py [--repeat 5]   (about 2-3 minutes on 2 cores)
 
 Three 60 s flights are simulated once (figure-8 tasks of different size and
 period, default actuator imperfections); the 10- and 30-log cases reuse them
@@ -8,6 +8,10 @@ with fresh gyro and command noise per copy, so that no two logs are equal.
 Logs are passed to :func:`omavctl.learn.fit.fit_model` already aligned (reading
 files is benchmarked in ``bench_read.py``). Defaults otherwise: 200 points,
 3 optimiser restarts, window 11.
+
+``--repeat N`` then fits the 1-log case N more times and prints the min, median
+and max wall time and their spread around the median (``fit`` sets BLAS to one
+thread for its small matrices, so that repeated runs take the same time).
 
 Peak memory is the tracemalloc peak of the fit (numpy buffers included); the
 largest distance matrix built by k-medoids is recorded by wrapping
@@ -17,6 +21,7 @@ the subsample size, never n x n.
 
 from __future__ import annotations
 
+import argparse
 import resource
 import time
 import tracemalloc
@@ -58,7 +63,26 @@ def _variant(flight: FlightLog, k: int, rng: np.random.Generator) -> FlightLog:
     return replace(flight, signals=sig, path=flight.path.with_name(f"{flight.path.name}-{k}"))
 
 
+def _repeat(flight: FlightLog, times: int) -> None:
+    """The 1-log fit ``times`` times: min, median, max wall time and the spread."""
+    walls = []
+    for _ in range(times):
+        start = time.perf_counter()
+        fit_module.fit_model([flight], seed=0)
+        walls.append(time.perf_counter() - start)
+    walls.sort()
+    med = walls[len(walls) // 2]
+    low, high = 100 * (walls[0] / med - 1), 100 * (walls[-1] / med - 1)
+    print(
+        f"1 log, {times} runs: min {walls[0]:.1f} s, median {med:.1f} s, max {walls[-1]:.1f} s "
+        f"({low:+.0f} % / {high:+.0f} % of the median)"
+    )
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--repeat", type=int, default=0, help="time the 1-log fit this often more")
+    repeat = ap.parse_args().repeat
     t0 = time.perf_counter()
     base = _flights()
     print(f"simulated {len(base)} flights of {DURATION:g} s in {time.perf_counter() - t0:.1f} s")
@@ -93,6 +117,8 @@ def main() -> None:
             f"{n * n * 8 / 2**30:12.1f} GiB  {s.kmedoids}"
         )
         assert largest[0] < n * n or n <= points_module.KMEDOIDS_MAX_DIRECT
+    if repeat:
+        _repeat(base[0], repeat)
     maxrss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"process peak RSS {maxrss:.0f} MiB; total {time.perf_counter() - t0:.0f} s")
 

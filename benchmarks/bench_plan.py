@@ -19,7 +19,8 @@ peak resident memory (ru_maxrss) are printed.
    with --jobs 1 (whose costs must be identical): best, median, CPU seconds; then
    the ``omavctl plan`` command line itself;
 3. random sampling against ``--search cem`` at the same number of simulations
-   (``--search-candidates`` x 4) on the figure-8 and the pitch task.
+   (``--search-candidates`` x 4) on the figure-8 and the pitch task, per seed
+   (``--search-seeds``) and their geometric mean.
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -140,6 +143,8 @@ def main() -> None:
     ap.add_argument("--ref-candidates", type=int, default=10)
     ap.add_argument("--search-candidates", type=int, default=200)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--search-seeds", type=int, nargs="+", default=list(range(8)))
+    ap.add_argument("--skip-speed", action="store_true", help="only the search comparison")
     ap.add_argument("--child")
     args = ap.parse_args()
     if args.child:
@@ -147,6 +152,14 @@ def main() -> None:
         return
     print(f"load average before: {os.getloadavg()}, cores: {os.cpu_count()}")
     paths = _data(args.workdir)
+    if not args.skip_speed:
+        _speed(paths, args)
+    _search(paths, args)
+    print(f"\nload average after: {os.getloadavg()}")
+
+
+def _speed(paths: dict[str, Path], args: argparse.Namespace) -> None:
+    """Sections 1 and 2: reference vs fast, the 1000 x 8 target, the CLI."""
     k = args.ref_candidates
     print(f"\n1. reference vs fast, fig8 24 s, 200-point model, {k} candidates x 8, k-medoids")
     ref = _run(_spec(paths, "fig8.csv", candidates=k, sims=8, selection="kmedoids", fast=False))
@@ -183,18 +196,28 @@ def main() -> None:
     )
     _cli(paths, n)
 
+
+def _search(paths: dict[str, Path], args: argparse.Namespace) -> None:
+    """Section 3: random sampling against --search cem, per seed."""
     m = args.search_candidates
     print(f"\n3. random vs cem at {m} candidates x 4 simulations (best cost, lower is better)")
-    print(f"{'task':<6} {'random':>12} {'cem':>12} {'cem/random':>11}")
+    print(f"{'task':<6} {'seed':>4} {'random':>12} {'cem':>12} {'cem/random':>11}")
     for task in ("fig8.csv", "pitch.csv"):
-        best = {}
-        for search in ("random", "cem"):
-            best[search] = _run(_spec(paths, task, candidates=m, sims=4, search=search))["best"]
-        print(
-            f"{task[:-4]:<6} {best['random']:12.5g} {best['cem']:12.5g} "
-            f"{best['cem'] / best['random']:11.3f}"
-        )
-    print(f"\nload average after: {os.getloadavg()}")
+        ratios = []
+        for seed in args.search_seeds:
+            best = {}
+            for search in ("random", "cem"):
+                spec = _spec(paths, task, candidates=m, sims=4, search=search, seed=seed)
+                best[search] = _run(spec)["best"]
+            ratios.append(best["cem"] / best["random"])
+            print(
+                f"{task[:-4]:<6} {seed:>4} {best['random']:12.5g} {best['cem']:12.5g} "
+                f"{ratios[-1]:11.3f}"
+            )
+        geo = float(np.exp(np.mean(np.log(ratios))))
+        wins = sum(r < 1 for r in ratios)
+        n_seeds = len(ratios)
+        print(f"{task[:-4]:<6} geometric mean cem/random {geo:.3f}, cem lower in {wins}/{n_seeds}")
 
 
 if __name__ == "__main__":

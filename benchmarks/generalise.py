@@ -225,6 +225,13 @@ def main(argv: list[str] | None = None) -> int:
         f"{len(rows)} directions in {time.perf_counter() - t0:.0f} s: worst ratio {worst:.3f}, "
         f"coverage min {cov.min():.2f} median {np.median(cov):.2f} max {cov.max():.2f}"
     )
+    shown = np.round(cov, 2)  # as printed: the band is judged on the printed digits
+    inside = int(((shown >= 0.85) & (shown <= 0.99)).sum())
+    print(
+        f"coverage in 0.85-0.99: {inside} of {cov.size} axis-directions "
+        f"({100 * inside / cov.size:.0f} %), {int((shown < 0.85).sum())} below, "
+        f"{int((shown > 0.99).sum())} above"
+    )
     if tmp is not None:
         tmp.cleanup()
     return 0

@@ -133,7 +133,7 @@ def plan(
     test_points: TestPoints = 500,
     points: Points = 40,
     search: Search = "random",
-    generations: Generations = 5,
+    generations: Generations = 8,
     selection: Selection = "batched",
     jobs: Jobs = 0,
     objective: Objective = "variance",

@@ -65,7 +65,7 @@ class PlanSettings:
     max_error_deg: float = 30.0  # attitude error beyond which a simulation diverged
     stride: int = 4  # points are picked among every stride-th simulated sample
     search: str = "random"  # or "cem"
-    generations: int = 5  # cem: generations the candidates are spent in
+    generations: int = 8  # cem: generations the candidates are spent in
     selection: str = "batched"  # or "kmedoids" (per simulation, as fit)
     objective: str = "variance"  # or "effects" (omavctl.planning.effects_objective)
     effects: tuple[str, ...] = ()  # effects objective: () = the model's fitted effects
@@ -269,7 +269,7 @@ def _proposer(settings: PlanSettings, rng: np.random.Generator):
     def propose(n: int, coeffs: list[np.ndarray], costs: list[np.ndarray]) -> np.ndarray:
         if coeffs:
             cem.update(np.concatenate(coeffs), np.concatenate(costs))
-        if cem.mean is None:  # first generation, or nothing feasible yet: uniform
+        if cem.centres is None:  # first generation, or nothing feasible yet: uniform
             return sample_coefficients(rng, n, *bounds)
         return cem.sample(rng, n, (3, s.frequencies, 2))
 
