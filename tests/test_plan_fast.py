@@ -108,16 +108,23 @@ def test_reference_stream_blocks_equal_the_full_references(fitted):
 
 
 def test_cem_finds_a_lower_cost_than_random_sampling_at_equal_budget(fitted):
+    """On average over seeds, not with every seed: the cost landscape is flat, and
+    the benchmark (docs/planning-performance.md) finds CEM higher with 2 of 8 seeds
+    on the figure-8. Measured here: cem/random 1.006, 0.888, 0.970, 0.907."""
     task, model = fitted
-    settings = replace(SMALL, candidates=48, generations=4)
-    random = plan(model, task, settings)
-    cem = plan(model, task, replace(settings, search="cem"))
-    assert cem.coefficients.shape == random.coefficients.shape  # same number of simulations
-    assert cem.feasible[cem.best]
-    assert cem.cost[cem.best] < random.cost[random.best]
-    assert set(cem.generation) == {0, 1, 2, 3}
-    # the search improved on its uniform first generation
-    assert cem.cost[cem.generation > 0].min() < cem.cost[cem.generation == 0].min()
+    ratios, improved = [], 0
+    for seed in range(4):
+        settings = replace(SMALL, candidates=80, generations=8, seed=seed)
+        random = plan(model, task, settings)
+        cem = plan(model, task, replace(settings, search="cem"))
+        assert cem.coefficients.shape == random.coefficients.shape  # same simulations
+        assert cem.feasible[cem.best]
+        assert set(cem.generation) == {0, 1, 2, 3}  # at least 20 candidates each
+        # the search improved on its uniform first generation
+        improved += cem.cost[cem.generation > 0].min() < cem.cost[cem.generation == 0].min()
+        ratios.append(cem.cost[cem.best] / random.cost[random.best])
+    assert np.exp(np.mean(np.log(ratios))) < 0.97
+    assert sum(r < 1 for r in ratios) >= 3 and improved >= 3
 
 
 def test_plan_survives_an_axis_without_gp(fitted):
@@ -157,7 +164,7 @@ def test_cli_plan_same_seed_same_bytes_for_any_jobs(fitted, tmp_path):
     for name, extra in runs:
         out, scores = tmp_path / f"{name}.csv", tmp_path / f"{name}-scores.csv"
         args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
-        args += ["--candidates", "9", "--sims", "2", "--test-points", "80", "--points", "10"]
+        args += ["--candidates", "40", "--sims", "1", "--test-points", "80", "--points", "10"]
         args += ["--scores", str(scores), "-q", *extra]
         result = runner.invoke(app, args)
         assert result.exit_code == 0, result.output
@@ -166,7 +173,7 @@ def test_cli_plan_same_seed_same_bytes_for_any_jobs(fitted, tmp_path):
     assert outs[2] == outs[3] == outs[4] == outs[5]
     assert outs[0] != outs[2]  # the searches differ
     lines = outs[0][1].decode().splitlines()
-    assert len(lines) == 1 + 9  # every candidate scored
+    assert len(lines) == 1 + 40  # every candidate scored
     assert {line.split(",")[-2] for line in lines[1:]} == {"0", "1"}  # generation
 
 

@@ -231,10 +231,11 @@ def _render_plan(
         con.print(line, markup=False)
     best_cost = float(result.cost[result.best])
     if best_cost >= result.task_cost:
+        searched = result.generation.size and result.generation.max() > 0
         con.print(
             f"warning: no candidate is more informative than flying the task again (best "
-            f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, "
-            "or try more --candidates or --search cem",
+            f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, or try more "
+            f"--candidates{'' if searched else ' or --search cem'}",
             markup=False,
         )
     files = {"reference": str(out)}
