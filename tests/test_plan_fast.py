@@ -189,3 +189,14 @@ def test_effects_plan_does_not_depend_on_jobs(vehicle):
     for key, value in one.metrics.items():
         np.testing.assert_array_equal(value, three.metrics[key], err_msg=key)
     assert one.task_cost == three.task_cost and one.epsilon == three.epsilon
+
+
+def test_cem_with_too_few_candidates_says_it_sampled_at_random(fitted):
+    task, model = fitted
+    result = plan(model, task, replace(SMALL, candidates=30, search="cem"))
+    assert set(result.generation) == {0}
+    assert result.notes[-1] == (
+        "--search cem needs at least 40 candidates for two generations of 20: "
+        "these 30 were sampled at random"
+    )
+    assert not any("--search cem" in n for n in plan(model, task, SMALL).notes)

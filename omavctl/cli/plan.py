@@ -60,7 +60,9 @@ Search = Annotated[
         "generations, same number of simulations)."
     ),
 ]
-Generations = Annotated[int, typer.Option(help="Generations of --search cem.")]
+Generations = Annotated[
+    int, typer.Option(help="Generations of --search cem (at most; 20 candidates or more each).")
+]
 Selection = Annotated[
     str,
     typer.Option(

@@ -38,7 +38,7 @@ from omavctl.planning.candidates import deviated_references, sample_coefficients
 from omavctl.planning.gp import GPAxes, PathwiseSamples
 from omavctl.planning.rollout import REASONS, Progress
 from omavctl.planning.scoring import Flights, Objective, VarianceObjective
-from omavctl.planning.search import CrossEntropy, generation_sizes
+from omavctl.planning.search import MIN_GENERATION, CrossEntropy, generation_sizes
 from omavctl.planning.simulate import Batch, Simulator
 from omavctl.planning.workers import available_cores, run_tasks
 from omavctl.sim.trajectory import Trajectory
@@ -322,12 +322,22 @@ def plan(
         prior_variance=float(gp.posterior_variance(test).mean()),
         test_points=test,
         task=task,
-        notes=notes,
+        notes=notes + _search_notes(settings, sizes),
         metrics=metrics,
         task_metrics=task_metrics,
         objective=settings.objective,
         effects=getattr(objectives.get("effects"), "prior", None),
     )
+
+
+def _search_notes(settings: PlanSettings, sizes: list[int]) -> list[str]:
+    """A note when --search cem had too few candidates for a second generation."""
+    if settings.search != "cem" or len(sizes) > 1:
+        return []
+    return [
+        f"--search cem needs at least {2 * MIN_GENERATION} candidates for two generations "
+        f"of {MIN_GENERATION}: these {settings.candidates} were sampled at random"
+    ]
 
 
 def _task_cost(
