@@ -200,3 +200,17 @@ def test_cem_with_too_few_candidates_says_it_sampled_at_random(fitted):
         "these 30 were sampled at random"
     )
     assert not any("--search cem" in n for n in plan(model, task, SMALL).notes)
+
+
+def test_available_cores_respects_a_container_quota(tmp_path):
+    from omavctl.planning.workers import available_cores
+
+    cpu_max = tmp_path / "cpu.max"
+    cpu_max.write_text("max 100000\n")
+    unlimited = available_cores(str(cpu_max))
+    assert unlimited >= 1
+    cpu_max.write_text("150000 100000\n")  # 1.5 cores: two processes
+    assert available_cores(str(cpu_max)) == min(unlimited, 2)
+    cpu_max.write_text("50000 100000\n")
+    assert available_cores(str(cpu_max)) == 1
+    assert available_cores(str(tmp_path / "missing")) == unlimited

@@ -17,12 +17,14 @@ every ``--jobs``; ``tests/test_plan_fast.py``).
 
 from __future__ import annotations
 
+import math
 import multiprocessing
 import os
 import signal
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from omavctl.planning.rollout import Progress
@@ -34,12 +36,21 @@ Task = Callable[[int, Callable[[float], None]], Any]
 _STATE: dict[str, Any] = {}
 
 
-def available_cores() -> int:
-    """Cores this process may run on (its CPU affinity), at least 1."""
+def available_cores(cpu_max: str = "/sys/fs/cgroup/cpu.max") -> int:
+    """Cores this process may use, at least 1: its CPU affinity, and no more than a
+    container's CPU quota (cgroup v2 ``cpu.max``, e.g. ``200000 100000`` = 2 cores),
+    which the affinity does not show."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
+        cores = os.cpu_count() or 1
+    try:
+        quota, period = Path(cpu_max).read_text().split()[:2]
+        if quota != "max":
+            cores = min(cores, math.ceil(int(quota) / int(period)))
+    except (OSError, ValueError):
+        pass
+    return max(1, cores)
 
 
 def _worker_init(parent: int) -> None:
