@@ -11,7 +11,6 @@ trusting a model on the logs: :func:`quality_flags`.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -23,7 +22,6 @@ __all__ = [
     "MIN_COVERAGE",
     "axis_metrics",
     "binned_errors",
-    "finite_json",
     "quality_flags",
     "worst_segments",
 ]
@@ -196,21 +194,6 @@ def quality_flags(
             }
         )
     return flags
-
-
-def finite_json(obj: Any) -> Any:
-    """``obj`` with every non-finite float replaced by None (JSON has no NaN/Infinity)."""
-    if isinstance(obj, dict):
-        return {k: finite_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [finite_json(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.ndarray):
-        return finite_json(obj.tolist())
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
 
 
 #: A held-out sample is outside the training envelope when one of its GP inputs

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from omavctl.diagnose.verdict import get_path as _get
 from omavctl.report.document import (
     Block,
     Bullets,
@@ -38,18 +37,6 @@ def _unit(unit: str, torque_unknown: bool) -> str:
     if torque_unknown and "N m" in unit:
         return unit.replace("N m", "[torque unit]")
     return unit
-
-
-def _effect_units(tree: Mapping[str, Any]) -> dict[str, dict[str, str]]:
-    """Parameter units per effect name, from the diagnosis entries."""
-    out: dict[str, dict[str, str]] = {}
-    for key in ("learned", "missing_effects"):
-        for entry in _get(tree, "diagnosis", key, default=[]) or []:
-            if isinstance(entry, Mapping) and isinstance(entry.get("units"), Mapping):
-                out.setdefault(str(entry.get("name")), {}).update(
-                    {str(k): str(v) for k, v in entry["units"].items()}
-                )
-    return out
 
 
 def _param_lines(
