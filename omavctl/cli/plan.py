@@ -66,7 +66,7 @@ Generations = Annotated[
 Selection = Annotated[
     str,
     typer.Option(
-        help="How the points a flight would add are picked: 'batched' (farthest-point + "
+        help="How the points a flight would add are picked: 'batched' (medoids spaced in time + "
         "k-medoids steps, all simulations at once) or 'kmedoids' (as fit, per "
         "simulation, slow)."
     ),
