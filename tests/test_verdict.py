@@ -114,6 +114,22 @@ def test_before_after_per_axis_with_the_reason_for_the_worse_axis():
     assert "within 2.0× the measurement noise" in reason
 
 
+def test_a_worse_axis_with_no_reason_in_the_files_claims_none():
+    """An added effect whose parameter on the worse axis is well determined and that
+    explained a share of its error: the files do not say why the axis got worse, and
+    the line must not invent that the effect does not act there."""
+    before = copy.deepcopy(BEFORE)
+    before["diagnosis"]["missing_effects"][0]["explained_variance_per_axis"]["z"] = 0.2
+    after = copy.deepcopy(AFTER)
+    after["models"][0]["effects"]["rotational_drag"]["D_stderr"][2] = 0.001
+    before["diagnosis"]["method"]["measurement_noise_std"] = 0.001
+    lines = change_lines(scores_of_files([(before, "before.json"), (after, "after.json")]))
+    assert lines[1].text == (
+        "Axis z got worse (+24.9 %): the files do not say why: the added effect and the "
+        "refitted GP changed together."
+    )
+
+
 def test_flags_and_excluded_spans_when_present():
     tree = copy.deepcopy(AFTER)
     tree["flags"] = [

@@ -333,8 +333,9 @@ def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], a
             f"both errors are within {max(r0, r1) / noise:.1f}× the measurement noise "
             f"({noise:.2g} rad/s²)"
         )
-    core = "; ".join(reasons) if reasons else "the added effect does not act on this axis"
-    return f"{core}: the change comes from the refitted GP, not from the effect"
+    if not reasons:  # nothing in the files singles out the effect or the GP
+        return "the files do not say why: the added effect and the refitted GP changed together"
+    return f"{'; '.join(reasons)}: the change comes from the refitted GP, not from the effect"
 
 
 def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[Line]:
