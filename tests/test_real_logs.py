@@ -74,6 +74,24 @@ def test_px4tools_column_map_and_in_flight_detection() -> None:
 
 
 @needs_px4
+def test_a_time_column_in_the_wrong_unit_is_refused_by_fit(tmp_path: Path) -> None:
+    """Microseconds read as milliseconds: a 21 000 s flight whose body rate seems logged
+    at 0.08 Hz. fit refuses it in one line, as evaluate does, and writes nothing."""
+    wrong = tmp_path / "v.yaml"
+    wrong.write_text(PX4_VEHICLE.read_text().replace("scale: 1.0e-6", "scale: 1.0e-3"))
+    out = tmp_path / "m.npz"
+    args = ["fit", str(PX4_CSV), "--vehicle", str(wrong), "--out", str(out), *SMALL_FIT]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2
+    assert result.output.strip() == (
+        f"error: {PX4_CSV}: body rate logged at 0.0833 Hz, below half the 100 Hz grid "
+        "(controller.rate_hz): check the time column and its scale (columns: in the vehicle "
+        "YAML)"
+    )
+    assert not out.exists()
+
+
+@needs_px4
 def test_px4tools_fit_evaluate_report_through_the_cli(tmp_path: Path) -> None:
     model, ev, rep = tmp_path / "gp.npz", tmp_path / "eval.json", tmp_path / "report.md"
     before = PX4_CSV.stat().st_mtime_ns

@@ -88,6 +88,7 @@ def read_flights(
                 required=REQUIRED_ROLES,
                 time_window=time_window,
             )
+        _check_body_rate(flight, vehicle)
         note = upsampling_note(flight, vehicle)
         if note is not None:
             flight = replace(flight, notes=[*flight.notes, note])
@@ -104,6 +105,26 @@ def body_rate_rate(flight: FlightLog, vehicle: Vehicle) -> float | None:
     names = {"body_rate", vehicle.topics.get("imu", "")}
     rates = [info.rate for info in flight.topics if info.name in names and info.rate > 0]
     return min(rates) if rates else None
+
+
+def _check_body_rate(flight: FlightLog, vehicle: Vehicle) -> None:
+    """Refuse a log whose body rate was recorded below half the grid rate, as
+    ``evaluate`` does: most of its grid samples would be interpolated (a time column
+    in the wrong unit looks like this too)."""
+    rate = body_rate_rate(flight, vehicle)
+    grid = flight.rate
+    if rate is None or rate >= 0.5 * grid:
+        return
+    hint = (
+        f"set controller.rate_hz to at most {math.floor(rate):d} Hz in the vehicle YAML"
+        if rate >= 1.0
+        else "check the time column and its scale (columns: in the vehicle YAML)"
+    )
+    raise LogError(
+        f"body rate logged at {rate:.3g} Hz, below half the {grid:g} Hz grid "
+        f"(controller.rate_hz): {hint}",
+        flight.path,
+    )
 
 
 def upsampling_note(flight: FlightLog, vehicle: Vehicle) -> str | None:
