@@ -54,6 +54,9 @@ LOG_EPOCH = 1_700_000_000.0
 
 #: Seconds of log kept after the vehicle diverged (a log ends in the crash).
 AFTER_LOSS_SECONDS = 1.0
+#: Shortest span (s) over which a commanded tilt rate is checked against the servo
+#: limit: one step of a 100 Hz controller.
+TILT_RATE_WINDOW = 0.01
 #: Body rate (rad/s) beyond which the simulation of a tumbling vehicle stops.
 MAX_RATE = 200.0
 
@@ -290,8 +293,15 @@ class _Flight:
         dt_ctrl = self.r.ctrl_every * self.r.dt
         out = self.ctrl.step(self.state, self.measure()[None, :], self.ref_rows[k : k + 1], dt_ctrl)
         wrench = np.concatenate([out.force[0], out.torque[0]])
-        res = self.alloc.allocate(wrench[None, :], self.prev_tilt_cmd[None, :], dt_ctrl)
-        if not bool(res.feasible[0]):
+        res = self.alloc.allocate(wrench[None, :], self.prev_tilt_cmd[None, :])
+        # the tilt rate over TILT_RATE_WINDOW at least: per 1 ms step of a fast controller,
+        # sensor noise through the controller jitters the tilt at rates no servo could
+        # follow, and every step would count as infeasible
+        back = max(1, math.ceil(TILT_RATE_WINDOW / dt_ctrl - 1e-9))
+        old = self.cmd_tilt[k - back] if k >= back else self.hover_cmd[0]
+        rate = np.abs(wrap_angle(res.tilt[0] - old)) / (back * dt_ctrl)
+        limits = bool(res.thrust_high[0].any() or res.thrust_low[0].any())
+        if limits or bool((rate > self.v.max_tilt_rate + 1e-9).any()):
             self.infeasible += 1
         self.cmd_tilt[k] = self.prev_tilt_cmd = res.tilt[0]
         self.cmd_thrust[k] = np.clip(res.rotor_thrust[0], self.v.min_thrust, self.v.max_thrust)
