@@ -215,6 +215,42 @@ def test_evaluation_json_contract_and_round_trip(cases, tmp_path):
     assert again.pop("series") != tree.pop("series") and again == tree  # deterministic
 
 
+def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
+    """The model's own training log (same file by sha256, overlapping time window) is
+    not a held-out flight: flagged, in the verdict too; another log or a window after
+    the fitted one is not."""
+    from omavctl.diagnose.verdict import verdict
+
+    _, c = cases
+    fit_log, eval_log, model = c["none"]
+    tree = evaluate([model], [fit_log]).tree
+    flags = [f for f in tree["flags"] if f["code"] == "training_data"]
+    message = (
+        f"{fit_log.name}: the model was fitted on this log: its errors here are not those "
+        "of a flight it has not seen"
+    )
+    assert flags == [{"code": "training_data", "axis": None, "value": None, "message": message}]
+    assert message in [line.text for line in verdict(tree) if line.key == "flag"]
+    assert not [
+        f for f in evaluate([model], [eval_log]).tree["flags"] if f["code"] == "training_data"
+    ]
+    # fitted on 0-8 s: evaluated on 6-16 s it overlaps, on 8 s to the end it does not
+    windowed = tmp_path / "window.npz"
+    save_model(
+        windowed,
+        fit_model(
+            [fit_log], points=60, restarts=0, features=FEATURES, time_window=(0.0, 8.0)
+        ).model,
+    )
+    overlap = evaluate([windowed], [fit_log], time_window=(6.0, None)).tree["flags"]
+    assert [f["message"] for f in overlap if f["code"] == "training_data"] == [
+        f"{fit_log.name}: the model was fitted on this log in an overlapping time window: its "
+        "errors here are not those of a flight it has not seen"
+    ]
+    after = evaluate([windowed], [fit_log], time_window=(8.0, None)).tree["flags"]
+    assert not [f for f in after if f["code"] == "training_data"]
+
+
 def test_two_models_are_compared_on_the_same_samples(cases):
     _, c = cases
     _, eval_log, model = c["motor_lag"]

@@ -25,7 +25,8 @@ Writing and reading the result: :mod:`omavctl.diagnose.evalio`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -401,10 +402,44 @@ def evaluate(
         **_failures(series, features, log_names, sg.dt, not model.vehicle.force_normalised),
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
-        "flags": quality_flags(per_model[0]["metrics"], excluded),
+        "flags": _training_data_flags(model, logs_json, time_window)
+        + quality_flags(per_model[0]["metrics"], excluded),
         "envelope": _envelope(model, samples, series),
     }
     return EvalResult(tree=tree, series=series)
+
+
+def _training_data_flags(
+    model: ResidualGP,
+    logs_json: Sequence[Mapping[str, Any]],
+    time_window: tuple[float | None, float | None] | None,
+) -> list[dict[str, Any]]:
+    """A ``training_data`` flag per log the first model was fitted on (the same file,
+    by sha256) in an overlapping time window: its errors there are not held out."""
+    fitted = model.provenance.get("time_window")
+    fit_lo, fit_hi = fitted if isinstance(fitted, list) and len(fitted) == 2 else (None, None)
+    lo, hi = time_window if time_window is not None else (None, None)
+    start = max(float(fit_lo or 0.0), float(lo or 0.0))
+    end = min(math.inf if fit_hi is None else float(fit_hi), math.inf if hi is None else hi)
+    if start >= end:
+        return []
+    digests = {
+        src.get("sha256")
+        for src in model.provenance.get("sources") or []
+        if isinstance(src, Mapping) and src.get("sha256")
+    }
+    return [
+        {
+            "code": "training_data",
+            "axis": None,
+            "value": None,
+            "message": f"{lj['name']}: the model was fitted on this log"
+            + ("" if fitted is None and time_window is None else " in an overlapping time window")
+            + ": its errors here are not those of a flight it has not seen",
+        }
+        for lj in logs_json
+        if lj.get("sha256") in digests
+    ]
 
 
 def _envelope(
