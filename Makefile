@@ -48,9 +48,14 @@ fuzz: $(STAMP)
 		--strategy $(FUZZ_STRATEGY)
 
 # fit on one flight, evaluate on another: every hidden effect, two controller
-# timings, both directions, and the shared real log (about 6 minutes on 2 cores)
+# timings, both directions, two trajectory pairs, without and with the diagnosed
+# effects, and the shared real log (about 5 minutes on 2 cores)
+GENERALISE_LOGS ?= build/generalise
 generalise: $(STAMP)
-	$(BIN)/python benchmarks/generalise.py
+	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS)
+	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --with-effects
+	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair check
+	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair check --with-effects
 
 # plan --objective effects against the variance plan and the task flown again, with
 # hidden drag and command delay (docs/plan-effects.md; about 1 minute per seed)
@@ -66,4 +71,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_fit.py
 
 clean:
-	rm -rf $(VENV) $(VENV1) examples/build .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(VENV1) examples/build build .pytest_cache .mypy_cache .ruff_cache

@@ -10,6 +10,7 @@ predictive band (honest uncertainty: 0.85-0.99). Then the shared real logs.
 
     python benchmarks/generalise.py [--quick] [--features wrench,wrench+rate]
         [--cases none,rotational_drag] [--timings 100Hz-held] [--workdir DIR]
+        [--with-effects] [--pair main|check] [--markdown FILE]
 
 ``make generalise`` runs it; ``tests/test_generalise.py`` pins a subset.
 """
@@ -56,8 +57,19 @@ TIMINGS: dict[str, dict[str, Any]] = {
 DURATION = 16.0
 
 
-def trajectories(duration: float = DURATION) -> dict[str, Any]:
-    """The two trajectories of every case."""
+def trajectories(duration: float = DURATION, pair: str = "main") -> dict[str, Any]:
+    """The two trajectories of every case.
+
+    ``pair="main"``: the figure-8 and wobble every table of docs/generalisation.md
+    uses. ``pair="check"``: another two, a faster, larger figure-8 and a wobble of
+    other frequencies and amplitude, flown to check a setting chosen on the main
+    pair on flights that did not choose it.
+    """
+    if pair == "check":
+        return {
+            "fig8fast": fig8(roll_deg=26, pitch_deg=26, period=4.0, duration=duration, ramp=2.0),
+            "wobble7": wobble(amplitude_deg=20, bandwidth=0.6, duration=duration, ramp=2.0, seed=7),
+        }
     return {
         "fig8": fig8(roll_deg=20, pitch_deg=20, period=5.0, duration=duration, ramp=2.0),
         "wobble": wobble(amplitude_deg=25, bandwidth=0.8, duration=duration, ramp=2.0),
@@ -77,14 +89,18 @@ class Outcome:
     model_rmse: np.ndarray  # (3,)
     gp_axes: list[bool]  # GP kept per axis
     missing: list[str]
+    held_out: str = ""  # the flight (or half of it) evaluated on
 
 
-def fly_pair(workdir: Path, case: str, timing: str, duration: float = DURATION) -> dict[str, Path]:
-    """Simulate both trajectories of a case; returns trajectory name -> log path (CSV)."""
+def fly_pair(
+    workdir: Path, case: str, timing: str, duration: float = DURATION, pair: str = "main"
+) -> dict[str, Path]:
+    """Simulate both trajectories of a case (:func:`trajectories`); returns trajectory
+    name -> log path (CSV)."""
     vehicle = default_vehicle()
     truth = truth_from_tree({"effects": EFFECT_CASES[case], "timing": TIMINGS[timing]}, vehicle)
     out = {}
-    for seed, (name, ref) in enumerate(trajectories(duration).items()):
+    for seed, (name, ref) in enumerate(trajectories(duration, pair).items()):
         path = workdir / f"{case}-{timing}-{name}.csv"
         if not path.exists():
             write_log(path, simulate(ref, vehicle, truth, seed=seed + 1).log)
@@ -121,9 +137,8 @@ def run_direction(
     mod = np.array([tree["metrics"]["model"]["rmse"][a] for a in "xyz"])
     cov = np.array([tree["metrics"]["model"]["coverage_2sigma"][a] for a in "xyz"])
     gp = [bool(v) for v in result.model.gp_enabled]
-    return Outcome(
-        case, timing, fit_on, mod / phys, cov, phys, mod, gp, tree["diagnosis"]["missing"]
-    )
+    missing = tree["diagnosis"]["missing"]
+    return Outcome(case, timing, fit_on, mod / phys, cov, phys, mod, gp, missing, other)
 
 
 #: The shared real flight (relative to the repository) and its vehicle file.
@@ -140,7 +155,7 @@ def run_real(workdir: Path, features: str = DEFAULT_FEATURES) -> list[Outcome]:
     vehicle = load_vehicle(PX4_VEHICLE)
     out = []
     for fit_name, fit_win in PX4_WINDOWS.items():
-        _, eval_win = next((n, w) for n, w in PX4_WINDOWS.items() if n != fit_name)
+        eval_name, eval_win = next((n, w) for n, w in PX4_WINDOWS.items() if n != fit_name)
         result = fit_model(
             [PX4_LOG], vehicle, points=100, features=features, restarts=1, time_window=fit_win
         )
@@ -152,12 +167,29 @@ def run_real(workdir: Path, features: str = DEFAULT_FEATURES) -> list[Outcome]:
         cov = np.array([tree["metrics"]["model"]["coverage_2sigma"][a] for a in "xyz"])
         gp = [bool(v) for v in result.model.gp_enabled]
         missing = tree["diagnosis"]["missing"]
-        out.append(Outcome("px4 real", "83Hz", fit_name, mod / phys, cov, phys, mod, gp, missing))
+        out.append(
+            Outcome(
+                "px4 real", "83Hz", fit_name, mod / phys, cov, phys, mod, gp, missing, eval_name
+            )
+        )
     return out
 
 
 def _fmt(v: np.ndarray, digits: int = 2) -> str:
     return "/".join(f"{x:.{digits}f}" for x in v)
+
+
+def markdown_rows(outcomes: list[Outcome]) -> str:
+    """The results as the rows of docs/generalisation.md's tables (effect, controller,
+    fit -> held out, physics-only RMSE, ratio, coverage, missing)."""
+    lines = []
+    for o in outcomes:
+        name = "command_delay 30 ms" if o.case == "command_delay" else o.case
+        lines.append(
+            f"| {name} | {o.timing} | {o.fit_on} → {o.held_out} | {_fmt(o.physics_rmse, 3)} | "
+            f"{_fmt(o.ratio)} | {_fmt(o.coverage)} | {', '.join(o.missing) or '—'} |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -167,6 +199,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cases", default=",".join(EFFECT_CASES))
     ap.add_argument("--timings", default=",".join(TIMINGS))
     ap.add_argument("--workdir", type=Path, default=None, help="keep the logs here")
+    ap.add_argument(
+        "--markdown", type=Path, default=None, help="also write the results as table rows here"
+    )
+    ap.add_argument(
+        "--pair",
+        choices=("main", "check"),
+        default="main",
+        help="the trajectory pair: main (figure-8, wobble) or check (another two)",
+    )
     ap.add_argument(
         "--with-effects",
         action="store_true",
@@ -189,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         for features in args.features.split(","):
             for case in args.cases.split(","):
                 for timing in timings:
-                    logs = fly_pair(workdir, case, timing, duration)
+                    logs = fly_pair(workdir, case, timing, duration, args.pair)
                     for fit_on in logs:
                         effects = known_effects(case) if args.with_effects else ()
                         o = run_direction(
@@ -206,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
                             f"missing {o.missing}  {'ok' if ok else 'FAIL'}",
                             flush=True,
                         )
-        if PX4_LOG.exists() and not args.quick:
+        if PX4_LOG.exists() and not args.quick and args.pair == "main":
             for features in args.features.split(","):
                 for o in run_real(workdir, features):
                     rows.append((features, o))
@@ -232,6 +273,8 @@ def main(argv: list[str] | None = None) -> int:
         f"({100 * inside / cov.size:.0f} %), {int((shown < 0.85).sum())} below, "
         f"{int((shown > 0.99).sum())} above"
     )
+    if args.markdown is not None:
+        args.markdown.write_text(markdown_rows([o for _, o in rows]))
     if tmp is not None:
         tmp.cleanup()
     return 0

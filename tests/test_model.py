@@ -351,3 +351,55 @@ def test_the_band_includes_the_effects_parameter_uncertainty(vehicle, short_fig8
     np.testing.assert_allclose(var, gp_var + expected, rtol=1e-12)
     size = np.abs(x).sum(axis=(1, 2))
     assert expected[size.argmax()].sum() > 100 * expected[size.argmin()].sum()
+
+
+# ------------------------------------------------------- band beyond the training box
+def test_the_band_grows_beyond_the_training_inputs_and_the_mean_does_not_move(vehicle):
+    """Beyond the training inputs' box the variance grows by ``beyond_scale s^2 (e/l)^2``
+    per input (e: the distance beyond the box, normalised units); inside it, and for
+    a model without the key (files written before it), nothing changes."""
+    from omavctl.learn.validation import beyond_envelope_variance
+
+    model = make_model(vehicle)
+    zn = model.normalise(model.inputs)
+    lo, hi = zn.min(0), zn.max(0)
+    inside = model.inputs[:5]
+    mean0, var0 = model.gp_predict(inside, noise=True)
+    model.beyond_scale = np.array([0.5, 1.0, 2.0])
+    mean1, var1 = model.gp_predict(inside, noise=True)
+    np.testing.assert_array_equal(mean0, mean1)
+    np.testing.assert_array_equal(var0, var1)
+
+    # one input 2 training stds beyond the box, the others at its centre
+    far = np.tile(model.input_mean, (2, 1))
+    far[:, 3] = model.input_mean[3] + model.input_scale[3] * (hi[3] + np.array([0.0, 2.0]))
+    model.beyond_scale = np.zeros(3)
+    mean_off, var_off = model.gp_predict(far)
+    model.beyond_scale = np.array([0.5, 1.0, 2.0])
+    mean_on, var_on = model.gp_predict(far)
+    np.testing.assert_array_equal(mean_off, mean_on)
+    np.testing.assert_allclose(var_on[0], var_off[0], rtol=1e-9)  # on the box's face
+    expected = model.beyond_scale * model.signal_variance * (2.0 / model.length_scales[:, 3]) ** 2
+    np.testing.assert_allclose(var_on[1] - var_off[1], expected, rtol=1e-9)
+    np.testing.assert_allclose(
+        beyond_envelope_variance(
+            np.array([[lo[0] - 1.0, *zn[0, 1:]]]), lo, hi, 2.0, np.full(zn.shape[1], 0.5)
+        ),
+        [2.0 * 4.0],
+    )
+
+
+def test_beyond_scale_round_trips_and_is_checked(vehicle, tmp_path):
+    model = make_model(vehicle)
+    model.beyond_scale = np.array([0.5, 0.75, 1.5])
+    good = tmp_path / "good.npz"
+    save_model(good, model)
+    np.testing.assert_array_equal(load_model(good).beyond_scale, [0.5, 0.75, 1.5])
+    with np.load(good, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files if k != "beyond_scale"}
+    old = tmp_path / "old.npz"
+    np.savez(old, **arrays)
+    np.testing.assert_array_equal(load_model(old).beyond_scale, np.zeros(3))
+    negative = tmp_path / "negative.npz"
+    _rewrite(good, negative, beyond_scale=np.array([0.5, -1.0, 0.5]))
+    assert _refused(negative) == f"{negative}: key 'beyond_scale' must not be negative"

@@ -272,6 +272,7 @@ def _model(
         length_scales=gp.ls,
         noise_variance=gp.nv,
         latent_scale=gp.latent,
+        beyond_scale=gp.beyond,
         effects=_effects(opts, res, eff),
         provenance=provenance,
         train_regressors=train.regressors,

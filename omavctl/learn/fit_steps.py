@@ -128,8 +128,9 @@ class GPFit:
     in_mean, in_scale (d,): input normalisation; z (n, d): normalised training
     inputs; floor (3,): noise floor, rad/s^2; axes: per-axis fits; t_mean,
     sv (3,), ls (3, d): target means, signal variances, length scales; nv (3,):
-    noise variances and latent (3,) latent-variance factors (set by
-    :func:`validation_step`); notes for the summary.
+    noise variances, latent (3,) latent-variance factors and beyond (3,) weights
+    on the variance beyond the training box (set by :func:`validation_step`);
+    notes for the summary.
     """
 
     in_mean: np.ndarray
@@ -143,6 +144,7 @@ class GPFit:
     notes: list[str]
     nv: np.ndarray = field(default_factory=lambda: np.zeros(3))
     latent: np.ndarray = field(default_factory=lambda: np.ones(3))
+    beyond: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def noise_variances(self) -> np.ndarray:
@@ -381,7 +383,7 @@ def validation_step(res: Residuals, train: TrainingSet, gp: GPFit, eff: EffectFi
             axis=-1,
         )
         targets_all = res.residual - x_all @ eff.theta
-    gp.t_mean, gp.sv, gp.nv, gp.latent, cv_notes = apply_validation(
+    gp.t_mean, gp.sv, gp.nv, gp.latent, gp.beyond, cv_notes = apply_validation(
         res.samples,
         train.inputs_all,
         targets_all,

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
-from omavctl.learn.validation import TARGET_COVERAGE, cross_validate, fold_of
+from omavctl.learn.validation import BEYOND_PRIOR, TARGET_COVERAGE, cross_validate, fold_of
 
 __all__ = [
     "DEFAULT_RESTARTS",
@@ -62,6 +62,7 @@ class AxisFit:
     cv_coverage: float = float("nan")
     std_factor: float = 1.0
     latent_factor: float = 1.0
+    beyond_scale: float = 0.0
 
 
 def fit_hyperparameters(
@@ -170,12 +171,14 @@ def apply_validation(
     norm: tuple[np.ndarray, np.ndarray],
     hyper: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     axes: list[AxisFit],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """Blocked cross-validation (:func:`omavctl.learn.validation.cross_validate`) applied.
 
     Returns the target means, signal and noise variances after switching off
     the axes whose GP does not help (mean 0, signal variance 0, noise variance
-    the residual's mean square) and calibrating the others; fills the
+    the residual's mean square) and calibrating the others, the factors (3,) on
+    the latent variance and the weights (3,) on the variance beyond the training
+    box (:func:`omavctl.learn.validation.beyond_envelope_variance`); fills the
     validation fields of ``axes``; notes for the summary.
     """
     in_mean, in_scale = norm
@@ -184,10 +187,12 @@ def apply_validation(
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
     fold = fold_of(t, log_id)
     notes: list[str] = []
-    latent = np.ones(3)
+    latent, beyond = np.ones(3), np.full(3, BEYOND_PRIOR)
     if np.unique(fold).size < 2:
         notes.append("too short for blocked cross-validation: the GP is kept as fitted")
-        return t_mean, sv, nv, latent, notes
+        for ax in axes:
+            ax.beyond_scale = BEYOND_PRIOR
+        return t_mean, sv, nv, latent, beyond, notes
     verdicts = cross_validate(
         (inputs_all - in_mean) / in_scale,
         targets_all,
@@ -204,7 +209,7 @@ def apply_validation(
         ax = axes[a]
         ax.gp_on, ax.std_factor, ax.cv_coverage = v.keep, v.std_factor, v.coverage
         ax.cv_rmse_gp, ax.cv_rmse_physics = math.sqrt(v.mse_gp), math.sqrt(v.mse_physics)
-        latent[a] = v.latent_factor**2
+        latent[a], beyond[a] = v.latent_factor**2, v.beyond_scale
         if not v.keep:
             t_mean[a], sv[a], nv[a] = 0.0, 0.0, v.off_variance * v.std_factor**2
             notes.append(
@@ -216,15 +221,20 @@ def apply_validation(
             sv[a] *= v.std_factor**2
             nv[a] *= v.std_factor**2
         ax.signal_std, ax.noise_std = math.sqrt(sv[a]), math.sqrt(nv[a])
-        ax.latent_factor = v.latent_factor
+        ax.latent_factor, ax.beyond_scale = v.latent_factor, v.beyond_scale
         if v.std_factor > 1.0:
             notes.append(
                 f"axis {name}: predictive std widened x{v.std_factor:.2f} to cover "
                 f"{TARGET_COVERAGE:.0%} of held-out time blocks (was {v.coverage:.0%})"
+            )
+        if v.beyond_scale > BEYOND_PRIOR:
+            notes.append(
+                f"axis {name}: the band grows beyond the training inputs with weight "
+                f"{v.beyond_scale:.2f} (held-out ends of the inputs; {BEYOND_PRIOR:g} at least)"
             )
         if v.latent_factor > 1.0:
             notes.append(
                 f"axis {name}: extrapolation uncertainty widened x{v.latent_factor:.2f} "
                 "(held-out regions of input space)"
             )
-    return t_mean, sv, nv, latent, notes
+    return t_mean, sv, nv, latent, beyond, notes

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
+from omavctl.learn.validation import beyond_envelope_variance
 from omavctl.physics.effects import Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
@@ -109,6 +110,7 @@ class ResidualGP:
         length_scales: np.ndarray,
         noise_variance: np.ndarray,
         latent_scale: np.ndarray | None = None,
+        beyond_scale: np.ndarray | None = None,
         effects: Mapping[str, EffectEstimate] | None = None,
         provenance: Mapping[str, Any] | None = None,
         train_regressors: Mapping[str, np.ndarray] | None = None,
@@ -128,6 +130,13 @@ class ResidualGP:
         #: calibration for extrapolation (1 = as the kernel says)
         self.latent_scale = (
             np.ones(3) if latent_scale is None else np.asarray(latent_scale, dtype=float)
+        )
+        #: weight (3,) on the variance the residual may gain beyond the training
+        #: inputs' box (:func:`~omavctl.learn.validation.beyond_envelope_variance`):
+        #: fit's calibration on held-out ends of the inputs (0 = none, as in files
+        #: written before it)
+        self.beyond_scale = (
+            np.zeros(3) if beyond_scale is None else np.asarray(beyond_scale, dtype=float)
         )
         self.effects: dict[str, EffectEstimate] = dict(effects or {})
         self.provenance: dict[str, Any] = dict(provenance or {})
@@ -227,6 +236,8 @@ class ResidualGP:
         zn = self.normalise(z)
         mean = np.empty((z.shape[0], 3))
         var = np.empty((z.shape[0], 3)) if variance else None
+        box = self.normalise(self.inputs)
+        lo, hi = box.min(axis=0), box.max(axis=0)
         # rows in chunks: the (B, n) kernel matrix of a long log would not fit otherwise
         for start in range(0, max(z.shape[0], 1), _CHUNK):
             rows = slice(start, start + _CHUNK)
@@ -238,6 +249,8 @@ class ResidualGP:
                     v = solve_triangular(self._chol[a], k.T, lower=True, check_finite=False)
                     var[rows, a] = self.latent_scale[a] * np.maximum(
                         self.signal_variance[a] - np.einsum("nb,nb->b", v, v), 0.0
+                    ) + self.beyond_scale[a] * beyond_envelope_variance(
+                        zn[rows], lo, hi, self.signal_variance[a], self.length_scales[a]
                     )
                     if noise:
                         var[rows, a] += self.noise_variance[a]
@@ -440,6 +453,7 @@ class ResidualGP:
             "length_scales": self.length_scales,
             "noise_variance": self.noise_variance,
             "latent_scale": self.latent_scale,
+            "beyond_scale": self.beyond_scale,
             "effects": np.array(json.dumps(effects, sort_keys=True)),
             "vehicle": np.array(self.vehicle.to_json()),
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),

@@ -26,6 +26,9 @@ latent_scale       (3,)        optional: factor on the posterior (latent) varian
                                in predictions, fit's extrapolation calibration
                                (absent: 1). An axis whose GP ``fit`` switched off
                                has signal_variance 0 and target_mean 0.
+beyond_scale       (3,)        optional: weight on the variance the residual may
+                               gain beyond the training inputs' box, fit's
+                               calibration on held-out input ends (absent: 0)
 effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..]}}``
 vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
 provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
@@ -303,8 +306,8 @@ def _input_names(arrays: Mapping[str, np.ndarray], features: str, p: Path) -> tu
 def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, Any]:
     """The training data and hyperparameters, checked: :class:`ResidualGP` keyword
     arguments ``inputs`` (n, d), ``targets`` (n, 3), ``input_scale`` (d,),
-    ``signal_variance``, ``noise_variance`` and ``latent_scale`` (3,) (None when
-    absent), ``length_scales`` (3, d)."""
+    ``signal_variance``, ``noise_variance``, ``latent_scale`` and ``beyond_scale``
+    (3,) (None when absent), ``length_scales`` (3, d)."""
     n = arrays["train_inputs"].shape[0] if arrays["train_inputs"].ndim == 2 else -1
     if n < 1:
         raise ModelError("key 'train_inputs' must be a non-empty (n, d) array", p)
@@ -321,6 +324,9 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
     latent = _float(arrays, "latent_scale", (3,), p) if "latent_scale" in arrays else None
     if latent is not None and np.any(latent <= 0):
         raise ModelError("key 'latent_scale' must be positive", p)
+    beyond = _float(arrays, "beyond_scale", (3,), p) if "beyond_scale" in arrays else None
+    if beyond is not None and np.any(beyond < 0):
+        raise ModelError("key 'beyond_scale' must not be negative", p)
     return {
         "inputs": inputs,
         "targets": targets,
@@ -329,6 +335,7 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         "length_scales": ls,
         "noise_variance": nv,
         "latent_scale": latent,
+        "beyond_scale": beyond,
     }
 
 

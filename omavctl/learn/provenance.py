@@ -88,6 +88,7 @@ def _gp_provenance(opts: FitOptions, gp: GPFit) -> dict[str, Any]:
             "coverage": [a.cv_coverage for a in axes],
             "std_factor": [a.std_factor for a in axes],
             "latent_factor": [a.latent_factor for a in axes],
+            "beyond_scale": [a.beyond_scale for a in axes],
         },
     }
 

@@ -148,6 +148,14 @@ def fit_json(summary: Any, out: Path) -> dict[str, Any]:
                 "training_r2": a.r2,
                 "training_rmse": a.rmse,
                 "rms_without_model": a.rmse_nominal,
+                # blocked cross-validation (docs/fit.md): whether the GP stays on, its
+                # held-out errors and coverage, the factors its band was given
+                "gp_on": a.gp_on,
+                "held_out_rmse_gp": a.cv_rmse_gp,
+                "held_out_rmse_physics": a.cv_rmse_physics,
+                "held_out_coverage_2sigma": a.cv_coverage,
+                "std_factor": a.std_factor,
+                "beyond_scale": a.beyond_scale,
             }
             for axis, a in zip("xyz", summary.axes, strict=True)
         },
