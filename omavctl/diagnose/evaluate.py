@@ -178,7 +178,10 @@ def _model_metrics(
     mean = eff_pred + gp_mean
     std = np.sqrt(gp_var)
     prior_std = np.broadcast_to(np.sqrt(m.signal_variance + m.noise_variance), std.shape)
+    rms = np.sqrt((measured**2).mean(axis=0))
     metrics = {
+        # predicting no angular acceleration at all: what any model must beat
+        "zero": {"rmse": {a: float(rms[i]) for i, a in enumerate("xyz")}},
         "nominal": axis_metrics(measured, nominal, prior_std, residual),
         "effects": axis_metrics(measured, nominal + eff_pred, prior_std, residual),
         "model": axis_metrics(measured, nominal + mean, std, residual),

@@ -155,10 +155,26 @@ def quality_flags(
 
     ``overconfident``: 2-sigma coverage below :data:`MIN_COVERAGE` on an axis;
     ``worse_than_physics``: the model's RMSE above :data:`MAX_RATIO` x that of
-    nominal + effects (the GP hurts); ``out_of_control``: samples excluded.
+    nominal + effects (the GP hurts); ``no_better_than_zero``: the model's RMSE not
+    below the RMS of the measured angular acceleration (``metrics.zero``);
+    ``out_of_control``: samples excluded.
     """
     flags: list[dict[str, Any]] = []
     for a in AXES:
+        zero = (metrics.get("zero") or {}).get("rmse", {}).get(a)
+        if zero is not None and metrics["model"]["rmse"][a] >= zero:
+            flags.append(
+                {
+                    "code": "no_better_than_zero",
+                    "axis": a,
+                    "value": metrics["model"]["rmse"][a] / zero if zero > 0 else None,
+                    "message": f"axis {a}: the model's error "
+                    f"({metrics['model']['rmse'][a]:.3g} rad/s^2 RMS) is as large as the "
+                    f"angular acceleration itself ({zero:.3g}): it predicts no better than "
+                    "zero; the commands explain little of the motion here (too little "
+                    "excitation, or a wrong command gain, sign or frame)",
+                }
+            )
         cov = metrics["model"]["coverage_2sigma"][a]
         if cov < MIN_COVERAGE:
             flags.append(

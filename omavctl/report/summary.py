@@ -57,6 +57,9 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
     table.add_column("within 2σ x/y/z", justify="right")
     table.add_column("NLPD x/y/z", justify="right")
     table.add_column("effects")
+    zero = by_model[0].get("zero") or {}
+    if zero:  # evaluations written before it lack the row
+        table.add_row("zero (no acceleration)", *(_g(zero.get("rmse", {}).get(a)) for a in AXES))
     nominal = by_model[0].get("nominal") or {}
     table.add_row("nominal", *(_g(nominal.get("rmse", {}).get(a)) for a in AXES), "", "", "")
     for j, metrics in enumerate(by_model):
