@@ -169,7 +169,7 @@ def quality_flags(
                     "axis": a,
                     "value": metrics["model"]["rmse"][a] / zero if zero > 0 else None,
                     "message": f"axis {a}: the model's error "
-                    f"({metrics['model']['rmse'][a]:.3g} rad/s^2 RMS) is as large as the "
+                    f"({metrics['model']['rmse'][a]:.3g} rad/s² RMS) is as large as the "
                     f"angular acceleration itself ({zero:.3g}): it predicts no better than "
                     "zero; the commands explain little of the motion here (too little "
                     "excitation, or a wrong command gain, sign or frame)",
