@@ -22,7 +22,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -90,6 +90,36 @@ class Outcome:
     gp_axes: list[bool]  # GP kept per axis
     missing: list[str]
     held_out: str = ""  # the flight (or half of it) evaluated on
+    #: share of the held-out samples outside the training envelope, and the
+    #: coverage (3,) of those inside it (NaN where none is)
+    outside: float = 0.0
+    coverage_inside: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+
+
+def _outcome(
+    tree: dict[str, Any], model: Any, case: str, timing: str, fit_on: str, held_out: str
+) -> Outcome:
+    """The figures of one evaluation ``tree`` of ``model``."""
+    metrics = tree["metrics"]
+    phys = np.array([metrics["effects"]["rmse"][a] for a in "xyz"])
+    mod = np.array([metrics["model"]["rmse"][a] for a in "xyz"])
+    cov = np.array([metrics["model"]["coverage_2sigma"][a] for a in "xyz"])
+    env = tree.get("envelope") or {}
+    inside = env.get("coverage_inside") or {}
+    return Outcome(
+        case,
+        timing,
+        fit_on,
+        mod / phys,
+        cov,
+        phys,
+        mod,
+        [bool(v) for v in model.gp_enabled],
+        tree["diagnosis"]["missing"],
+        held_out,
+        float(env.get("outside_fraction", 0.0)),
+        np.array([np.nan if inside.get(a) is None else inside[a] for a in "xyz"]),
+    )
 
 
 def fly_pair(
@@ -133,12 +163,7 @@ def run_direction(
     model_path = workdir / f"{case}-{timing}-{fit_on}-{features}{tag}.npz"
     save_model(model_path, result.model)
     tree = evaluate([model_path], [logs[other]]).tree
-    phys = np.array([tree["metrics"]["effects"]["rmse"][a] for a in "xyz"])
-    mod = np.array([tree["metrics"]["model"]["rmse"][a] for a in "xyz"])
-    cov = np.array([tree["metrics"]["model"]["coverage_2sigma"][a] for a in "xyz"])
-    gp = [bool(v) for v in result.model.gp_enabled]
-    missing = tree["diagnosis"]["missing"]
-    return Outcome(case, timing, fit_on, mod / phys, cov, phys, mod, gp, missing, other)
+    return _outcome(tree, result.model, case, timing, fit_on, other)
 
 
 #: The shared real flight (relative to the repository) and its vehicle file.
@@ -162,16 +187,7 @@ def run_real(workdir: Path, features: str = DEFAULT_FEATURES) -> list[Outcome]:
         model_path = workdir / f"px4-{fit_win[0]:g}-{features}.npz"
         save_model(model_path, result.model)
         tree = evaluate([model_path], [PX4_LOG], time_window=eval_win).tree
-        phys = np.array([tree["metrics"]["effects"]["rmse"][a] for a in "xyz"])
-        mod = np.array([tree["metrics"]["model"]["rmse"][a] for a in "xyz"])
-        cov = np.array([tree["metrics"]["model"]["coverage_2sigma"][a] for a in "xyz"])
-        gp = [bool(v) for v in result.model.gp_enabled]
-        missing = tree["diagnosis"]["missing"]
-        out.append(
-            Outcome(
-                "px4 real", "83Hz", fit_name, mod / phys, cov, phys, mod, gp, missing, eval_name
-            )
-        )
+        out.append(_outcome(tree, result.model, "px4 real", "83Hz", fit_name, eval_name))
     return out
 
 
@@ -190,6 +206,20 @@ def markdown_rows(outcomes: list[Outcome]) -> str:
             f"{_fmt(o.ratio)} | {_fmt(o.coverage)} | {', '.join(o.missing) or '—'} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _inside_summary(outcomes: list[Outcome]) -> None:
+    """Coverage of the held-out samples inside the training envelope only: whether
+    the band's misses are the new flight's excursions beyond the fit flight."""
+    inside = np.round(np.concatenate([o.coverage_inside for o in outcomes]), 2)
+    inside = inside[np.isfinite(inside)]
+    outside = np.array([o.outside for o in outcomes])
+    print(
+        f"inside the training envelope ({inside.size} axis-directions with samples there; "
+        f"median share outside {np.median(outside):.0%}): coverage in 0.85-0.99 "
+        f"{int(((inside >= 0.85) & (inside <= 0.99)).sum())}, "
+        f"{int((inside < 0.85).sum())} below, {int((inside > 0.99).sum())} above"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -274,6 +304,7 @@ def main(argv: list[str] | None = None) -> int:
         f"({100 * inside / cov.size:.0f} %), {int((shown < 0.85).sum())} below, "
         f"{int((shown > 0.99).sum())} above"
     )
+    _inside_summary([o for _, o in rows])
     if args.markdown is not None:
         args.markdown.write_text(markdown_rows([o for _, o in rows]))
     if tmp is not None:
