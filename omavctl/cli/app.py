@@ -51,7 +51,9 @@ task_app = typer.Typer(
     rich_markup_mode=None,
 )
 app.add_typer(
-    task_app, name="task", short_help="Write a task trajectory (fig8, circle, pitch, yaw, heave)."
+    task_app,
+    name="task",
+    short_help="Write a task trajectory (fig8, circle, pitch, yaw, heave, wobble).",
 )
 
 
