@@ -183,6 +183,9 @@ def test_inspect_suggests_column_map_for_px4tools_log(tmp_path: Path) -> None:
     assert "GUESSED" in ins.suggestion
     assert ins.column_ranges["ATTC_Thrust"] == (0.0, pytest.approx(0.504642963409))
     assert "IMU2_GyroX" not in ins.column_ranges  # all-empty columns are skipped
+    # unmapped, nothing can be read: a script sees what fit and evaluate lack
+    assert ins.roles_found == {}
+    assert ins.required_missing == ["body_rate", "attitude", "force_command", "torque_command"]
     assert 21.4 < ins.duration < 21.5
 
     # the CLI prints it; pasted into a vehicle file it reads the log

@@ -161,7 +161,8 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
         t0=guess.t0,
         topics=[],
         roles_found={},
-        roles_missing={},
+        # nothing is read without a column map: what fit and evaluate need is missing
+        roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
         notes=notes,
         column_ranges=scan.ranges(),
         suggested_columns=guess.columns,
