@@ -5,6 +5,10 @@ flags and excluded spans of newer evaluations (keys treated as empty when absent
 from __future__ import annotations
 
 import copy
+import json
+
+import numpy as np
+import pytest
 
 from omavctl.diagnose.verdict import (
     activity,
@@ -180,3 +184,28 @@ def test_activity_speaks_of_thrust_in_g_only_when_the_force_is_in_newtons():
     assert activity(seg).endswith("thrust 1.50 g")
     # a normalised throttle (PX4 thrust 0..1): its u is not an acceleration
     assert "thrust" not in activity({**seg, "thrust_known": False})
+
+
+def test_an_input_constant_in_training_is_named_not_measured_in_its_zero_range():
+    """A normalised thrust has no x or y part in training: a log where it does (a model
+    of another vehicle, or another command mapping) is outside the envelope by a
+    distance no range measures. Named as such, with finite numbers only."""
+    from omavctl.diagnose.metrics import training_envelope
+
+    rng = np.random.default_rng(0)
+    train = np.column_stack([np.zeros(50), rng.uniform(-1.0, 1.0, 50)])
+    flight = np.column_stack([np.r_[np.zeros(30), np.full(10, 0.4)], rng.uniform(-1, 1, 40)])
+    flight[:5, 1] = 3.0  # 1 training range beyond on the varied input
+    err, std = np.zeros((40, 3)), np.ones((40, 3))
+    env = training_envelope(train, flight, ["fx/m", "u"], err, std)
+    json.dumps(env, allow_nan=False)
+    assert env["unvaried"] == {"fx/m": pytest.approx(0.4)}
+    lo, hi = train[:, 1].min(), train[:, 1].max()
+    assert env["beyond"] == {"u": pytest.approx((3.0 - hi) / (hi - lo))}
+    assert env["outside_fraction"] == pytest.approx(15 / 40)
+    tree = copy.deepcopy(AFTER)
+    tree["envelope"] = env
+    line = next(ln.text for ln in verdict(tree) if ln.key == "envelope")
+    assert line.startswith("38 % of the samples lie outside the inputs the model was trained on")
+    assert "furthest, in training ranges beyond them: u 1." in line
+    assert "not varied in training, varied here: fx/m" in line

@@ -230,12 +230,19 @@ def training_envelope(
     train_inputs (m, d) the model's training inputs and inputs (n, d) the flight's,
     in the same (unnormalised) units; error (n, 3) measured minus predicted residual,
     std (n, 3) the predictive std. ``beyond`` gives, per input that leaves the
-    envelope, the largest excursion in units of its training range.
+    envelope, the largest excursion in units of its training range; ``unvaried``,
+    per input that did not vary in training (a normalised thrust's x and y, say)
+    but does here, the largest distance from its training value (its units): no
+    range to measure it in, and every such sample is outside.
     """
     lo, hi = train_inputs.min(axis=0), train_inputs.max(axis=0)
-    span = np.maximum(hi - lo, 1e-12)
-    beyond = np.maximum((lo - inputs) / span, (inputs - hi) / span).clip(min=0.0)
-    outside = (beyond > ENVELOPE_MARGIN).any(axis=1)
+    scale = np.maximum(np.maximum(np.abs(lo), np.abs(hi)), 1.0)
+    varied = hi - lo > 1e-9 * scale
+    span = np.where(varied, hi - lo, 1.0)
+    gap = np.maximum(lo - inputs, inputs - hi).clip(min=0.0)
+    beyond = np.where(varied, gap / span, 0.0)
+    moved = ~varied & (gap > 1e-9 * scale)
+    outside = (beyond > ENVELOPE_MARGIN).any(axis=1) | moved.any(axis=1)
     within = np.abs(error) <= 2.0 * std
 
     def coverage(sel: np.ndarray) -> dict[str, float | None]:
@@ -243,11 +250,13 @@ def training_envelope(
         return {a: float(within[sel, i].mean()) if n else None for i, a in enumerate(AXES)}
 
     worst = beyond.max(axis=0) if inputs.size else np.zeros(len(names))
+    far = gap.max(axis=0) if inputs.size else np.zeros(len(names))
     order = np.argsort(-worst)
     return {
         "margin": ENVELOPE_MARGIN,
         "outside_fraction": float(outside.mean()) if outside.size else 0.0,
         "beyond": {names[j]: float(worst[j]) for j in order if worst[j] > ENVELOPE_MARGIN},
+        "unvaried": {names[j]: float(far[j]) for j in range(len(names)) if moved[:, j].any()},
         "coverage_inside": coverage(~outside),
         "coverage_outside": coverage(outside),
     }

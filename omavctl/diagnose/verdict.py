@@ -228,9 +228,13 @@ def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
     )
     out, inside = env.get("coverage_outside") or {}, env.get("coverage_inside") or {}
     low = [a for a in AXES if (v := _num(out.get(a))) is not None and v < COVERAGE_MIN]
+    where = [f"furthest, in training ranges beyond them: {most}"] if most else []
+    unvaried = ", ".join(str(name) for name in env.get("unvaried") or {})
+    if unvaried:  # constant in training: no range to measure the distance in
+        where.append(f"not varied in training, varied here: {unvaried}")
     text = (
         f"{_pct(share)} of the samples lie outside the inputs the model was trained on "
-        f"(furthest, in training ranges beyond them: {most})"
+        f"({'; '.join(where)})"
     )
     if low:
         there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
