@@ -751,3 +751,27 @@ def test_flatten_composes_scales_and_zeroes_missing_command_axes() -> None:
         "torque_command_y": {"column": "b", "scale": 1.0, "offset": 0.6},
         "torque_command_z": {"value": 0.0},
     }
+
+
+def test_a_csv_cut_in_its_last_row_is_named_truncated_and_the_row_dropped(tmp_path: Path) -> None:
+    """A log copied while it was written ends mid-row: the mapped reader names it as a
+    truncation and drops the row, instead of counting it among rows without time."""
+    from omavctl.logs.columnmap import read_mapped_csv
+
+    t = np.arange(50) * 0.01
+    header = ["time", "gx", "gy", "gz"]
+    full = _write_rows(tmp_path / "full.csv", header, [t, np.sin(t), np.cos(t), t])
+    text = full.read_text()
+    cut = tmp_path / "cut.csv"
+    cut.write_text(text[: text.rindex(",", 0, len(text) - 1) - 3])  # inside the last row
+    columns = {"time": {"column": "time"}, "body_rate": {"x": "gx", "y": "gy", "z": "gz"}}
+    whole, part = read_mapped_csv(full, columns), read_mapped_csv(cut, columns)
+    assert part.raw.series["body_rate"].values.shape == (49, 3)
+    np.testing.assert_array_equal(
+        part.raw.series["body_rate"].values, whole.raw.series["body_rate"].values[:49]
+    )
+    assert part.raw.notes == [
+        "the file ends in the middle of its last row (line 51: 3 of 4 cells): truncated? "
+        "That row is dropped"
+    ]
+    assert whole.raw.notes == []

@@ -321,6 +321,9 @@ class CsvTable:
     header: list[str]
     rows: list[list[str]]
     lines: list[int]
+    #: (file line, cells) of a last row the file ends in the middle of (no line
+    #: break after it, fewer cells than the header): dropped, a truncated file
+    cut_row: tuple[int, int] | None = None
 
     def cells(self, j: int) -> list[str]:
         """Stripped cells of column ``j`` (empty where a row is short)."""
@@ -353,9 +356,12 @@ def read_table(path: Path) -> CsvTable:
         if row and any(c.strip() for c in row):
             rows.append(row)
             lines.append(reader.line_num)
+    cut_row = None
+    if rows and not text.endswith(("\n", "\r")) and len(rows[-1]) < len(header):
+        cut_row = (lines.pop(), len(rows.pop()))
     if not rows:
         raise LogError("no data rows below the header", path)
-    return CsvTable(path=path, header=header, rows=rows, lines=lines)
+    return CsvTable(path=path, header=header, rows=rows, lines=lines, cut_row=cut_row)
 
 
 def _missing_column(column: str, label: str, header: list[str], path: Path) -> LogError:
@@ -402,6 +408,12 @@ def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
             raise _missing_column(spec.column, spec.label, table.header, path)
 
     notes: list[str] = []
+    if table.cut_row is not None:
+        line, cells = table.cut_row
+        notes.append(
+            f"the file ends in the middle of its last row (line {line}: {cells} of "
+            f"{len(table.header)} cells): truncated? That row is dropped"
+        )
     t_all = column("t")
     has_t = np.isfinite(t_all)
     if not has_t.any():
