@@ -371,6 +371,18 @@ def _missing_column(column: str, label: str, header: list[str], path: Path) -> L
     return LogError(f"missing column '{column}' (mapped to {label}){hint}", path)
 
 
+def _cut_row_notes(table: CsvTable) -> list[str]:
+    """A note when the file ended in the middle of its last row (dropped by
+    :func:`read_table`), else none."""
+    if table.cut_row is None:
+        return []
+    line, cells = table.cut_row
+    return [
+        f"the file ends in the middle of its last row (line {line}: {cells} of "
+        f"{len(table.header)} cells): truncated? That row is dropped"
+    ]
+
+
 def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
     """Read a CSV of any layout through a column map (see module docs).
 
@@ -407,13 +419,7 @@ def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
         if spec.column is not None and spec.column not in index:
             raise _missing_column(spec.column, spec.label, table.header, path)
 
-    notes: list[str] = []
-    if table.cut_row is not None:
-        line, cells = table.cut_row
-        notes.append(
-            f"the file ends in the middle of its last row (line {line}: {cells} of "
-            f"{len(table.header)} cells): truncated? That row is dropped"
-        )
+    notes = _cut_row_notes(table)
     t_all = column("t")
     has_t = np.isfinite(t_all)
     if not has_t.any():
