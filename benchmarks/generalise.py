@@ -174,16 +174,15 @@ PX4_WINDOWS = {"6.5-15 s": (6.5, 15.0), "15 s-end": (15.0, None)}
 
 
 def run_real(workdir: Path, features: str = DEFAULT_FEATURES) -> list[Outcome]:
-    """The px4tools octocopter flight: fit on one half, evaluate on the other, both ways."""
+    """The px4tools octocopter flight: fit on one half, evaluate on the other, both ways,
+    with ``fit``'s default points and restarts (as a user fits a real log)."""
     from omavctl.vehicle import load_vehicle
 
     vehicle = load_vehicle(PX4_VEHICLE)
     out = []
     for fit_name, fit_win in PX4_WINDOWS.items():
         eval_name, eval_win = next((n, w) for n, w in PX4_WINDOWS.items() if n != fit_name)
-        result = fit_model(
-            [PX4_LOG], vehicle, points=100, features=features, restarts=1, time_window=fit_win
-        )
+        result = fit_model([PX4_LOG], vehicle, features=features, time_window=fit_win)
         model_path = workdir / f"px4-{fit_win[0]:g}-{features}.npz"
         save_model(model_path, result.model)
         tree = evaluate([model_path], [PX4_LOG], time_window=eval_win).tree
