@@ -288,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
                         f"missing {o.missing}",
                         flush=True,
                     )
-        else:
+        elif not PX4_LOG.exists():
             print(f"real log not found ({PX4_LOG}): skipped")
     worst = max(float(o.ratio.max()) for _, o in rows)
     cov = np.concatenate([o.coverage for _, o in rows])
