@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import re
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -128,6 +131,38 @@ def test_cli_plan_refuses_bad_inputs(setup, tmp_path):
         f"error: {other}: schema 'omavctl.model/2' is newer than this omavctl supports ({SCHEMA})"
     )
     assert not out.exists()
+
+
+def test_no_feasible_candidate_says_which_limits_and_keeps_the_reasons(setup, tmp_path):
+    """Deviations far too large for the servos: no reference is written, the one error
+    line counts the candidates by the limit they broke, and the scores (every
+    candidate's reason) are written for the user to look at."""
+    _, task_path, model_path = setup
+    out, scores = tmp_path / "ref.csv", tmp_path / "scores.csv"
+    args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
+    args += ["--amplitude", "30", "--candidates", "4", "--sims", "1", "--points", "5"]
+    line = _one_error_line(runner.invoke(app, [*args, "--scores", str(scores), "-q"]))
+    assert line.startswith(
+        f"error: {task_path}: no feasible candidate for this task (4 candidates: "
+    )
+    assert line.endswith(
+        f"; every candidate's reason is in {scores}: lower --amplitude or --max-freq"
+    )
+    assert not out.exists()
+    with scores.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 4 and all(r["feasible"] == "false" and r["reason"] for r in rows)
+    counted = re.search(r"\(4 candidates: (.*?)\)", line)
+    assert counted is not None
+    tally = {}
+    for r in rows:
+        for why in r["reason"].split("; "):
+            tally[why] = tally.get(why, 0) + 1
+    assert {w.split(" ", 1)[1]: int(w.split(" ", 1)[0]) for w in counted[1].split(", ")} == tally
+    plain = _one_error_line(runner.invoke(app, [*args, "-q"]))
+    assert plain.endswith(
+        "; --scores FILE lists every candidate's reason: lower --amplitude or --max-freq"
+    )
 
 
 def test_plan_summary_names_the_planned_envelope_and_warns_of_a_long_yaw_turn():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import io
 import math
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +63,27 @@ def format_scores(result: PlanResult, reference_sha256: str | None = None) -> st
             row.append(reference_sha256)
         buf.write(",".join(row) + "\n")
     return buf.getvalue()
+
+
+def no_feasible_candidate(result: PlanResult, task: Path, scores: Path | None) -> OmavctlError:
+    """The error of a plan none of whose candidates is feasible (``result.best`` < 0),
+    after writing the scores (every candidate's reason) when asked for: how many
+    candidates broke which limit, and whether the task itself does."""
+    if scores is not None:
+        with atomic_paths(scores) as (tmp,):
+            tmp.write_text(format_scores(result))
+    tally = Counter(r for reason in result.reason for r in reason.split(", ") if r)
+    why = ", ".join(f"{n} {r}" for r, n in tally.most_common())
+    text = f"no feasible candidate for this task ({len(result.reason)} candidates: {why})"
+    task_notes = [n for n in result.notes if n.startswith("the task itself")]
+    if task_notes:
+        text += f"; {task_notes[0]}: are the model and --vehicle this vehicle's?"
+    text += (
+        f"; every candidate's reason is in {scores}"
+        if scores is not None
+        else "; --scores FILE lists every candidate's reason"
+    )
+    return OmavctlError(text + ": lower --amplitude or --max-freq", task)
 
 
 def write_plan(out: Path, best: Trajectory, result: PlanResult, scores: Path | None) -> None:

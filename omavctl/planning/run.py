@@ -20,7 +20,7 @@ from omavctl.base.errors import OmavctlError
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.model_file import check_vehicle, load_model
 from omavctl.planning.planner import PlanResult, PlanSettings, plan
-from omavctl.planning.report import write_plan
+from omavctl.planning.report import no_feasible_candidate, write_plan
 from omavctl.planning.rollout import Progress
 from omavctl.sim.trajectory import Trajectory, read_trajectory
 from omavctl.vehicle import load_vehicle
@@ -75,6 +75,8 @@ class PlanJob:
         # BLAS do not fight over the cores and timings are stable (threadpoolctl)
         with threadpool_limits(limits=1, user_api="blas"):
             result = plan(self.model, self.task, self.settings, progress)
+        if result.best < 0:
+            raise no_feasible_candidate(result, self.task_path, self.scores)
         write_plan(self.out, result.best_trajectory(self.task_path), result, self.scores)
         return result
 
