@@ -126,6 +126,13 @@ def test_cli_effects_plan_scores_both_objectives_and_is_deterministic(setup):
     assert outs[0][2]["best"] == int(best["candidate"])
     assert summary["names"] == EFFECTS.split(",")
     assert len(summary["stderr_before"]) == len(summary["stderr_after"]) == 4
+    # fit's own standard errors beside the planner's (theta is the parameter for both)
+    model = setup[3]
+    stored = [
+        *model.effects["rotational_drag"].stderr["D"],
+        *model.effects["command_delay"].stderr["tau_d"],
+    ]
+    assert summary["stderr_fit"] == pytest.approx([float(v) for v in stored], rel=1e-12)
     # the planned flight adds information: no standard error grows
     assert all(
         a <= b * (1 + 1e-9)
@@ -138,8 +145,12 @@ def test_variance_plan_also_reports_the_effects_numbers(setup):
     out, scores = tmp / "v.csv", tmp / "v-scores.csv"
     args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
     args += ["--candidates", "3", "--sims", "2", "--test-points", "80", "--points", "10"]
-    result = runner.invoke(app, [*args, "--scores", str(scores), "-q"])
+    result = runner.invoke(app, [*args, "--scores", str(scores)])
     assert result.exit_code == 0, result.output
+    # the delay: the planner's linearised standard error beside fit's 1-D search's
+    text = " ".join(result.output.split())
+    tau_d = float(setup[3].effects["command_delay"].stderr["tau_d"][0])
+    assert f"(linearised at the training points; fit's 1-D search: ± {tau_d:.3g})" in text
     lines = scores.read_text().splitlines()
     header = lines[0].split(",")
     for line in lines[1:]:

@@ -160,6 +160,9 @@ class EffectsPrior:
     information: np.ndarray
     #: names of the effects the model has fitted (the others start at fit's prior, 0)
     fitted: tuple[str, ...] = ()
+    #: standard errors (p,) of theta that ``fit`` stored (a lag's or delay's from its
+    #: 1-D search over every sample); NaN where not fitted or not determined
+    fit_stderr: np.ndarray | None = None
 
     @classmethod
     def from_model(cls, model, gp: GPAxes, names: Sequence[str]) -> EffectsPrior:
@@ -184,11 +187,36 @@ class EffectsPrior:
             w = solve_triangular(gp.chol[a], x[:, a, :], lower=True)
             info += w.T @ w
         fitted = tuple(n for n in names if n in model.effects)
-        return cls(tuple(names), np.concatenate(values), s, info * np.outer(s, s), fitted)
+        fit_se = np.concatenate(
+            [
+                _theta_stderr(model.effects[n])
+                if n in model.effects
+                else np.full(get_effect(n).n_theta, np.nan)
+                for n in names
+            ]
+        )
+        return cls(tuple(names), np.concatenate(values), s, info * np.outer(s, s), fitted, fit_se)
 
     def standard_errors(self, information: np.ndarray) -> np.ndarray:
         """Standard errors (..., p) of theta in its units from scaled information (..., p, p)."""
         return _relative_se(information) * self.scale
+
+
+def _theta_stderr(est) -> np.ndarray:
+    """Standard errors (p,) of an estimate's theta from its parameters' (each moved by
+    its standard error through ``to_theta``: exact where theta is the parameter)."""
+    effect = est.effect
+    base = effect.to_theta(est.values)
+    var = np.zeros_like(base)
+    for name, se in est.stderr.items():
+        for j in range(np.size(se)):
+            if not np.isfinite(se[j]):
+                var[:] = np.nan
+                continue
+            moved = {k: np.array(v, dtype=float, copy=True) for k, v in est.values.items()}
+            moved[name][j] += se[j]
+            var += (effect.to_theta(moved) - base) ** 2
+    return np.sqrt(var)
 
 
 def _relative_se(information: np.ndarray) -> np.ndarray:
@@ -373,9 +401,19 @@ def effects_summary(result) -> dict | None:
     lines = [_headline(result, prior.names, rel, corr)]
     labels = parameter_labels(prior.names)
     owner = np.concatenate([np.full(get_effect(n).n_theta, n) for n in prior.names])
+    fit_se = prior.fit_stderr if prior.fit_stderr is not None else np.full(before.size, np.nan)
     for i, label in enumerate(labels):
+        # a lag or delay: the planner linearises it at the training points, fit's own
+        # standard error comes from its 1-D search over every sample; both are shown
+        # (for a linear effect the two are the same generalised least squares)
+        searched = get_effect(str(owner[i])).search is not None and np.isfinite(fit_se[i])
+        fit = (
+            f" (linearised at the training points; fit's 1-D search: ± {fit_se[i]:.3g})"
+            if searched
+            else ""
+        )
         now = (
-            f"{prior.values[i]:.4g} ± {before[i]:.3g} now"
+            f"{prior.values[i]:.4g} ± {before[i]:.3g} now{fit}"
             if owner[i] in prior.fitted
             else f"not in the model (prior ± {before[i]:.3g})"
         )
@@ -387,6 +425,7 @@ def effects_summary(result) -> dict | None:
         "parameters": labels,
         "values": _finite(prior.values),
         "stderr_before": _finite(before),
+        "stderr_fit": _finite(fit_se),
         "stderr_after": _finite(after),
         "stderr_task": _finite(task),
         "relative_stderr": {key: v if math.isfinite(v) else None for key, v in rel.items()},
