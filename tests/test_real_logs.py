@@ -74,6 +74,17 @@ def test_px4tools_column_map_and_in_flight_detection() -> None:
 
 
 @needs_px4
+def test_inspect_says_its_ranges_are_in_the_logs_frame() -> None:
+    """The px4 vehicle's log is FRD: inspect lists the columns as read (thrust negative,
+    pointing down) and says fit converts them."""
+    out = _ok(runner.invoke(app, ["inspect", str(PX4_CSV), "--vehicle", str(PX4_VEHICLE)]))
+    assert (
+        "note: column ranges in the log's FRD frame (scaled, not yet converted: fit and "
+        "evaluate work in FLU, where y and z change sign)"
+    ) in " ".join(out.split())
+
+
+@needs_px4
 def test_a_time_column_in_the_wrong_unit_is_refused_by_fit(tmp_path: Path) -> None:
     """Microseconds read as milliseconds: a 21 000 s flight whose body rate seems logged
     at 0.08 Hz. fit refuses it in one line, as evaluate does, and writes nothing."""

@@ -37,5 +37,11 @@ def inspect(log: Log, vehicle: VehicleOpt = None, as_json: Json = False) -> None
 
     veh = load_vehicle(vehicle)
     ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
+    if veh.frame != "FLU" and ins.column_ranges:
+        # ranges are of the columns as read (scaled), before fit turns them into FLU
+        ins.notes.append(
+            f"column ranges in the log's {veh.frame} frame (scaled, not yet converted: fit "
+            "and evaluate work in FLU, where y and z change sign)"
+        )
     render_inspect(ins, console(stdout=not as_json))
     emit(as_json, inspect_json(ins))
