@@ -209,3 +209,7 @@ def test_an_input_constant_in_training_is_named_not_measured_in_its_zero_range()
     assert line.startswith("38 % of the samples lie outside the inputs the model was trained on")
     assert "furthest, in training ranges beyond them: u 1." in line
     assert "not varied in training, varied here: fx/m" in line
+    assert "so far that the model may not be this vehicle's" in line
+    tree["envelope"]["unvaried"] = {}
+    line = next(ln.text for ln in verdict(tree) if ln.key == "envelope")
+    assert "this vehicle's" not in line  # 1 training range beyond: an ordinary excursion

@@ -211,6 +211,9 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
 
 #: Share of a flight outside the model's training inputs from which the verdict says so.
 ENVELOPE_SHARE = 0.25
+#: Training ranges beyond which (or an input constant in training that varies) the
+#: verdict asks whether model and log belong together.
+FAR_RANGES = 10.0
 
 
 def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
@@ -236,6 +239,9 @@ def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
         f"{_pct(share)} of the samples lie outside the inputs the model was trained on "
         f"({'; '.join(where)})"
     )
+    furthest = max((v for v in beyond.values() if _num(v) is not None), default=0.0)
+    if unvaried or furthest > FAR_RANGES:
+        text += " — so far that the model may not be this vehicle's, or the log's units not its"
     if low:
         there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
         here = ", ".join(f"{a} {_pct(v)}" for a in low if (v := _num(inside.get(a))) is not None)
