@@ -117,8 +117,19 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     amb = top.get("ambiguous_with") or []
     if amb:
         text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
+    alike = _look_alikes(missing[0])
+    if alike:
+        text += f" A residual of its shape is also left by {alike}."
     cmd = diag.get("fit_command")
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
+
+
+def _look_alikes(name: str) -> str:
+    """What else leaves a residual like the registered effect ``name`` ('' if unknown)."""
+    from omavctl.physics.effects import EFFECTS
+
+    effect = EFFECTS.get(name)
+    return effect.look_alikes if effect is not None else ""
 
 
 # --------------------------------------------------------------- where/why

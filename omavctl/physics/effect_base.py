@@ -110,6 +110,9 @@ class Effect(ABC):
     #: The :meth:`regressor` of such an effect is its first-order linearisation
     #: (theta = the parameter), used by ``evaluate``'s diagnosis to detect it.
     search: ClassVar[tuple[float, float] | None] = None
+    #: What else leaves a residual of this effect's shape (for the verdict to say
+    #: when it names the effect); empty when nothing common does.
+    look_alikes: ClassVar[str] = ""
 
     # --- estimation --------------------------------------------------------
     @property

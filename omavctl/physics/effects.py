@@ -75,6 +75,10 @@ class ComOffset(Effect):
     parameters = (Parameter("r", 3, "m", "centre-of-mass offset, body frame"),)
     prior_std = 0.05  # m
     theta_range = (-0.2, 0.2)
+    look_alikes = (
+        "a thrust spread between the rotors and the rotors' interference at small tilts "
+        "(rotor_interference), which also shift where the thrust acts"
+    )
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         eye = np.eye(3)
