@@ -230,7 +230,7 @@ def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
         "of a flight it has not seen"
     )
     assert flags == [{"code": "training_data", "axis": None, "value": None, "message": message}]
-    assert message in [line.text for line in verdict(tree) if line.key == "flag"]
+    assert verdict(tree)[0].key == "training" and verdict(tree)[0].text == message
     assert not [
         f for f in evaluate([model], [eval_log]).tree["flags"] if f["code"] == "training_data"
     ]

@@ -96,7 +96,7 @@ def test_where_it_fails_names_what_the_vehicle_did():
 
 def test_overconfidence_below_80_percent_and_trust_above():
     unc = next(line for line in verdict(BEFORE) if line.key == "uncertainty")
-    assert unc.text.startswith("Uncertainty overconfident on y: only 41 %")
+    assert unc.text.startswith("Uncertainty overconfident on y: only y 41 % of the samples")
     trusted = next(line for line in verdict(AFTER) if line.key == "uncertainty")
     assert trusted.text.startswith("Uncertainty can be trusted")
     # the newer key name 'coverage' is read as well

@@ -169,10 +169,10 @@ def quality_flags(
                     "axis": a,
                     "value": metrics["model"]["rmse"][a] / zero if zero > 0 else None,
                     "message": f"axis {a}: the model's error "
-                    f"({metrics['model']['rmse'][a]:.3g} rad/s² RMS) is as large as the "
-                    f"angular acceleration itself ({zero:.3g}): it predicts no better than "
-                    "zero; the commands explain little of the motion here (too little "
-                    "excitation, or a wrong command gain, sign or frame)",
+                    f"({metrics['model']['rmse'][a]:.3g} rad/s² RMS) is not below the "
+                    f"angular acceleration itself ({zero:.3g}): predicting none would do "
+                    "as well; check the command's gain, sign and frame, and whether the "
+                    "flight moves the vehicle enough for its commands to show",
                 }
             )
         cov = metrics["model"]["coverage_2sigma"][a]

@@ -206,9 +206,9 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
     if over:
         text = (
             f"Uncertainty overconfident on {', '.join(over)}: only "
-            f"{', '.join(_pct(cov[a]) for a in over)} of the samples lie within the "
-            f"predicted 2σ (95 % expected); do not trust its error bars there "
-            f"(within 2σ: {shown})."
+            f"{', '.join(f'{a} {_pct(cov[a])}' for a in over)} of the samples lie within "
+            "the predicted 2σ (95 % expected); do not trust its error bars there"
+            + (f" (within 2σ: {shown})." if len(over) < len(cov) else ".")
         )
     elif under:
         text = (
@@ -287,13 +287,16 @@ def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
         axis = (
             f"axis {flag['axis']}: " if flag.get("axis") and not message.startswith("axis") else ""
         )
-        out.append(Line("flag", f"{axis}{message}"))
+        key = "training" if flag.get("code") == "training_data" else "flag"
+        out.append(Line(key, f"{axis}{message}"))
     return out
 
 
 def verdict(tree: Mapping[str, Any]) -> list[Line]:
-    """The verdict of one evaluation: missing, where it fails, uncertainty, flags."""
-    lines = [_missing_line(tree)]
+    """The verdict of one evaluation: missing, where it fails, uncertainty, flags; a
+    log the model was fitted on is said first (nothing after it is held out)."""
+    flags = _flag_lines(tree)
+    lines = [ln for ln in flags if ln.key == "training"] + [_missing_line(tree)]
     for line in (
         _fails_line(tree),
         _uncertainty_line(tree),
@@ -302,7 +305,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     ):
         if line is not None:
             lines.append(line)
-    return lines + _flag_lines(tree)
+    return lines + [ln for ln in flags if ln.key != "training"]
 
 
 # --------------------------------------------------------------- before/after

@@ -32,6 +32,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "envelope": "Outside the training inputs",
         "excluded": "Excluded",
         "flag": "Warning",
+        "training": "Not held out",
     }
     items: list[Content] = []
     for ln in lines:
