@@ -72,7 +72,8 @@ def work(tmp_path_factory) -> Path:
     assert set(fit["axes"]) == {"x", "y", "z"} and fit["points"] == 40
     # the held-out verdict per axis, for a script to act on
     for axis in fit["axes"].values():
-        assert isinstance(axis["gp_on"], bool) and 0.0 <= axis["held_out_coverage_2sigma"] <= 1
+        coverage = axis["held_out_coverage_2sigma_before_widening"]
+        assert isinstance(axis["gp_on"], bool) and 0.0 <= coverage <= 1
         assert axis["held_out_rmse_gp"] > 0 and axis["held_out_rmse_physics"] > 0
         assert axis["std_factor"] >= 1 and axis["beyond_scale"] >= (0.5 if axis["gp_on"] else 0)
     return w

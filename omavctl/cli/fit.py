@@ -217,7 +217,9 @@ def _gp_table(summary: Any) -> Any:
     gp.add_row("GP on (held-out blocks)", *("yes" if a.gp_on else "off" for a in summary.axes))
     gp.add_row("held-out RMSE GP, rad/s^2", *(f"{a.cv_rmse_gp:.4g}" for a in summary.axes))
     gp.add_row("held-out RMSE physics", *(f"{a.cv_rmse_physics:.4g}" for a in summary.axes))
-    gp.add_row("held-out within 2σ", *(f"{a.cv_coverage:.0%}" for a in summary.axes))
+    gp.add_row(
+        "held-out within 2σ, before widening", *(f"{a.cv_coverage:.0%}" for a in summary.axes)
+    )
     gp.add_row(
         "band growth beyond the inputs",
         *(f"{a.beyond_scale:.2g}" if a.gp_on else "—" for a in summary.axes),
