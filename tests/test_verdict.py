@@ -229,3 +229,22 @@ def test_a_named_com_offset_says_what_else_looks_like_it():
         "the thrust acts."
     )
     assert "also left by" not in verdict(BEFORE)[0].text
+
+
+def test_a_worse_axis_whose_fitted_parameter_disagrees_with_the_evaluated_log_says_so():
+    """The fit flight fixed D_z at 0.036 ± 0.005; the evaluated log gives 0.002 ± 0.001:
+    the estimate is the reason the axis got worse, and the line says what to do."""
+    before = copy.deepcopy(BEFORE)
+    before["diagnosis"]["missing_effects"][0]["explained_variance_per_axis"]["z"] = 0.2
+    before["diagnosis"]["missing_effects"][0]["parameters"] = {
+        "D": [0.05, 0.05, 0.002],
+        "D_stderr": [0.002, 0.002, 0.001],
+    }
+    after = copy.deepcopy(AFTER)
+    after["models"][0]["effects"]["rotational_drag"]["D_stderr"][2] = 0.005
+    lines = change_lines(scores_of_files([(before, "before.json"), (after, "after.json")]))
+    assert lines[1].text == (
+        "Axis z got worse (+24.9 %): its fitted D_z = 0.036 ± 0.005 is 6.7 standard errors "
+        "from 0.002 ± 0.001, what the evaluated log gives: the fit flight did not pin it down "
+        "(fit on both logs, or plan a flight with plan --objective effects)."
+    )

@@ -331,10 +331,29 @@ def scores_of_models(tree: Mapping[str, Any]) -> list[ModelScore]:
     return out
 
 
+def _disagreement(
+    key: str, axis: str, v: float | None, se: float | None, held: Mapping[str, Any], i: int
+) -> list[str]:
+    """A reason when a fitted parameter is more than 2 standard errors (combined) from
+    the estimate the evaluated log gave (the diagnosis' ``parameters``)."""
+    d, dse = _num(get_path(held, key, i)), _num(get_path(held, f"{key}_stderr", i))
+    if v is None or se is None or d is None or dse is None:
+        return []
+    z = abs(v - d) / max(math.hypot(se, dse), 1e-300)
+    if z <= 2.0:
+        return []
+    return [
+        f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is {z:.1f} standard errors from "
+        f"{d:.3g} ± {dse:.2g}, what the evaluated log gives: the fit flight did not pin it "
+        "down (fit on both logs, or plan a flight with plan --objective effects)"
+    ]
+
+
 def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], axis: str) -> str:
     """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold."""
     i = AXES.index(axis)
-    reasons = []
+    reasons: list[str] = []
+    misfit: list[str] = []
     diag = get_path(before.tree, "diagnosis", "missing_effects", default=[]) or []
     for name in added:
         entry = next((e for e in diag if isinstance(e, Mapping) and e.get("name") == name), None)
@@ -342,6 +361,7 @@ def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], a
         if ev is not None and ev < 0.05:
             reasons.append(f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error")
         params = after.effect_params.get(name) or {}
+        held = get_path(entry, "parameters", default={}) or {}
         for key, vals in params.items():
             if str(key).endswith("_stderr") or not isinstance(vals, list) or len(vals) != 3:
                 continue
@@ -350,6 +370,9 @@ def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], a
                 reasons.append(
                     f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable from 0"
                 )
+            misfit += _disagreement(key, axis, v, se, held, i)
+    if misfit:  # the effect's own estimate is off: that is the reason, not the GP
+        return "; ".join(misfit)
     noise = _num(get_path(before.tree, "diagnosis", "method", "measurement_noise_std"))
     r0, r1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
     if noise and r0 is not None and r1 is not None and max(r0, r1) < 3 * noise:
