@@ -249,6 +249,14 @@ def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
     ]
     after = evaluate([windowed], [fit_log], time_window=(8.0, None)).tree["flags"]
     assert not [f for f in after if f["code"] == "training_data"]
+    # a model fitted on another log with this one's model as --prior holds its points too
+    augmented = tmp_path / "augmented.npz"
+    save_model(
+        augmented,
+        fit_model([eval_log], points=40, restarts=0, features=FEATURES, prior=model).model,
+    )
+    tree = evaluate([augmented], [fit_log]).tree
+    assert [f["message"] for f in tree["flags"] if f["code"] == "training_data"] == [message]
 
 
 def test_two_models_are_compared_on_the_same_samples(cases):

@@ -412,37 +412,60 @@ def evaluate(
     return EvalResult(tree=tree, series=series)
 
 
+def _training_logs(model: ResidualGP) -> list[tuple[str, Any]]:
+    """(sha256, time window or None) of every log whose points the model holds: its
+    own sources and those of the prior it was fitted on (``provenance.prior.training``)."""
+    prov = model.provenance
+    out = [
+        (src.get("sha256"), prov.get("time_window"))
+        for src in prov.get("sources") or []
+        if isinstance(src, Mapping)
+    ]
+    prior = prov.get("prior")
+    if isinstance(prior, Mapping):
+        out += [
+            (t.get("sha256"), t.get("time_window"))
+            for t in prior.get("training") or []
+            if isinstance(t, Mapping)
+        ]
+    return [(sha, window) for sha, window in out if sha]
+
+
+def _overlap(fitted: Any, window: tuple[float | None, float | None] | None) -> bool:
+    """Whether a fit's time window (list [start, end] or None) and an evaluation's
+    overlap (None: the whole log)."""
+    fit_lo, fit_hi = fitted if isinstance(fitted, list) and len(fitted) == 2 else (None, None)
+    lo, hi = window if window is not None else (None, None)
+    start = max(float(fit_lo or 0.0), float(lo or 0.0))
+    end = min(math.inf if fit_hi is None else float(fit_hi), math.inf if hi is None else hi)
+    return start < end
+
+
 def _training_data_flags(
     model: ResidualGP,
     logs_json: Sequence[Mapping[str, Any]],
     time_window: tuple[float | None, float | None] | None,
 ) -> list[dict[str, Any]]:
-    """A ``training_data`` flag per log the first model was fitted on (the same file,
-    by sha256) in an overlapping time window: its errors there are not held out."""
-    fitted = model.provenance.get("time_window")
-    fit_lo, fit_hi = fitted if isinstance(fitted, list) and len(fitted) == 2 else (None, None)
-    lo, hi = time_window if time_window is not None else (None, None)
-    start = max(float(fit_lo or 0.0), float(lo or 0.0))
-    end = min(math.inf if fit_hi is None else float(fit_hi), math.inf if hi is None else hi)
-    if start >= end:
-        return []
-    digests = {
-        src.get("sha256")
-        for src in model.provenance.get("sources") or []
-        if isinstance(src, Mapping) and src.get("sha256")
-    }
-    return [
-        {
-            "code": "training_data",
-            "axis": None,
-            "value": None,
-            "message": f"{lj['name']}: the model was fitted on this log"
-            + ("" if fitted is None and time_window is None else " in an overlapping time window")
-            + ": its errors here are not those of a flight it has not seen",
-        }
-        for lj in logs_json
-        if lj.get("sha256") in digests
-    ]
+    """A ``training_data`` flag per log the first model holds points of (the same file,
+    by sha256, in an overlapping time window; also a prior's): not held out."""
+    out = []
+    for lj in logs_json:
+        windows = [w for sha, w in _training_logs(model) if sha == lj.get("sha256")]
+        hits = [w for w in windows if _overlap(w, time_window)]
+        if not hits:
+            continue
+        whole = all(w is None for w in hits) and time_window is None
+        out.append(
+            {
+                "code": "training_data",
+                "axis": None,
+                "value": None,
+                "message": f"{lj['name']}: the model was fitted on this log"
+                + ("" if whole else " in an overlapping time window")
+                + ": its errors here are not those of a flight it has not seen",
+            }
+        )
+    return out
 
 
 def _envelope(

@@ -213,6 +213,16 @@ def _read_prior(
         prior_model = load_model(prior)
         prior_source = source_of(prior)
     ppath = None if isinstance(prior, ResidualGP) else prior
+    # the logs whose points the prior holds (its own and its priors'), so that evaluate
+    # knows this model's training data too
+    prov = prior_model.provenance
+    own = [
+        {"sha256": src.get("sha256"), "time_window": prov.get("time_window")}
+        for src in prov.get("sources") or []
+        if isinstance(src, dict)
+    ]
+    earlier = (prov.get("prior") or {}).get("training") or []
+    prior_source["training"] = own + [t for t in earlier if isinstance(t, dict)]
     check_vehicle(prior_model, vehicle, ppath)
     if prior_model.features != features:
         raise ModelError(
