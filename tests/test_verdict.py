@@ -209,10 +209,24 @@ def test_an_input_constant_in_training_is_named_not_measured_in_its_zero_range()
     assert line.startswith("38 % of the samples lie outside the inputs the model was trained on")
     assert "furthest, in training ranges beyond them: u 1." in line
     assert "not varied in training, varied here: fx/m" in line
-    assert "so far that the model may not be this vehicle's" in line
-    tree["envelope"]["unvaried"] = {}
-    line = next(ln.text for ln in verdict(tree) if ln.key == "envelope")
-    assert "this vehicle's" not in line  # 1 training range beyond: an ordinary excursion
+    assert "band still covers" not in line  # no comfort from a band that far out
+    from omavctl.diagnose.metrics import envelope_flags
+
+    assert envelope_flags(env) == [
+        {
+            "code": "far_outside_training",
+            "axis": None,
+            "value": None,
+            "message": "The log varies fx/m, constant in training: is the model this "
+            "vehicle's, and are the log's units and frame the model's?",
+        }
+    ]
+    env["unvaried"] = {}
+    assert envelope_flags(env) == []  # 1 training range beyond: an ordinary excursion
+    env["beyond"] = {"u": 12.0}
+    assert envelope_flags(env)[0]["message"].startswith(
+        "The log goes 12 training ranges beyond the model's inputs (u): is the model"
+    )
 
 
 def test_a_named_com_offset_says_what_else_looks_like_it():

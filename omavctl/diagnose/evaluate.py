@@ -40,6 +40,7 @@ from omavctl.diagnose.metrics import (
     AXES,
     axis_metrics,
     binned_errors,
+    envelope_flags,
     quality_flags,
     training_envelope,
     worst_segments,
@@ -387,6 +388,7 @@ def evaluate(
     tracking = _tracking(samples, series)
     diagnosis = _diagnosis(samples, model, mpaths[0], series, features, sg)
     torque_units_known = not model.vehicle.torque_normalised  # command_units.torque
+    envelope = _envelope(model, samples, series)
     tree = {
         "schema": SCHEMA,
         "omavctl_version": __version__,
@@ -406,8 +408,9 @@ def evaluate(
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
         "flags": _training_data_flags(model, logs_json, time_window)
-        + quality_flags(per_model[0]["metrics"], excluded),
-        "envelope": _envelope(model, samples, series),
+        + quality_flags(per_model[0]["metrics"], excluded)
+        + envelope_flags(envelope),
+        "envelope": envelope,
     }
     return EvalResult(tree=tree, series=series)
 

@@ -11,7 +11,7 @@ trusting a model on the logs: :func:`quality_flags`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -210,6 +210,40 @@ def quality_flags(
             }
         )
     return flags
+
+
+#: Training ranges beyond which (or an input constant in training that varies) model
+#: and log may not belong together (``far_outside_training`` flag).
+FAR_RANGES = 10.0
+
+
+def envelope_flags(env: Mapping[str, Any] | None) -> list[dict[str, Any]]:
+    """A ``far_outside_training`` flag when the log goes more than :data:`FAR_RANGES`
+    training ranges beyond the model's inputs, or varies an input that was constant in
+    training (``env``: :func:`training_envelope`'s result)."""
+    if not env:
+        return []
+    beyond = env.get("beyond") or {}
+    unvaried = list(env.get("unvaried") or {})
+    name, far = max(beyond.items(), key=lambda kv: kv[1], default=("", 0.0))
+    if far <= FAR_RANGES and not unvaried:
+        return []
+    what = (
+        [f"goes {far:.0f} training ranges beyond the model's inputs ({name})"]
+        if far > FAR_RANGES
+        else []
+    )
+    if unvaried:
+        what.append(f"varies {', '.join(unvaried)}, constant in training")
+    return [
+        {
+            "code": "far_outside_training",
+            "axis": None,
+            "value": far if far > FAR_RANGES else None,
+            "message": f"The log {' and '.join(what)}: is the model this vehicle's, and "
+            "are the log's units and frame the model's?",
+        }
+    ]
 
 
 #: A held-out sample is outside the training envelope when one of its GP inputs

@@ -15,6 +15,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from omavctl.diagnose.metrics import FAR_RANGES
+
 __all__ = [
     "COVERAGE_MIN",
     "Line",
@@ -222,9 +224,6 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
 
 #: Share of a flight outside the model's training inputs from which the verdict says so.
 ENVELOPE_SHARE = 0.25
-#: Training ranges beyond which (or an input constant in training that varies) the
-#: verdict asks whether model and log belong together.
-FAR_RANGES = 10.0
 
 
 def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
@@ -251,8 +250,8 @@ def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
         f"({'; '.join(where)})"
     )
     furthest = max((v for v in beyond.values() if _num(v) is not None), default=0.0)
-    if unvaried or furthest > FAR_RANGES:
-        text += " — so far that the model may not be this vehicle's, or the log's units not its"
+    if unvaried or furthest > FAR_RANGES:  # the far_outside_training flag says it
+        return Line("envelope", text + ".")
     if low:
         there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
         here = ", ".join(f"{a} {_pct(v)}" for a in low if (v := _num(inside.get(a))) is not None)
@@ -287,16 +286,22 @@ def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
         axis = (
             f"axis {flag['axis']}: " if flag.get("axis") and not message.startswith("axis") else ""
         )
-        key = "training" if flag.get("code") == "training_data" else "flag"
+        key = FIRST_FLAGS.get(str(flag.get("code")), "flag")
         out.append(Line(key, f"{axis}{message}"))
     return out
 
 
+#: Flags said before everything else (their line keys): what follows them is not a
+#: held-out judgement, or not of a model that belongs to the log.
+FIRST_FLAGS = {"training_data": "training", "far_outside_training": "mismatch"}
+
+
 def verdict(tree: Mapping[str, Any]) -> list[Line]:
     """The verdict of one evaluation: missing, where it fails, uncertainty, flags; a
-    log the model was fitted on is said first (nothing after it is held out)."""
+    log the model was fitted on, or one far beyond its inputs, is said first."""
     flags = _flag_lines(tree)
-    lines = [ln for ln in flags if ln.key == "training"] + [_missing_line(tree)]
+    first = set(FIRST_FLAGS.values())
+    lines = [ln for ln in flags if ln.key in first] + [_missing_line(tree)]
     for line in (
         _fails_line(tree),
         _uncertainty_line(tree),
@@ -305,7 +310,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     ):
         if line is not None:
             lines.append(line)
-    return lines + [ln for ln in flags if ln.key != "training"]
+    return lines + [ln for ln in flags if ln.key not in first]
 
 
 # --------------------------------------------------------------- before/after

@@ -33,6 +33,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "excluded": "Excluded",
         "flag": "Warning",
         "training": "Not held out",
+        "mismatch": "Model and log",
     }
     items: list[Content] = []
     for ln in lines:
