@@ -185,3 +185,12 @@ def test_plan_summary_names_the_planned_envelope_and_warns_of_a_long_yaw_turn():
     warning = "warning: the planned reference turns yaw through"
     assert any(line.startswith(warning) for line in lines)
     assert envelope_lines(SimpleNamespace(best=-1, task=task)) == []
+
+
+def test_the_rejections_are_counted_per_reason():
+    from types import SimpleNamespace
+
+    from omavctl.planning.report import rejection_tally
+
+    result = SimpleNamespace(reason=["", "tilt rate limit", "diverged, tilt rate limit", ""])
+    assert rejection_tally(result) == "2 tilt rate limit, 1 diverged"

@@ -216,9 +216,12 @@ def _render_plan(
         if result.objective == "variance"
         else f"objective {result.objective}; the GP's prior variance {result.prior_variance:.4g}"
     )
+    from omavctl.planning.report import rejection_tally
+
+    why = f" ({rejection_tally(result)})" if rejected else ""
     con.print(
         f"task cost {result.task_cost:.4g} ({prior}), "
-        f"epsilon {result.epsilon:.3g}; {rejected}/{len(result.cost)} candidates rejected"
+        f"epsilon {result.epsilon:.3g}; {rejected}/{len(result.cost)} candidates rejected{why}"
     )
     for note in result.notes:
         con.print(f"note: {note}", markup=False)

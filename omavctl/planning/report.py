@@ -65,6 +65,12 @@ def format_scores(result: PlanResult, reference_sha256: str | None = None) -> st
     return buf.getvalue()
 
 
+def rejection_tally(result: PlanResult) -> str:
+    """'N reason, M reason' over the rejected candidates, most frequent first."""
+    tally = Counter(r for reason in result.reason for r in reason.split(", ") if r)
+    return ", ".join(f"{n} {r}" for r, n in tally.most_common())
+
+
 def no_feasible_candidate(result: PlanResult, task: Path, scores: Path | None) -> OmavctlError:
     """The error of a plan none of whose candidates is feasible (``result.best`` < 0),
     after writing the scores (every candidate's reason) when asked for: how many
@@ -72,9 +78,10 @@ def no_feasible_candidate(result: PlanResult, task: Path, scores: Path | None) -
     if scores is not None:
         with atomic_paths(scores) as (tmp,):
             tmp.write_text(format_scores(result))
-    tally = Counter(r for reason in result.reason for r in reason.split(", ") if r)
-    why = ", ".join(f"{n} {r}" for r, n in tally.most_common())
-    text = f"no feasible candidate for this task ({len(result.reason)} candidates: {why})"
+    text = (
+        f"no feasible candidate for this task ({len(result.reason)} candidates: "
+        f"{rejection_tally(result)})"
+    )
     task_notes = [n for n in result.notes if n.startswith("the task itself")]
     if task_notes:
         text += f"; {task_notes[0]}: are the model and --vehicle this vehicle's?"

@@ -83,6 +83,9 @@ def _metrics_table(tree: Mapping[str, Any]) -> Table:
         by_model = [tree.get("metrics", {})]
     models = tree.get("models", []) or []
     cols: list[tuple[str, Mapping[str, Any]]] = [("nominal", _get(by_model[0], "nominal"))]
+    zero = _get(by_model[0], "zero")
+    if isinstance(zero, Mapping):  # RMSE only: the error of predicting no acceleration
+        cols.insert(0, ("zero (no acceleration)", zero))
     for j, metrics in enumerate(by_model):
         suffix = ""
         if len(by_model) > 1:
