@@ -74,6 +74,22 @@ def test_px4tools_column_map_and_in_flight_detection() -> None:
 
 
 @needs_px4
+def test_a_time_column_scaled_to_a_split_second_points_at_the_time_column(
+    tmp_path: Path,
+) -> None:
+    """Microseconds read as nanoseconds: the whole flight lasts 0.02 s, too short to fit,
+    and the refusal says why that is suspicious."""
+    wrong = tmp_path / "v.yaml"
+    wrong.write_text(PX4_VEHICLE.read_text().replace("scale: 1.0e-6", "scale: 1.0e-9"))
+    args = ["fit", str(PX4_CSV), "--vehicle", str(wrong), "--out", str(tmp_path / "m.npz")]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2
+    line = result.output.strip()
+    assert line.startswith(f"error: {PX4_CSV}: too little data: the signals overlap for 0.021 s")
+    assert line.endswith("samples: check the time column and its scale")
+
+
+@needs_px4
 def test_inspect_says_its_ranges_are_in_the_logs_frame() -> None:
     """The px4 vehicle's log is FRD: inspect lists the columns as read (thrust negative,
     pointing down) and says fit converts them."""

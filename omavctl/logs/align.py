@@ -238,9 +238,16 @@ def _common_grid(
     n = math.floor((end - start) * rate + 1e-6) + 1 if end >= start else 0
     if n < MIN_SAMPLES:
         span = max(end - start, 0.0)
+        rows = min(s.size for s, _ in clean.values())
+        # thousands of samples in a fraction of a second: a time column in the wrong unit
+        hint = (
+            f"; yet every signal has {rows} samples: check the time column and its scale"
+            if rows >= MIN_SAMPLES * 10
+            else ""
+        )
         raise LogError(
             f"too little data: the signals overlap for {span:.3f} s, {max(n, 0)} samples "
-            f"at {rate:g} Hz (need at least {MIN_SAMPLES})",
+            f"at {rate:g} Hz (need at least {MIN_SAMPLES}){hint}",
             raw.path,
         )
     if n > MAX_GRID:
