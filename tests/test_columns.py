@@ -177,7 +177,10 @@ def test_inspect_suggests_column_map_for_px4tools_log(tmp_path: Path) -> None:
     assert cols["time"] == {"column": "TIME_StartTime", "scale": 1e-6}
     assert cols["body_rate"] == {"x": "IMU_GyroX", "y": "IMU_GyroY", "z": "IMU_GyroZ"}
     assert cols["torque_command"] == {"x": "ATTC_Roll", "y": "ATTC_Pitch", "z": "ATTC_Yaw"}
-    assert cols["force_command"] == {"z": "ATTC_Thrust"}
+    # the accelerometer reads -g: an FRD log, whose positive thrust points along -z
+    assert cols["force_command"] == {"z": "ATTC_Thrust", "scale": -1.0}
+    assert "frame: FRD  # IMU_AccZ reads -9.7 m/s^2 (median): z points down" in ins.suggestion
+    assert "command_units: {torque: normalised, force: normalised}" in ins.suggestion
     assert cols["attitude"] == {"roll": "ATT_Roll", "pitch": "ATT_Pitch", "yaw": "ATT_Yaw"}
     assert "other candidates: IMU1_Gyro{X,Y,Z}, ATT_{Roll,Pitch,Yaw}Rate" in ins.suggestion
     assert "GUESSED" in ins.suggestion
@@ -775,3 +778,25 @@ def test_a_csv_cut_in_its_last_row_is_named_truncated_and_the_row_dropped(tmp_pa
         "That row is dropped"
     ]
     assert whole.raw.notes == []
+
+
+@pytest.mark.parametrize(("acc_z", "frame"), [(9.78, "FLU"), (-9.81, "FRD"), (0.3, None)])
+def test_the_suggested_frame_comes_from_the_accelerometers_sign_of_g(
+    tmp_path: Path, acc_z: float, frame: str | None
+) -> None:
+    t = np.arange(200) * 0.01
+    header = ["time_s", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z", "thrust"]
+    cols = [t, *(0.1 * np.sin(t + k) for k in range(3)), 0 * t, 0 * t, acc_z + 0 * t]
+    path = _write_rows(tmp_path / "log.csv", header, [*cols, 0.4 + 0.01 * np.sin(t)])
+    ins = inspect_log(path)
+    assert ins.suggestion is not None and ins.suggested_columns is not None
+    force = ins.suggested_columns["force_command"]
+    if frame is None:
+        assert "frame: FLU  # not known from names" in ins.suggestion
+        assert force == {"z": "thrust"}
+    else:
+        up = "up" if frame == "FLU" else "down"
+        assert f"frame: {frame}  # acc_z reads {acc_z:+.1f} m/s^2 (median): z points {up}" in (
+            ins.suggestion
+        )
+        assert force == ({"z": "thrust", "scale": -1.0} if frame == "FRD" else {"z": "thrust"})

@@ -144,6 +144,9 @@ class Suggestion:
     unrecognised: list[str]
     t0: float = 0.0  # s, first time value (scaled)
     duration: float = 0.0  # s
+    #: the frame the logged vectors are in, and why (an accelerometer's sign of g);
+    #: None when nothing in the log tells
+    frame: tuple[str, str] | None = None
 
 
 def _compact(cols: list[str]) -> str:
@@ -179,6 +182,31 @@ def _range(scan: ColumnScan, cols: list[str]) -> tuple[float, float]:
     lo = min(float(np.nanmin(scan.values[c])) for c in cols)
     hi = max(float(np.nanmax(scan.values[c])) for c in cols)
     return lo, hi
+
+
+#: Words of an accelerometer column and of columns that are not its measurement.
+_ACC_WORDS = {"acc", "accel", "accelerometer", "acceleration"}
+_NOT_MEASURED = {"bias", "var", "variance", "sp", "des", "ref", "target", "setpoint"}
+
+
+def _frame(scan: ColumnScan) -> tuple[str, str] | None:
+    """The body frame from an accelerometer's z axis: at rest or in hover it measures
+    +g in FLU (z up) and -g in FRD (z down); its median tells, when near +-g. The first
+    such column of the file (the primary sensor, as loggers list it first)."""
+    for name, values in scan.values.items():
+        words = [word_base(t.lower()) for t in name_words(name)]
+        if not (_ACC_WORDS & set(words)) or words[-1] not in ("z", "2"):
+            continue
+        if _NOT_MEASURED & set(words):
+            continue
+        median = float(np.nanmedian(values))
+        if abs(abs(median) - 9.81) < 2.5:
+            up = median > 0
+            return (
+                "FLU" if up else "FRD",
+                f"{name} reads {median:+.1f} m/s^2 (median): z points {'up' if up else 'down'}",
+            )
+    return None
 
 
 def suggest_column_map(scan: ColumnScan) -> Suggestion:
@@ -243,7 +271,14 @@ def suggest_column_map(scan: ColumnScan) -> Suggestion:
             alternatives[role] = others[:6]
     required = ("time", "body_rate", "attitude", "torque_command", "force_command")
     unrecognised = [r for r in required if r not in columns]
-    return Suggestion(columns, comments, alternatives, unrecognised, t0, duration)
+    frame = _frame(scan)
+    force = columns.get("force_command")
+    if frame and frame[0] == "FRD" and force and "z" in force:
+        # thrust acts along -z in FRD: a thrust magnitude logged positive needs scale -1
+        if float(np.nanmedian(scan.values[force["z"]])) > 0:
+            force["scale"] = -float(force.get("scale", 1.0))
+            comments["force_command"] += "; thrust positive in an FRD log: scale -1 points it down"
+    return Suggestion(columns, comments, alternatives, unrecognised, t0, duration, frame)
 
 
 def _flow(value: Any) -> str:
@@ -268,8 +303,16 @@ def suggestion_yaml(s: Suggestion, source: str) -> str:
             lines.append(f"  #   other candidates: {', '.join(s.alternatives[role])}")
     for role in s.unrecognised:
         lines.append(f"  # {role}: not recognised from the column names; map it by hand")
-    lines.append(
-        "frame: FLU  # not known from names: FRD if x forward, y right, z down (then a "
-        "positive thrust needs scale: -1.0)"
-    )
+    if s.frame is not None:
+        lines.append(f"frame: {s.frame[0]}  # {s.frame[1]}")
+    else:
+        lines.append(
+            "frame: FLU  # not known from names: FRD if x forward, y right, z down (then a "
+            "positive thrust needs scale: -1.0)"
+        )
+    if any("looks normalised" in c for c in s.comments.values()):
+        lines.append(
+            "# commands that look normalised: command_units: {torque: normalised, force: "
+            "normalised} (fit then estimates their gain)"
+        )
     return "\n".join(lines) + "\n"
