@@ -381,3 +381,28 @@ def test_bad_options_are_one_clear_line(flights, tmp_path, options, message):
     result = runner.invoke(app, ["fit", str(flights / "train.csv"), "--out", str(out), *options])
     assert _error_line(result) == message
     assert not out.exists()
+
+
+def test_an_undetermined_parameter_is_named_as_the_reports_write_it():
+    """A scalar parameter by its name, a vector's component by its axis (D_z)."""
+    from omavctl.learn.effect_fit import EffectFit
+    from omavctl.learn.fit_notes import effect_notes
+    from omavctl.learn.model import EffectEstimate
+
+    estimates = {
+        "rotational_drag": EffectEstimate(
+            "rotational_drag", {"D": np.array([0.05, 0.04, 0.01])}, {"D": np.full(3, 0.006)}
+        ),
+        "rotor_interference": EffectEstimate(
+            "rotor_interference",
+            {"rotor_rotor": np.array([0.25]), "rotor_arm": np.array([0.03])},
+            {"rotor_rotor": np.array([0.004]), "rotor_arm": np.array([0.04])},
+        ),
+    }
+    eff = EffectFit(np.zeros(6), np.eye(6), estimates, np.zeros(3), np.zeros(3))
+    assert effect_notes(eff) == [
+        "rotational_drag: D_z within 2 standard errors of zero: the logs barely excite it or "
+        "the effect is absent",
+        "rotor_interference: rotor_arm within 2 standard errors of zero: the logs barely "
+        "excite it or the effect is absent",
+    ]

@@ -111,7 +111,12 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
         for p in effect.parameters:
             weak = np.flatnonzero(np.abs(est.values[p.name]) < 2.0 * est.stderr[p.name])
             if weak.size:
-                which = ", ".join(f"{p.name}[{i}]" for i in weak)
+                # a scalar parameter by its name; a vector's components as the reports
+                # write them (D_x)
+                which = ", ".join(
+                    p.name if p.size == 1 else f"{p.name}_{'xyz'[i] if p.size == 3 else i}"
+                    for i in weak
+                )
                 notes.append(
                     f"{name}: {which} within 2 standard errors of zero: the logs barely excite "
                     "it or the effect is absent"
