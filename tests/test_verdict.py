@@ -99,6 +99,10 @@ def test_overconfidence_below_80_percent_and_trust_above():
     assert unc.text.startswith("Uncertainty overconfident on y: only y 41 % of the samples")
     trusted = next(line for line in verdict(AFTER) if line.key == "uncertainty")
     assert trusted.text.startswith("Uncertainty can be trusted")
+    narrow = copy.deepcopy(AFTER)
+    narrow["metrics"]["model"]["coverage_2sigma"]["z"] = 0.86
+    line = next(ln.text for ln in verdict(narrow) if ln.key == "uncertainty")
+    assert line.startswith("Uncertainty a little narrow on z: z 86 % of the samples lie within")
     # the newer key name 'coverage' is read as well
     newer = copy.deepcopy(AFTER)
     newer["metrics"]["model"]["coverage"] = newer["metrics"]["model"].pop("coverage_2sigma")

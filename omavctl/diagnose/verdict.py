@@ -35,6 +35,9 @@ AXES = ("x", "y", "z")
 COVERAGE_MIN = 0.8
 #: Above this fraction, with a predicted std far above the error, underconfident.
 COVERAGE_UNDER = 0.995
+#: From this fraction up the uncertainty "can be trusted"; between COVERAGE_MIN and
+#: it, it is called a little narrow.
+COVERAGE_GOOD = 0.9
 
 
 @dataclass(frozen=True)
@@ -216,6 +219,13 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
         text = (
             f"Uncertainty underconfident on {', '.join(under)}: the predicted σ is more "
             f"than twice the actual error (within 2σ: {shown})."
+        )
+    elif narrow := [a for a in AXES if a in cov and cov[a] < COVERAGE_GOOD]:
+        text = (
+            f"Uncertainty a little narrow on {', '.join(narrow)}: "
+            f"{', '.join(f'{a} {_pct(cov[a])}' for a in narrow)} of the samples lie within "
+            f"the predicted 2σ (95 % expected); use its error bars with care there "
+            f"(within 2σ: {shown})."
         )
     else:
         text = f"Uncertainty can be trusted: within 2σ {shown} of the samples (95 % expected)."
