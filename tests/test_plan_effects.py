@@ -225,3 +225,15 @@ def test_an_effects_flight_pins_hidden_drag_and_delay_down_better_than_the_other
     # within 40 %; flying the task again leaves D_z off by a factor of several
     assert r["effects"]["max_rel_error"] < 0.4
     assert r["effects"]["max_rel_error"] < r["task"]["max_rel_error"] / 3
+
+
+def test_a_weak_correlation_is_not_called_inseparable():
+    from omavctl.planning.effects_objective import correlation_remark
+
+    assert correlation_remark(0.5, 0.3) == ""
+    assert (
+        correlation_remark(0.04, 0.06) == " (a little more correlated after it, still told apart)"
+    )
+    assert correlation_remark(0.4, 0.8) == (
+        " (the flight correlates them more: it does not tell them apart)"
+    )

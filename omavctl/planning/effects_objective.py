@@ -370,9 +370,22 @@ def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
             f"; largest cross-effect correlation {corr['before']:.2f} now, "
             f"{corr['after']:.2f} after it, {corr['task']:.2f} after the task"
         )
-        if corr["after"] > corr["before"]:
-            line += " (the flight correlates them more: it does not tell them apart)"
+        line += correlation_remark(corr["before"], corr["after"])
     return line
+
+
+#: A cross-effect correlation from which two effects are hard to tell apart.
+STRONG_CORRELATION = 0.7
+
+
+def correlation_remark(before: float, after: float) -> str:
+    """What the largest cross-effect correlation before and after a flight says ('' when
+    it falls): only a strong one means the flight does not tell the effects apart."""
+    if not after > before:
+        return ""
+    if after >= STRONG_CORRELATION:
+        return " (the flight correlates them more: it does not tell them apart)"
+    return " (a little more correlated after it, still told apart)"
 
 
 def effects_summary(result) -> dict | None:
