@@ -194,7 +194,7 @@ def test_an_input_constant_in_training_is_named_not_measured_in_its_zero_range()
     """A normalised thrust has no x or y part in training: a log where it does (a model
     of another vehicle, or another command mapping) is outside the envelope by a
     distance no range measures. Named as such, with finite numbers only."""
-    from omavctl.diagnose.metrics import training_envelope
+    from omavctl.diagnose.metrics import envelope_flags, training_envelope
 
     rng = np.random.default_rng(0)
     train = np.column_stack([np.zeros(50), rng.uniform(-1.0, 1.0, 50)])
@@ -208,14 +208,12 @@ def test_an_input_constant_in_training_is_named_not_measured_in_its_zero_range()
     assert env["beyond"] == {"u": pytest.approx((3.0 - hi) / (hi - lo))}
     assert env["outside_fraction"] == pytest.approx(15 / 40)
     tree = copy.deepcopy(AFTER)
-    tree["envelope"] = env
+    tree["envelope"], tree["flags"] = env, envelope_flags(env)  # as evaluate writes them
     line = next(ln.text for ln in verdict(tree) if ln.key == "envelope")
     assert line.startswith("38 % of the samples lie outside the inputs the model was trained on")
     assert "furthest, in training ranges beyond them: u 1." in line
     assert "not varied in training, varied here: fx/m" in line
     assert "band still covers" not in line  # no comfort from a band that far out
-    from omavctl.diagnose.metrics import envelope_flags
-
     assert envelope_flags(env) == [
         {
             "code": "far_outside_training",

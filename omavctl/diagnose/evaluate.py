@@ -46,7 +46,7 @@ from omavctl.diagnose.metrics import (
     worst_segments,
 )
 from omavctl.learn.control_loss import out_of_control
-from omavctl.learn.flights import body_rate_rate, sha256_of
+from omavctl.learn.flights import body_rate_rate, sha256_of, training_logs
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
@@ -415,25 +415,6 @@ def evaluate(
     return EvalResult(tree=tree, series=series)
 
 
-def _training_logs(model: ResidualGP) -> list[tuple[str, Any]]:
-    """(sha256, time window or None) of every log whose points the model holds: its
-    own sources and those of the prior it was fitted on (``provenance.prior.training``)."""
-    prov = model.provenance
-    out = [
-        (src.get("sha256"), prov.get("time_window"))
-        for src in prov.get("sources") or []
-        if isinstance(src, Mapping)
-    ]
-    prior = prov.get("prior")
-    if isinstance(prior, Mapping):
-        out += [
-            (t.get("sha256"), t.get("time_window"))
-            for t in prior.get("training") or []
-            if isinstance(t, Mapping)
-        ]
-    return [(sha, window) for sha, window in out if sha]
-
-
 def _overlap(fitted: Any, window: tuple[float | None, float | None] | None) -> bool:
     """Whether a fit's time window (list [start, end] or None) and an evaluation's
     overlap (None: the whole log)."""
@@ -452,8 +433,9 @@ def _training_data_flags(
     """A ``training_data`` flag per log the first model holds points of (the same file,
     by sha256, in an overlapping time window; also a prior's): not held out."""
     out = []
+    trained = training_logs(model.provenance)
     for lj in logs_json:
-        windows = [w for sha, w in _training_logs(model) if sha == lj.get("sha256")]
+        windows = [t["time_window"] for t in trained if t["sha256"] == lj.get("sha256")]
         hits = [w for w in windows if _overlap(w, time_window)]
         if not hits:
             continue

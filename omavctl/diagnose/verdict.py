@@ -15,8 +15,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from omavctl.diagnose.metrics import FAR_RANGES
-
 __all__ = [
     "COVERAGE_MIN",
     "Line",
@@ -191,6 +189,11 @@ def coverage_of(metrics: Mapping[str, Any]) -> dict[str, float]:
     return {a: v for a in AXES if (v := _num(get_path(cov, a))) is not None}
 
 
+def _shares(cov: Mapping[str, float], axes: Sequence[str]) -> str:
+    """'x 41 %, y 90 %' of the given axes."""
+    return ", ".join(f"{a} {_pct(cov[a])}" for a in axes)
+
+
 def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
     model = get_path(tree, "metrics", "model", default={}) or {}
     cov = coverage_of(model)
@@ -207,11 +210,11 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
         and (r := _num(rmse.get(a))) is not None
         and s > 2 * r
     ]
-    shown = ", ".join(f"{a} {_pct(cov[a])}" for a in AXES if a in cov)
+    shown = _shares(cov, [a for a in AXES if a in cov])
     if over:
         text = (
             f"Uncertainty overconfident on {', '.join(over)}: only "
-            f"{', '.join(f'{a} {_pct(cov[a])}' for a in over)} of the samples lie within "
+            f"{_shares(cov, over)} of the samples lie within "
             "the predicted 2σ (95 % expected); do not trust its error bars there"
             + (f" (within 2σ: {shown})." if len(over) < len(cov) else ".")
         )
@@ -223,7 +226,7 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
     elif narrow := [a for a in AXES if a in cov and cov[a] < COVERAGE_GOOD]:
         text = (
             f"Uncertainty a little narrow on {', '.join(narrow)}: "
-            f"{', '.join(f'{a} {_pct(cov[a])}' for a in narrow)} of the samples lie within "
+            f"{_shares(cov, narrow)} of the samples lie within "
             f"the predicted 2σ (95 % expected); use its error bars with care there "
             f"(within 2σ: {shown})."
         )
@@ -259,9 +262,9 @@ def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
         f"{_pct(share)} of the samples lie outside the inputs the model was trained on "
         f"({'; '.join(where)})"
     )
-    furthest = max((v for v in beyond.values() if _num(v) is not None), default=0.0)
-    if unvaried or furthest > FAR_RANGES:  # the far_outside_training flag says it
-        return Line("envelope", text + ".")
+    flags = tree.get("flags") or []
+    if any(isinstance(f, Mapping) and f.get("code") == "far_outside_training" for f in flags):
+        return Line("envelope", text + ".")  # no word on a band that far out: the flag's
     if low:
         there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
         here = ", ".join(f"{a} {_pct(v)}" for a in low if (v := _num(inside.get(a))) is not None)

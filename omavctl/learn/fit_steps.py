@@ -33,7 +33,7 @@ from omavctl.learn.effect_fit import (
 )
 from omavctl.learn.effect_search import SearchResult, gls_search
 from omavctl.learn.fit_notes import effect_notes
-from omavctl.learn.flights import source_of
+from omavctl.learn.flights import source_of, training_logs
 from omavctl.learn.hyperparameters import (
     AxisFit,
     apply_validation,
@@ -213,16 +213,9 @@ def _read_prior(
         prior_model = load_model(prior)
         prior_source = source_of(prior)
     ppath = None if isinstance(prior, ResidualGP) else prior
-    # the logs whose points the prior holds (its own and its priors'), so that evaluate
-    # knows this model's training data too
-    prov = prior_model.provenance
-    own = [
-        {"sha256": src.get("sha256"), "time_window": prov.get("time_window")}
-        for src in prov.get("sources") or []
-        if isinstance(src, dict)
-    ]
-    earlier = (prov.get("prior") or {}).get("training") or []
-    prior_source["training"] = own + [t for t in earlier if isinstance(t, dict)]
+    # the logs whose points the prior holds, so that evaluate knows them as this
+    # model's training data too
+    prior_source["training"] = training_logs(prior_model.provenance)
     check_vehicle(prior_model, vehicle, ppath)
     if prior_model.features != features:
         raise ModelError(

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -36,6 +36,7 @@ __all__ = [
     "read_samples",
     "sha256_of",
     "source_of",
+    "training_logs",
     "upsampling_note",
 ]
 
@@ -162,6 +163,20 @@ def sha256_of(path: Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def training_logs(provenance: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """``{sha256, time_window}`` of every log whose points a model holds, from its
+    ``provenance``: its own sources (with its time window) and those of the prior it
+    was fitted on (``prior.training``, written by ``fit --prior``)."""
+    own = [
+        {"sha256": src.get("sha256"), "time_window": provenance.get("time_window")}
+        for src in provenance.get("sources") or []
+        if isinstance(src, Mapping)
+    ]
+    prior = provenance.get("prior")
+    earlier = (prior.get("training") or []) if isinstance(prior, Mapping) else []
+    return [dict(t) for t in own + earlier if isinstance(t, Mapping) and t.get("sha256")]
 
 
 def source_of(item: str | Path | FlightLog) -> dict[str, Any]:

@@ -70,6 +70,23 @@ class EffectEstimate:
         """Regression coefficients (p,) of the effect's regressor."""
         return self.effect.to_theta(self.values)
 
+    @property
+    def theta_stderr(self) -> np.ndarray:
+        """Standard errors (p,) of :attr:`theta`: each parameter moved by its standard
+        error through ``to_theta`` (exact where theta is the parameter); NaN when a
+        parameter's is not finite."""
+        base = self.theta
+        var = np.zeros_like(base)
+        for name, se in self.stderr.items():
+            for j in range(np.size(se)):
+                if not np.isfinite(se[j]):
+                    var[:] = np.nan
+                    continue
+                moved = {k: np.array(v, dtype=float, copy=True) for k, v in self.values.items()}
+                moved[name][j] += se[j]
+                var += (self.effect.to_theta(moved) - base) ** 2
+        return np.sqrt(var)
+
     def to_json(self) -> dict[str, list[float | None]]:
         """Values and standard errors; a standard error that is not finite (a parameter
         the data cannot determine) is null: JSON never holds NaN or Infinity."""
@@ -155,6 +172,8 @@ class ResidualGP:
         self._allocation: Any = None
         # per axis: inputs scaled by the length scales, Cholesky factor, weights
         zn = self.normalise(self.inputs)
+        #: the training inputs' box (normalised), beyond which the band grows
+        self._box = (zn.min(axis=0), zn.max(axis=0))
         self._z = zn[None, :, :] / self.length_scales[:, None, :]  # (3, n, d)
         self._z_sq = np.einsum("and,and->an", self._z, self._z)  # (3, n)
         self._chol = np.empty((3, n, n))
@@ -236,8 +255,7 @@ class ResidualGP:
         zn = self.normalise(z)
         mean = np.empty((z.shape[0], 3))
         var = np.empty((z.shape[0], 3)) if variance else None
-        box = self.normalise(self.inputs)
-        lo, hi = box.min(axis=0), box.max(axis=0)
+        lo, hi = self._box
         # rows in chunks: the (B, n) kernel matrix of a long log would not fit otherwise
         for start in range(0, max(z.shape[0], 1), _CHUNK):
             rows = slice(start, start + _CHUNK)

@@ -31,6 +31,8 @@ __all__ = ["Allocation", "AllocationResult"]
 
 #: Below this arm thrust (N) the tilt angle is undetermined; the previous one is kept.
 _TILT_THRUST_EPS = 1e-6
+#: Slack on every limit check (a value at the limit is within it).
+_LIMIT_TOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -141,15 +143,21 @@ class Allocation:
             tilt = np.where(arm_thrust < _TILT_THRUST_EPS, previous_tilt, tilt)
         rotor = np.repeat(arm_thrust / 2.0, 2, axis=-1)
         v = self.vehicle
-        tol = 1e-9
-        high = rotor > v.max_thrust + tol
-        low = rotor < v.min_thrust - tol
+        high = rotor > v.max_thrust + _LIMIT_TOL
+        low = rotor < v.min_thrust - _LIMIT_TOL
         if previous_tilt is not None and dt is not None:
-            rate = np.abs(wrap_angle(tilt - previous_tilt)) / dt
-            rate_bad = rate > v.max_tilt_rate + tol
+            rate_bad = self.tilt_rate_exceeded(tilt, previous_tilt, dt)
         else:
             rate_bad = np.zeros(tilt.shape, dtype=bool)
         return AllocationResult(tilt, arm_thrust, rotor, high, low, rate_bad)
+
+    def tilt_rate_exceeded(
+        self, tilt: np.ndarray, previous_tilt: np.ndarray, dt: float
+    ) -> np.ndarray:
+        """Per arm (..., 6) whether going from ``previous_tilt`` to ``tilt`` in ``dt`` s
+        is faster than the servos' ``max_tilt_rate``."""
+        rate = np.abs(wrap_angle(tilt - previous_tilt)) / dt
+        return np.asarray(rate > self.vehicle.max_tilt_rate + _LIMIT_TOL)
 
     # --- sensitivities used by the lag effects -----------------------------
     def tilt_jacobian(self, tilt: np.ndarray, arm_thrust: np.ndarray) -> np.ndarray:

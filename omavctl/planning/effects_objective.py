@@ -189,7 +189,7 @@ class EffectsPrior:
         fitted = tuple(n for n in names if n in model.effects)
         fit_se = np.concatenate(
             [
-                _theta_stderr(model.effects[n])
+                model.effects[n].theta_stderr
                 if n in model.effects
                 else np.full(get_effect(n).n_theta, np.nan)
                 for n in names
@@ -200,23 +200,6 @@ class EffectsPrior:
     def standard_errors(self, information: np.ndarray) -> np.ndarray:
         """Standard errors (..., p) of theta in its units from scaled information (..., p, p)."""
         return _relative_se(information) * self.scale
-
-
-def _theta_stderr(est) -> np.ndarray:
-    """Standard errors (p,) of an estimate's theta from its parameters' (each moved by
-    its standard error through ``to_theta``: exact where theta is the parameter)."""
-    effect = est.effect
-    base = effect.to_theta(est.values)
-    var = np.zeros_like(base)
-    for name, se in est.stderr.items():
-        for j in range(np.size(se)):
-            if not np.isfinite(se[j]):
-                var[:] = np.nan
-                continue
-            moved = {k: np.array(v, dtype=float, copy=True) for k, v in est.values.items()}
-            moved[name][j] += se[j]
-            var += (effect.to_theta(moved) - base) ** 2
-    return np.sqrt(var)
 
 
 def _relative_se(information: np.ndarray) -> np.ndarray:

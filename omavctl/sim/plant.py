@@ -299,9 +299,8 @@ class _Flight:
         # follow, and every step would count as infeasible
         back = max(1, math.ceil(TILT_RATE_WINDOW / dt_ctrl - 1e-9))
         old = self.cmd_tilt[k - back] if k >= back else self.hover_cmd[0]
-        rate = np.abs(wrap_angle(res.tilt[0] - old)) / (back * dt_ctrl)
-        limits = bool(res.thrust_high[0].any() or res.thrust_low[0].any())
-        if limits or bool((rate > self.v.max_tilt_rate + 1e-9).any()):
+        too_fast = self.alloc.tilt_rate_exceeded(res.tilt[0], old, back * dt_ctrl)
+        if not bool(res.feasible[0]) or bool(too_fast.any()):  # feasible: thrust only here
             self.infeasible += 1
         self.cmd_tilt[k] = self.prev_tilt_cmd = res.tilt[0]
         self.cmd_thrust[k] = np.clip(res.rotor_thrust[0], self.v.min_thrust, self.v.max_thrust)
