@@ -19,7 +19,13 @@ from omavctl.planning.candidates import ReferenceStream, deviated_references, sa
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
 from omavctl.planning.planner import _test_points
 from omavctl.planning.rollout import control_times
-from omavctl.planning.scoring import batched_picks, integrated_variance, kmedoids_picks
+from omavctl.planning.scoring import (
+    VarianceObjective,
+    batched_picks,
+    beyond_variance,
+    integrated_variance,
+    kmedoids_picks,
+)
 from omavctl.planning.simulate import Simulator
 from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
@@ -86,6 +92,59 @@ def test_integrated_variance_equals_the_mean_of_the_rank_update():
     picks, test = rng.normal(size=(7, 9, 6)), rng.normal(size=(60, 6))
     direct = posterior_variance_with_data(gp, picks, test).mean(axis=(1, 2))
     np.testing.assert_allclose(integrated_variance(gp, picks, test, chunk=3), direct, rtol=1e-9)
+
+
+def _refitted(model, inputs, latent_scale, beyond_scale):
+    """The model's GP with other training inputs and band calibration (same hyperparameters)."""
+    return ResidualGP(
+        vehicle=model.vehicle,
+        features=model.features,
+        input_names=model.input_names,
+        inputs=inputs,
+        targets=np.zeros((inputs.shape[0], 3)),
+        input_mean=model.input_mean,
+        input_scale=model.input_scale,
+        target_mean=np.zeros(3),
+        signal_variance=model.signal_variance,
+        length_scales=model.length_scales,
+        noise_variance=model.noise_variance,
+        latent_scale=latent_scale,
+        beyond_scale=beyond_scale,
+    )
+
+
+def test_the_planners_cost_is_the_band_of_the_model_fitted_with_the_flights_points(fitted):
+    """The cost of a flight is the mean latent band ``fit`` would give over the task
+    region once the flight's points are training points: the calibrated posterior
+    variance plus the variance beyond the training box, which the new points widen.
+    Checked against ResidualGP.gp_predict of that model (its own box, its own
+    Cholesky factor), with test points and picks that reach beyond the old box."""
+    _, fitted_model = fitted
+    rng = np.random.default_rng(6)
+    latent, beyond = np.array([1.3, 2.0, 1.0]), np.array([0.7, 0.5, 1.5])
+    model = _refitted(fitted_model, fitted_model.inputs[:30], latent, beyond)
+    gp = GPAxes.from_model(model)
+    scale = model.input_scale
+    test = model.normalise(
+        model.inputs[rng.integers(0, 30, 40)] + 1.5 * scale * rng.normal(size=(40, scale.size))
+    )
+    picks = model.normalise(
+        model.inputs[rng.integers(0, 30, (3, 6))] * rng.uniform(0.5, 2.5, (3, 6, 1))
+    )
+    assert beyond_variance(gp, gp.inputs[None, :1], test)[0] > 0  # the test points reach out
+    cost = VarianceObjective(gp, test, points=6).cost_of_points(picks)
+    np.testing.assert_allclose(
+        cost, integrated_variance(gp, picks, test) + beyond_variance(gp, picks, test, chunk=2)
+    )
+    for k in range(3):
+        raw = picks[k] * scale + model.input_mean
+        after = _refitted(model, np.concatenate([model.inputs, raw]), latent, beyond)
+        _, var = after.gp_predict(test * scale + model.input_mean)
+        assert var is not None
+        assert cost[k] == pytest.approx(var.mean(), rel=1e-6)
+    # and the points that stretch the box furthest towards the test points are worth most
+    stretched = picks * np.array([1.0, 1.0, 3.0])[:, None, None]
+    assert np.argmin(beyond_variance(gp, stretched, test)) == 2
 
 
 def test_reference_stream_blocks_equal_the_full_references(fitted):

@@ -150,8 +150,9 @@ def plan(
     """Plan the most informative next reference: the task plus a sampled Fourier deviation.
 
     Each of K candidates is flown M times in closed-loop simulation with GP posterior
-    samples; its cost is the mean posterior variance ((rad/s^2)^2) the GP would have at
-    test points of the task region after adding its data (lower = more informative).
+    samples; its cost is the mean variance ((rad/s^2)^2) the model's band would have at
+    test points of the task region after adding its data (the GP's posterior variance,
+    and the band's growth beyond the training inputs; lower = more informative).
     """
     from omavctl.planning import PlanSettings
     from omavctl.planning.run import prepare_plan
@@ -214,7 +215,7 @@ def _render_plan(
     prior = (
         f"prior {result.prior_variance:.4g}"
         if result.objective == "variance"
-        else f"objective {result.objective}; the GP's prior variance {result.prior_variance:.4g}"
+        else f"objective {result.objective}; the model's variance now {result.prior_variance:.4g}"
     )
     from omavctl.planning.report import rejection_tally
 

@@ -20,10 +20,12 @@ Pathwise conditioning (Wilson et al., 2020) with random Fourier features:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
+
+from omavctl.learn.validation import beyond_reach
 
 __all__ = ["GPAxes", "PathwiseSamples", "posterior_variance_with_data", "se_kernel"]
 
@@ -47,7 +49,9 @@ class GPAxes:
     """Hyperparameters and training data of the three per-axis GPs.
 
     inputs (n, d) normalised; targets (n, 3); mean (3,); signal_variance (3,);
-    length_scales (3, d); noise_variance (3,). Factorisations are built lazily.
+    length_scales (3, d); noise_variance (3,); latent_scale (3,) and beyond_scale
+    (3,): fit's calibration of the band (:meth:`band_variance`; default 1 and 0,
+    the kernel's own variance). Factorisations are built lazily.
     """
 
     inputs: np.ndarray
@@ -56,6 +60,8 @@ class GPAxes:
     signal_variance: np.ndarray
     length_scales: np.ndarray
     noise_variance: np.ndarray
+    latent_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
+    beyond_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
     def from_model(cls, model) -> GPAxes:
@@ -67,10 +73,14 @@ class GPAxes:
             signal_variance=np.asarray(model.signal_variance, float),
             length_scales=np.asarray(model.length_scales, float),
             noise_variance=np.asarray(model.noise_variance, float),
+            latent_scale=np.asarray(model.latent_scale, float),
+            beyond_scale=np.asarray(model.beyond_scale, float),
         )
 
     def __post_init__(self) -> None:
         n = self.inputs.shape[0]
+        #: the training inputs' box, beyond which the band grows (:meth:`band_variance`)
+        self.box = (self.inputs.min(axis=0), self.inputs.max(axis=0))
         self.chol = np.empty((3, n, n))
         self.alpha = np.empty((3, n))
         for a in range(3):
@@ -105,6 +115,20 @@ class GPAxes:
             v = solve_triangular(self.chol[a], self.kernel(a, self.inputs, z), lower=True)
             out[:, a] = self.signal_variance[a] - np.einsum("nb,nb->b", v, v)
         return np.maximum(out, 0.0)
+
+    def band_variance(self, z: np.ndarray) -> np.ndarray:
+        """Variance (B, 3) of the model's latent band at normalised inputs z (B, d).
+
+        What :meth:`omavctl.learn.model.ResidualGP.gp_predict` gives without noise:
+        the posterior variance times ``latent_scale``, plus ``beyond_scale s^2
+        sum_j (e_j / l_j)^2`` beyond the training inputs' box
+        (:func:`omavctl.learn.validation.beyond_envelope_variance`).
+        """
+        out = self.latent_scale * self.posterior_variance(z)
+        for a in range(3):
+            reach = beyond_reach(z, *self.box, self.length_scales[a])
+            out[:, a] += self.beyond_scale[a] * self.signal_variance[a] * reach
+        return out
 
 
 class PathwiseSamples:

@@ -110,7 +110,8 @@ class PlanResult:
     tracking error in the simulations (rad/s^2); generation (K,) in which the
     candidate was proposed (0 for random search); best index (-1 if none is
     feasible); task_cost the cost of flying the task itself; epsilon used;
-    prior_variance mean prior variance at the test points; task the task.
+    prior_variance the mean variance of the model's band at the test points before
+    any flight (:meth:`GPAxes.band_variance`); task the task.
     """
 
     coefficients: np.ndarray
@@ -319,7 +320,7 @@ def plan(
         best=int(np.argmin(cost)) if feasible.any() else -1,
         task_cost=float(task_metrics[settings.objective]),
         epsilon=epsilon,
-        prior_variance=float(gp.posterior_variance(test).mean()),
+        prior_variance=float(gp.band_variance(test).mean()),
         test_points=test,
         task=task,
         notes=notes + _search_notes(settings, sizes),

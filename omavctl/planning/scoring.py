@@ -18,6 +18,11 @@ over the M simulations. Two ways to pick the points:
   farthest-point selection reached only 0.92; BUILD on a subsample was
   slower and no better.
 
+The band the cost integrates is the model's (:meth:`GPAxes.band_variance`): the
+posterior variance times fit's ``latent_scale``, plus the variance beyond the
+training inputs' box (``beyond_scale``), which a flight's points shrink by
+widening the box (:func:`beyond_variance`).
+
 The value of the points, :func:`integrated_variance`, is a rank-m update of
 the prior posterior without refitting, reduced to the integrated variance:
 with ``A = L^-1 K_ZS`` (prior data Z, test points S, ``L L^T = K_ZZ +
@@ -40,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solve_triangular
 
+from omavctl.learn.validation import beyond_reach
 from omavctl.planning.gp import GPAxes
 
 __all__ = [
@@ -48,6 +54,7 @@ __all__ = [
     "VarianceObjective",
     "batched_pick_indices",
     "batched_picks",
+    "beyond_variance",
     "integrated_variance",
     "kmedoids_picks",
 ]
@@ -179,7 +186,8 @@ def _axis_terms(gp: GPAxes, a: int, test: np.ndarray) -> tuple[np.ndarray, np.nd
 def integrated_variance(
     gp: GPAxes, picks: np.ndarray, test: np.ndarray, chunk: int = 128
 ) -> np.ndarray:
-    """Mean posterior variance (B,) over test (S, d) and axes after adding picks (B, m, d).
+    """Mean posterior variance (B,) over test (S, d) and axes after adding picks (B, m, d),
+    each axis' times its ``latent_scale``.
 
     Rank-m update (module docstring), float64 throughout: the posterior
     variance is orders of magnitude below the prior (``C`` is a small difference
@@ -208,7 +216,30 @@ def integrated_variance(
             c3 = c.reshape(b, m, s_count)
             cct = c3 @ c3.swapaxes(1, 2)
             gain = np.einsum("bii->b", np.linalg.solve(q, cct)) / s_count
-            out[lo : lo + b] += np.maximum(prior - gain, 0.0)
+            out[lo : lo + b] += gp.latent_scale[a] * np.maximum(prior - gain, 0.0)
+    return out / 3.0
+
+
+def beyond_variance(gp: GPAxes, picks: np.ndarray, test: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """Mean variance (B,) beyond the training box over test (S, d) and axes after
+    adding picks (B, m, d): the box grows to hold the picks.
+
+    The second part of the model's band (:meth:`GPAxes.band_variance`): a flight
+    that goes where the task goes beyond the training inputs shrinks it, however
+    well the inputs inside the box are covered already.
+    """
+    out = np.zeros(picks.shape[0])
+    if not np.any(gp.beyond_scale * gp.signal_variance > 0):
+        return out
+    for lo in range(0, picks.shape[0], chunk):
+        x = picks[lo : lo + chunk]
+        box_lo = np.minimum(gp.box[0], x.min(axis=1))[:, None, :]  # (b, 1, d)
+        box_hi = np.maximum(gp.box[1], x.max(axis=1))[:, None, :]
+        for a in range(3):
+            weight = gp.beyond_scale[a] * gp.signal_variance[a]
+            if weight > 0:
+                reach = beyond_reach(test[None], box_lo, box_hi, gp.length_scales[a])
+                out[lo : lo + x.shape[0]] += weight * reach.mean(axis=1)
     return out / 3.0
 
 
@@ -236,5 +267,11 @@ class VarianceObjective:
     def __call__(self, flights: Flights) -> np.ndarray:
         k_count, m_count, steps, d = flights.inputs.shape
         flat = flights.inputs.reshape(k_count * m_count, steps, d)
-        cost = integrated_variance(self.gp, self.picks(flat), self.test)
-        return cost.reshape(k_count, m_count)
+        return self.cost_of_points(self.picks(flat)).reshape(k_count, m_count)
+
+    def cost_of_points(self, picks: np.ndarray) -> np.ndarray:
+        """Cost (B,) of sets of new training points picks (B, m, d): the model's mean
+        latent band over the task region once they are in (posterior variance, then
+        the variance beyond the training box, which they may widen)."""
+        cost = integrated_variance(self.gp, picks, self.test)
+        return cost + beyond_variance(self.gp, picks, self.test)
