@@ -56,6 +56,8 @@ generalise: $(STAMP)
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --with-effects
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair check
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair check --with-effects
+	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair two-flights
+	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair two-flights --with-effects
 
 # plan --objective effects against the variance plan and the task flown again, with
 # hidden drag and command delay (docs/plan-effects.md; about 1 minute per seed)

@@ -10,7 +10,7 @@ predictive band (honest uncertainty: 0.85-0.99). Then the shared real logs.
 
     python benchmarks/generalise.py [--quick] [--features wrench,wrench+rate]
         [--cases none,rotational_drag] [--timings 100Hz-held] [--workdir DIR]
-        [--with-effects] [--pair main|check] [--markdown FILE]
+        [--with-effects] [--pair main|check|two-flights] [--markdown FILE]
 
 ``make generalise`` runs it; ``tests/test_generalise.py`` pins a subset.
 """
@@ -166,6 +166,32 @@ def run_direction(
     return _outcome(tree, result.model, case, timing, fit_on, other)
 
 
+def run_two_flights(
+    workdir: Path,
+    case: str,
+    timing: str,
+    duration: float = DURATION,
+    features: str = DEFAULT_FEATURES,
+    effects: Iterable[str] = (),
+) -> list[Outcome]:
+    """Fit on both flights of the main pair (200 points: 100 a flight, as one-flight
+    fits have), evaluate on each flight of the check pair: what a user with two
+    different flights has, and held-out flights neither of them is."""
+    fit_logs = fly_pair(workdir, case, timing, duration, "main")
+    held = fly_pair(workdir, case, timing, duration, "check")
+    result = fit_model(
+        list(fit_logs.values()), points=200, features=features, effects=list(effects), restarts=1
+    )
+    tag = "".join(f"+{e}" for e in effects)
+    model_path = workdir / f"{case}-{timing}-fig8+wobble-{features}{tag}.npz"
+    save_model(model_path, result.model)
+    out = []
+    for name, log in held.items():
+        tree = evaluate([model_path], [log]).tree
+        out.append(_outcome(tree, result.model, case, timing, "fig8+wobble", name))
+    return out
+
+
 #: The shared real flight (relative to the repository) and its vehicle file.
 PX4_LOG = Path(__file__).resolve().parents[2] / "shared/data/real/px4tools_octocopter/01_07_59.csv"
 PX4_VEHICLE = Path(__file__).resolve().parents[1] / "examples/px4tools-octocopter.yaml"
@@ -221,6 +247,20 @@ def _inside_summary(outcomes: list[Outcome]) -> None:
     )
 
 
+def _simulated(
+    workdir: Path, case: str, timing: str, duration: float, features: str, args: Any
+) -> list[Outcome]:
+    """The outcomes of one case and timing for the chosen ``--pair``."""
+    effects = known_effects(case) if args.with_effects else ()
+    if args.pair == "two-flights":
+        return run_two_flights(workdir, case, timing, duration, features, effects)
+    logs = fly_pair(workdir, case, timing, duration, args.pair)
+    return [
+        run_direction(workdir, logs, fit_on, case, timing, features, effects=effects)
+        for fit_on in logs
+    ]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="8 s flights, 100 Hz timing only")
@@ -233,9 +273,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument(
         "--pair",
-        choices=("main", "check"),
+        choices=("main", "check", "two-flights"),
         default="main",
-        help="the trajectory pair: main (figure-8, wobble) or check (another two)",
+        help="the trajectory pair: main (figure-8, wobble), check (another two), or "
+        "two-flights (fit on both of main, evaluate on each of check)",
     )
     ap.add_argument(
         "--with-effects",
@@ -259,22 +300,17 @@ def main(argv: list[str] | None = None) -> int:
         for features in args.features.split(","):
             for case in args.cases.split(","):
                 for timing in timings:
-                    logs = fly_pair(workdir, case, timing, duration, args.pair)
-                    for fit_on in logs:
-                        effects = known_effects(case) if args.with_effects else ()
-                        o = run_direction(
-                            workdir, logs, fit_on, case, timing, features, effects=effects
-                        )
+                    for o in _simulated(workdir, case, timing, duration, features, args):
                         rows.append((features, o))
                         shown = np.round(o.coverage, 2)  # judged as printed, as below
                         ok = bool(np.all(o.ratio <= 1.05)) and bool(
                             np.all((shown >= 0.85) & (shown <= 0.99))
                         )
                         print(
-                            f"{features:12s} {case:16s} {timing:13s} fit {fit_on:7s} "
-                            f"ratio {_fmt(o.ratio)}  coverage {_fmt(o.coverage)}  "
-                            f"physics {_fmt(o.physics_rmse, 3)}  gp {o.gp_axes}  "
-                            f"missing {o.missing}  {'ok' if ok else 'FAIL'}",
+                            f"{features:12s} {case:16s} {timing:13s} fit {o.fit_on:7s} "
+                            f"-> {o.held_out:8s} ratio {_fmt(o.ratio)}  "
+                            f"coverage {_fmt(o.coverage)}  physics {_fmt(o.physics_rmse, 3)}  "
+                            f"gp {o.gp_axes}  missing {o.missing}  {'ok' if ok else 'FAIL'}",
                             flush=True,
                         )
         if PX4_LOG.exists() and not args.quick and args.pair == "main":
