@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import re
 import shutil
+import struct
 from collections.abc import Callable
 from pathlib import Path
 
@@ -105,9 +106,40 @@ def test_directory_that_is_not_a_bag(tmp_path: Path) -> None:
 
 
 def test_unknown_extension(tmp_path: Path) -> None:
+    path = tmp_path / "flight.px4log"
+    path.write_bytes(b"\xa3\x95\x80")
+    assert_log_error(
+        path, r"unknown log format \('\.px4log'\): expected a \.bag, \.mcap, \.ulg or \.csv"
+    )
+
+
+def test_a_cut_or_corrupt_ulog_is_refused_or_read_with_a_note(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ULog shorter than its header is refused; one cut in the middle of a message
+    is read up to the cut; a message of an unknown topic is skipped and named in a
+    note, and the reader's own warning does not reach stdout (JSON may be there)."""
+    from omavctl.logs.ulog import load_ulog
+    from tests.ulog_writer import message, write_ulog
+
     path = tmp_path / "flight.ulg"
     path.write_bytes(b"ULog\x01")
-    assert_log_error(path, r"unknown log format \('\.ulg'\): expected a \.bag, \.mcap or \.csv")
+    assert_log_error(path, r"not a readable ULog file: the file does not start with its header")
+    t = np.arange(0.0, 2e6, 1e4)
+    write_ulog(path, {"sensor_combined": (t, {"gyro_rad": np.ones((t.size, 3))})})
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) - 1010])  # 40.4 data messages of 25 bytes
+    stamps, fields = load_ulog(path).topics["sensor_combined"]
+    assert stamps.size == t.size - 41
+    assert set(fields) == {f"sensor_combined.gyro_rad[{i}]" for i in range(3)}
+    path.write_bytes(data + message(b"D", struct.pack("<HQ", 9, 10) + bytes(12)))
+    u = load_ulog(path)
+    assert u.topics["sensor_combined"][0].size == t.size
+    assert u.notes == [
+        "the file is corrupt in places (Warning: no subscription found for message id 9. "
+        "Continuing, but file is most likely corrupt): read what it could"
+    ]
+    assert capsys.readouterr().out == ""
 
 
 @pytest.mark.parametrize("kind", ["bag", "mcap", "dir"])

@@ -208,18 +208,33 @@ def _write_rows(path: Path, header: list[str], columns: list[np.ndarray]) -> Pat
     return path
 
 
-def test_frd_and_flu_csvs_of_one_flight_give_the_same_model(tmp_path: Path, flight) -> None:
-    roles = ("body_rate", "attitude", "position", "force_command", "torque_command")
-    # FLU: the wide contract CSV, read without a column map
+ROLES = ("body_rate", "attitude", "position", "force_command", "torque_command")
+
+
+def _fit_flu_and(tmp_path: Path, flight, other: Path, vehicle: Path) -> tuple[Any, Any]:
+    """Models fitted (drag, 50 points) on the flight as the wide contract CSV (FLU, no
+    column map) and on ``other``, the same flight in another layout read with
+    ``vehicle``'s column map."""
     t = flight["t"]
     flu_raw = RawLog(
         path=Path("sim"),
         format="synthetic",
         t0=0.0,
-        series={r: RawSeries(t, flight[r]) for r in roles},
+        series={r: RawSeries(t, flight[r]) for r in ROLES},
     )
     flu_path = tmp_path / "flu.csv"
     write_log(flu_path, flu_raw)
+    common = ["--effects", "rotational_drag", "--points", "50", "--restarts", "0", "-q"]
+    outs = {}
+    for name, path, extra in (("flu", flu_path, []), ("other", other, ["--vehicle", str(vehicle)])):
+        outs[name] = tmp_path / f"{name}.npz"
+        _ok(runner.invoke(app, ["fit", str(path), *extra, *common, "--out", str(outs[name])]))
+    return load_model(outs["flu"]), load_model(outs["other"])
+
+
+def test_frd_and_flu_csvs_of_one_flight_give_the_same_model(tmp_path: Path, flight) -> None:
+    roles = ROLES
+    t = flight["t"]
     # FRD: body FRD / world NED, another layout, time in ms, attitude as a quaternion,
     # thrust logged as a positive magnitude, torques in N cm
     frd = {r: flight[r] * FRD_TO_FLU for r in roles}
@@ -256,15 +271,7 @@ def test_frd_and_flu_csvs_of_one_flight_give_the_same_model(tmp_path: Path, flig
             }
         )
     )
-    common = ["--effects", "rotational_drag", "--points", "50", "--restarts", "0", "-q"]
-    outs = {}
-    for name, path, extra in (
-        ("flu", flu_path, []),
-        ("frd", frd_path, ["--vehicle", str(frd_vehicle)]),
-    ):
-        outs[name] = tmp_path / f"{name}.npz"
-        _ok(runner.invoke(app, ["fit", str(path), *extra, *common, "--out", str(outs[name])]))
-    a, b = load_model(outs["flu"]), load_model(outs["frd"])
+    a, b = _fit_flu_and(tmp_path, flight, frd_path, frd_vehicle)
     # the same training points, targets, hyperparameters and effects (FLU inputs)
     np.testing.assert_allclose(b.inputs, a.inputs, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(b.targets, a.targets, rtol=1e-6, atol=1e-7)
@@ -282,6 +289,81 @@ def test_frd_and_flu_csvs_of_one_flight_give_the_same_model(tmp_path: Path, flig
     )
     # a 100 Hz log on the 100 Hz grid: no upsampling note
     assert upsampling_note(read_vehicle_log(frd_path, load_vehicle(frd_vehicle)), a.vehicle) is None
+
+
+def test_a_px4_ulog_of_one_flight_gives_the_model_of_its_csv(tmp_path: Path, flight) -> None:
+    """The flight of the FRD/FLU test written as a PX4 ULog (PX4's topic names, body
+    FRD, attitude a quaternion, float32 fields, time in us since boot): ``inspect``
+    names PX4's topics in its suggested map, and with that map (plus ``frame: FRD``)
+    ``fit`` gives the model of the contract CSV, to float32 precision."""
+    from omavctl.logs.inspection import inspect_log
+    from tests.ulog_writer import write_ulog
+
+    roles = ROLES
+    t = flight["t"]
+    frd = {r: flight[r] * FRD_TO_FLU for r in roles}
+    q = quaternion_from_euler(frd["attitude"])  # (x, y, z, w)
+    us = np.round(t * 1e6) + 25e6
+    ulg = tmp_path / "flight.ulg"
+    write_ulog(
+        ulg,
+        {
+            "vehicle_angular_velocity": (us, {"xyz": frd["body_rate"]}),
+            "vehicle_attitude": (us, {"q": np.column_stack([q[:, 3], q[:, :3]])}),
+            "vehicle_local_position": (us, {k: frd["position"][:, i] for i, k in enumerate("xyz")}),
+            "vehicle_thrust_setpoint": (us, {"xyz": frd["force_command"]}),
+            "vehicle_torque_setpoint": (us, {"xyz": frd["torque_command"]}),
+            "cpuload": (us[::50], {"load": np.full(us[::50].size, 0.3)}),
+        },
+    )
+    ins = inspect_log(ulg)
+    assert ins.format == "ulog" and ins.duration == pytest.approx(t[-1] - t[0])
+    assert ins.suggested_columns is not None
+    columns = ins.suggested_columns
+    assert columns["time"] == {"column": "timestamp", "scale": 1e-6}
+    assert columns["body_rate"] == {
+        a: f"vehicle_angular_velocity.xyz[{i}]" for i, a in enumerate("xyz")
+    }
+    assert columns["attitude"] == {
+        "quaternion": {a: f"vehicle_attitude.q[{i}]" for i, a in enumerate("wxyz")}
+    }
+    assert columns["torque_command"] == {
+        a: f"vehicle_torque_setpoint.xyz[{i}]" for i, a in enumerate("xyz")
+    }
+    assert columns["force_command"] == {"z": "vehicle_thrust_setpoint.xyz[2]"}
+    # the omav's force command has x and y too: map them like z
+    columns["force_command"].update(
+        {a: f"vehicle_thrust_setpoint.xyz[{i}]" for i, a in enumerate("xy")}
+    )
+    ulg_vehicle = tmp_path / "ulog.yaml"
+    ulg_vehicle.write_text(yaml.safe_dump({"frame": "FRD", "columns": columns}))
+    a, b = _fit_flu_and(tmp_path, flight, ulg, ulg_vehicle)
+    np.testing.assert_allclose(b.inputs, a.inputs, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(b.targets, a.targets, rtol=1e-3, atol=1e-3)
+    d_a, d_b = a.effects["rotational_drag"].values["D"], b.effects["rotational_drag"].values["D"]
+    np.testing.assert_allclose(d_b, d_a, rtol=1e-3, atol=1e-5)
+    assert b.provenance["sources"][0]["name"] == "flight.ulg"
+
+
+def test_a_disarmed_bench_ulog_is_refused_as_no_flight(tmp_path: Path) -> None:
+    """The shared PX4 ULog of a board moved by hand, never armed (a negative control):
+    read through the PX4 map ``inspect`` suggests, ``fit`` refuses it in one line."""
+    ulg = REPO.parent / "shared/data/real/pyulog_bench/sample.ulg"
+    if not ulg.exists():
+        pytest.skip(f"shared ULog not available at {ulg}")
+    result = runner.invoke(app, ["inspect", str(ulg)])
+    out = _ok(result)
+    assert 'torque_command: {x: "actuator_controls_0.control[0]"' in out
+    assert "frame: FRD  # sensor_combined.accelerometer_m_s2[2] reads -9.6" in out
+    vehicle = REPO / "examples/pyulog-bench-quad.yaml"
+    result = runner.invoke(
+        app, ["fit", str(ulg), "--vehicle", str(vehicle), "--out", str(tmp_path / "m.npz")]
+    )
+    assert result.exit_code == 2
+    assert result.output.strip().splitlines()[-1] == (
+        f"error: {ulg}: no flight: the thrust command (|force_command|) is zero throughout"
+    )
+    assert not (tmp_path / "m.npz").exists()
 
 
 # --- normalised torque command -------------------------------------------------------

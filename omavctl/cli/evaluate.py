@@ -15,7 +15,7 @@ Logs = Annotated[
     typer.Argument(
         metavar="LOG...",
         help="Flight logs to compare the models with (ROS 1 .bag, ROS 2 bag directory, "
-        ".mcap or .csv); best not the ones the model was fitted on.",
+        ".mcap, .csv or PX4 .ulg); best not the ones the model was fitted on.",
     ),
 ]
 Models = Annotated[

@@ -24,7 +24,7 @@ Logs = Annotated[
     list[Path],
     typer.Argument(
         metavar="LOG...",
-        help="Flight logs: ROS 1 .bag, ROS 2 bag directories, .mcap or wide .csv.",
+        help="Flight logs: ROS 1 .bag, ROS 2 bag directories, .mcap, .csv or PX4 .ulg.",
     ),
 ]
 ModelOut = Annotated[

@@ -13,7 +13,7 @@ from omavctl.cli.common import Json, VehicleOpt, emit, reports_errors
 Log = Annotated[
     Path,
     typer.Argument(
-        metavar="LOG", help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap or .csv."
+        metavar="LOG", help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap, .csv or PX4 .ulg."
     ),
 ]
 

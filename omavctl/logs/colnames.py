@@ -8,7 +8,7 @@ as a candidate for a contract role (see the heuristics in
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -258,8 +258,15 @@ def _classify(
     return out
 
 
-def candidates(scan: ColumnScan) -> dict[str, list[_Candidate]]:
-    """Every plausible column group per role, best first."""
+def candidates(
+    scan: ColumnScan, known: Sequence[tuple[str, dict[str, str], bool]] = ()
+) -> dict[str, list[_Candidate]]:
+    """Every plausible column group per role, best first.
+
+    ``known``: (role, members, quaternion) groups a log format names by
+    convention (PX4's topics in a ULog), best first: each one whose columns are
+    all in the scan ranks before anything guessed from words.
+    """
     order = {name: i for i, name in enumerate(scan.header)}
     groups: dict[tuple[str, str], dict[str, str]] = {}
     stems: dict[tuple[str, str], list[str]] = {}
@@ -280,9 +287,11 @@ def candidates(scan: ColumnScan) -> dict[str, list[_Candidate]]:
     def constant(cols: list[str]) -> list[bool]:
         return [bool(np.nanmin(scan.values[c]) == np.nanmax(scan.values[c])) for c in cols]
 
-    def add(role: str, members: dict[str, str], rank: int, stem: list[str], quat: bool) -> None:
+    def add(
+        role: str, members: dict[str, str], rank: int, stem: list[str], quat: bool, known=False
+    ) -> None:
         flags = constant(list(members.values()))
-        if all(flags):
+        if all(flags) and not known:
             return  # no information in any column (e.g. an unused quaternion of zeros)
         found.setdefault(role, []).append(
             _Candidate(
@@ -309,6 +318,11 @@ def candidates(scan: ColumnScan) -> dict[str, list[_Candidate]]:
         }
         if bases & _THRUST and not (bases & (_NOISE | _META | _OUTPUTS) or _is_setpoint(bases)):
             add("force_command", {"z": name}, 0 if bases & _CONTROL else 1, tokens, False)
+    for rank, (role, members, quat) in enumerate(known, start=-len(known)):
+        if all(c in scan.values for c in members.values()):
+            # by convention, even when constant (a thrust of 0 on the bench: said so)
+            found[role] = [c for c in found.get(role, []) if c.members != members]
+            add(role, members, rank, [], quat, known=True)
     for role in found:
         found[role].sort(key=lambda c: c.key)
     return found

@@ -39,11 +39,9 @@ naming the column and the file; a bad map is a :class:`ConfigError` naming the k
 
 from __future__ import annotations
 
-import csv
 import difflib
-import io
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,7 +50,7 @@ import numpy as np
 
 from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs.contract import euler_from_quaternion
-from omavctl.logs.csvlog import CsvRead, csv_columns
+from omavctl.logs.csvlog import CsvRead, csv_columns, cut_row_notes, parse_column, read_table
 from omavctl.logs.stats import topic_info
 from omavctl.logs.types import ROLE_COLUMNS, RawLog, RawSeries
 
@@ -74,7 +72,6 @@ _QUAT_AXES = ("w", "x", "y", "z")
 #: Role-based key of the time column (flat key ``t``).
 TIME_ROLE = "time"
 
-_MISSING_CELLS = {"", "nan", "NaN", "NAN", "na", "NA", "null", "None"}
 _SPEC_KEYS = {"column", "scale", "offset", "value"}
 
 
@@ -288,99 +285,11 @@ def parse_column_map(columns: Mapping[str, Any]) -> dict[str, ColumnSpec]:
     return specs
 
 
-def _parse_column(cells: list[str], name: str, lines: list[int], path: Path) -> np.ndarray:
-    """Cells of one column as floats, NaN where empty/nan; shape (n,).
-
-    Raises :class:`LogError` naming the column, row and line of the first
-    non-numeric cell.
-    """
-    try:
-        return np.array([np.nan if c in _MISSING_CELLS else float(c) for c in cells])
-    except ValueError:
-        pass
-    for i, cell in enumerate(cells):
-        if cell in _MISSING_CELLS:
-            continue
-        try:
-            float(cell)
-        except ValueError:
-            shown = cell if len(cell) <= 20 else cell[:17] + "..."
-            raise LogError(
-                f"non-numeric value '{shown}' in column '{name}' at row {i + 1} (line {lines[i]})",
-                path,
-            ) from None
-    raise AssertionError("unreachable")  # pragma: no cover
-
-
-@dataclass
-class CsvTable:
-    """A CSV file as text cells: ``header`` names, ``rows`` of stripped cells,
-    ``lines`` the file line of each row (for messages)."""
-
-    path: Path
-    header: list[str]
-    rows: list[list[str]]
-    lines: list[int]
-    #: (file line, cells) of a last row the file ends in the middle of (no line
-    #: break after it, fewer cells than the header): dropped, a truncated file
-    cut_row: tuple[int, int] | None = None
-
-    def cells(self, j: int) -> list[str]:
-        """Stripped cells of column ``j`` (empty where a row is short)."""
-        return [row[j].strip() if j < len(row) else "" for row in self.rows]
-
-
-def read_table(path: Path) -> CsvTable:
-    """Read a CSV file into text cells (header and non-blank rows). The separator
-    is a comma, or a semicolon or tab when the header has no comma.
-
-    Raises:
-        LogError: unreadable or not UTF-8, no header, no data rows.
-    """
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise LogError("not a CSV file: it is not UTF-8 text", path) from None
-    except OSError as err:
-        raise LogError(f"cannot read: {err.strerror or err}", path) from err
-    first = text.split("\n", 1)[0]
-    # comma-separated, else the separator the header uses (semicolon or tab)
-    delimiter = "," if "," in first else next((d for d in ";\t" if d in first), ",")
-    reader = csv.reader(io.StringIO(text), delimiter=delimiter)
-    header = [h.strip() for h in next(reader, [])]
-    if not any(header):
-        raise LogError("not a CSV log: the first line must be a header", path)
-    rows: list[list[str]] = []
-    lines: list[int] = []
-    for row in reader:
-        if row and any(c.strip() for c in row):
-            rows.append(row)
-            lines.append(reader.line_num)
-    cut_row = None
-    if rows and not text.endswith(("\n", "\r")) and len(rows[-1]) < len(header):
-        cut_row = (lines.pop(), len(rows.pop()))
-    if not rows:
-        raise LogError("no data rows below the header", path)
-    return CsvTable(path=path, header=header, rows=rows, lines=lines, cut_row=cut_row)
-
-
 def _missing_column(column: str, label: str, header: list[str], path: Path) -> LogError:
     close = set(difflib.get_close_matches(column, header, n=3, cutoff=0.75))
     shown = ", ".join(f"'{h}'" for h in header if h in close)
     hint = f"; similar columns in the file: {shown}" if close else ""
     return LogError(f"missing column '{column}' (mapped to {label}){hint}", path)
-
-
-def _cut_row_notes(table: CsvTable) -> list[str]:
-    """A note when the file ended in the middle of its last row (dropped by
-    :func:`read_table`), else none."""
-    if table.cut_row is None:
-        return []
-    line, cells = table.cut_row
-    return [
-        f"the file ends in the middle of its last row (line {line}: {cells} of "
-        f"{len(table.header)} cells): truncated? That row is dropped"
-    ]
 
 
 def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
@@ -398,28 +307,52 @@ def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
     """
     specs = parse_column_map(columns)
     table = read_table(path)
-    rows = table.rows
     index = {name: j for j, name in enumerate(table.header)}
     parsed: dict[str, np.ndarray] = {}
+
+    def source(name: str) -> np.ndarray:
+        if name not in parsed:
+            parsed[name] = parse_column(table.cells(index[name]), name, table.lines, path)
+        return parsed[name]
+
+    table_of = MappedTable(path, "csv", table.header, len(table.rows), source)
+    return read_mapped(table_of, specs, cut_row_notes(table))
+
+
+@dataclass
+class MappedTable:
+    """Numeric columns of a log of another layout, as a column map reads them:
+    ``header`` every column name, ``rows`` the row count, ``source(name)`` the
+    values (rows,) of one column, NaN where a row has none; ``format`` the
+    :class:`RawLog` format. ``sparse``: rows hold values of one source only by
+    construction (a ULog's topics), so rows without a role's values are not noted."""
+
+    path: Path
+    format: str
+    header: list[str]
+    rows: int
+    source: Callable[[str], np.ndarray]
+    sparse: bool = False
+
+
+def read_mapped(table: MappedTable, specs: dict[str, ColumnSpec], notes: list[str]) -> CsvRead:
+    """Read a table of another layout through parsed column map ``specs`` (see
+    :func:`read_mapped_csv`); ``notes`` so far."""
+    path, rows = table.path, table.rows
+    index = set(table.header)
 
     def column(key: str) -> np.ndarray:
         spec = specs[key]
         if spec.value is not None:
-            return np.full(len(rows), spec.value)
+            return np.full(rows, spec.value)
         assert spec.column is not None
-        if spec.column not in index:
-            raise _missing_column(spec.column, spec.label, table.header, path)
-        if spec.column not in parsed:
-            cells = table.cells(index[spec.column])
-            parsed[spec.column] = _parse_column(cells, spec.column, table.lines, path)
-        return parsed[spec.column] * spec.scale + spec.offset
+        return table.source(spec.column) * spec.scale + spec.offset
 
     # every mapped column must exist before any is parsed: report the first missing one
     for spec in specs.values():
         if spec.column is not None and spec.column not in index:
             raise _missing_column(spec.column, spec.label, table.header, path)
 
-    notes = _cut_row_notes(table)
     t_all = column("t")
     has_t = np.isfinite(t_all)
     if not has_t.any():
@@ -439,18 +372,18 @@ def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
         sources = [c for c in (specs[k].column for k in src_keys) if c is not None]
         mapped[role] = "columns " + ", ".join(sources) if sources else "constants"
         src = np.column_stack([column(k) for k in src_keys])
-        read = _mapped_role(role, src, quat, has_t, notes)
+        read = _mapped_role(role, src, quat, has_t, [] if table.sparse else notes)
         if read is None:
             continue
         ok, values = read
         stamps = t_all[ok] - t0
         series[role] = RawSeries(stamps=stamps, values=values)
-        topics.append(topic_info(role, "csv columns (mapped)", stamps))
+        topics.append(topic_info(role, f"{table.format} columns (mapped)", stamps))
         for j, key in enumerate(csv_columns(role)):
             ranges[key] = (float(values[:, j].min()), float(values[:, j].max()))
     raw = RawLog(
         path=path,
-        format="csv",
+        format=table.format,
         t0=t0,
         series=series,
         topics=topics,

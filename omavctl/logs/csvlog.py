@@ -20,7 +20,20 @@ from omavctl.base.errors import LogError
 from omavctl.logs.stats import topic_info
 from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog, RawSeries
 
-__all__ = ["CsvRead", "csv_columns", "read_csv", "write_csv"]
+__all__ = [
+    "MISSING_CELLS",
+    "CsvRead",
+    "CsvTable",
+    "csv_columns",
+    "cut_row_notes",
+    "parse_column",
+    "read_csv",
+    "read_table",
+    "write_csv",
+]
+
+#: Cells that mean "no value in this row" in a CSV of another layout.
+MISSING_CELLS = {"", "nan", "NaN", "NAN", "na", "NA", "null", "None"}
 
 
 def csv_columns(role: str) -> list[str]:
@@ -97,14 +110,19 @@ def read_csv(path: Path, strict: bool = True) -> CsvRead:
     return CsvRead(raw=raw, ranges=ranges)
 
 
-def _text_and_header(path: Path) -> tuple[str, list[str]]:
-    """The file's text and its header's column names (unique, with ``t``)."""
+def _csv_text(path: Path) -> str:
+    """The text of a CSV file; LogError when it cannot be read or is not UTF-8."""
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        return path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise LogError("not a CSV file: it is not UTF-8 text", path) from None
     except OSError as err:
         raise LogError(f"cannot read: {err.strerror or err}", path) from err
+
+
+def _text_and_header(path: Path) -> tuple[str, list[str]]:
+    """The file's text and its header's column names (unique, with ``t``)."""
+    text = _csv_text(path)
     first = text.split("\n", 1)[0].strip()
     if not first:
         raise LogError("not a CSV log: the first line must be a header starting with 't'", path)
@@ -243,3 +261,86 @@ def write_csv(path: Path, raw: RawLog) -> None:
     body = "\n".join(",".join(map(repr, row)) for row in table.tolist())
     with atomic_path(path) as tmp:
         tmp.write_text(",".join(header) + "\n" + body + "\n")
+
+
+@dataclass
+class CsvTable:
+    """A CSV file as text cells: ``header`` names, ``rows`` of stripped cells,
+    ``lines`` the file line of each row (for messages)."""
+
+    path: Path
+    header: list[str]
+    rows: list[list[str]]
+    lines: list[int]
+    #: (file line, cells) of a last row the file ends in the middle of (no line
+    #: break after it, fewer cells than the header): dropped, a truncated file
+    cut_row: tuple[int, int] | None = None
+
+    def cells(self, j: int) -> list[str]:
+        """Stripped cells of column ``j`` (empty where a row is short)."""
+        return [row[j].strip() if j < len(row) else "" for row in self.rows]
+
+
+def read_table(path: Path) -> CsvTable:
+    """Read a CSV file into text cells (header and non-blank rows). The separator
+    is a comma, or a semicolon or tab when the header has no comma.
+
+    Raises:
+        LogError: unreadable or not UTF-8, no header, no data rows.
+    """
+    text = _csv_text(path)
+    first = text.split("\n", 1)[0]
+    # comma-separated, else the separator the header uses (semicolon or tab)
+    delimiter = "," if "," in first else next((d for d in ";\t" if d in first), ",")
+    reader = csv.reader(io.StringIO(text), delimiter=delimiter)
+    header = [h.strip() for h in next(reader, [])]
+    if not any(header):
+        raise LogError("not a CSV log: the first line must be a header", path)
+    rows: list[list[str]] = []
+    lines: list[int] = []
+    for row in reader:
+        if row and any(c.strip() for c in row):
+            rows.append(row)
+            lines.append(reader.line_num)
+    cut_row = None
+    if rows and not text.endswith(("\n", "\r")) and len(rows[-1]) < len(header):
+        cut_row = (lines.pop(), len(rows.pop()))
+    if not rows:
+        raise LogError("no data rows below the header", path)
+    return CsvTable(path=path, header=header, rows=rows, lines=lines, cut_row=cut_row)
+
+
+def cut_row_notes(table: CsvTable) -> list[str]:
+    """A note when the file ended in the middle of its last row (dropped by
+    :func:`read_table`), else none."""
+    if table.cut_row is None:
+        return []
+    line, cells = table.cut_row
+    return [
+        f"the file ends in the middle of its last row (line {line}: {cells} of "
+        f"{len(table.header)} cells): truncated? That row is dropped"
+    ]
+
+
+def parse_column(cells: list[str], name: str, lines: list[int], path: Path) -> np.ndarray:
+    """Cells of one column as floats, NaN where empty/nan; shape (n,).
+
+    Raises :class:`LogError` naming the column, row and line of the first
+    non-numeric cell.
+    """
+    try:
+        return np.array([np.nan if c in MISSING_CELLS else float(c) for c in cells])
+    except ValueError:
+        pass
+    for i, cell in enumerate(cells):
+        if cell in MISSING_CELLS:
+            continue
+        try:
+            float(cell)
+        except ValueError:
+            shown = cell if len(cell) <= 20 else cell[:17] + "..."
+            raise LogError(
+                f"non-numeric value '{shown}' in column '{name}' at row {i + 1} (line {lines[i]})",
+                path,
+            ) from None
+    raise AssertionError("unreachable")  # pragma: no cover

@@ -22,6 +22,8 @@ from omavctl.logs.types import ROLE_COLUMNS, ROLE_TOPIC, RawLog, TopicInfo
 if TYPE_CHECKING:
     from rich.console import Console
 
+    from omavctl.logs.ulog import UlogTopics
+
 __all__ = ["Inspection", "inspect_log", "render_inspect"]
 
 _FORMAT_TITLES = {
@@ -30,6 +32,7 @@ _FORMAT_TITLES = {
     "ros2-mcap": "ROS 2 bag (mcap storage)",
     "mcap": "MCAP file",
     "csv": "CSV",
+    "ulog": "PX4 ULog",
 }
 
 
@@ -88,7 +91,15 @@ def inspect_log(
 
     p = Path(path)
     ranges: dict[str, tuple[float, float]] = {}
-    if detect_format(p) == "csv":
+    kind = detect_format(p)
+    if kind == "ulog":
+        from omavctl.logs.ulog import load_ulog, read_mapped_ulog
+
+        if not columns:
+            return _inspect_ulog(p, load_ulog(p))
+        result = read_mapped_ulog(p, dict(columns))
+        raw, ranges = result.raw, result.ranges
+    elif kind == "csv":
         if not columns and _is_foreign_csv(p):
             return _inspect_foreign_csv(p)
         if columns:
@@ -106,7 +117,9 @@ def inspect_log(
     found: dict[str, str] = {}
     missing: dict[str, str] = {}
     for role in ROLE_COLUMNS:
-        if raw.format == "csv":
+        if raw.mapped:
+            where = "no usable rows" if role in raw.mapped else "not in the column map"
+        elif raw.format == "csv":
             where = f"CSV columns {role}_*"
         else:
             where = names[ROLE_TOPIC[role]]
@@ -165,6 +178,50 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
         roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
         notes=notes,
         column_ranges=scan.ranges(),
+        suggested_columns=guess.columns,
+        suggestion=suggestion_yaml(guess, path.name),
+    )
+
+
+def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
+    """Inspection of a ULog read without a column map: its topics, column ranges and a
+    suggested column map."""
+    from omavctl.logs.stats import topic_info
+    from omavctl.logs.suggest import suggest_column_map, suggestion_yaml
+    from omavctl.logs.ulog import PX4_COLUMNS, scan_ulog
+
+    scan = scan_ulog(u)
+    guess = suggest_column_map(scan, PX4_COLUMNS)
+    # a ULog's time is always microseconds (no guessing from the step, which the
+    # interleaved topics make short)
+    stamps = scan.values["timestamp"]
+    guess.columns = {"time": {"column": "timestamp", "scale": 1e-6}} | {
+        k: v for k, v in guess.columns.items() if k != "time"
+    }
+    guess.comments["time"] = "ULog: microseconds since boot"
+    guess.alternatives.pop("time", None)
+    guess.unrecognised = [r for r in guess.unrecognised if r != "time"]
+    guess.t0, guess.duration = stamps[0] * 1e-6, (stamps[-1] - stamps[0]) * 1e-6
+    t0 = float(stamps[0])
+    topics = [
+        topic_info(name, f"{len(fields)} fields", (stamps - t0) * 1e-6)
+        for name, (stamps, fields) in u.topics.items()
+    ]
+    notes = [
+        *u.notes,
+        f"{len(topics)} topics, {len(scan.values) - 1} numeric columns named topic.field; "
+        "a column map (vehicle 'columns:') is needed to read it",
+    ]
+    return Inspection(
+        path=path,
+        format="ulog",
+        duration=guess.duration,
+        t0=guess.t0,
+        topics=topics,
+        roles_found={},
+        roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
+        notes=notes,
+        column_ranges={k: v for k, v in scan.ranges().items() if k != "timestamp"},
         suggested_columns=guess.columns,
         suggestion=suggestion_yaml(guess, path.name),
     )

@@ -1,11 +1,13 @@
-"""Reading flight logs into a :class:`RawLog`: ROS 1 bags, ROS 2 bags, MCAP files, CSV.
+"""Reading flight logs into a :class:`RawLog`: ROS 1 bags, ROS 2 bags, MCAP files, CSV, ULog.
 
 The kind of log follows from the path: a directory with ``metadata.yaml`` is a
 ROS 2 bag (sqlite3 or mcap storage), ``.bag`` a ROS 1 bag (both through
 ``rosbags.highlevel.AnyReader``), ``.mcap`` a standalone MCAP file (through the
 ``mcap`` reader, messages decoded with rosbags typestores, ROS 2 CDR or ROS 1
 encoding), ``.db3`` a bare ROS 2 sqlite3 storage file and ``.csv`` the wide CSV
-of DESIGN.md section 3. rosbags and mcap are imported only when a bag is read.
+of DESIGN.md section 3 (or another layout, through a column map), ``.ulg`` a PX4
+ULog (through a column map, :mod:`omavctl.logs.ulog`). rosbags and mcap are
+imported only when a bag is read.
 
 Inputs are only ever opened for reading.
 """
@@ -34,9 +36,10 @@ FORMAT_LABELS = {
     "ros2": "ROS 2 bag",
     "mcap": "MCAP file",
     "csv": "CSV file",
+    "ulog": "ULog file",
 }
 
-_SUFFIX_KIND = {".bag": "ros1", ".mcap": "mcap", ".csv": "csv", ".db3": "ros2"}
+_SUFFIX_KIND = {".bag": "ros1", ".mcap": "mcap", ".csv": "csv", ".db3": "ros2", ".ulg": "ulog"}
 
 
 #: First bytes of each binary kind (what a file really is, whatever its name).
@@ -44,6 +47,7 @@ _MAGIC = {
     "ros1": b"#ROSBAG V2.0\n",
     "mcap": b"\x89MCAP0\r\n",
     "sqlite": b"SQLite format 3\x00",
+    "ulog": b"ULog\x01\x12\x35",
 }
 _MAGIC_LABELS = {**FORMAT_LABELS, "sqlite": "ROS 2 sqlite3 storage file (.db3)"}
 
@@ -121,7 +125,7 @@ def _metadata_problem(info: dict[str, Any]) -> str | None:
 
 
 def detect_format(path: Path) -> str:
-    """Kind of log at ``path``: ``"ros1"``, ``"ros2"``, ``"mcap"`` or ``"csv"``.
+    """Kind of log at ``path``: ``"ros1"``, ``"ros2"``, ``"mcap"``, ``"ulog"`` or ``"csv"``.
 
     Raises :class:`LogError` for a missing path, a directory that is not a ROS 2
     bag, an unknown suffix, an empty file or a file whose content is another
@@ -138,7 +142,7 @@ def detect_format(path: Path) -> str:
     if kind is None:
         shown = f"'{path.suffix}'" if path.suffix else "no suffix"
         raise LogError(
-            f"unknown log format ({shown}): expected a .bag, .mcap or .csv file "
+            f"unknown log format ({shown}): expected a .bag, .mcap, .ulg or .csv file "
             "or a ROS 2 bag directory",
             path,
         )
@@ -417,6 +421,16 @@ def _read(
         from omavctl.logs.csvlog import read_csv
 
         return read_csv(p, strict=strict).raw
+    if kind == "ulog":
+        from omavctl.logs.ulog import read_mapped_ulog
+
+        if not columns:
+            raise LogError(
+                "a ULog is read through a column map (the vehicle's 'columns:'); "
+                f"'omavctl inspect {p}' suggests one",
+                p,
+            )
+        return read_mapped_ulog(p, dict(columns)).raw
     names = merge_topics(topics)
     if kind == "mcap":
         return _read_mcap(p, names, strict)
@@ -431,12 +445,12 @@ def read_raw(
     """Read a flight log as recorded (no resampling).
 
     Args:
-        path: a ROS 2 bag directory, a ``.bag``, ``.mcap``, ``.db3`` or ``.csv`` file.
+        path: a ROS 2 bag directory, a ``.bag``, ``.mcap``, ``.db3``, ``.ulg`` or ``.csv`` file.
         topics: topic role -> topic name, over :data:`DEFAULT_TOPICS` (e.g. a
             vehicle's ``topics``); ignored for CSV.
-        columns: for a CSV of another layout, a column map (contract column ->
-            source column with scale/offset, see :mod:`omavctl.logs.columnmap`);
-            ignored for bags.
+        columns: for a CSV of another layout or a PX4 ULog (required there), a
+            column map (contract column -> source column with scale/offset, see
+            :mod:`omavctl.logs.columnmap`, :mod:`omavctl.logs.ulog`); ignored for bags.
 
     Returns:
         A :class:`RawLog`: per signal role a :class:`RawSeries` (stamps shape (n,)

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,7 +46,7 @@ from omavctl.logs.colnames import (
     name_words,
     word_base,
 )
-from omavctl.logs.columnmap import _MISSING_CELLS, read_table
+from omavctl.logs.csvlog import MISSING_CELLS, read_table
 
 __all__ = ["ColumnScan", "Suggestion", "scan_csv", "suggest_column_map", "suggestion_yaml"]
 
@@ -65,7 +66,7 @@ def scan_csv(path: Path) -> ColumnScan:
         seen.add(name)
         cells = table.cells(j)
         try:
-            values = np.array([np.nan if c in _MISSING_CELLS else float(c) for c in cells])
+            values = np.array([np.nan if c in MISSING_CELLS else float(c) for c in cells])
         except ValueError:
             scan.non_numeric.append(name)
             continue
@@ -209,9 +210,12 @@ def _frame(scan: ColumnScan) -> tuple[str, str] | None:
     return None
 
 
-def suggest_column_map(scan: ColumnScan) -> Suggestion:
-    """Guess a role-based column map from column names (rules in the module docs)."""
-    found = candidates(scan)
+def suggest_column_map(
+    scan: ColumnScan, known: Sequence[tuple[str, dict[str, str], bool]] = ()
+) -> Suggestion:
+    """Guess a role-based column map from column names (rules in the module docs);
+    ``known`` column groups of the log's format come first (:func:`candidates`)."""
+    found = candidates(scan, known)
     columns: dict[str, Any] = {}
     comments: dict[str, str] = {}
     alternatives: dict[str, list[str]] = {}
