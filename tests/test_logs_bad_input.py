@@ -266,6 +266,13 @@ def test_csv_missing_required_role(tmp_path: Path) -> None:
 def test_csv_without_t(tmp_path: Path) -> None:
     path = _csv(tmp_path, ["time", *REQUIRED_HEADER[1:]], _good_csv_rows())
     assert_log_error(path, r"missing column 't' \(time in s\)$")
+    # another layout altogether: inspect suggests the column map it needs
+    path = _csv(tmp_path, [f"col{i}" for i in range(len(REQUIRED_HEADER))], _good_csv_rows())
+    assert_log_error(
+        path,
+        r"missing column 't' \(time in s\): not a wide contract CSV; "
+        f"'omavctl inspect {re.escape(str(path))}' suggests a column map for a --vehicle file$",
+    )
 
 
 def test_csv_duplicate_column(tmp_path: Path) -> None:

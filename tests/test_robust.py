@@ -129,6 +129,25 @@ def test_output_directory_problems(work: Path) -> None:
     assert line == "error: task.csv: output directory does not exist"
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["evaluate", "log.csv", "--model", "."],
+        ["evaluate", "log.csv", "--model", ".", "--out", "sub/e.json"],
+        ["plan", "--task", "task.csv", "--model", ".", *PLAN, "--out", "y.csv"],
+        ["simulate", "-r", "task.csv", "--model", ".", "--out", "y.csv"],
+        ["fit", "log.csv", *FIT, "--prior", ".", "--out", "y.npz"],
+    ],
+    ids=["evaluate", "evaluate-out", "plan", "simulate", "fit-prior"],
+)
+def test_a_directory_given_as_a_model_is_named(work: Path, args) -> None:
+    """Not an internal error (the default output is named after the model), nor
+    "output would overwrite the input ." (an output inside an input directory)."""
+    before = _digests(work)
+    assert _line(args, work) == "error: .: is a directory, not a model file (.npz)"
+    assert _digests(work) == before
+
+
 def test_unwritable_output_directory(work: Path) -> None:
     with pytest.raises(OutputError, match=r"^/proc/x\.csv: cannot write: "):
         from omavctl.base.atomic import atomic_path

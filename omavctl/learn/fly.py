@@ -18,7 +18,7 @@ from pathlib import Path
 from omavctl.base.atomic import check_outputs
 from omavctl.base.errors import OmavctlError
 from omavctl.learn.model import ResidualGP
-from omavctl.learn.model_file import check_vehicle, load_model
+from omavctl.learn.model_file import check_model_paths, check_vehicle, load_model
 from omavctl.logs import write_log
 from omavctl.logs.write import output_kind
 from omavctl.sim.plant import SimulationResult, simulate
@@ -74,6 +74,7 @@ def prepare_simulation(
     The log's kind follows ``out``'s name (:func:`omavctl.logs.write_log`); a
     directory is allowed as output when ``out`` has no suffix (a ROS 2 bag).
     """
+    check_model_paths([model])
     check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)
     output_kind(out)  # an unknown extension is refused before the flight is flown
     veh = load_vehicle(vehicle)

@@ -55,7 +55,7 @@ import json
 import math
 import re
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -67,7 +67,7 @@ from omavctl.learn.model import SCHEMA, SCHEMA_NAME, SCHEMA_VERSION, EffectEstim
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.vehicle import Vehicle
 
-__all__ = ["MAX_MAGNITUDE", "check_vehicle", "load_model", "save_model"]
+__all__ = ["MAX_MAGNITUDE", "check_model_paths", "check_vehicle", "load_model", "save_model"]
 
 #: Keys of the model file, in the order they are written.
 _KEYS = (
@@ -128,6 +128,14 @@ def _check_schema(value: str, path: Path) -> None:
         raise ModelError(f"schema '{value}' is newer than this omavctl supports ({SCHEMA})", path)
     if version < 1:
         raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
+
+
+def check_model_paths(paths: Iterable[str | Path | None]) -> None:
+    """Refuse, before any work, a model path that is a directory (``--model .``):
+    outputs derived from its name and the output checks would otherwise misread it."""
+    for p in paths:
+        if p is not None and Path(p).is_dir():
+            raise ModelError("is a directory, not a model file (.npz)", Path(p))
 
 
 def _read_members(path: Path) -> dict[str, np.ndarray]:

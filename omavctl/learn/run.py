@@ -15,7 +15,7 @@ from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
 from omavctl.learn.fit import FitResult, Progress, fit_model
-from omavctl.learn.model_file import save_model
+from omavctl.learn.model_file import check_model_paths, save_model
 from omavctl.logs import parse_time_window
 from omavctl.vehicle import Vehicle, load_vehicle
 
@@ -84,6 +84,7 @@ def prepare_fit(
 ) -> FitJob:
     """Refuse a bad ``out``, parse ``time_window`` (the ``START:END`` text of
     ``--time-window``, :func:`omavctl.logs.parse_time_window`) and read the vehicle."""
+    check_model_paths([prior])
     check_outputs([*logs, vehicle, prior], [out])
     window = parse_time_window(time_window) if time_window else None
     veh = load_vehicle(vehicle)

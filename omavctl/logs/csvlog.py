@@ -133,7 +133,14 @@ def _text_and_header(path: Path) -> tuple[str, list[str]]:
             raise LogError(f"duplicate column '{name}'", path)
         seen.add(name)
     if "t" not in header:
-        raise LogError("missing column 't' (time in s)", path)
+        contract = {c for role in ROLE_COLUMNS for c in csv_columns(role)}
+        if contract & set(header):
+            raise LogError("missing column 't' (time in s)", path)
+        raise LogError(
+            "missing column 't' (time in s): not a wide contract CSV; "
+            f"'omavctl inspect {path}' suggests a column map for a --vehicle file",
+            path,
+        )
     return text, header
 
 

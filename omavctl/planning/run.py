@@ -18,7 +18,7 @@ from threadpoolctl import threadpool_limits
 from omavctl.base.atomic import check_outputs
 from omavctl.base.errors import OmavctlError
 from omavctl.learn.model import ResidualGP
-from omavctl.learn.model_file import check_vehicle, load_model
+from omavctl.learn.model_file import check_model_paths, check_vehicle, load_model
 from omavctl.planning.planner import PlanResult, PlanSettings, plan
 from omavctl.planning.report import no_feasible_candidate, write_plan
 from omavctl.planning.rollout import Progress
@@ -101,6 +101,7 @@ def prepare_plan(
     evaluation JSON whose missing (and ambiguous) effects the effects objective
     plans for when ``settings.effects`` names none.
     """
+    check_model_paths([model])
     check_outputs([task, model, vehicle, evaluation], [out, scores, report])
     if not settings.effects and evaluation is not None:
         from omavctl.planning.effects_objective import effects_from_evaluation

@@ -15,6 +15,7 @@ from pathlib import Path
 from omavctl.base.atomic import check_outputs
 from omavctl.diagnose.evalio import series_path, write_evaluation
 from omavctl.diagnose.evaluate import EvalResult, evaluate
+from omavctl.learn.model_file import check_model_paths
 from omavctl.logs import parse_time_window
 from omavctl.report.evaluation import ReportSummary, write_report
 from omavctl.report.series_mcap import mcap_path, write_series_mcap
@@ -49,6 +50,7 @@ def run_evaluation(
     ``START:END`` text of ``--time-window``.
     """
     window = parse_time_window(time_window) if time_window else None
+    check_model_paths(models)
     if out is None and models:
         out = default_evaluation_path(models)
     assert out is not None
