@@ -170,7 +170,7 @@ def test_plan_summary_names_the_planned_envelope_and_warns_of_a_long_yaw_turn():
     warned when it turns yaw (or rotates) far beyond it."""
     from types import SimpleNamespace
 
-    from omavctl.planning.envelope import envelope, envelope_lines
+    from omavctl.planning.envelope import envelope, envelope_lines, envelope_warnings
     from omavctl.sim.tasks import yaw
 
     task = fig8(duration=8.0, ramp=1.0)
@@ -185,6 +185,22 @@ def test_plan_summary_names_the_planned_envelope_and_warns_of_a_long_yaw_turn():
     warning = "warning: the planned reference turns yaw through"
     assert any(line.startswith(warning) for line in lines)
     assert envelope_lines(SimpleNamespace(best=-1, task=task)) == []
+    # tilting to 60 deg for a 26 deg task (a new user's effects plan went to 59/65 deg
+    # and broke actuator limits in 92 steps where the task broke them in 20)
+    task26 = fig8(roll_deg=26, pitch_deg=26, duration=8.0, ramp=1.0)
+    steep = fig8(roll_deg=60, pitch_deg=20, duration=8.0, ramp=1.0)
+    lines = envelope_lines(SimpleNamespace(best=0, task=task26, best_trajectory=lambda: steep))
+    assert lines[1:] == [
+        "warning: the planned reference tilts to 60 deg, 2.3x the task's 26: check the "
+        "vehicle can fly it (actuator limits, flight area), or lower --amplitude or --max-tilt"
+    ]
+    assert envelope_warnings(SimpleNamespace(best=0, task=task26, best_trajectory=lambda: steep))[
+        0
+    ].startswith("the planned reference tilts to 60 deg")
+    mild = fig8(roll_deg=40, pitch_deg=26, duration=8.0, ramp=1.0)  # below 45 deg: no warning
+    assert (
+        len(envelope_lines(SimpleNamespace(best=0, task=task26, best_trajectory=lambda: mild))) == 1
+    )
 
 
 def test_the_rejections_are_counted_per_reason():
@@ -194,3 +210,26 @@ def test_the_rejections_are_counted_per_reason():
 
     result = SimpleNamespace(reason=["", "tilt rate limit", "diverged, tilt rate limit", ""])
     assert rejection_tally(result) == "2 tilt rate limit, 1 diverged"
+
+
+def test_no_candidate_better_than_the_task_is_a_warning_in_the_terminal_and_json():
+    from types import SimpleNamespace
+
+    from omavctl.cli.plan import _task_warning
+
+    def result(costs, task_cost, generations):
+        cost = np.array(costs)
+        return SimpleNamespace(
+            cost=cost,
+            best=int(np.argmin(cost)),
+            task_cost=task_cost,
+            generation=np.array(generations),
+            versus_task=lambda c: 100.0 * (c / task_cost - 1.0),
+        )
+
+    assert _task_warning(result([1.0, 0.9], 1.0, [0, 0])) is None
+    assert _task_warning(result([1.2, 1.05], 1.0, [0, 0])) == (
+        "no candidate is more informative than flying the task again (best +5.0% vs the "
+        "task): fly the task, or try more --candidates or --search cem"
+    )
+    assert _task_warning(result([1.2, 1.05], 1.0, [0, 1])).endswith("try more --candidates")

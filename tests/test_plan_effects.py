@@ -105,6 +105,15 @@ def test_cli_effects_plan_scores_both_objectives_and_is_deterministic(setup):
         assert result.exit_code == 0, result.output
         outs.append((out.read_bytes(), scores.read_bytes(), json.loads(result.stdout)))
     assert outs[0][:2] == outs[1][:2]
+    # --json carries the warnings the terminal prints (a script must see them too)
+    shown = runner.invoke(app, args)
+    assert shown.exit_code == 0, shown.output
+    printed = [
+        ln.removeprefix("warning: ")
+        for ln in shown.output.splitlines()
+        if ln.startswith("warning: ")
+    ]
+    assert outs[0][2]["warnings"] == printed
     lines = outs[0][1].decode().splitlines()
     header = lines[0].split(",")
     rows = [dict(zip(header, line.split(","), strict=True)) for line in lines[1:]]

@@ -213,7 +213,7 @@ def _render_plan(
     con.print(_candidates_table(result))
     rejected = int((~result.feasible).sum())
     prior = (
-        f"prior {result.prior_variance:.4g}"
+        f"the model's variance over the task region now {result.prior_variance:.4g} (rad/s^2)^2"
         if result.objective == "variance"
         else f"objective {result.objective}; the model's variance now {result.prior_variance:.4g}"
     )
@@ -222,7 +222,8 @@ def _render_plan(
     why = f" ({rejection_tally(result)})" if rejected else ""
     con.print(
         f"task cost {result.task_cost:.4g} ({prior}), "
-        f"epsilon {result.epsilon:.3g}; {rejected}/{len(result.cost)} candidates rejected{why}"
+        f"task region: within epsilon {result.epsilon:.3g} input stds of the task's inputs; "
+        f"{rejected}/{len(result.cost)} candidates rejected{why}"
     )
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
@@ -235,15 +236,9 @@ def _render_plan(
 
     for line in envelope_lines(result):
         con.print(line, markup=False)
-    best_cost = float(result.cost[result.best])
-    if best_cost >= result.task_cost:
-        searched = result.generation.size and result.generation.max() > 0
-        con.print(
-            f"warning: no candidate is more informative than flying the task again (best "
-            f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, or try more "
-            f"--candidates{'' if searched else ' or --search cem'}",
-            markup=False,
-        )
+    task_warning = _task_warning(result)
+    if task_warning:
+        con.print(f"warning: {task_warning}", markup=False)
     files = {"reference": str(out)}
     if scores is not None:
         files["scores"] = str(scores)
@@ -257,12 +252,31 @@ def _render_plan(
     return files
 
 
+def _task_warning(result: Any) -> str | None:
+    """The warning when no candidate beats flying the task again, else None."""
+    best_cost = float(result.cost[result.best])
+    if best_cost < result.task_cost:
+        return None
+    searched = result.generation.size and result.generation.max() > 0
+    return (
+        f"no candidate is more informative than flying the task again (best "
+        f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, or try more "
+        f"--candidates{'' if searched else ' or --search cem'}"
+    )
+
+
 def _candidates_table(result: Any) -> Any:
     """The five most informative feasible candidates, cost relative to the task."""
     from rich.table import Table
 
-    table = Table(title="most informative candidates (lower cost = more informative)")
-    for col in ("id", "cost", "vs task", "tracking rad/s^2"):
+    effects = result.objective == "effects"
+    title = "most informative candidates (lower cost = more informative)"
+    if effects:  # -log det of the effects' information; vs task: their standard errors
+        columns = ("id", "cost -log det", "std error vs task", "tracking rad/s^2")
+    else:  # the model's band over the task region after the flight
+        columns = ("id", "cost (rad/s^2)^2", "vs task", "tracking rad/s^2")
+    table = Table(title=title)
+    for col in columns:
         table.add_column(col, justify="right")
     order = [int(k) for k in result.cost.argsort() if result.feasible[k]][:5]
     for k in order:
@@ -297,9 +311,10 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
     """The --json object of plan: files, the best candidate, every candidate's cost,
     the objective and (for the effects objective) the effects' expected errors."""
     from omavctl.planning.effects_objective import effects_summary
-    from omavctl.planning.envelope import envelope
+    from omavctl.planning.envelope import envelope, envelope_warnings
 
     summary = effects_summary(result)
+    task_warning = _task_warning(result)
     return {
         "command": "plan",
         "files": files,
@@ -311,6 +326,8 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
         "rejected": int((~result.feasible).sum()),
         "candidates": [_candidate_json(result, k) for k in range(len(result.cost))],
         "notes": list(result.notes),
+        # what the terminal prints as "warning:": read before flying the reference
+        "warnings": ([task_warning] if task_warning else []) + envelope_warnings(result),
         "objective": result.objective,
         "envelope": envelope(result.best_trajectory()) if result.best >= 0 else None,
         "task_envelope": envelope(result.task),

@@ -6,7 +6,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["envelope", "envelope_lines"]
+__all__ = ["TILT_WARNING_DEG", "envelope", "envelope_lines", "envelope_warnings"]
+
+#: A planned roll or pitch beyond this (deg), and beyond twice the task's, is warned of.
+TILT_WARNING_DEG = 45.0
 
 
 def envelope(traj: Any) -> dict[str, float]:
@@ -24,7 +27,8 @@ def envelope(traj: Any) -> dict[str, float]:
 
 def envelope_lines(result: Any) -> list[str]:
     """Where the planned reference goes beside the task: what a flight engineer checks
-    before flying it; a warning when it turns yaw much further than the task."""
+    before flying it; warnings (lines starting ``warning:``) when it tilts, turns yaw
+    or rotates much further than the task."""
     if result.best < 0:
         return []
     plan, task = envelope(result.best_trajectory()), envelope(result.task)
@@ -41,6 +45,14 @@ def envelope_lines(result: Any) -> list[str]:
             "deg: check the flight area and cables before flying it, or lower --amplitude "
             "(slow deviations integrate to large angles)"
         )
+    tilt = max(plan["max_abs_roll_deg"], plan["max_abs_pitch_deg"])
+    task_tilt = max(task["max_abs_roll_deg"], task["max_abs_pitch_deg"])
+    if tilt > max(TILT_WARNING_DEG, 2.0 * task_tilt):
+        lines.append(
+            f"warning: the planned reference tilts to {tilt:.0f} deg, "
+            f"{tilt / max(task_tilt, 1e-9):.1f}x the task's {task_tilt:.0f}: check the vehicle "
+            "can fly it (actuator limits, flight area), or lower --amplitude or --max-tilt"
+        )
     if plan["max_body_rate"] > max(3.0, 3.0 * task["max_body_rate"]):
         lines.append(
             f"warning: the planned reference rotates at up to {plan['max_body_rate']:.1f} "
@@ -48,3 +60,10 @@ def envelope_lines(result: Any) -> list[str]:
             "check the vehicle can fly it, or lower --amplitude or --max-freq"
         )
     return lines
+
+
+def envelope_warnings(result: Any) -> list[str]:
+    """The warnings of :func:`envelope_lines`, without ``warning: ``."""
+    return [
+        ln.removeprefix("warning: ") for ln in envelope_lines(result) if ln.startswith("warning: ")
+    ]
