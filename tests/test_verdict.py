@@ -148,10 +148,38 @@ def test_flags_and_excluded_spans_when_present():
         {"start": 3.0, "end": 3.5, "reason": "out of control"},
         {"start": 7.0, "end": 7.25, "reason": "out of control"},
     ]
-    texts = {line.key: line.text for line in verdict(tree)}
-    assert texts["flag"] == "axis z: the GP is worse than physics"
+    lines = verdict(tree)
+    texts = {line.key: line.text for line in lines}
+    assert texts["worse"] == "axis z: the GP is worse than physics"
     assert texts["excluded"] == "Kept out of the metrics: 2 span(s), 0.8 s (out of control)."
-    assert sum(line.key == "flag" for line in verdict(tree)) == 1
+    assert sum(line.key in ("flag", "worse") for line in lines) == 1
+    # a model that does not help is said before "nothing missing" (a new user read the
+    # all-clear first on a model no better than predicting zero)
+    assert [ln.key for ln in lines[:2]] == ["worse", "missing"]
+    tree["flags"].append({"code": "training_data", "message": "the model's own training log"})
+    assert [ln.key for ln in verdict(tree)[:3]] == ["training", "worse", "missing"]
+
+
+def test_an_effect_below_the_noise_floor_is_named_not_claimed():
+    """Everything of a missing effect but the noise floor: the verdict says which effect,
+    how much it would explain, why it is not claimed and how to test it."""
+    tree = copy.deepcopy(AFTER)
+    tree["diagnosis"]["method"]["min_contribution_rms"] = 0.087
+    entry = tree["diagnosis"]["missing_effects"][0]
+    entry.update(
+        explained_variance=0.269, t_value=34.9, significant=True, plausible=True,
+        above_noise=False, contribution_rms=0.042, refit_explained_variance=0.2, missing=False,
+    )  # fmt: skip
+    line = verdict(tree)[0]
+    assert line.key == "missing" and line.command is None
+    assert line.text == (
+        "Nothing claimed as missing: rotational_drag would explain 27 % of the model's "
+        "remaining error on held-out data, but its part, 0.042 rad/s² RMS, is below the "
+        "0.087 a claim needs (three times the log's noise). To test it, fit with it and "
+        "compare both models on a flight neither saw."
+    )
+    entry["plausible"] = False  # fails another test too: plainly nothing missing
+    assert verdict(tree)[0].text.startswith("Nothing missing: no registered effect explains")
 
 
 def test_report_verdict_names_the_files():

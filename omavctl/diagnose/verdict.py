@@ -101,6 +101,9 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text = "Nothing missing: no registered effect explains"
         text += f" {_pct(threshold)} or more" if threshold is not None else " a material share"
         text += " of the model's remaining error on held-out data."
+        near = _below_noise(diag)
+        if near:
+            text = f"Nothing claimed as missing: {near}"
         if diag.get("unexplained"):
             text += " Some structure remains that no registered effect explains (see Diagnosis)."
         return Line("missing", text)
@@ -125,6 +128,33 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" A residual of its shape is also left by {alike}."
     cmd = diag.get("fit_command")
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
+
+
+def _below_noise(diag: Mapping[str, Any]) -> str:
+    """The sentence for the best effect that passes every test of a missing effect but
+    the noise floor (its part of the error is small against the log's noise), else ''."""
+    floor = _num(get_path(diag, "method", "min_contribution_rms"))
+    threshold = _num(get_path(diag, "method", "min_explained_variance")) or 0.0
+    for e in diag.get("missing_effects", []) or []:
+        ev, rms = _num(e.get("explained_variance")), _num(e.get("contribution_rms"))
+        refit = _num(e.get("refit_explained_variance"))
+        if (
+            e.get("significant") is True
+            and e.get("plausible") is True
+            and e.get("above_noise") is False
+            and ev is not None
+            and ev >= threshold
+            and (refit is None or refit > 0)
+            and rms is not None
+            and floor is not None
+        ):
+            return (
+                f"{e.get('name')} would explain {_pct(ev)} of the model's remaining error on "
+                f"held-out data, but its part, {rms:.2g} rad/s² RMS, is below the {floor:.2g} "
+                "a claim needs (three times the log's noise). To test it, fit with it and "
+                "compare both models on a flight neither saw."
+            )
+    return ""
 
 
 def _look_alikes(name: str) -> str:
@@ -306,15 +336,24 @@ def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
 
 #: Flags said before everything else (their line keys): what follows them is not a
 #: held-out judgement, or not of a model that belongs to the log.
-FIRST_FLAGS = {"training_data": "training", "far_outside_training": "mismatch"}
+FIRST_FLAGS = {
+    "training_data": "training",
+    "far_outside_training": "mismatch",
+    # a model that does not help on some axis: said before "nothing missing"
+    "worse_than_physics": "worse",
+    "no_better_than_zero": "worse",
+}
 
 
 def verdict(tree: Mapping[str, Any]) -> list[Line]:
     """The verdict of one evaluation: missing, where it fails, uncertainty, flags; a
-    log the model was fitted on, or one far beyond its inputs, is said first."""
+    log the model was fitted on, one far beyond its inputs, or an axis the model does
+    not help on is said first."""
     flags = _flag_lines(tree)
     first = set(FIRST_FLAGS.values())
-    lines = [ln for ln in flags if ln.key in first] + [_missing_line(tree)]
+    rank = {key: i for i, key in enumerate(dict.fromkeys(FIRST_FLAGS.values()))}
+    firsts = sorted((ln for ln in flags if ln.key in first), key=lambda ln: rank[ln.key])
+    lines = [*firsts, _missing_line(tree)]
     for line in (
         _fails_line(tree),
         _uncertainty_line(tree),

@@ -84,6 +84,14 @@ def _flag(v: Any) -> str:
     return "yes" if v is True else "no" if v is False else "n/a"
 
 
+def _part(e: Mapping[str, Any]) -> str:
+    """The effect's part of the error (RMS) and whether it clears the noise floor."""
+    rms = e.get("contribution_rms")
+    if not isinstance(rms, int | float):
+        return "n/a"
+    return f"{num(rms, 2)}" + ("" if e.get("above_noise", True) else " (below noise)")
+
+
 def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> Table:
     rows: list[list[Cell]] = []
     for i, e in enumerate(entries):
@@ -111,6 +119,7 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
                 num(e.get("t_value"), 3),
                 _flag(e.get("significant")),
                 _flag(e.get("plausible")),
+                _part(e),
                 (Span(what.upper(), "strong"),) if missing is True else _flag(missing),
                 ", ".join(str(x) for x in e.get("ambiguous_with", []) or []) or "–",
             ]
@@ -125,11 +134,12 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
             "t value",
             "significant",
             "plausible",
+            "its part, rad/s² RMS",
             what,
             "ambiguous with",
         ],
         rows=rows,
-        align="rlrrrrllll",
+        align="rlrrrrlllll",
     )
 
 
@@ -183,7 +193,10 @@ def diagnosis_section(
                 "missing when it explains at least "
                 f"{pct(method.get('min_explained_variance'))} of the held-out error, its "
                 f"estimate is significant (t ≥ {num(method.get('min_t_value'), 3)}) and "
-                "physically plausible."
+                "physically plausible, its part of the error is at least "
+                f"{num(method.get('min_contribution_rms'), 2)} rad/s² RMS (three times the "
+                "log's measurement noise: less is not claimed), and fitted as `fit --effects` "
+                "would fit it, it still lowers the error."
             )
         )
     missing = [str(x) for x in diag.get("missing", []) or []]

@@ -34,6 +34,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "flag": "Warning",
         "training": "Not held out",
         "mismatch": "Model and log",
+        "worse": "No help",
     }
     items: list[Content] = []
     for ln in lines:
