@@ -198,6 +198,11 @@ def test_evaluation_json_contract_and_round_trip(cases, tmp_path):
             assert set(tree["metrics"][label][metric]) == {"x", "y", "z"}
     m = tree["metrics"]
     assert all(m["model"]["rmse"][a] < m["nominal"]["rmse"][a] for a in "xyz")
+    # R^2: the share of the nominal model's squared error removed (0 for the nominal)
+    for a in "xyz":
+        assert m["nominal"]["r2"][a] == pytest.approx(0.0, abs=1e-12)
+        ratio = m["model"]["rmse"][a] / m["nominal"]["rmse"][a]
+        assert m["model"]["r2"][a] == pytest.approx(1.0 - ratio**2, rel=1e-9)
     assert 0.5 < np.mean(list(m["model"]["coverage_2sigma"].values())) <= 1.0
     assert set(tree["tracking"]) == {"x", "y", "z", "mean"}
     seg = tree["worst_segments"][0]

@@ -45,12 +45,14 @@ def axis_metrics(
     """Per-axis metrics of a prediction.
 
     measured, predicted (n, 3) angular accelerations; std (n, 3) predictive std;
-    reference (n, 3) the nominal residual (for R^2). Returns
-    ``{metric: {"x": .., "y": .., "z": ..}}``.
+    reference (n, 3) the nominal residual. ``r2`` is the fraction of the nominal
+    model's squared error the prediction removes, ``1 - SSE / sum(reference^2)``: 0 for
+    the nominal model itself, 1 for a perfect prediction, negative when it is worse
+    than the nominal. Returns ``{metric: {"x": .., "y": .., "z": ..}}``.
     """
     err = measured - predicted
     sse = (err**2).sum(axis=0)
-    sst = ((reference - reference.mean(axis=0)) ** 2).sum(axis=0)
+    sst = (reference**2).sum(axis=0)
     var = np.maximum(std, 1e-12) ** 2
     nlpd = 0.5 * np.log(2 * np.pi * var) + err**2 / (2 * var)
     out = {

@@ -31,7 +31,7 @@ PREDICTIONS = (
 METRICS = (
     ("rmse", "RMSE"),
     ("mae", "MAE"),
-    ("r2", "R² (of the nominal residual)"),
+    ("r2", "R² (share of the nominal error removed)"),
     ("mean_std", "mean predicted std"),
     ("coverage_2sigma", "within 2σ (fraction)"),
     ("nlpd", "NLPD (nats/sample)"),
