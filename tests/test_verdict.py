@@ -174,10 +174,13 @@ def test_an_effect_below_the_noise_floor_is_named_not_claimed():
     assert line.key == "missing" and line.command is None
     assert line.text == (
         "Nothing claimed as missing: rotational_drag would explain 27 % of the model's "
-        "remaining error on held-out data, but its part, 0.042 rad/s² RMS, is below the "
-        "0.087 a claim needs (three times the log's noise). To test it, fit with it and "
-        "compare both models on a flight neither saw."
+        "remaining error on held-out data, but its part, 0.042 rad/s² RMS, is above the "
+        "log's noise (0.029) and below the 0.087 a claim needs (three times it). To test "
+        "it, fit with it and compare both models on a flight neither saw."
     )
+    entry["contribution_rms"] = 0.023  # within the noise: not worth chasing
+    assert verdict(tree)[0].text.startswith("Nothing missing: no registered effect explains")
+    entry["contribution_rms"] = 0.042
     entry["plausible"] = False  # fails another test too: plainly nothing missing
     assert verdict(tree)[0].text.startswith("Nothing missing: no registered effect explains")
 
@@ -292,3 +295,19 @@ def test_a_worse_axis_whose_fitted_parameter_disagrees_with_the_evaluated_log_sa
         "from 0.002 ± 0.001, what the evaluated log gives: the fit flight did not pin it down "
         "(fit on both logs, or plan a flight with plan --objective effects)."
     )
+
+
+def test_three_files_show_every_step_not_only_first_to_last():
+    """A step that made an axis worse is said even when first to last improved it."""
+    middle = copy.deepcopy(AFTER)
+    middle["metrics"]["model"]["rmse"] = {"x": 0.060, "y": 0.114, "z": 0.0406}
+    last = copy.deepcopy(AFTER)
+    last["metrics"]["model"]["rmse"] = {"x": 0.058, "y": 0.110, "z": 0.0451}
+    lines = report_verdict([(BEFORE, "e1.json"), (middle, "e2.json"), (last, "e3.json")])
+    changes = [(ln.who, ln.text) for ln in lines if ln.key == "change"]
+    whos = [w for w, _ in changes]
+    assert whos[0] == "e1.json → e2.json" and whos[-1] == "e1.json → e3.json"
+    assert ("e2.json → e3.json", "Axis z got worse (+11.1 %): ") in [
+        (w, t[: len("Axis z got worse (+11.1 %): ")]) for w, t in changes
+    ]
+    assert not any(w == "e1.json → e3.json" and t.startswith("Axis z") for w, t in changes)

@@ -132,8 +132,10 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
 
 def _below_noise(diag: Mapping[str, Any]) -> str:
     """The sentence for the best effect that passes every test of a missing effect but
-    the noise floor (its part of the error is small against the log's noise), else ''."""
+    the noise floor: its part of the error is above the log's noise, but below the
+    three times it a claim needs; else ''."""
     floor = _num(get_path(diag, "method", "min_contribution_rms"))
+    noise = _num(get_path(diag, "method", "measurement_noise_std")) or 0.0
     threshold = _num(get_path(diag, "method", "min_explained_variance")) or 0.0
     for e in diag.get("missing_effects", []) or []:
         ev, rms = _num(e.get("explained_variance")), _num(e.get("contribution_rms"))
@@ -147,12 +149,13 @@ def _below_noise(diag: Mapping[str, Any]) -> str:
             and (refit is None or refit > 0)
             and rms is not None
             and floor is not None
+            and rms >= noise
         ):
             return (
                 f"{e.get('name')} would explain {_pct(ev)} of the model's remaining error on "
-                f"held-out data, but its part, {rms:.2g} rad/s² RMS, is below the {floor:.2g} "
-                "a claim needs (three times the log's noise). To test it, fit with it and "
-                "compare both models on a flight neither saw."
+                f"held-out data, but its part, {rms:.2g} rad/s² RMS, is above the log's noise "
+                f"({noise:.2g}) and below the {floor:.2g} a claim needs (three times it). To "
+                "test it, fit with it and compare both models on a flight neither saw."
             )
     return ""
 
@@ -486,7 +489,8 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
 
 def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
     """The verdict of a report: one file's own; with several, what the first lacked,
-    the before/after change (first to last, per axis) and the last file's verdict."""
+    the before/after change per axis (each step when there are three or more, then
+    first to last) and the last file's verdict."""
     if not evals:
         return []
     if len(evals) == 1:
@@ -495,9 +499,13 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
     (first, label0), (last, label1) = evals[0], evals[-1]
     head = verdict(first)[0]
     lines = [Line(head.key, head.text, label0, head.command)]
-    lines += [
-        Line(ln.key, ln.text, f"{label0} → {label1}")
-        for ln in change_lines(scores_of_files(evals), name_after=False)
-    ]
+    scores = scores_of_files(evals)
+    # a step that made an axis worse must not hide behind an overall gain
+    pairs = [(i, i + 1) for i in range(len(evals) - 1)] if len(evals) > 2 else []
+    for i, j in [*pairs, (0, len(evals) - 1)]:
+        lines += [
+            Line(ln.key, ln.text, f"{evals[i][1]} → {evals[j][1]}")
+            for ln in change_lines([scores[i], scores[j]], name_after=False)
+        ]
     lines += [Line(ln.key, ln.text, label1, ln.command) for ln in verdict(last)]
     return lines
