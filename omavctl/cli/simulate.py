@@ -29,7 +29,9 @@ Truth = Annotated[
         "--truth",
         metavar="TRUTH.yaml",
         help="Truth YAML: actuator imperfections, hidden effects, sensor noise, seed "
-        "(default: documented imperfections, no hidden effect).",
+        "(default: documented imperfections, no hidden effect, seed 0). The truth's seed "
+        "draws the vehicle itself (rotor thrust spread): fly every flight of one vehicle "
+        "with the same truth file.",
     ),
 ]
 Seed = Annotated[
