@@ -10,13 +10,8 @@ import json
 import numpy as np
 import pytest
 
-from omavctl.diagnose.verdict import (
-    activity,
-    change_lines,
-    report_verdict,
-    scores_of_files,
-    verdict,
-)
+from omavctl.diagnose.change import change_lines, report_verdict, scores_of_files
+from omavctl.diagnose.verdict import activity, verdict
 from omavctl.report.diagnosis import _param_lines
 
 

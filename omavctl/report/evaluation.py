@@ -235,7 +235,7 @@ def write_report(
         )
         for (tree, _, label), p in zip(evals, paths, strict=True)
     ]
-    from omavctl.diagnose.verdict import report_verdict
+    from omavctl.diagnose.change import report_verdict
 
     lines = report_verdict([(tree, label) for tree, _, label in evals])
     return ReportSummary(out, fmt, text.count("data:image/png;base64,"), summaries, lines)

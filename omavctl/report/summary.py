@@ -13,13 +13,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from omavctl.diagnose.verdict import (
-    AXES,
-    change_lines,
-    coverage_of,
-    scores_of_models,
-    verdict,
-)
+from omavctl.diagnose.change import change_lines, scores_of_models
+from omavctl.diagnose.verdict import AXES, coverage_of, verdict
 
 __all__ = ["evaluation_json", "fit_json", "inspect_json", "render_evaluation"]
 

@@ -1,6 +1,6 @@
 """The top of the report: the verdict, then the figures that explain it.
 
-Verdict sentences (:func:`omavctl.diagnose.verdict.report_verdict`), then per evaluation
+Verdict sentences (:func:`omavctl.diagnose.change.report_verdict`), then per evaluation
 file the model error over time with the worst segments labelled, the signature
 of each named effect, the candidate effects' explained variance, and with
 several files the before/after bars.
@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.diagnose.verdict import report_verdict
+from omavctl.diagnose.change import report_verdict
 from omavctl.report import figures as rf
 from omavctl.report.document import Block, Bullets, Content, FigureBlock, Heading, Inline, Span
 from omavctl.report.load import Evaluation

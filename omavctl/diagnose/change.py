@@ -1,0 +1,168 @@
+"""The before/after change of two or more models or evaluation files, per axis.
+
+How much the error falls when an effect is added, with the reason for any axis
+that got worse (a fitted parameter the evaluated log disagrees with), and the
+verdict of a report of several evaluations: what the first lacked, every step's
+change, the last file's own verdict (:func:`omavctl.diagnose.verdict.verdict`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from omavctl.diagnose.verdict import (
+    AXES,
+    Line,
+    ModelScore,
+    _num,
+    _pct,
+    _signed,
+    get_path,
+    verdict,
+)
+
+__all__ = ["change_lines", "report_verdict", "scores_of_files", "scores_of_models"]
+
+
+def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[ModelScore]:
+    """One :class:`ModelScore` per evaluation file (its first model)."""
+    out = []
+    for tree, label in evals:
+        effects = get_path(tree, "models", 0, "effects", default={}) or {}
+        rmse = get_path(tree, "metrics", "model", "rmse", default={}) or {}
+        out.append(ModelScore(label, tuple(effects), effects, rmse, tree))
+    return out
+
+
+def scores_of_models(tree: Mapping[str, Any]) -> list[ModelScore]:
+    """One :class:`ModelScore` per model of one evaluation file (``--model`` repeated)."""
+    models = tree.get("models") or []
+    by_model = tree.get("metrics_by_model") or [tree.get("metrics") or {}]
+    out = []
+    for m, metrics in zip(models, by_model, strict=False):
+        effects = m.get("effects") or {}
+        rmse = get_path(metrics, "model", "rmse", default={}) or {}
+        out.append(ModelScore(str(m.get("name", "?")), tuple(effects), effects, rmse, tree))
+    return out
+
+
+def _disagreement(
+    key: str, axis: str, v: float | None, se: float | None, held: Mapping[str, Any], i: int
+) -> list[str]:
+    """A reason when a fitted parameter is more than 2 standard errors (combined) from
+    the estimate the evaluated log gave (the diagnosis' ``parameters``)."""
+    d, dse = _num(get_path(held, key, i)), _num(get_path(held, f"{key}_stderr", i))
+    if v is None or se is None or d is None or dse is None:
+        return []
+    z = abs(v - d) / max(math.hypot(se, dse), 1e-300)
+    if z <= 2.0:
+        return []
+    return [
+        f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is {z:.1f} standard errors from "
+        f"{d:.3g} ± {dse:.2g}, what the evaluated log gives: the fit flight did not pin it "
+        "down (fit on both logs, or plan a flight with plan --objective effects)"
+    ]
+
+
+def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], axis: str) -> str:
+    """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold."""
+    i = AXES.index(axis)
+    reasons: list[str] = []
+    misfit: list[str] = []
+    diag = get_path(before.tree, "diagnosis", "missing_effects", default=[]) or []
+    for name in added:
+        entry = next((e for e in diag if isinstance(e, Mapping) and e.get("name") == name), None)
+        ev = _num(get_path(entry, "explained_variance_per_axis", axis))
+        if ev is not None and ev < 0.05:
+            reasons.append(f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error")
+        params = after.effect_params.get(name) or {}
+        held = get_path(entry, "parameters", default={}) or {}
+        for key, vals in params.items():
+            if str(key).endswith("_stderr") or not isinstance(vals, list) or len(vals) != 3:
+                continue
+            v, se = _num(vals[i]), _num(get_path(params, f"{key}_stderr", i))
+            if v is not None and se is not None and abs(v) < 2 * se:
+                reasons.append(
+                    f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable from 0"
+                )
+            misfit += _disagreement(key, axis, v, se, held, i)
+    if misfit:  # the effect's own estimate is off: that is the reason, not the GP
+        return "; ".join(misfit)
+    noise = _num(get_path(before.tree, "diagnosis", "method", "measurement_noise_std"))
+    r0, r1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
+    if noise and r0 is not None and r1 is not None and max(r0, r1) < 3 * noise:
+        reasons.append(
+            f"both errors are within {max(r0, r1) / noise:.1f}× the measurement noise "
+            f"({noise:.2g} rad/s²)"
+        )
+    if not reasons:  # nothing in the files singles out the effect or the GP
+        return "the files do not say why: the added effect and the refitted GP changed together"
+    return f"{'; '.join(reasons)}: the change comes from the refitted GP, not from the effect"
+
+
+def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[Line]:
+    """Before/after: the first score against the last, per axis, worse axes explained;
+    ``name_after`` names the last one in the sentence (when the line does not say
+    which files it compares)."""
+    if len(scores) < 2:
+        return []
+    before, after = scores[0], scores[-1]
+    added = [e for e in after.effects if e not in before.effects]
+    removed = [e for e in before.effects if e not in after.effects]
+    changes: dict[str, float] = {}
+    for a in AXES:
+        r0, r1 = _num(before.rmse.get(a)), _num(after.rmse.get(a))
+        if r0 and r1 is not None:
+            changes[a] = r1 / r0 - 1.0
+    if not changes:
+        return []
+    what = "With " + ", ".join(added) + " added" if added else f"From {before.label} to"
+    if name_after or not added:
+        what = f"{what} ({after.label})" if added else f"{what} {after.label}"
+    if removed:
+        what += f", {', '.join(removed)} removed"
+    b0 = [v for a in AXES if (v := _num(before.rmse.get(a))) is not None]
+    b1 = [v for a in AXES if (v := _num(after.rmse.get(a))) is not None]
+    mean = sum(b1) / sum(b0) - 1.0 if b0 and len(b0) == len(b1) and sum(b0) > 0 else None
+    if mean is not None:
+        verb = "falls" if mean < 0 else "rises"
+        text = f"{what}: the model error {verb} by {abs(100 * mean):.1f} % (sum over axes)"
+    else:
+        text = f"{what}: model error"
+    text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items()) + "."
+    lines = [Line("change", text)]
+    for a, c in changes.items():
+        if c > 0.02:
+            lines.append(
+                Line(
+                    "change",
+                    f"Axis {a} got worse ({_signed(c)}): {_worse_reason(before, after, added, a)}.",
+                )
+            )
+    return lines
+
+
+def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
+    """The verdict of a report: one file's own; with several, what the first lacked,
+    the before/after change per axis (each step when there are three or more, then
+    first to last) and the last file's verdict."""
+    if not evals:
+        return []
+    if len(evals) == 1:
+        tree = evals[0][0]
+        return verdict(tree)[:1] + change_lines(scores_of_models(tree)) + verdict(tree)[1:]
+    (first, label0), (last, label1) = evals[0], evals[-1]
+    head = verdict(first)[0]
+    lines = [Line(head.key, head.text, label0, head.command)]
+    scores = scores_of_files(evals)
+    # a step that made an axis worse must not hide behind an overall gain
+    pairs = [(i, i + 1) for i in range(len(evals) - 1)] if len(evals) > 2 else []
+    for i, j in [*pairs, (0, len(evals) - 1)]:
+        lines += [
+            Line(ln.key, ln.text, f"{evals[i][1]} → {evals[j][1]}")
+            for ln in change_lines([scores[i], scores[j]], name_after=False)
+        ]
+    lines += [Line(ln.key, ln.text, label1, ln.command) for ln in verdict(last)]
+    return lines
