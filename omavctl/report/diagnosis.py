@@ -89,7 +89,7 @@ def _part(e: Mapping[str, Any]) -> str:
     rms = e.get("contribution_rms")
     if not isinstance(rms, int | float):
         return "n/a"
-    return f"{num(rms, 2)}" + ("" if e.get("above_noise", True) else " (below noise)")
+    return f"{num(rms, 2)}" + ("" if e.get("above_noise", True) else " (below 3× noise)")
 
 
 def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> Table:
