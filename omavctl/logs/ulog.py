@@ -38,8 +38,8 @@ __all__ = ["PX4_COLUMNS", "TIME_COLUMN", "UlogTopics", "load_ulog", "read_mapped
 TIME_COLUMN = "timestamp"
 
 
-def _xyz(stem: str, axes: str = "xyz", first: int = 0) -> dict[str, str]:
-    return {a: f"{stem}[{first + i}]" for i, a in enumerate(axes)}
+def _xyz(stem: str, axes: str = "xyz") -> dict[str, str]:
+    return {a: f"{stem}[{i}]" for i, a in enumerate(axes)}
 
 
 #: PX4's topics for the contract roles, newest message set first: (role, axis ->
@@ -64,7 +64,7 @@ class UlogTopics:
 
     path: Path
     topics: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]
-    #: the message names pyulog reported as dropped or corrupt, for notes
+    #: what reading it noticed (corrupt data, dropouts, topics without time), for notes
     notes: list[str]
 
     def column_topic(self) -> dict[str, str]:
@@ -85,7 +85,7 @@ def load_ulog(path: Path) -> UlogTopics:
         with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
             ulog = ULog(str(path))
     except Exception as err:  # pyulog raises plain exceptions on corrupt input
-        raise LogError(f"not a readable ULog: {library_reason(err)}", path) from err
+        raise LogError(f"not a readable ULog file: {library_reason(err)}", path) from err
     topics: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
     untimed: list[str] = []
     for data in ulog.data_list:
@@ -103,7 +103,7 @@ def load_ulog(path: Path) -> UlogTopics:
         }
         topics[prefix] = (stamps, fields)
     if not topics:
-        raise LogError("not a readable ULog: it holds no logged data", path)
+        raise LogError("not a readable ULog file: it holds no logged data", path)
     notes = []
     complaint = next((ln.strip() for ln in said.getvalue().splitlines() if ln.strip()), "")
     if ulog.file_corruption or complaint:
