@@ -159,7 +159,7 @@ def summary_of(
                 columns=["tracking error", *AXES, "mean"],
                 rows=[
                     [
-                        "mean |a* − measured|, rad/s²",
+                        "mean |a* − measured| of the flight's own controller, rad/s²",
                         *(num(v) for v in axes_of(tracking)),
                         num(tracking.get("mean")),
                     ]

@@ -80,7 +80,10 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
     con.print(table)
     tracking = tree.get("tracking")
     if isinstance(tracking, Mapping):
-        con.print("tracking |a* - w_dot|: " + ", ".join(f"{a} {_g(tracking[a], 3)}" for a in AXES))
+        con.print(
+            "tracking |a* - w_dot| of the flight (its own controller, whatever model): "
+            + ", ".join(f"{a} {_g(tracking[a], 3)}" for a in AXES)
+        )
     for what, path in files.items():
         con.print(Text(f"wrote {path} ({what})"))
 
