@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from omavctl.learn.model import ResidualGP
 from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.truth import truth_from_tree
@@ -33,3 +34,17 @@ def on_grid(series, times: np.ndarray) -> np.ndarray:
     idx = np.searchsorted(series.stamps, times - 1e-9)
     assert np.allclose(series.stamps[idx], times)
     return series.values[idx]
+
+
+def rebuilt(model: ResidualGP, **changes) -> ResidualGP:
+    """``model`` built again (its Cholesky factors anew) with some arguments changed:
+    other training inputs or targets, hyperparameters or band calibration."""
+    kwargs = {
+        k: getattr(model, k)
+        for k in (
+            "vehicle", "features", "input_names", "inputs", "targets", "input_mean",
+            "input_scale", "target_mean", "signal_variance", "length_scales",
+            "noise_variance", "latent_scale", "beyond_scale", "effects",
+        )
+    }  # fmt: skip
+    return ResidualGP(**{**kwargs, **changes})

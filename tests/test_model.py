@@ -18,6 +18,7 @@ from omavctl.learn.model import SCHEMA, EffectEstimate, ResidualGP
 from omavctl.learn.model_file import load_model, save_model
 from omavctl.learn.signal import SavitzkyGolay, feature_names, usable_segments
 from omavctl.physics.controller import Controller, ControllerState
+from tests.conftest import rebuilt
 
 runner = CliRunner()
 
@@ -99,18 +100,13 @@ def test_batched_prediction_equals_row_by_row(vehicle):
 
 def _with_targets(model, targets):
     """The same GP (inputs, hyperparameters) trained on other targets, mean fitted anew."""
-    return ResidualGP(
-        vehicle=model.vehicle,
-        features=model.features,
-        input_names=model.input_names,
-        inputs=model.inputs,
+    return rebuilt(
+        model,
         targets=targets,
-        input_mean=model.input_mean,
-        input_scale=model.input_scale,
         target_mean=targets.mean(0),
-        signal_variance=model.signal_variance,
-        length_scales=model.length_scales,
-        noise_variance=model.noise_variance,
+        latent_scale=None,
+        beyond_scale=None,
+        effects=None,
     )
 
 

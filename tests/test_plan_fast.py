@@ -11,7 +11,6 @@ from typer.testing import CliRunner
 
 from omavctl.cli import app
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import ResidualGP
 from omavctl.learn.model_file import save_model
 from omavctl.logs import align
 from omavctl.planning import PlanSettings, plan
@@ -31,6 +30,7 @@ from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import write_trajectory
 from omavctl.sim.truth import truth_from_tree
+from tests.conftest import rebuilt
 
 runner = CliRunner()
 SMALL = PlanSettings(candidates=5, sims=2, test_points=100, points=15)
@@ -96,20 +96,14 @@ def test_integrated_variance_equals_the_mean_of_the_rank_update():
 
 def _refitted(model, inputs, latent_scale, beyond_scale):
     """The model's GP with other training inputs and band calibration (same hyperparameters)."""
-    return ResidualGP(
-        vehicle=model.vehicle,
-        features=model.features,
-        input_names=model.input_names,
+    return rebuilt(
+        model,
         inputs=inputs,
         targets=np.zeros((inputs.shape[0], 3)),
-        input_mean=model.input_mean,
-        input_scale=model.input_scale,
         target_mean=np.zeros(3),
-        signal_variance=model.signal_variance,
-        length_scales=model.length_scales,
-        noise_variance=model.noise_variance,
         latent_scale=latent_scale,
         beyond_scale=beyond_scale,
+        effects={},
     )
 
 
@@ -190,19 +184,7 @@ def test_plan_survives_an_axis_without_gp(fitted):
     task, model = fitted
     sv = model.signal_variance.copy()
     sv[2] = 0.0
-    off = ResidualGP(
-        vehicle=model.vehicle,
-        features=model.features,
-        input_names=model.input_names,
-        inputs=model.inputs,
-        targets=model.targets,
-        input_mean=model.input_mean,
-        input_scale=model.input_scale,
-        target_mean=model.target_mean,
-        signal_variance=sv,
-        length_scales=model.length_scales,
-        noise_variance=model.noise_variance,
-    )
+    off = rebuilt(model, signal_variance=sv)
     result = plan(off, task, SMALL)
     assert result.feasible.any()
     assert np.all(np.isfinite(result.cost[result.feasible]))
