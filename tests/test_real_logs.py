@@ -354,8 +354,29 @@ def test_a_disarmed_bench_ulog_is_refused_as_no_flight(tmp_path: Path) -> None:
     result = runner.invoke(app, ["inspect", str(ulg)])
     out = _ok(result)
     assert 'torque_command: {x: "actuator_controls_0.control[0]"' in out
+    # PX4's thrust is 0..1 along -z whatever this log's values (all 0 here)
+    assert 'force_command: {z: "actuator_controls_0.control[3]", scale: -1.0}' in out
+    assert "control_state.{roll,pitch,yaw}_rate" not in out.split("torque_command:")[1]
     assert "frame: FRD  # sensor_combined.accelerometer_m_s2[2] reads -9.6" in out
     vehicle = REPO / "examples/pyulog-bench-quad.yaml"
+    result = runner.invoke(app, ["inspect", str(ulg), "--vehicle", str(vehicle), "--json"])
+    _ok(result)
+    tree = json.loads(result.stdout)
+    assert tree["roles_found"]["force_command"] == "columns actuator_controls_0.control[3]"
+    assert (
+        "the thrust command (force_command) is zero throughout: no flight in this log"
+        in tree["notes"]
+    )
+    # a role's axes from two topics: said before any row is read
+    mixed = yaml.safe_load(vehicle.read_text())
+    mixed["columns"]["body_rate"]["x"] = "vehicle_attitude.rollspeed"
+    (tmp_path / "mixed.yaml").write_text(yaml.safe_dump(mixed))
+    result = runner.invoke(app, ["inspect", str(ulg), "--vehicle", str(tmp_path / "mixed.yaml")])
+    assert result.exit_code == 2
+    assert result.output.strip().splitlines()[-1] == (
+        f"error: {ulg}: the column map takes body_rate from 2 topics (sensor_combined, "
+        "vehicle_attitude): a role's axes must come from one topic of a ULog"
+    )
     result = runner.invoke(
         app, ["fit", str(ulg), "--vehicle", str(vehicle), "--out", str(tmp_path / "m.npz")]
     )

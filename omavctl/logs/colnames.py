@@ -58,6 +58,7 @@ _META = {"parm", "param", "params", "ver", "version"}
 _OUTPUTS = {"pwm", "motor", "motors", "esc", "servo", "rpm", "rc", "ch", "chan", "channel", "in"}
 _GYRO = {"gyro", "gyr", "gyroscope", "gyros", "omega", "angvel", "angrate"}
 _RATE = {"rate", "rates", "bodyrate", "bodyrates"}
+_STATE = {"state", "estimate", "estimated"}
 _CONTROL = {
     "ctrl", "control", "controls", "attc", "atc", "actuator", "actuators", "act", "out",
     "output", "cmd", "command", "mix", "mixer", "u",
@@ -217,6 +218,8 @@ def _classify(
         xyz = dict(zip(_AXES, (axes[a] for a in _RPY), strict=True))
         if bases & _RATE and bases & {"cmd", "command"}:
             return []  # a rate command is a setpoint
+        if bases & _STATE:  # an estimate (PX4's control_state.roll_rate), not a command
+            return [("body_rate", xyz, 2)] if bases & _RATE else []
         if bases & _TORQUE:
             out.append(("torque_command", xyz, 0))
         elif bases & _CONTROL:

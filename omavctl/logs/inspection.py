@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from omavctl.logs.align import DEFAULT_REQUIRED
 from omavctl.logs.contract import merge_topics
 from omavctl.logs.read import detect_format
@@ -117,8 +119,10 @@ def inspect_log(
     found: dict[str, str] = {}
     missing: dict[str, str] = {}
     for role in ROLE_COLUMNS:
-        if raw.mapped:
-            where = "no usable rows" if role in raw.mapped else "not in the column map"
+        if raw.mapped:  # read through a column map: its columns, or why not
+            where = raw.mapped.get(role, "not in the column map")
+            if role in raw.mapped and role not in raw.series:
+                where = f"no usable rows in {where}"
         elif raw.format == "csv":
             where = f"CSV columns {role}_*"
         else:
@@ -132,9 +136,18 @@ def inspect_log(
         topics=list(raw.topics),
         roles_found=found,
         roles_missing=missing,
-        notes=list(raw.notes),
+        notes=[*raw.notes, *_idle_notes(raw)],
         column_ranges=ranges,
     )
+
+
+def _idle_notes(raw: RawLog) -> list[str]:
+    """A note when the thrust command is zero throughout (the vehicle did not fly:
+    ``fit`` and ``evaluate`` refuse such a log)."""
+    force = raw.series.get("force_command")
+    if force is None or not force.values.size or np.any(force.values != 0.0):
+        return []
+    return ["the thrust command (force_command) is zero throughout: no flight in this log"]
 
 
 def _is_foreign_csv(path: Path) -> bool:
@@ -199,6 +212,7 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
         k: v for k, v in guess.columns.items() if k != "time"
     }
     guess.comments["time"] = "ULog: microseconds since boot"
+    _px4_conventions(guess)
     guess.alternatives.pop("time", None)
     guess.unrecognised = [r for r in guess.unrecognised if r != "time"]
     guess.t0, guess.duration = stamps[0] * 1e-6, (stamps[-1] - stamps[0]) * 1e-6
@@ -225,6 +239,19 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
         suggested_columns=guess.columns,
         suggestion=suggestion_yaml(guess, path.name),
     )
+
+
+def _px4_conventions(guess: Any) -> None:
+    """What PX4 fixes whatever the data say: body vectors in FRD, and
+    ``actuator_controls_0.control[3]`` a thrust 0..1 along -z (scale -1)."""
+    if guess.frame is None:
+        guess.frame = ("FRD", "PX4 logs body vectors in FRD")
+    force = guess.columns.get("force_command")
+    if force and force.get("z") == "actuator_controls_0.control[3]" and "scale" not in force:
+        force["scale"] = -1.0
+        guess.comments["force_command"] += (
+            "; PX4 thrust 0..1 acts along -z (FRD): scale -1 points it up"
+        )
 
 
 def render_inspect(ins: Inspection, console: Console) -> None:

@@ -281,7 +281,9 @@ def suggest_column_map(
         # thrust acts along -z in FRD: a thrust magnitude logged positive needs scale -1
         if float(np.nanmedian(scan.values[force["z"]])) > 0:
             force["scale"] = -float(force.get("scale", 1.0))
-            comments["force_command"] += "; thrust positive in an FRD log: scale -1 points it down"
+            comments["force_command"] += (
+                "; thrust positive in an FRD log: scale -1 points it along -z, up"
+            )
     return Suggestion(columns, comments, alternatives, unrecognised, t0, duration, frame)
 
 

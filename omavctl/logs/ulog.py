@@ -29,8 +29,16 @@ import numpy as np
 
 from omavctl.base.errors import LogError, library_reason
 from omavctl.logs.colnames import ColumnScan
-from omavctl.logs.columnmap import MappedTable, parse_column_map, read_mapped
-from omavctl.logs.csvlog import CsvRead
+from omavctl.logs.columnmap import (
+    QUATERNION_ROLES,
+    ColumnSpec,
+    MappedTable,
+    parse_column_map,
+    quaternion_columns,
+    read_mapped,
+)
+from omavctl.logs.csvlog import CsvRead, csv_columns
+from omavctl.logs.types import ROLE_COLUMNS
 
 __all__ = ["PX4_COLUMNS", "TIME_COLUMN", "UlogTopics", "load_ulog", "read_mapped_ulog", "scan_ulog"]
 
@@ -147,6 +155,7 @@ def read_mapped_ulog(path: Path, columns: dict[str, Any]) -> CsvRead:
     specs = parse_column_map(columns)
     u = load_ulog(path)
     owner = u.column_topic()
+    _one_topic_per_role(specs, owner, path)
     used = sorted({owner[s.column] for s in specs.values() if s.column in owner})
     stamps = [u.topics[t][0] for t in used]
     all_stamps = np.concatenate(stamps) if stamps else np.zeros(0)
@@ -165,3 +174,18 @@ def read_mapped_ulog(path: Path, columns: dict[str, Any]) -> CsvRead:
     header = [TIME_COLUMN, *owner]
     table = MappedTable(path, "ulog", header, all_stamps.size, source, sparse=True)
     return read_mapped(table, specs, u.notes)
+
+
+def _one_topic_per_role(specs: dict[str, ColumnSpec], owner: dict[str, str], path: Path) -> None:
+    """Refuse a map that takes one role's axes from two topics: each row of a ULog's
+    table holds one topic's values, so no row would hold them all."""
+    for role in ROLE_COLUMNS:
+        keys = csv_columns(role) + (quaternion_columns(role) if role in QUATERNION_ROLES else [])
+        used = [specs[k].column for k in keys if k in specs]
+        topics = sorted({owner[c] for c in used if c in owner})
+        if len(topics) > 1:
+            raise LogError(
+                f"the column map takes {role} from {len(topics)} topics ({', '.join(topics)}): "
+                "a role's axes must come from one topic of a ULog",
+                path,
+            )
