@@ -212,18 +212,24 @@ def _render_plan(
     returns the files written."""
     con.print(_candidates_table(result))
     rejected = int((~result.feasible).sum())
-    prior = (
-        f"the model's variance over the task region now {result.prior_variance:.4g} (rad/s^2)^2"
-        if result.objective == "variance"
-        else f"objective {result.objective}; the model's variance now {result.prior_variance:.4g}"
-    )
+    if result.objective == "variance":
+        task = (
+            f"flying the task again: cost {result.task_cost:.4g} (rad/s^2)^2, from "
+            f"{result.prior_variance:.4g} now"
+        )
+    else:
+        task = (
+            f"flying the task again: cost {result.task_cost:.4g} (-log det); the model's "
+            f"variance now {result.prior_variance:.4g} (rad/s^2)^2"
+        )
     from omavctl.planning.report import rejection_tally
 
-    why = f" ({rejection_tally(result)})" if rejected else ""
+    # a candidate may break several limits: the reasons are counted, not the candidates
+    why = f" (reasons: {rejection_tally(result)})" if rejected else ""
     con.print(
-        f"task cost {result.task_cost:.4g} ({prior}), "
-        f"task region: within epsilon {result.epsilon:.3g} input stds of the task's inputs; "
-        f"{rejected}/{len(result.cost)} candidates rejected{why}"
+        f"{task}; task region: the inputs within {result.epsilon:.3g} input standard "
+        f"deviations (epsilon) of the task's; {rejected}/{len(result.cost)} candidates "
+        f"rejected{why}"
     )
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
@@ -272,9 +278,9 @@ def _candidates_table(result: Any) -> Any:
     effects = result.objective == "effects"
     title = "most informative candidates (lower cost = more informative)"
     if effects:  # -log det of the effects' information; vs task: their standard errors
-        columns = ("id", "cost -log det", "std error vs task", "tracking rad/s^2")
+        columns = ("id", "cost -log det", "std error vs task (- better)", "tracking rad/s^2")
     else:  # the model's band over the task region after the flight
-        columns = ("id", "cost (rad/s^2)^2", "vs task", "tracking rad/s^2")
+        columns = ("id", "cost (rad/s^2)^2", "vs task (- better)", "tracking rad/s^2")
     table = Table(title=title)
     for col in columns:
         table.add_column(col, justify="right")

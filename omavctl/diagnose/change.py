@@ -60,9 +60,9 @@ def _disagreement(
     if z <= 2.0:
         return []
     return [
-        f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is {z:.1f} standard errors from "
-        f"{d:.3g} ± {dse:.2g}, what the evaluated log gives: the fit flight did not pin it "
-        "down (fit on both logs, or plan a flight with plan --objective effects)"
+        f"{key}_{axis} is {v:.3g} ± {se:.2g} as fitted on the fit flight but {d:.3g} ± "
+        f"{dse:.2g} from the evaluated log, {z:.1f} standard errors apart: the fit flight "
+        "did not pin it down (fit on both logs, or plan a flight with plan --objective effects)"
     ]
 
 
