@@ -38,6 +38,9 @@ METRICS = (
 )
 #: Metrics in rad/s^2 (the others are dimensionless or nats).
 ACCEL_METRICS = {"rmse", "mae", "mean_std"}
+#: Metrics of a predictive band: shown for the models only (the nominal and nominal +
+#: effects predictions have none; their JSON entries use the GP's prior std).
+BAND_METRICS = {"mean_std", "coverage_2sigma", "nlpd"}
 
 
 def overview_table(evals: Sequence[Evaluation]) -> list[Block]:
@@ -97,8 +100,11 @@ def _metrics_table(tree: Mapping[str, Any]) -> Table:
     for key, title in METRICS:
         name = f"{title}, rad/s²" if key in ACCEL_METRICS else title
         row: list[Cell] = [name]
-        for _, m in cols:
-            row += [num(v) for v in axes_of(_get(m, key))]
+        for col, m in cols:
+            if key in BAND_METRICS and not col.startswith("model"):
+                row += ["–"] * 3  # no band of its own (the JSON holds the GP prior's)
+            else:
+                row += [num(v) for v in axes_of(_get(m, key))]
         rows.append(row)
     return Table(
         columns=["metric", *(a for _ in cols for a in AXES)],
