@@ -102,6 +102,10 @@ def test_clean_flights_claim_nothing(tmp_path, timing):
     tree = evaluate([model], [eval_log]).tree
     diag = tree["diagnosis"]
     assert diag["missing"] == [] and diag["fit_command"] is None
+    # nothing worth a test flight at the log rate; at 1 kHz the commands lead the held
+    # model by a sub-period (real timing, 1.3x the noise, not claimed): only a delay
+    # may be suggested for a test
+    assert diag["below_noise"] in ((None,) if not timing else (None, "command_delay"))
     assert not any(e["missing"] for e in diag["learned"])
     assert not [f for f in tree["flags"] if f["code"] == "worse_than_physics"]
 

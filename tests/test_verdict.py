@@ -156,28 +156,48 @@ def test_flags_and_excluded_spans_when_present():
 
 
 def test_an_effect_below_the_noise_floor_is_named_not_claimed():
-    """Everything of a missing effect but the noise floor: the verdict says which effect,
-    how much it would explain, why it is not claimed and how to test it."""
+    """Everything of a missing effect but the noise floor (the diagnosis' ``below_noise``):
+    the verdict says which effect, how much it would explain, why it is not claimed and
+    the fit that tests it."""
     tree = copy.deepcopy(AFTER)
     tree["diagnosis"]["method"]["min_contribution_rms"] = 0.087
+    tree["diagnosis"]["below_noise"] = "rotational_drag"
+    tree["diagnosis"]["test_command"] = "omavctl fit f.bag --effects rotational_drag"
     entry = tree["diagnosis"]["missing_effects"][0]
-    entry.update(
-        explained_variance=0.269, t_value=34.9, significant=True, plausible=True,
-        above_noise=False, contribution_rms=0.042, refit_explained_variance=0.2, missing=False,
-    )  # fmt: skip
+    entry.update(explained_variance=0.269, contribution_rms=0.042, above_noise=False)
     line = verdict(tree)[0]
-    assert line.key == "missing" and line.command is None
+    assert line.key == "missing" and line.command == "omavctl fit f.bag --effects rotational_drag"
     assert line.text == (
         "Nothing claimed as missing: rotational_drag would explain 27 % of the model's "
         "remaining error on held-out data, but its part, 0.042 rad/s² RMS, is above the "
         "log's noise (0.029) and below the 0.087 a claim needs (three times it). To test "
         "it, fit with it and compare both models on a flight neither saw."
     )
-    entry["contribution_rms"] = 0.023  # within the noise: not worth chasing
-    assert verdict(tree)[0].text.startswith("Nothing missing: no registered effect explains")
-    entry["contribution_rms"] = 0.042
-    entry["plausible"] = False  # fails another test too: plainly nothing missing
-    assert verdict(tree)[0].text.startswith("Nothing missing: no registered effect explains")
+    tree["diagnosis"]["below_noise"] = None  # older files, or nothing near: as before
+    line = verdict(tree)[0]
+    assert line.text.startswith("Nothing missing: no registered effect explains")
+    assert line.command is None
+
+
+def test_the_diagnosis_holds_back_an_effect_only_by_the_noise_floor_when_above_the_noise():
+    from omavctl.diagnose.diagnosis import _below_noise
+    from omavctl.diagnose.scoring import EffectScore
+
+    def score(name, rms, **kw):
+        base = dict(
+            name=name, explained_variance=0.27, explained_per_axis={}, parameters={},
+            units={}, t_value=34.9, significant=True, plausible=True,
+            contribution=np.zeros((1, 3)), contribution_rms=rms, above_noise=False,
+        )  # fmt: skip
+        return EffectScore(**{**base, **kw})
+
+    noise = 0.029
+    assert _below_noise([score("a", 0.042)], noise) == "a"
+    assert _below_noise([score("a", 0.023), score("b", 0.04)], noise) == "b"  # within noise
+    assert _below_noise([score("a", 0.042, plausible=False)], noise) is None
+    assert _below_noise([score("a", 0.042, refit_explained_variance=-0.1)], noise) is None
+    assert _below_noise([score("a", 0.042, explained_variance=0.1)], noise) is None
+    assert _below_noise([score("a", 0.2, above_noise=True)], noise) is None  # claimed instead
 
 
 def test_report_verdict_names_the_files():

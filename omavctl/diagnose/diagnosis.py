@@ -19,7 +19,13 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.metrics import AXES
-from omavctl.diagnose.scoring import MIN_EXPLAINED, MIN_NOISE_RATIO, MIN_T, score_effects
+from omavctl.diagnose.scoring import (
+    MIN_EXPLAINED,
+    MIN_NOISE_RATIO,
+    MIN_T,
+    EffectScore,
+    score_effects,
+)
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -183,10 +189,29 @@ def diagnose(
         },
         "missing_effects": [s.to_json() for s in missing],
         "missing": [a["name"] for a in accepted],
+        "below_noise": None if accepted else _below_noise(missing, noise),
         "missing_steps": accepted,
         "unexplained": unexplained,
         "learned": [s.to_json() for s in learned],
     }
+
+
+def _below_noise(scores: Sequence[EffectScore], noise: float) -> str | None:
+    """The best effect that passes every test of a missing one but the noise floor, with
+    a part of the error above the log's noise itself (worth a test flight: claimed, it
+    would break the rule that clean logs claim nothing), else None."""
+    for s in scores:
+        refit_ok = s.refit_explained_variance is None or s.refit_explained_variance > 0
+        if (
+            s.significant
+            and s.plausible
+            and not s.above_noise
+            and s.explained_variance >= MIN_EXPLAINED
+            and refit_ok
+            and s.contribution_rms >= noise
+        ):
+            return s.name
+    return None
 
 
 def _where(given: str, absolute: str | None) -> str:

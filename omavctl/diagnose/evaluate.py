@@ -326,6 +326,9 @@ def _diagnosis(
         diagnosis["fit_command"] = fit_command(model_path, model, top)
     else:
         diagnosis["fit_command"] = None
+    near = diagnosis.get("below_noise")
+    # the fit that tests an effect held back only by the noise floor
+    diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     return diagnosis
 
 

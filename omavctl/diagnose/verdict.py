@@ -99,11 +99,12 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" {_pct(threshold)} or more" if threshold is not None else " a material share"
         text += " of the model's remaining error on held-out data."
         near = _below_noise(diag)
+        test = diag.get("test_command") if near else None
         if near:
             text = f"Nothing claimed as missing: {near}"
         if diag.get("unexplained"):
             text += " Some structure remains that no registered effect explains (see Diagnosis)."
-        return Line("missing", text)
+        return Line("missing", text, command=test if isinstance(test, str) and test else None)
     top = entries.get(missing[0], {})
     ev = _num(top.get("explained_variance"))
     per_axis = top.get("explained_variance_per_axis") or {}
@@ -128,33 +129,23 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
 
 
 def _below_noise(diag: Mapping[str, Any]) -> str:
-    """The sentence for the best effect that passes every test of a missing effect but
-    the noise floor: its part of the error is above the log's noise, but below the
-    three times it a claim needs; else ''."""
+    """The sentence for the effect the diagnosis holds back only by its noise floor
+    (``below_noise``: its part of the error is above the log's noise, but below the
+    three times it a claim needs), else ''."""
+    name = diag.get("below_noise")
+    entries = diag.get("missing_effects", []) or []
+    entry: Mapping[str, Any] = next((e for e in entries if e.get("name") == name), {})
     floor = _num(get_path(diag, "method", "min_contribution_rms"))
-    noise = _num(get_path(diag, "method", "measurement_noise_std")) or 0.0
-    threshold = _num(get_path(diag, "method", "min_explained_variance")) or 0.0
-    for e in diag.get("missing_effects", []) or []:
-        ev, rms = _num(e.get("explained_variance")), _num(e.get("contribution_rms"))
-        refit = _num(e.get("refit_explained_variance"))
-        if (
-            e.get("significant") is True
-            and e.get("plausible") is True
-            and e.get("above_noise") is False
-            and ev is not None
-            and ev >= threshold
-            and (refit is None or refit > 0)
-            and rms is not None
-            and floor is not None
-            and rms >= noise
-        ):
-            return (
-                f"{e.get('name')} would explain {_pct(ev)} of the model's remaining error on "
-                f"held-out data, but its part, {rms:.2g} rad/s² RMS, is above the log's noise "
-                f"({noise:.2g}) and below the {floor:.2g} a claim needs (three times it). To "
-                "test it, fit with it and compare both models on a flight neither saw."
-            )
-    return ""
+    noise = _num(get_path(diag, "method", "measurement_noise_std"))
+    ev, rms = _num(entry.get("explained_variance")), _num(entry.get("contribution_rms"))
+    if not name or floor is None or noise is None or ev is None or rms is None:
+        return ""
+    return (
+        f"{name} would explain {_pct(ev)} of the model's remaining error on held-out "
+        f"data, but its part, {rms:.2g} rad/s² RMS, is above the log's noise ({noise:.2g}) "
+        f"and below the {floor:.2g} a claim needs (three times it). To test it, fit with it "
+        "and compare both models on a flight neither saw."
+    )
 
 
 def _look_alikes(name: str) -> str:
