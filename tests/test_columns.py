@@ -682,6 +682,23 @@ def test_missing_and_non_numeric_columns_name_column_and_file(tmp_path: Path) ->
             read_vehicle_log(csv_path, vehicle)
         assert str(err.value) == f"{csv_path}: {message}"
 
+    # a time column named otherwise: the file's time columns, a plain one first; a
+    # quaternion component named by its key in the vehicle file
+    for columns, message in (
+        (
+            {**SMALL_MAP, "time": {"column": "stamp_ns", "scale": 1e-9}},
+            "missing column 'stamp_ns' (mapped to time); similar columns in the file: 'TIME_us'",
+        ),
+        (
+            {**SMALL_MAP, "attitude": {"quaternion": {"w": "R", "x": "P", "y": "Y", "z": "QZ"}}},
+            "missing column 'QZ' (mapped to attitude.quaternion.z)",
+        ),
+    ):
+        vehicle = load_vehicle(write_vehicle(tmp_path / "v.yaml", {"columns": columns}))
+        with pytest.raises(LogError) as err:
+            read_vehicle_log(csv_path, vehicle)
+        assert str(err.value) == f"{csv_path}: {message}"
+
     bad = _small_csv(tmp_path / "bad.csv", bad_cell="fast")
     with pytest.raises(LogError) as err:
         read_vehicle_log(bad, good)

@@ -168,8 +168,9 @@ def _expand_role(role: str, entry: Any) -> dict[str, tuple[Any, str]]:
         missing = [a for a in _QUAT_AXES if a not in quat]
         if missing:
             raise ConfigError(f"key '{qname}' is missing component {', '.join(missing)}")
+        label = qname.removeprefix("columns.")  # attitude.quaternion (or attitude for w..z)
         return {
-            key: (_axis_entry(quat[a], f"{qname}.{a}", scale, offset), f"{role}.{a}")
+            key: (_axis_entry(quat[a], f"{qname}.{a}", scale, offset), f"{label}.{a}")
             for key, a in zip(quaternion_columns(role), _QUAT_AXES, strict=True)
         }
     unknown = sorted(set(given) - set(axes))
@@ -287,9 +288,19 @@ def parse_column_map(columns: Mapping[str, Any]) -> dict[str, ColumnSpec]:
 
 def _missing_column(column: str, label: str, header: list[str], path: Path) -> LogError:
     close = set(difflib.get_close_matches(column, header, n=3, cutoff=0.75))
-    shown = ", ".join(f"'{h}'" for h in header if h in close)
-    hint = f"; similar columns in the file: {shown}" if close else ""
+    shown = [h for h in header if h in close]
+    if label == TIME_ROLE and not shown:  # time columns are named alike, not spelled alike
+        shown = sorted((h for h in header if "time" in h.lower() or "stamp" in h.lower()),
+                       key=lambda h: (_time_rank(h), header.index(h)))[:3]  # fmt: skip
+    names = ", ".join(f"'{h}'" for h in shown)
+    hint = f"; similar columns in the file: {names}" if shown else ""
     return LogError(f"missing column '{column}' (mapped to {label}){hint}", path)
+
+
+def _time_rank(name: str) -> int:
+    """0 for a plain time column (t, time, timestamp), 1 for one starting with time, 2 else."""
+    low = name.lower()
+    return 0 if low in ("t", "time", "timestamp") else 1 if low.startswith("time") else 2
 
 
 def read_mapped_csv(path: Path, columns: Mapping[str, Any]) -> CsvRead:
