@@ -254,6 +254,28 @@ def _px4_conventions(guess: Any) -> None:
         )
 
 
+#: Columns listed in full up to this many; beyond, only those of the suggested map.
+MAX_LISTED_COLUMNS = 40
+
+
+def _shown_columns(ins: Inspection) -> list[str]:
+    """The columns whose ranges ``inspect`` prints: all of them, or, for a log of more
+    than :data:`MAX_LISTED_COLUMNS` with a suggested map, the ones the map names."""
+    if len(ins.column_ranges) <= MAX_LISTED_COLUMNS or not ins.suggested_columns:
+        return list(ins.column_ranges)
+    named: set[str] = set()
+
+    def walk(value: Any) -> None:
+        if isinstance(value, dict):
+            for k, v in value.items():
+                if k == "column" or (isinstance(v, str) and k not in ("scale", "offset")):
+                    named.add(str(v))
+                walk(v)
+
+    walk(ins.suggested_columns)
+    return [name for name in ins.column_ranges if name in named]
+
+
 def render_inspect(ins: Inspection, console: Console) -> None:
     """Print an :class:`Inspection` to a rich console: topic table, roles, notes."""
     from rich.markup import escape
@@ -282,13 +304,21 @@ def render_inspect(ins: Inspection, console: Console) -> None:
     if ins.topics or ins.format != "csv":
         console.print(table)
     if ins.column_ranges:
-        ranges = Table(title="Columns")
+        shown = _shown_columns(ins)
+        ranges = Table(title="Columns" if len(shown) == len(ins.column_ranges) else
+                       "Columns of the suggested map")  # fmt: skip
         ranges.add_column("column", overflow="fold")
         ranges.add_column("min", justify="right")
         ranges.add_column("max", justify="right")
-        for name, (lo, hi) in ins.column_ranges.items():
+        for name in shown:
+            lo, hi = ins.column_ranges[name]
             ranges.add_row(name, f"{lo:.6g}", f"{hi:.6g}")
         console.print(ranges)
+        if len(shown) < len(ins.column_ranges):
+            console.print(
+                f"and {len(ins.column_ranges) - len(shown)} more columns: "
+                "inspect --json lists every one (column_ranges)"
+            )
     if ins.roles_found:
         found = ", ".join(ins.roles_found)
         console.print(f"[green]roles found[/green]: {found}")
