@@ -322,9 +322,14 @@ def render_inspect(ins: Inspection, console: Console) -> None:
     if ins.roles_found:
         found = ", ".join(ins.roles_found)
         console.print(f"[green]roles found[/green]: {found}")
-    if ins.roles_missing:
-        missing = escape(", ".join(f"{r} ({w})" for r, w in ins.roles_missing.items()))
+    # what fit and evaluate need is said below in red; the other roles are optional
+    needed = [r for r in ins.roles_missing if r in ins.required_missing]
+    if needed:
+        missing = escape(", ".join(f"{r} ({ins.roles_missing[r]})" for r in needed))
         console.print(f"[yellow]roles missing[/yellow]: {missing}", soft_wrap=True)
+    optional = [r for r in ins.roles_missing if r not in ins.required_missing]
+    if optional:
+        console.print(f"optional roles not in the log: {', '.join(optional)}", soft_wrap=True)
     if ins.required_missing:
         console.print("[red]fit and evaluate need[/red]: " + ", ".join(ins.required_missing))
     for note in ins.notes:
