@@ -326,3 +326,5 @@ def test_three_files_show_every_step_not_only_first_to_last():
         (w, t[: len("Axis z got worse (+11.1 %): ")]) for w, t in changes
     ]
     assert not any(w == "e1.json → e3.json" and t.startswith("Axis z") for w, t in changes)
+    # each file but the last says first what it lacked (why the next one was fitted)
+    assert [ln.who for ln in lines if ln.key == "missing"] == ["e1.json", "e2.json", "e3.json"]

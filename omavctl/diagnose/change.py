@@ -145,24 +145,32 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
 
 
 def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
-    """The verdict of a report: one file's own; with several, what the first lacked,
-    the before/after change per axis (each step when there are three or more, then
-    first to last) and the last file's verdict."""
+    """The verdict of a report: one file's own; with several, what each but the last
+    lacked, the before/after change per axis (each step when there are three or more,
+    then first to last) and the last file's verdict."""
     if not evals:
         return []
     if len(evals) == 1:
         tree = evals[0][0]
         return verdict(tree)[:1] + change_lines(scores_of_models(tree)) + verdict(tree)[1:]
-    (first, label0), (last, label1) = evals[0], evals[-1]
-    head = verdict(first)[0]
-    lines = [Line(head.key, head.text, label0, head.command)]
+    last, label1 = evals[-1]
     scores = scores_of_files(evals)
-    # a step that made an axis worse must not hide behind an overall gain
-    pairs = [(i, i + 1) for i in range(len(evals) - 1)] if len(evals) > 2 else []
-    for i, j in [*pairs, (0, len(evals) - 1)]:
-        lines += [
+    lines: list[Line] = []
+
+    def step(i: int, j: int) -> list[Line]:
+        return [
             Line(ln.key, ln.text, f"{evals[i][1]} → {evals[j][1]}")
             for ln in change_lines([scores[i], scores[j]], name_after=False)
         ]
+
+    # each file's first sentence (what it lacked: why the next one was fitted), and
+    # with three or more each step's change: a step that made an axis worse must not
+    # hide behind an overall gain; then first to last and the last file's verdict
+    for i, (tree, label) in enumerate(evals[:-1]):
+        head = verdict(tree)[0]
+        lines.append(Line(head.key, head.text, label, head.command))
+        if len(evals) > 2:
+            lines += step(i, i + 1)
+    lines += step(0, len(evals) - 1)
     lines += [Line(ln.key, ln.text, label1, ln.command) for ln in verdict(last)]
     return lines
