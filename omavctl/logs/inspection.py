@@ -24,6 +24,7 @@ from omavctl.logs.types import ROLE_COLUMNS, ROLE_TOPIC, RawLog, TopicInfo
 if TYPE_CHECKING:
     from rich.console import Console
 
+    from omavctl.logs.suggest import Suggestion
     from omavctl.logs.ulog import UlogTopics
 
 __all__ = ["Inspection", "inspect_log", "render_inspect"]
@@ -218,8 +219,8 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
     guess.t0, guess.duration = stamps[0] * 1e-6, (stamps[-1] - stamps[0]) * 1e-6
     t0 = float(stamps[0])
     topics = [
-        topic_info(name, f"{len(fields)} fields", (stamps - t0) * 1e-6)
-        for name, (stamps, fields) in u.topics.items()
+        topic_info(name, f"{len(fields)} fields", (st - t0) * 1e-6)
+        for name, (st, fields) in u.topics.items()
     ]
     notes = [
         *u.notes,
@@ -241,7 +242,7 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
     )
 
 
-def _px4_conventions(guess: Any) -> None:
+def _px4_conventions(guess: Suggestion) -> None:
     """What PX4 fixes whatever the data say: body vectors in FRD, and
     ``actuator_controls_0.control[3]`` a thrust 0..1 along -z (scale -1)."""
     if guess.frame is None:
