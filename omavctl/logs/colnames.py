@@ -291,7 +291,12 @@ def candidates(
         return [bool(np.nanmin(scan.values[c]) == np.nanmax(scan.values[c])) for c in cols]
 
     def add(
-        role: str, members: dict[str, str], rank: int, stem: list[str], quat: bool, known=False
+        role: str,
+        members: dict[str, str],
+        rank: int,
+        stem: list[str],
+        quat: bool,
+        known: bool = False,
     ) -> None:
         flags = constant(list(members.values()))
         if all(flags) and not known:

@@ -268,9 +268,9 @@ def _shown_columns(ins: Inspection) -> list[str]:
 
     def walk(value: Any) -> None:
         if isinstance(value, dict):
-            for k, v in value.items():
-                if k == "column" or (isinstance(v, str) and k not in ("scale", "offset")):
-                    named.add(str(v))
+            for v in value.values():
+                if isinstance(v, str):  # a column name (scales and offsets are numbers)
+                    named.add(v)
                 walk(v)
 
     walk(ins.suggested_columns)
