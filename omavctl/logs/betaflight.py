@@ -178,14 +178,14 @@ def _first_problem(rows: list[str], width: int, numeric: list[int], names: list[
 
 
 def _numeric_columns(rows: list[str], width: int) -> list[int]:
-    """Columns whose cells in the first 2000 rows are numbers or empty."""
+    """Columns whose first value (in the first 2000 rows) is a number: text columns
+    (flag names) are skipped, a later text cell in a numeric column is an error."""
     sample = [_cells(r) for r in rows[:2000] if r.strip()]
     keep = []
     for j in range(width):
+        first = next((c[j] for c in sample if j < len(c) and c[j] not in ("", "NaN", "nan")), "0")
         try:
-            for cells in sample:
-                if j < len(cells) and cells[j] not in ("", "NaN", "nan"):
-                    float(cells[j])
+            float(first)
         except ValueError:
             continue
         keep.append(j)

@@ -78,7 +78,7 @@ class CfUsdLog:
 
 def looks_like_cfusdlog(head: bytes) -> bool:
     """Whether the first bytes are a cfusdlog header (magic, version 1 or 2)."""
-    return len(head) >= 5 and head[0] == MAGIC and int.from_bytes(head[1:3], "little") in (1, 2)
+    return len(head) >= 3 and head[0] == MAGIC and int.from_bytes(head[1:3], "little") in (1, 2)
 
 
 class _Header:
@@ -176,7 +176,7 @@ def read_cfusdlog(path: Path) -> CfUsdLog:
     except OSError as err:
         raise LogError(f"cannot read: {err.strerror or err}", path) from None
     bad = "not a readable Crazyflie SD-card log"
-    if not looks_like_cfusdlog(data[:5]):
+    if not looks_like_cfusdlog(data[:3]):
         raise LogError(f"{bad}: it does not start with the cfusdlog header (0xBC, version 1 "
                        "or 2)", path)  # fmt: skip
     if len(data) < 9:
