@@ -169,15 +169,16 @@ def _idle_notes(raw: RawLog) -> list[str]:
 def _is_foreign_csv(path: Path) -> bool:
     """Whether a CSV is not a wide contract CSV: no ``t`` or no contract column."""
     import csv
+    import io
 
     from omavctl.logs.csvlog import csv_columns
     from omavctl.logs.textio import read_head
 
     try:
-        first = read_head(path).decode("utf-8-sig", errors="replace").split("\n", 1)[0]
-    except (LogError, UnicodeDecodeError):
+        head = read_head(path).decode("utf-8-sig", errors="replace")
+        header = {h.strip() for h in next(csv.reader(io.StringIO(head, newline="")), [])}
+    except (LogError, csv.Error):
         return False  # the wide-CSV reader reports it
-    header = {h.strip() for h in next(csv.reader([first]), [])}
     contract = {c for role in ROLE_COLUMNS for c in csv_columns(role)}
     return "t" not in header or not header & contract
 
