@@ -343,3 +343,52 @@ def test_unknown_file_without_suffix(tmp_path: Path) -> None:
     path = tmp_path / "notes"
     path.write_text("hello\n")
     assert_log_error(path, "unknown log format \\(no suffix\\)", detect_format)
+
+
+def test_inspect_with_a_column_map_reads_the_roles(tmp_path: Path) -> None:
+    from omavctl.logs import inspect_log
+
+    path = tmp_path / "cf"
+    write_cfusdlog(
+        path, 2, {0xFFFF: EVENTS[0xFFFF]}, [(0xFFFF, 1000 * k, (1.0, 9)) for k in range(5)]
+    )
+    rate = {"x": "gyro.x", "y": "gyro.x", "z": "gyro.x"}
+    ins = inspect_log(
+        path, columns={"time": {"column": "timestamp", "scale": 1e-3}, "body_rate": rate}
+    )
+    assert ins.format == "cfusdlog"
+    assert ins.roles_found == {"body_rate": "columns gyro.x, gyro.x, gyro.x"}
+    assert ins.duration == pytest.approx(4e-3)
+    assert ins.column_ranges["body_rate_x"] == (1.0, 1.0)
+
+
+def test_betaflight_without_field_names_or_time(tmp_path: Path) -> None:
+    path = tmp_path / "x.csv"
+    path.write_text('"Product","Blackbox flight data recorder by Nicholas Sherlock"\n"a","b"\n')
+    assert detect_format(path) == "betaflight"  # the header says so
+    assert_log_error(path, "no row of field names with 'time' and 'loopIteration'",
+                     betaflight_table)  # fmt: skip
+    path.write_text("loopIteration,time,gyroADC[0]\n1,,3\n2,,4\n")
+    assert_log_error(path, "^.*: column 'time' holds no numbers$", betaflight_table)
+    path.write_text("loopIteration,time,gyroADC[0]\n")
+    assert_log_error(path, "no data rows below the field names", betaflight_table)
+    assert_log_error(path, "a Betaflight blackbox CSV is read through a column map", read_raw)
+
+
+def test_inventory_units_of_other_logs(tmp_path: Path) -> None:
+    from omavctl.logs.ulog import ulog_unit
+
+    assert ulog_unit("actuator_outputs_1.output[3]") == ulog_unit("actuator_outputs.output[0]")
+    assert ulog_unit("battery_status_2.voltage_v") == "V"
+    assert ulog_unit("vehicle_gps_position.lat") == "as logged"
+    csv = tmp_path / "other.csv"
+    csv.write_text("time_us,GyroX,mode\n0,0.5,a\n10000,0.25,b\n20000,0.0,c\n")
+    inv = column_inventory(csv)
+    assert inv.format == "csv" and (inv.time_column, inv.time_scale) == ("time_us", 1e-6)
+    gyro = inv.find("GyroX")
+    assert (gyro.count, gyro.unit, gyro.lo, gyro.hi) == (3, "as logged", 0.0, 0.5)
+    assert gyro.rate == pytest.approx(100.0)
+    assert inv.notes == ["non-numeric columns skipped: mode"]
+    bag = tmp_path / "log.mcap"
+    write_log(bag, make_raw(duration=0.5))
+    assert_log_error(bag, "holds contract topics, not mapped columns", column_inventory)

@@ -192,11 +192,26 @@ def _numeric_columns(rows: list[str], width: int) -> list[int]:
     return keep
 
 
+def _fill_empty(body: str) -> str:
+    """Rows with every empty cell written ``nan`` (and no blank after a comma, as
+    ``blackbox_decode`` writes), so that numpy's C parser reads them."""
+    while ", " in body:
+        body = body.replace(", ", ",")
+    for _ in range(2):  # a run of commas: every other gap is filled by each pass
+        body = body.replace(",,", ",nan,")
+    body = body.replace(",\n", ",nan\n").replace("\n,", "\nnan,")
+    if body.endswith(","):
+        body += "nan"
+    return "nan" + body if body.startswith(",") else body
+
+
 def _parse_rows(rows: list[str], names: list[str], path: Path, first: int) -> dict[str, np.ndarray]:
     """The numeric columns of the data rows (file lines from ``first + 1``), NaN where empty."""
+    if not any(r.strip() for r in rows):
+        raise LogError("no data rows below the field names", path)
     width = len(names)
     numeric = _numeric_columns(rows, width)
-    body = re.sub(r"(?<=,)(?=,|$)|^(?=,)", "nan", "\n".join(rows), flags=re.M)
+    body = _fill_empty("\n".join(rows))
     try:
         data = np.loadtxt(io.StringIO(body), delimiter=",", usecols=numeric, ndmin=2,
                           comments=None, quotechar='"')  # fmt: skip
@@ -204,8 +219,6 @@ def _parse_rows(rows: list[str], names: list[str], path: Path, first: int) -> di
         problem = _first_problem(rows, width, numeric, names)
         problem = re.sub(r"line (\d+)", lambda m: f"line {int(m[1]) + first}", problem)
         raise LogError(problem, path) from None
-    if data.shape[0] == 0:
-        raise LogError("no data rows below the field names", path)
     return {names[j]: data[:, k] for k, j in enumerate(numeric)}
 
 

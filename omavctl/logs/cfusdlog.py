@@ -202,7 +202,10 @@ def read_cfusdlog(path: Path) -> CfUsdLog:
         if at.size == 0:
             continue
         record = np.dtype([("id", "<u2"), ("t", stamp), ("v", dtype)])
-        rows = body[at[:, None] + np.arange(record.itemsize)].copy().view(record)[:, 0]
+        if at.size * record.itemsize == body.size:  # one event type: the body is its records
+            rows = body.view(record)
+        else:  # gather each record's bytes, then read them as the record type
+            rows = body[at[:, None] + np.arange(record.itemsize)].copy().view(record)[:, 0]
         t_ms = rows["t"].astype(float) / (1.0 if version == 1 else 1000.0)
         columns = {var: rows["v"][var].copy() for var in dtype.names or ()}
         out.append(CfEvent(name=name, timestamp=t_ms, columns=columns))
