@@ -207,7 +207,7 @@ DECODE_CSV = (
 )
 EXPLORER_CSV = (
     '"Product","Blackbox flight data recorder by Nicholas Sherlock"\n'
-    '"Firmware revision","Betaflight 4.2.0 (abc) STM32F405"\n'
+    '"firmwareType",3\n"firmwareVersion","4.2.0"\n'
     '"looptime",125\n"motorOutput","48,2047"\n"vbatscale",110\n"gyro_scale","0x3f800000"\n'
     '"loopIteration","time","gyroADC[0]","gyroADC[1]","gyroADC[2]","vbatLatest","motor[0]"\n'
     "10,2000000,57.29577951308232,0,-57.29577951308232,1650,48\n"
@@ -249,7 +249,7 @@ def test_betaflight_explorer_csv_gzip(tmp_path: Path) -> None:
     np.testing.assert_allclose(g.columns["gyroADC[2]"], [-1.0, 0.0])
     np.testing.assert_allclose(g.columns["vbatLatest"], [16.5, 16.4])  # 0.01 V from 4.x on
     np.testing.assert_array_equal(g.columns["motor[0]"], [48, np.nan])
-    assert t.meta["firmware"].startswith("Betaflight 4.2.0")
+    assert t.meta["header"]["firmwareVersion"] == "4.2.0"
     assert t.meta["motor_output"] == [48, 2047] and t.meta["gyro_scale"] == 1.0
     raw = read_raw(path, columns={"time": "time", "body_rate": {
         "x": "gyroADC[0]", "y": "gyroADC[1]", "z": "gyroADC[2]"}})  # fmt: skip

@@ -129,7 +129,11 @@ def _gyro_scale(meta: dict[str, str]) -> float:
 def _vbat_unit(meta: dict[str, str], unit: str | None) -> tuple[float | None, str]:
     if unit == "V":
         return 1.0, "V"
+    # the raw header's "Firmware revision: Betaflight 3.1.5 (...)", or Blackbox
+    # Explorer's parsed "firmwareVersion: 4.2.0" when its firmwareType is Betaflight (3)
     m = re.search(r"Betaflight (\d+)\.", meta.get("Firmware revision", ""))
+    if m is None and meta.get("firmwareType", "").lower() in ("3", "betaflight"):
+        m = re.match(r"(\d+)\.", meta.get("firmwareVersion", ""))
     if m:
         return (0.1, "V (from 0.1 V)") if int(m[1]) < 4 else (0.01, "V (from 0.01 V)")
     return None, "raw (vbatref is in the same unit)"
@@ -223,12 +227,12 @@ def _parse_rows(rows: list[str], names: list[str], path: Path, first: int) -> di
 
 
 def _convert(name: str, unit: str | None, values: np.ndarray, meta: dict[str, Any],
-             header: dict[str, str]) -> tuple[np.ndarray, str]:  # fmt: skip
+             header: dict[str, str], path: Path) -> tuple[np.ndarray, str]:  # fmt: skip
     """A column in the units the reader gives (see the module docs) and its unit."""
     if name == "time":
         scale = {"us": 1e-6, "ms": 1e-3, "s": 1.0}.get(unit or "us")
         if scale is None:
-            raise LogError(f"column 'time ({unit})': unknown time unit", meta["_path"])
+            raise LogError(f"column 'time ({unit})': unknown time unit", path)
         return values * scale, f"s (from {unit or 'us'})"
     if _GYRO.match(name):
         if unit in (None, "raw"):
@@ -261,7 +265,6 @@ def betaflight_table(path: Path) -> ColumnTable:
     at = _find_fields(lines, path)
     header = parse_header(_sidecar(path) + lines[:at])
     meta = _meta(header)
-    meta["_path"] = path
     split = [_split_unit(c) for c in _cells(lines[at])]
     names = [n for n, _ in split]
     if len(set(names)) != len(names):
@@ -278,8 +281,7 @@ def betaflight_table(path: Path) -> ColumnTable:
     columns: dict[str, np.ndarray] = {}
     unit_of: dict[str, str] = {}
     for name, values in parsed.items():
-        columns[name], unit_of[name] = _convert(name, units[name], values, meta, header)
-    del meta["_path"]
+        columns[name], unit_of[name] = _convert(name, units[name], values, meta, header, path)
     if "time" not in columns:
         raise LogError("column 'time' holds no numbers", path)
     time = columns.pop("time")
