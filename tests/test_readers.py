@@ -333,6 +333,7 @@ def test_inspect_json_lists_units_and_rates_of_real_logs() -> None:
     assert got["column_units"]["motor.m4"] == "PWM 0-65535"
     assert got["column_rates"]["gyro.z"] == pytest.approx(1011, abs=15)
     assert got["suggested_columns"]["time"] == {"column": "timestamp", "scale": 0.001}
+    assert got["header_values"] == {"version": 2, "events": ["fixedFrequency"]}
     ulog = column_inventory(REAL / "pyulog_bench/sample.ulg")
     out0 = ulog.find("actuator_outputs.output[0]")
     assert (out0.lo, out0.hi) == (900.0, 900.0)  # disarmed: motors off throughout

@@ -69,6 +69,9 @@ class Inspection:
     #: (:func:`~.inventory.column_inventory`)
     column_units: dict[str, str] = field(default_factory=dict)
     column_rates: dict[str, float] = field(default_factory=dict)
+    #: what the log's own header says, parsed (Betaflight: looptime_us, motor_output,
+    #: vbatscale, vbatref, ...; Crazyflie: format version and event names)
+    header_values: dict[str, Any] = field(default_factory=dict)
 
     @property
     def required_missing(self) -> list[str]:
@@ -306,6 +309,7 @@ def _inspect_table(path: Path) -> Inspection:
         suggestion=suggestion_yaml(guess, path.name),
         column_units=inv.units(),
         column_rates={c.name: c.rate for c in inv.columns},
+        header_values={k: v for k, v in inv.meta.items() if k != "header"},
     )
 
 
@@ -415,6 +419,10 @@ def render_inspect(ins: Inspection, console: Console) -> None:
         console.print(f"optional roles not in the log: {', '.join(optional)}", soft_wrap=True)
     if ins.required_missing:
         console.print("[red]fit and evaluate need[/red]: " + ", ".join(ins.required_missing))
+    shown_header = {k: v for k, v in ins.header_values.items() if v is not None}
+    if shown_header:
+        text = ", ".join(f"{k} {v}" for k, v in shown_header.items())
+        console.print(f"log header: {text}", markup=False, highlight=False, soft_wrap=True)
     for note in ins.notes:
         console.print(f"note: {note}", markup=False, highlight=False)
     if ins.suggestion:

@@ -192,5 +192,6 @@ def inspect_json(ins: Any) -> dict[str, Any]:
         "suggested_columns": ins.suggested_columns,
         "column_units": dict(ins.column_units),
         "column_rates": dict(ins.column_rates),
+        "header_values": dict(ins.header_values),
         "notes": list(ins.notes),
     }
