@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from omavctl.base.errors import LogError
 from omavctl.logs import read_raw, write_log
 from omavctl.logs.betaflight import betaflight_table
 from omavctl.logs.cfusdlog import cfusdlog_table, read_cfusdlog
@@ -393,3 +394,24 @@ def test_inventory_units_of_other_logs(tmp_path: Path) -> None:
     bag = tmp_path / "log.mcap"
     write_log(bag, make_raw(duration=0.5))
     assert_log_error(bag, "holds contract topics, not mapped columns", column_inventory)
+
+
+def test_gzip_csv_errors_are_those_of_the_plain_csv(tmp_path: Path) -> None:
+    plain = tmp_path / "log.csv"
+    write_log(plain, make_raw(duration=1.0))
+    lines = plain.read_text().splitlines()
+    cells = lines[5].split(",")
+    cells[2] = "fast"
+    lines[5] = ",".join(cells)
+    plain.write_text("\n".join(lines) + "\n")
+    packed = tmp_path / "log.csv.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    messages = []
+    for path in (plain, packed):
+        with pytest.raises(LogError) as info:
+            read_raw(path)
+        messages.append(info.value.message)
+    assert messages[0] == messages[1]
+    assert (
+        messages[0].startswith("non-numeric value 'fast' in column") and "(line 6)" in messages[0]
+    )
