@@ -415,3 +415,18 @@ def test_gzip_csv_errors_are_those_of_the_plain_csv(tmp_path: Path) -> None:
     assert (
         messages[0].startswith("non-numeric value 'fast' in column") and "(line 6)" in messages[0]
     )
+
+
+def test_inspect_suggests_a_map_for_a_gzip_csv_of_another_layout(tmp_path: Path) -> None:
+    from omavctl.logs import inspect_log
+
+    rows = ["timestamp,gyro.x,gyro.y,gyro.z,motor.m1"]
+    rows += [f"{1000 + k:.3f},{k * 10.0},0,-5,{30000 + k}" for k in range(50)]
+    path = tmp_path / "cf.csv.gz"
+    path.write_bytes(gzip.compress(("\r\n".join(rows) + "\r\n").encode()))
+    ins = inspect_log(path)
+    assert ins.format == "csv"
+    assert ins.suggested_columns is not None
+    assert ins.suggested_columns["time"] == {"column": "timestamp", "scale": 0.001}
+    assert ins.suggested_columns["body_rate"]["x"] == "gyro.x"
+    assert ins.column_ranges["motor.m1"] == (30000.0, 30049.0)
