@@ -102,8 +102,9 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         test = diag.get("test_command") if near else None
         if near:
             text = f"Nothing claimed as missing: {near}"
-        if diag.get("unexplained"):
-            text += " Some structure remains that no registered effect explains (see Diagnosis)."
+        structure = _structure(diag.get("unexplained"))
+        if structure:
+            text += f" Some structure remains that no registered effect explains: {structure}."
         return Line("missing", text, command=test if isinstance(test, str) and test else None)
     top = entries.get(missing[0], {})
     ev = _num(top.get("explained_variance"))
@@ -126,6 +127,25 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" A residual of its shape is also left by {alike}."
     cmd = diag.get("fit_command")
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
+
+
+def _structure(items: Any, most: int = 2) -> str:
+    """The first ``most`` items of the diagnosis' ``unexplained`` (strongest first) in
+    words, '' when there are none: the verdict says what it refers to, in the terminal
+    (which has no Diagnosis section) as in the report."""
+    said: list[str] = []
+    for it in [i for i in items or [] if isinstance(i, Mapping)][:most]:
+        axis = it.get("axis", "?")
+        if it.get("kind") == "feature correlation" and (r := _num(it.get("correlation"))):
+            said.append(f"the {axis} error correlates with {it.get('feature', '?')} (r = {r:.2f})")
+        elif it.get("kind") == "spectral peak" and (f := _num(it.get("frequency_hz"))):
+            share = _num(it.get("power_share"))
+            part = f", {_pct(share)} of its power" if share is not None else ""
+            said.append(f"the {axis} error has a spectral peak at {f:.2g} Hz{part}")
+    more = len([i for i in items or [] if isinstance(i, Mapping)]) - len(said)
+    if said and more > 0:
+        said.append(f"{more} more in the evaluation JSON (diagnosis.unexplained)")
+    return "; ".join(said)
 
 
 def _below_noise(diag: Mapping[str, Any]) -> str:
