@@ -6,6 +6,8 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+import numpy as np
+
 from omavctl.diagnose.verdict import verdict
 from omavctl.report.summary import render_evaluation
 
@@ -66,3 +68,109 @@ def test_the_terminal_verdict_shows_the_structure_it_refers_to():
     clean = copy.deepcopy(tree)
     clean["diagnosis"]["unexplained"] = []
     assert "structure" not in verdict(clean)[0].text
+
+
+def _absorbed() -> dict[str, Any]:
+    """Nothing missing, but the nominal residual is a CoM offset the GP has absorbed
+    (the issue's case: physics-only error 2.76 rad/s², the model's 0.045)."""
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing_effects"] = [
+        {"name": "com_offset", "explained_variance": 0.02, "contribution_rms": 0.004}
+    ]
+    diag["learned"] = [
+        {
+            "name": "com_offset",
+            "missing": True,
+            "explained_variance": 0.97,
+            "contribution_rms": 2.7,
+            "ambiguous_with": [],
+        },
+        {"name": "gyro_bias", "missing": False, "explained_variance": 0.01},
+    ]
+    diag["effect_commands"] = {"com_offset": "omavctl fit f.bag --effects com_offset --out m+c.npz"}
+    return tree
+
+
+def test_an_effect_the_gp_absorbed_comes_with_the_command_that_makes_it_physical():
+    tree = _absorbed()
+    learned = [ln for ln in verdict(tree) if ln.key == "learned"]
+    assert len(learned) == 1
+    assert learned[0].text.startswith(
+        "Learned by the GP, not modelled: com_offset (it explains 97 % of the nominal "
+        "model's residual, 2.7 rad/s² RMS; the model leaves 0.004 of it)."
+    )
+    assert learned[0].command == "omavctl fit f.bag --effects com_offset --out m+c.npz"
+    shown = _terminal(tree)
+    assert "add it with: omavctl fit f.bag --effects com_offset --out m+c.npz" in shown
+    # a look-alike of an effect the model already holds is not claimed as learned
+    alike = copy.deepcopy(tree)
+    alike["models"][0]["effects"] = {"rotor_interference": {}}
+    alike["diagnosis"]["learned"][0]["ambiguous_with"] = ["rotor_interference"]
+    assert not [ln for ln in verdict(alike) if ln.key == "learned"]
+    # and a named missing effect is the next step: no second command
+    named = copy.deepcopy(tree)
+    named["diagnosis"]["missing"] = ["com_offset"]
+    assert not [ln for ln in verdict(named) if ln.key == "learned"]
+
+
+def test_the_json_and_report_carry_the_learned_effects_command():
+    from omavctl.report.diagnosis import diagnosis_section
+    from omavctl.report.document import Code
+    from omavctl.report.summary import evaluation_json
+
+    tree = _absorbed()
+    out = evaluation_json(tree, {})
+    assert out["fit_command"] is None  # a script's "what is missing" stays as it was
+    assert out["effect_commands"] == tree["diagnosis"]["effect_commands"]
+    assert any(v["key"] == "learned" and v["command"] for v in out["verdict"])
+    codes = [b.text for b in diagnosis_section(tree, 0, "eval.json") if isinstance(b, Code)]
+    assert codes == ["omavctl fit f.bag --effects com_offset --out m+c.npz"]
+
+
+def test_an_effect_held_back_by_the_refit_test_says_its_number_and_the_test():
+    """ "inertia was rejected by a refit test whose −1.60 appears in no table": the
+    verdict says the number and the command, the report's ranking shows it."""
+    from omavctl.report.diagnosis import _ranking_table
+
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    entry = {
+        "name": "inertia_error",
+        "explained_variance": 0.41,
+        "refit_explained_variance": -1.60,
+        "significant": True,
+        "plausible": True,
+        "above_noise": True,
+        "missing": False,
+    }
+    diag["missing_effects"] = [entry]
+    diag["refit_rejected"] = "inertia_error"
+    diag["effect_commands"] = {"inertia_error": "omavctl fit f.bag --effects inertia_error"}
+    first = verdict(tree)[0]
+    assert first.text.startswith(
+        "Nothing claimed as missing: inertia_error would explain 41 % of the model's "
+        "remaining error on held-out data with parameters fitted to that error, but with the "
+        "parameters fit --effects would estimate from the model's training points it "
+        "explains -160 % (the error would grow): not claimed."
+    )
+    assert first.command == "omavctl fit f.bag --effects inertia_error"
+    table = _ranking_table([entry], False, "missing")
+    col = table.columns.index("explained as fit --effects would fit it")
+    assert table.rows[0][col] == "-160.0 %"
+
+
+def test_the_refit_test_picks_the_effect_only_it_held_back():
+    from omavctl.diagnose.diagnosis import _refit_rejected
+    from omavctl.diagnose.scoring import EffectScore
+
+    def score(name, ev, refit, significant=True):
+        return EffectScore(
+            name, ev, {}, {}, {}, 9.0 if significant else 1.0, significant, True,
+            np.zeros((1, 3)), 1.0, True, refit,
+        )  # fmt: skip
+
+    assert _refit_rejected([score("a", 0.5, 0.1), score("b", 0.4, -1.6)]) == "b"
+    assert _refit_rejected([score("a", 0.5, None), score("b", 0.4, -1.6, False)]) is None

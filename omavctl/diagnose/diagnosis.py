@@ -26,6 +26,7 @@ from omavctl.diagnose.scoring import (
     EffectScore,
     score_effects,
 )
+from omavctl.diagnose.verdict import learned_not_modelled
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -33,6 +34,7 @@ from omavctl.physics.effects import EFFECTS, get_effect
 __all__ = [
     "BLOCK_SECONDS",
     "diagnose",
+    "effect_commands",
     "fit_command",
     "measurement_noise",
     "unexplained_structure",
@@ -190,6 +192,7 @@ def diagnose(
         "missing_effects": [s.to_json() for s in missing],
         "missing": [a["name"] for a in accepted],
         "below_noise": None if accepted else _below_noise(missing, noise),
+        "refit_rejected": None if accepted else _refit_rejected(missing),
         "missing_steps": accepted,
         "unexplained": unexplained,
         "learned": [s.to_json() for s in learned],
@@ -212,6 +215,42 @@ def _below_noise(scores: Sequence[EffectScore], noise: float) -> str | None:
         ):
             return s.name
     return None
+
+
+def _refit_rejected(scores: Sequence[EffectScore]) -> str | None:
+    """The best effect that passes every test of a missing one but the refit test
+    (estimated as ``fit --effects`` would, from the model's training points, it does
+    not lower the held-out error), else None: the verdict says so with the number."""
+    for s in scores:
+        if (
+            s.significant
+            and s.plausible
+            and s.above_noise
+            and s.explained_variance >= MIN_EXPLAINED
+            and s.refit_explained_variance is not None
+            and s.refit_explained_variance <= 0
+        ):
+            return s.name
+    return None
+
+
+def effect_commands(
+    diagnosis: dict[str, Any], model_path: str, model: ResidualGP
+) -> dict[str, str]:
+    """The ``fit`` command that adds each effect the diagnosis names (missing, held
+    back by the noise floor or the refit test, learned by the GP but not modelled),
+    by effect name, in that order."""
+    names = [
+        *(diagnosis.get("missing") or []),
+        diagnosis.get("below_noise"),
+        diagnosis.get("refit_rejected"),
+        *learned_not_modelled(diagnosis, list(model.effects)),
+    ]
+    out: dict[str, str] = {}
+    for name in names:
+        if name and name not in out and name not in model.effects:
+            out[str(name)] = fit_command(model_path, model, str(name))
+    return out
 
 
 def _where(given: str, absolute: str | None) -> str:

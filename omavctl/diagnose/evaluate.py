@@ -35,7 +35,7 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.diagnosis import diagnose, fit_command
+from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command
 from omavctl.diagnose.metrics import (
     AXES,
     axis_metrics,
@@ -329,6 +329,7 @@ def _diagnosis(
     near = diagnosis.get("below_noise")
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
+    diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
     return diagnosis
 
 

@@ -22,6 +22,7 @@ __all__ = [
     "activity",
     "coverage_of",
     "get_path",
+    "learned_not_modelled",
     "verdict",
 ]
 
@@ -37,7 +38,7 @@ COVERAGE_GOOD = 0.9
 
 @dataclass(frozen=True)
 class Line:
-    """One sentence of the verdict: ``key`` (missing, change, fails, uncertainty,
+    """One sentence of the verdict: ``key`` (missing, learned, change, fails, uncertainty,
     envelope, excluded, flag), its text, which file it is about (``who``, '' for the only one)
     and a command to run (the fit command that adds the missing effect)."""
 
@@ -102,6 +103,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         test = diag.get("test_command") if near else None
         if near:
             text = f"Nothing claimed as missing: {near}"
+        elif held := _refit_rejected(diag):
+            text, test = f"Nothing claimed as missing: {held[0]}", held[1]
         structure = _structure(diag.get("unexplained"))
         if structure:
             text += f" Some structure remains that no registered effect explains: {structure}."
@@ -166,6 +169,70 @@ def _below_noise(diag: Mapping[str, Any]) -> str:
         f"and below the {floor:.2g} a claim needs (three times it). To test it, fit with it "
         "and compare both models on a flight neither saw."
     )
+
+
+def _refit_rejected(diag: Mapping[str, Any]) -> tuple[str, str | None] | None:
+    """The sentence for the effect held back only by the refit test, with the number
+    that decided it, and the command that tests it; None when there is none."""
+    name = diag.get("refit_rejected")
+    entries = diag.get("missing_effects", []) or []
+    entry: Mapping[str, Any] = next((e for e in entries if e.get("name") == name), {})
+    ev, refit = _num(entry.get("explained_variance")), _num(entry.get("refit_explained_variance"))
+    if not name or ev is None or refit is None:
+        return None
+    commands = diag.get("effect_commands") or {}
+    text = (
+        f"{name} would explain {_pct(ev)} of the model's remaining error on held-out data "
+        f"with parameters fitted to that error, but with the parameters fit --effects would "
+        f"estimate from the model's training points it explains {100 * refit:.0f} % (the "
+        "error would grow): not claimed. To test it, fit with it and compare both models on "
+        "a flight neither saw."
+    )
+    command = commands.get(name) if isinstance(commands, Mapping) else None
+    return text, command if isinstance(command, str) and command else None
+
+
+def learned_not_modelled(diag: Mapping[str, Any], effects: Sequence[str]) -> list[str]:
+    """Effects the nominal residual shows (``learned``, claimed there) that the model
+    does not hold as physics (not in ``effects``) and that are not named missing: what
+    the GP has absorbed, which ``fit --effects`` would make physical and testable."""
+    named = set(effects) | {str(m) for m in diag.get("missing") or []}
+    return [
+        str(e.get("name"))
+        for e in diag.get("learned") or []
+        if isinstance(e, Mapping) and e.get("missing") is True and e.get("name") not in named
+    ]
+
+
+def _learned_line(tree: Mapping[str, Any]) -> Line | None:
+    """When nothing is missing: the effect the GP has absorbed instead of the physics
+    (the nominal residual shows it, the model does not hold it and no effect it holds
+    looks alike), with the command that makes it physical and testable."""
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    if diag.get("missing"):
+        return None  # the missing effect's command is the next step
+    effects = [str(e) for e in get_path(tree, "models", 0, "effects", default={}) or {}]
+    entries = {str(e.get("name")): e for e in diag.get("learned") or [] if isinstance(e, Mapping)}
+    remaining = {str(e.get("name")): e for e in diag.get("missing_effects") or []}
+    commands = diag.get("effect_commands") or {}
+    for name in learned_not_modelled(diag, effects):
+        entry = entries[name]
+        if set(map(str, entry.get("ambiguous_with") or [])) & set(effects):
+            continue  # what the model's own effects already explain
+        ev, rms = _num(entry.get("explained_variance")), _num(entry.get("contribution_rms"))
+        if ev is None or rms is None:
+            continue
+        left = _num(remaining.get(name, {}).get("contribution_rms"))
+        text = (
+            f"Learned by the GP, not modelled: {name} (it explains {_pct(ev)} of the nominal "
+            f"model's residual, {rms:.2g} rad/s² RMS"
+            + (f"; the model leaves {left:.2g} of it" if left is not None else "")
+            + "). The GP holds it only where the fit flight went; fitted as a physical "
+            "effect it is tested on every flight."
+        )
+        command = commands.get(name) if isinstance(commands, Mapping) else None
+        return Line("learned", text, command=command if isinstance(command, str) else None)
+    return None
 
 
 def _look_alikes(name: str) -> str:
@@ -366,6 +433,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     firsts = sorted((ln for ln in flags if ln.key in first), key=lambda ln: rank[ln.key])
     lines = [*firsts, _missing_line(tree)]
     for line in (
+        _learned_line(tree),
         _fails_line(tree),
         _uncertainty_line(tree),
         _envelope_line(tree),

@@ -115,6 +115,8 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
         "tracking": tree.get("tracking"),
         "missing": list(diag.get("missing") or []),
         "fit_command": diag.get("fit_command"),
+        # the fit command of every effect the diagnosis names (missing, held back, learned)
+        "effect_commands": dict(diag.get("effect_commands") or {}),
         "flags": list(tree.get("flags") or []),
         "verdict": [
             {"key": line.key, "text": line.text, "command": line.command} for line in lines
