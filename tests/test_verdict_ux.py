@@ -7,6 +7,7 @@ import copy
 from typing import Any
 
 import numpy as np
+import pytest
 
 from omavctl.diagnose.verdict import verdict
 from omavctl.report.summary import render_evaluation
@@ -236,3 +237,36 @@ def test_one_file_with_two_models_is_reconciled_in_the_terminal_and_report_alike
     assert report == terminal
     assert terminal[0].startswith("Missing: command_delay, measured — with it added (m2.npz)")
     assert "Nothing missing" not in " ".join(terminal)
+
+
+def test_an_axis_the_fit_flight_barely_excited_is_said_as_such_first():
+    """ "goes 23 training ranges beyond the model's inputs: is the model this vehicle's?"
+    when the fit flight simply did not yaw: the verdict says that first, and keeps the
+    vehicle question for an input that is off by more than its own range here too."""
+    from omavctl.diagnose.metrics import envelope_flags, training_envelope
+
+    rng = np.random.default_rng(0)
+    t = np.linspace(0.0, 10.0, 400)
+    train = np.stack([np.sin(t), 0.01 * np.sin(3 * t)], axis=1)  # wz barely moves
+    flight = np.stack([np.sin(1.3 * t), 0.5 * np.sin(2 * t)], axis=1)  # wz moves 50x more
+    err, std = rng.normal(0, 0.1, (400, 3)), np.full((400, 3), 0.1)
+    env = training_envelope(train, flight, ["fx/m", "wz"], err, std)
+    assert set(env["underexcited"]) == {"wz"}
+    assert env["underexcited"]["wz"]["flight_span"] == pytest.approx(1.0, rel=0.01)
+    flags = envelope_flags(env)
+    assert [f["code"] for f in flags] == ["underexcited"]
+    assert flags[0]["message"].startswith(
+        "The fit flight barely excited wz (over 0.02 rad/s there, 1 rad/s here): this log goes 25 "
+        "of those training ranges beyond the model's inputs because the fit flight did "
+        "not move it"
+    )
+    tree = _nothing_missing()
+    tree["envelope"], tree["flags"] = env, flags
+    lines = verdict(tree)
+    assert lines[0].key == "underexcited" and lines[1].key == "missing"
+    assert not any("this vehicle's" in ln.text for ln in lines)
+    # an input offset far beyond its training range, though it moves alike: the question
+    shifted = np.stack([np.sin(t) + 30.0, 0.01 * np.sin(3 * t)], axis=1)
+    env = training_envelope(train, shifted, ["fx/m", "wz"], err, std)
+    assert env["underexcited"] == {}
+    assert [f["code"] for f in envelope_flags(env)] == ["far_outside_training"]

@@ -371,7 +371,8 @@ def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
         f"({'; '.join(where)})"
     )
     flags = tree.get("flags") or []
-    if any(isinstance(f, Mapping) and f.get("code") == "far_outside_training" for f in flags):
+    far = ("far_outside_training", "underexcited")
+    if any(isinstance(f, Mapping) and f.get("code") in far for f in flags):
         return Line("envelope", text + ".")  # no word on a band that far out: the flag's
     if low:
         there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
@@ -416,6 +417,7 @@ def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
 #: held-out judgement, or not of a model that belongs to the log.
 FIRST_FLAGS = {
     "training_data": "training",
+    "underexcited": "underexcited",
     "far_outside_training": "mismatch",
     # a model that does not help on some axis: said before "nothing missing"
     "worse_than_physics": "worse",

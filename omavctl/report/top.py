@@ -34,6 +34,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "excluded": "Excluded",
         "flag": "Warning",
         "training": "Not held out",
+        "underexcited": "Not excited by the fit flight",
         "mismatch": "Model and log",
         "worse": "No help",
     }
