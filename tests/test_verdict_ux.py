@@ -270,3 +270,41 @@ def test_an_axis_the_fit_flight_barely_excited_is_said_as_such_first():
     env = training_envelope(train, shifted, ["fx/m", "wz"], err, std)
     assert env["underexcited"] == {}
     assert [f["code"] for f in envelope_flags(env)] == ["far_outside_training"]
+
+
+def test_the_signature_slope_agrees_with_the_diagnosis_estimate():
+    """The com_offset signature showed a flat slope (-0.000379 against one column of the
+    raw regressor, x axis ±100 without unit) beside a verdict of 54 % on y: the figure
+    now plots the part of the error the diagnosis' estimate explains (rad/s², the
+    regressor as scored times the reported r), whose slope is 1 where the verdict says
+    the effect explains the error, and near 0 where it explains nothing."""
+    from omavctl.diagnose.scoring import score_effects
+    from omavctl.physics.effects import get_effect
+    from omavctl.report.figures import signature_figure, signature_slopes
+
+    rng = np.random.default_rng(3)
+    n = 1200
+    t = np.arange(n) * 0.01
+    force = np.stack([3 * np.sin(0.7 * t), 3 * np.cos(1.1 * t), 9.8 + np.sin(0.3 * t)], axis=1)
+    inertia_inv = np.diag([1 / 0.08, 1 / 0.09, 1 / 0.15])
+    x = np.stack([np.cross(np.eye(3)[j], force) @ inertia_inv.T for j in range(3)], axis=-1)
+    r_true = np.array([0.0, -0.015, 0.0])  # only r_y: torque on x and z, not on y
+    residual = x @ r_true + rng.normal(0.0, 0.02, (n, 3))
+    blocks = (t // 2.0).astype(int)
+    (score,) = score_effects(residual, {"com_offset": x}, blocks)
+    r = np.array(score.parameters["r"])
+    assert r[1] == pytest.approx(-0.015, rel=0.05)
+    # the plotted quantity is the regressor times the reported estimate, in rad/s²
+    assert np.allclose(score.contribution, x @ r)
+    slopes = signature_slopes(score.contribution, residual)
+    for i, axis in enumerate("xyz"):
+        if score.explained_per_axis[axis] > 0.5:
+            assert slopes[i] == pytest.approx(1.0, abs=0.05), (axis, slopes)
+    assert score.explained_per_axis["x"] > 0.5 and score.explained_per_axis["z"] > 0.5
+    # an error the effect does not follow has a flat signature
+    assert abs(signature_slopes(score.contribution, rng.normal(0, 0.02, (n, 3)))[0]) < 0.05
+    assert get_effect("com_offset").parameters[0].unit == "m"
+    png = signature_figure(
+        score.contribution, residual, "com_offset", score.explained_per_axis, "t"
+    )
+    assert png is not None and png.startswith(b"\x89PNG")

@@ -128,12 +128,16 @@ def diagnose(
     model_std: np.ndarray,
     features: dict[str, np.ndarray],
     sg: SavitzkyGolay,
+    contributions: dict[str, np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """The ``diagnosis`` section (see module docstring).
 
     samples: the residual samples of every log built with every registry
     effect's regressor; model_mean (n, 3) the model's residual prediction on
     the concatenated samples and model_std (n, 3) its predictive std.
+    ``contributions``, when given, receives each scored candidate's fitted part of
+    the model's remaining error (n, 3) rad/s²: its regressor as scored (what the GP
+    has not absorbed) times the estimate ``missing_effects`` reports.
     """
     residual = np.concatenate([s.residual for s in samples])
     t = np.concatenate([s.t for s in samples])
@@ -160,6 +164,8 @@ def diagnose(
     noise = measurement_noise(samples, sg, model)
     floor = MIN_NOISE_RATIO * noise
     missing = score_effects(remaining, candidates, blocks, model_std, floor, refit)
+    if contributions is not None:
+        contributions.update({s.name: s.contribution for s in missing})
     # forward selection: accept the best missing effect, remove what it explains,
     # rescore the others on what is left (so one cause is not reported thrice)
     accepted: list[dict[str, Any]] = []
