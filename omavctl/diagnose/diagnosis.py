@@ -134,10 +134,8 @@ def diagnose(
 
     samples: the residual samples of every log built with every registry
     effect's regressor; model_mean (n, 3) the model's residual prediction on
-    the concatenated samples and model_std (n, 3) its predictive std.
-    ``contributions``, when given, receives each scored candidate's fitted part of
-    the model's remaining error (n, 3) rad/s²: its regressor as scored (what the GP
-    has not absorbed) times the estimate ``missing_effects`` reports.
+    the concatenated samples and model_std (n, 3) its predictive std. ``contributions``
+    receives each candidate's fitted part of the remaining error (n, 3) rad/s².
     """
     residual = np.concatenate([s.residual for s in samples])
     t = np.concatenate([s.t for s in samples])
