@@ -89,3 +89,30 @@ def test_the_envelope_warnings_suggest_real_options_that_work(tmp_path):
     )
     assert result.exit_code == 2
     assert "--max-tilt must be in (0, 90] deg, got 95" in result.output
+
+
+def _all_options() -> set[str]:
+    out: set[str] = set()
+
+    def walk(cmd) -> None:
+        for p in getattr(cmd, "params", []):
+            out.update(o for o in (*p.opts, *p.secondary_opts) if o.startswith("--"))
+        for sub in getattr(cmd, "commands", {}).values():
+            walk(sub)
+
+    walk(typer.main.get_command(app))
+    return out
+
+
+def test_every_option_any_message_names_is_an_option_of_some_command():
+    """Outside plan too: no message of omavctl suggests an option no command has."""
+    known = _all_options()
+    assert {"--effects", "--max-tilt", "--time-window", "--json"} <= known
+    unknown = sorted(
+        f"{path.relative_to(ROOT)}: {option}"
+        for path in sorted((ROOT / "omavctl").rglob("*.py"))
+        for text in _string_literals(path)
+        for option in OPTION.findall(text)
+        if option not in known
+    )
+    assert unknown == []
