@@ -308,3 +308,29 @@ def test_the_signature_slope_agrees_with_the_diagnosis_estimate():
         score.contribution, residual, "com_offset", score.explained_per_axis, "t"
     )
     assert png is not None and png.startswith(b"\x89PNG")
+
+
+def test_a_learned_effect_already_offered_as_a_test_is_not_given_twice():
+    tree = _absorbed()
+    tree["diagnosis"]["below_noise"] = "com_offset"
+    learned = next(ln for ln in verdict(tree) if ln.key == "learned")
+    assert learned.command is None and learned.text.endswith("Its fit command is the one above.")
+
+
+def test_a_learned_effect_the_second_model_adds_is_not_offered_again():
+    """evaluate --model gp.npz --model gp+com_offset.npz: the first model's verdict
+    offered com_offset; the second adds it and the error falls, so the verdict says
+    the measurement and does not point to a command it no longer shows."""
+    from omavctl.diagnose.change import report_verdict
+    from omavctl.report.summary import evaluation_json
+
+    tree = _absorbed()
+    tree["diagnosis"]["below_noise"] = "com_offset"
+    tree["metrics"]["nominal"] = {"rmse": {"x": 6.7, "y": 0.47, "z": 0.39}}
+    second = {"rmse": {"x": 0.06, "y": 0.15, "z": 0.04}}
+    tree["models"].append({"name": "gp+com_offset.npz", "effects": {"com_offset": {}}})
+    tree["metrics_by_model"] = [tree["metrics"], {**tree["metrics"], "model": second}]
+    texts = [v["text"] for v in evaluation_json(tree, {})["verdict"]]
+    assert texts[0].startswith("Missing: com_offset, measured — with it added (gp+com_offset.npz)")
+    assert not any(t.startswith("Learned by the GP") for t in texts)
+    assert [ln.text for ln in report_verdict([(tree, "eval.json")])] == texts

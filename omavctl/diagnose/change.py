@@ -30,6 +30,7 @@ __all__ = [
     "report_verdict",
     "scores_of_files",
     "scores_of_models",
+    "verdict_of_models",
 ]
 
 #: A fall of the model error (sum over axes, same flight) from this fraction up,
@@ -228,6 +229,20 @@ def reconciled_head(head: Line, before: ModelScore, after: ModelScore) -> Line:
     return Line("missing", text, head.who, None)
 
 
+def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
+    """One evaluation's verdict with the before/after change of its models (``--model``
+    repeated) after the first sentence, reconciled with it (:func:`reconciled_head`);
+    a learned effect a later model adds is not offered again."""
+    own = verdict(tree)
+    models = scores_of_models(tree)
+    if len(models) < 2:
+        return own
+    added = {e for e in models[-1].effects if e not in models[0].effects}
+    head = reconciled_head(own[0], models[0], models[-1])
+    rest = [ln for ln in own[1:] if not (ln.key == "learned" and ln.subject in added)]
+    return [head, *change_lines(models), *rest]
+
+
 def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
     """The verdict of a report: one file's own; with several, what each but the last
     lacked, the before/after change per axis (each step when there are three or more,
@@ -236,10 +251,7 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
         return []
     if len(evals) == 1:
         tree = evals[0][0]
-        own = verdict(tree)
-        models = scores_of_models(tree)
-        head = reconciled_head(own[0], models[0], models[-1]) if len(models) > 1 else own[0]
-        return [head, *change_lines(models), *own[1:]]
+        return verdict_of_models(tree)
     last, label1 = evals[-1]
     scores = scores_of_files(evals)
     lines: list[Line] = []

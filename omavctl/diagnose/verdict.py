@@ -46,6 +46,8 @@ class Line:
     text: str
     who: str = ""
     command: str | None = None
+    #: the effect the sentence is about, when it is about one ('' otherwise)
+    subject: str = ""
 
     def plain(self) -> str:
         """The sentence with its file and command, as one line of text."""
@@ -231,7 +233,10 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
             "effect it is tested on every flight."
         )
         command = commands.get(name) if isinstance(commands, Mapping) else None
-        return Line("learned", text, command=command if isinstance(command, str) else None)
+        if name in (diag.get("below_noise"), diag.get("refit_rejected")):
+            return Line("learned", text + " Its fit command is the one above.", subject=name)
+        cmd = command if isinstance(command, str) else None
+        return Line("learned", text, command=cmd, subject=name)
     return None
 
 

@@ -13,8 +13,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from omavctl.diagnose.change import change_lines, reconciled_head, scores_of_models
-from omavctl.diagnose.verdict import AXES, coverage_of, verdict
+from omavctl.diagnose.change import verdict_of_models
+from omavctl.diagnose.verdict import AXES, coverage_of
 
 __all__ = ["evaluation_json", "fit_json", "inspect_json", "render_evaluation"]
 
@@ -31,15 +31,6 @@ def _by_model(tree: Mapping[str, Any]) -> list[Mapping[str, Any]]:
     return [tree.get("metrics") or {}]
 
 
-def _verdict_lines(tree: Mapping[str, Any]) -> list[Any]:
-    """The verdict with the before/after change of several models after its first line
-    (reconciled with it: a measured fall is not contradicted by "nothing missing")."""
-    lines = verdict(tree)
-    models = scores_of_models(tree)
-    head = reconciled_head(lines[0], models[0], models[-1]) if len(models) > 1 else lines[0]
-    return [head, *change_lines(models), *lines[1:]]
-
-
 def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Path]) -> None:
     """Print the evaluation: verdict, models side by side, tracking, files written."""
     from rich.table import Table
@@ -47,7 +38,7 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
 
     models = tree.get("models") or []
     by_model = _by_model(tree)
-    lines = _verdict_lines(tree)
+    lines = verdict_of_models(tree)
     con.print(Text("verdict", style="bold"))
     for line in lines:
         con.print(Text(f"  {line.text}"))
@@ -113,7 +104,7 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
             }
         )
     diag = tree.get("diagnosis") or {}
-    lines = _verdict_lines(tree)
+    lines = verdict_of_models(tree)
     return {
         "command": "evaluate",
         "files": {k: str(v) for k, v in files.items()},
