@@ -99,8 +99,8 @@ def test_an_effect_the_gp_absorbed_comes_with_the_command_that_makes_it_physical
     learned = [ln for ln in verdict(tree) if ln.key == "learned"]
     assert len(learned) == 1
     assert learned[0].text.startswith(
-        "Learned by the GP, not modelled: com_offset (it explains 97 % of the nominal "
-        "model's residual, 2.7 rad/s² RMS; the model leaves 0.004 of it)."
+        "Not modelled as physics: com_offset, which the nominal model's residual looks like "
+        "(it explains 97 % of it, 2.7 rad/s² RMS; the model leaves 0.004 of it)."
     )
     assert learned[0].command == "omavctl fit f.bag --effects com_offset --out m+c.npz"
     shown = _terminal(tree)
@@ -332,5 +332,5 @@ def test_a_learned_effect_the_second_model_adds_is_not_offered_again():
     tree["metrics_by_model"] = [tree["metrics"], {**tree["metrics"], "model": second}]
     texts = [v["text"] for v in evaluation_json(tree, {})["verdict"]]
     assert texts[0].startswith("Missing: com_offset, measured — with it added (gp+com_offset.npz)")
-    assert not any(t.startswith("Learned by the GP") for t in texts)
+    assert not any(t.startswith("Not modelled as physics") for t in texts)
     assert [ln.text for ln in report_verdict([(tree, "eval.json")])] == texts

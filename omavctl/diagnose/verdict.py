@@ -226,11 +226,11 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
             continue
         left = _num(remaining.get(name, {}).get("contribution_rms"))
         text = (
-            f"Learned by the GP, not modelled: {name} (it explains {_pct(ev)} of the nominal "
-            f"model's residual, {rms:.2g} rad/s² RMS"
+            f"Not modelled as physics: {name}, which the nominal model's residual looks like "
+            f"(it explains {_pct(ev)} of it, {rms:.2g} rad/s² RMS"
             + (f"; the model leaves {left:.2g} of it" if left is not None else "")
-            + "). The GP holds it only where the fit flight went; fitted as a physical "
-            "effect it is tested on every flight."
+            + "). What the GP learned of it holds only where the fit flight went; fitted as "
+            "a physical effect it is tested on every flight."
         )
         command = commands.get(name) if isinstance(commands, Mapping) else None
         if name in (diag.get("below_noise"), diag.get("refit_rejected")):

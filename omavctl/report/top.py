@@ -26,7 +26,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
     lines = report_verdict([(tree, label) for tree, _, label in evals])
     titles = {
         "missing": "What is missing",
-        "learned": "Learned, not modelled",
+        "learned": "Not modelled as physics",
         "change": "Error change",
         "fails": "Where it fails",
         "uncertainty": "Uncertainty",
