@@ -334,3 +334,31 @@ def test_a_learned_effect_the_second_model_adds_is_not_offered_again():
     assert texts[0].startswith("Missing: com_offset, measured — with it added (gp+com_offset.npz)")
     assert not any(t.startswith("Not modelled as physics") for t in texts)
     assert [ln.text for ln in report_verdict([(tree, "eval.json")])] == texts
+
+
+def test_an_effect_named_as_a_look_alike_comes_with_the_command_that_tests_it():
+    """ "Ambiguous with command_delay" named an effect without a way to test it."""
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing"] = ["rotational_drag"]
+    diag["missing_effects"] = [
+        {"name": "rotational_drag", "explained_variance": 0.31, "ambiguous_with": ["command_delay"]}
+    ]
+    diag["fit_command"] = "omavctl fit f.bag --effects rotational_drag"
+    diag["effect_commands"] = {
+        "rotational_drag": "omavctl fit f.bag --effects rotational_drag",
+        "command_delay": "omavctl fit f.bag --effects command_delay",
+    }
+    lines = verdict(tree)
+    assert "Ambiguous with command_delay" in lines[0].text
+    assert lines[1].text == (
+        "To test command_delay instead (its signature looks like rotational_drag's), fit "
+        "with it and compare both models on a flight neither saw."
+    )
+    assert lines[1].command == "omavctl fit f.bag --effects command_delay"
+    named = {
+        w.strip(".,()").removesuffix("'s") for ln in lines for w in ln.text.split() if "_" in w
+    }
+    commanded = {ln.subject or "rotational_drag" for ln in lines if ln.command}
+    assert named <= commanded

@@ -241,11 +241,16 @@ def _refit_rejected(scores: Sequence[EffectScore]) -> str | None:
 def effect_commands(
     diagnosis: dict[str, Any], model_path: str, model: ResidualGP
 ) -> dict[str, str]:
-    """The ``fit`` command that adds each effect the diagnosis names (missing, held
-    back by the noise floor or the refit test, learned by the GP but not modelled),
-    by effect name, in that order."""
+    """The ``fit`` command that adds each effect the diagnosis names (missing, those
+    the top one is ambiguous with, held back by the noise floor or the refit test,
+    learned but not modelled), by effect name, in that order."""
+    top = (diagnosis.get("missing") or [None])[0]
+    entry: dict[str, Any] = next(
+        (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
+    )
     names = [
         *(diagnosis.get("missing") or []),
+        *(entry.get("ambiguous_with") or []),
         diagnosis.get("below_noise"),
         diagnosis.get("refit_rejected"),
         *learned_not_modelled(diagnosis, list(model.effects)),

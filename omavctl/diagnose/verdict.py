@@ -173,6 +173,29 @@ def _below_noise(diag: Mapping[str, Any]) -> str:
     )
 
 
+def _alternative_lines(tree: Mapping[str, Any]) -> list[Line]:
+    """For each effect the top missing one is ambiguous with: the command that fits it
+    instead, to compare both on a flight neither saw."""
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    missing = [str(m) for m in diag.get("missing") or []]
+    if not missing:
+        return []
+    entry: Mapping[str, Any] = next(
+        (e for e in diag.get("missing_effects") or [] if e.get("name") == missing[0]), {}
+    )
+    commands = diag.get("effect_commands") or {}
+    out = []
+    for alt in map(str, entry.get("ambiguous_with") or []):
+        command = commands.get(alt) if isinstance(commands, Mapping) else None
+        if isinstance(command, str) and command:
+            text = (
+                f"To test {alt} instead (its signature looks like {missing[0]}'s), fit with "
+                "it and compare both models on a flight neither saw."
+            )
+            out.append(Line("missing", text, command=command, subject=alt))
+    return out
+
+
 def _refit_rejected(diag: Mapping[str, Any]) -> tuple[str, str | None] | None:
     """The sentence for the effect held back only by the refit test, with the number
     that decided it, and the command that tests it; None when there is none."""
@@ -438,7 +461,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     first = set(FIRST_FLAGS.values())
     rank = {key: i for i, key in enumerate(dict.fromkeys(FIRST_FLAGS.values()))}
     firsts = sorted((ln for ln in flags if ln.key in first), key=lambda ln: rank[ln.key])
-    lines = [*firsts, _missing_line(tree)]
+    lines = [*firsts, _missing_line(tree), *_alternative_lines(tree)]
     for line in (
         _learned_line(tree),
         _fails_line(tree),
