@@ -362,3 +362,19 @@ def test_an_effect_named_as_a_look_alike_comes_with_the_command_that_tests_it():
     }
     commanded = {ln.subject or "rotational_drag" for ln in lines if ln.command}
     assert named <= commanded
+
+
+def test_nothing_missing_is_reconciled_also_below_the_flags_said_first():
+    """Flags (a model no better than physics on an axis) come before the "missing"
+    sentence: it is reconciled there too."""
+    from omavctl.report.summary import evaluation_json
+
+    (before, _), (after, _) = _pair(0.388)
+    tree = copy.deepcopy(before)
+    tree["flags"] = [{"code": "worse_than_physics", "axis": "x", "message": "axis x: worse"}]
+    tree["models"] = [before["models"][0], {**after["models"][0], "name": "m2.npz"}]
+    tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
+    texts = [v["text"] for v in evaluation_json(tree, {})["verdict"]]
+    assert texts[0] == "axis x: worse"
+    assert "Nothing missing" not in " ".join(texts)
+    assert any(t.startswith("Missing: command_delay, measured") for t in texts)

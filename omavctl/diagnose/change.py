@@ -238,9 +238,11 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
     if len(models) < 2:
         return own
     added = {e for e in models[-1].effects if e not in models[0].effects}
-    head = reconciled_head(own[0], models[0], models[-1])
+    # the first "missing" sentence, wherever flags put it, is reconciled with the change
+    at = next((i for i, ln in enumerate(own) if ln.key == "missing"), 0)
+    own[at] = reconciled_head(own[at], models[0], models[-1])
     rest = [ln for ln in own[1:] if not (ln.key == "learned" and ln.subject in added)]
-    return [head, *change_lines(models), *rest]
+    return [own[0], *change_lines(models), *rest]
 
 
 def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
