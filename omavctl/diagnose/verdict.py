@@ -181,7 +181,7 @@ def _alternative_lines(tree: Mapping[str, Any]) -> list[Line]:
     if not missing:
         return []
     entry: Mapping[str, Any] = next(
-        (e for e in diag.get("missing_effects") or [] if e.get("name") == missing[0]), {}
+        (e for e in _entries(diag, "missing_effects") if e.get("name") == missing[0]), {}
     )
     commands = diag.get("effect_commands") or {}
     out = []
@@ -196,11 +196,17 @@ def _alternative_lines(tree: Mapping[str, Any]) -> list[Line]:
     return out
 
 
+def _entries(diag: Mapping[str, Any], key: str) -> list[Mapping[str, Any]]:
+    """The mappings in the list ``diag[key]`` (an evaluation file may hold anything)."""
+    items = diag.get(key)
+    return [e for e in items if isinstance(e, Mapping)] if isinstance(items, list) else []
+
+
 def _refit_rejected(diag: Mapping[str, Any]) -> tuple[str, str | None] | None:
     """The sentence for the effect held back only by the refit test, with the number
     that decided it, and the command that tests it; None when there is none."""
     name = diag.get("refit_rejected")
-    entries = diag.get("missing_effects", []) or []
+    entries = _entries(diag, "missing_effects")
     entry: Mapping[str, Any] = next((e for e in entries if e.get("name") == name), {})
     ev, refit = _num(entry.get("explained_variance")), _num(entry.get("refit_explained_variance"))
     if not name or ev is None or refit is None:
@@ -238,7 +244,7 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
         return None  # the missing effect's command is the next step
     effects = [str(e) for e in get_path(tree, "models", 0, "effects", default={}) or {}]
     entries = {str(e.get("name")): e for e in diag.get("learned") or [] if isinstance(e, Mapping)}
-    remaining = {str(e.get("name")): e for e in diag.get("missing_effects") or []}
+    remaining = {str(e.get("name")): e for e in _entries(diag, "missing_effects")}
     commands = diag.get("effect_commands") or {}
     for name in learned_not_modelled(diag, effects):
         entry = entries[name]
