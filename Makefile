@@ -1,5 +1,6 @@
 # Set-up and checks. Everything installs into a local virtual environment.
 #   make demo          install, then run the example pipeline on built-in data
+#   make demo-numbers  the demo, then its figures quoted in docs/getting-started.md
 #   make test          install (NumPy 2), then lint, type-check and run the test suite
 #   make test-numpy1   install with NumPy 1.26 into .venv-numpy1, run the k-medoids
 #                      agreement tests (the same training points as under NumPy 2)
@@ -12,7 +13,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo test test-numpy1 lint bench bench-effects fuzz generalise clean
+.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects fuzz generalise clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -34,6 +35,9 @@ install: $(STAMP)
 
 demo: $(STAMP)
 	$(MAKE) -C examples demo OMAVCTL=$(abspath $(BIN))/omavctl
+
+demo-numbers: demo
+	$(BIN)/python tools/demo_numbers.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check omavctl tests benchmarks tools

@@ -94,3 +94,49 @@ def test_plan_writes_the_next_reference(demo):
     assert rows[0].startswith("candidate,") and len(rows) == 3
     plan = (demo / "plan.html").read_text()
     assert plan.count("data:image/png;base64,") == 2 and "Most informative reference" in plan
+
+
+def test_the_signature_figure_plots_what_the_diagnosis_scores(demo):
+    """The series holds the named effect's fitted part of the model's error (rad/s²),
+    and the error follows it with slope ~1 on the axis the diagnosis says it explains."""
+    import numpy as np
+
+    from omavctl.report.figures import signature_slopes
+
+    tree = json.loads((demo / "eval.json").read_text())
+    series = np.load(demo / "eval.series.npz")
+    part = series[f"contribution_{HIDDEN}"]
+    error = series["measured"] - series["nominal"] - series["mean_0"]
+    entry = next(e for e in tree["diagnosis"]["missing_effects"] if e["name"] == HIDDEN)
+    per_axis = entry["explained_variance_per_axis"]
+    top = max("xyz", key=lambda a: per_axis[a])
+    assert per_axis[top] > 0.3
+    assert 0.8 < signature_slopes(part, error)["xyz".index(top)] < 1.25
+
+
+def test_the_getting_started_numbers_tool_reads_the_demo_outputs(demo):
+    """tools/demo_numbers.py computes every value docs/getting-started.md quotes from
+    the demo's files (here the short pipeline's): the page's markers all get one."""
+    import importlib.util
+
+    plan = runner.invoke(
+        app,
+        [
+            *f"plan --task {demo}/fig8.csv --model {demo}/gp-drag.npz --candidates 2 --sims 1"
+            f" --test-points 100 --out {demo}/informative-json.csv --json -q".split()
+        ],
+    )
+    assert plan.exit_code == 0, plan.output
+    (demo / "plan.json").write_text(plan.stdout)
+    spec = importlib.util.spec_from_file_location(
+        "demo_numbers", ROOT / "tools" / "demo_numbers.py"
+    )
+    assert spec is not None and spec.loader is not None
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    values = tool.numbers(demo)
+    doc = (ROOT / "docs" / "getting-started.md").read_text()
+    assert {m[1] for m in tool.MARKER.finditer(doc)} == set(values)
+    assert values["verdict"].startswith(f"\n```text\nMissing: {HIDDEN} — it explains ")
+    assert f"  add it with: omavctl fit {demo}/flight-01 --effects " in values["verdict"]
+    assert values["fall"].endswith(" %") and values["plan_cem"].endswith(("better", "worse"))

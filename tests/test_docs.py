@@ -88,3 +88,30 @@ def test_index_lists_every_page():
     missing = [p.name for p in sorted(DOCS.glob("*.md")) if p.name != "index.md"]
     missing = [name for name in missing if f"({name})" not in index]
     assert not missing, f"docs/index.md does not link to: {', '.join(missing)}"
+
+
+def test_getting_started_quotes_the_demo_numbers_the_tool_generated():
+    """docs/getting-started.md quotes the demo's verdict and figures: each span is
+    between markers, holds exactly what tools/demo_numbers.py computed from the demo's
+    outputs (docs/demo-numbers.json), and no other percentage in the walk-through is
+    left to go stale (the demo itself takes minutes: `make demo-numbers` refreshes)."""
+    import json
+
+    tool = _load_tool("demo_numbers")
+    values = json.loads((DOCS / "demo-numbers.json").read_text())
+    doc = (DOCS / "getting-started.md").read_text()
+    marked = [m[1] for m in tool.MARKER.finditer(doc)]
+    assert set(marked) == set(values), "every generated value is quoted, nothing else marked"
+    assert tool.render(doc, values) == doc, "stale: run make demo-numbers"
+    # the demo's commands (run in examples/) as the page types them (from the top)
+    assert (
+        tool._as_typed_in_the_doc(
+            "omavctl fit build/flight-01 --effects a,b --out build/gp+b.npz --seed 0"
+        )
+        == "omavctl fit examples/build/flight-01 --effects a,b --out build/first/gp+b.npz --seed 0"
+    )
+    walk = doc[doc.index("## 3.") : doc.index("## 5.")]
+    left = tool.MARKER.sub("", walk)
+    # the thresholds the verdict applies are rules, not demo output
+    stray = [p for p in re.findall(r"[−+-]?\d+(?:\.\d+)? ?%", left) if p not in ("80 %", "90 %")]
+    assert stray == [], f"demo figures outside the generated spans: {stray}"

@@ -192,7 +192,8 @@ def test_plan_summary_names_the_planned_envelope_and_warns_of_a_long_yaw_turn():
     lines = envelope_lines(SimpleNamespace(best=0, task=task26, best_trajectory=lambda: steep))
     assert lines[1:] == [
         "warning: the planned reference tilts to 60 deg, 2.3x the task's 26: check the "
-        "vehicle can fly it (actuator limits, flight area), or lower --amplitude or --max-tilt"
+        "vehicle can fly it (actuator limits, flight area), or lower --amplitude or plan "
+        "with --max-tilt 52 (candidates that tilt further are rejected)"
     ]
     assert envelope_warnings(SimpleNamespace(best=0, task=task26, best_trajectory=lambda: steep))[
         0

@@ -41,6 +41,14 @@ Sims = Annotated[
 Frequencies = Annotated[int, typer.Option(help="Frequencies P per axis.")]
 MaxFreq = Annotated[float, typer.Option(help="Highest deviation frequency, Hz.")]
 Amplitude = Annotated[float, typer.Option(help="Largest angular-acceleration deviation, rad/s^2.")]
+MaxTilt = Annotated[
+    float,
+    typer.Option(
+        metavar="DEG",
+        help="Attitude limit: a candidate whose simulated |roll| or |pitch| goes beyond it "
+        "is rejected (deg).",
+    ),
+]
 Epsilon = Annotated[
     float | None,
     typer.Option(
@@ -131,6 +139,7 @@ def plan(
     frequencies: Frequencies = 2,
     max_freq: MaxFreq = 2.0,
     amplitude: Amplitude = 1.0,
+    max_tilt: MaxTilt = 80.0,
     epsilon: Epsilon = None,
     test_points: TestPoints = 500,
     points: Points = 40,
@@ -163,6 +172,7 @@ def plan(
         frequencies=frequencies,
         max_freq=max_freq,
         amplitude=amplitude,
+        max_tilt_deg=max_tilt,
         epsilon=epsilon,
         test_points=test_points,
         points=points,

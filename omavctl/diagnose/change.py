@@ -23,7 +23,20 @@ from omavctl.diagnose.verdict import (
     verdict,
 )
 
-__all__ = ["change_lines", "report_verdict", "scores_of_files", "scores_of_models"]
+__all__ = [
+    "MATERIAL_FALL",
+    "change_lines",
+    "reconciled_head",
+    "report_verdict",
+    "scores_of_files",
+    "scores_of_models",
+    "verdict_of_models",
+]
+
+#: A fall of the model error (sum over axes, same flight) from this fraction up,
+#: when effects were added, is measured evidence that they were missing: the first
+#: model's "nothing missing" is then not said above it.
+MATERIAL_FALL = 0.10
 
 
 def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[ModelScore]:
@@ -144,6 +157,94 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
     return lines
 
 
+def _same_flight(before: ModelScore, after: ModelScore) -> bool:
+    """Both scores are of the same samples: the same nominal RMSE on every axis."""
+    n0 = get_path(before.tree, "metrics", "nominal", "rmse", default={}) or {}
+    n1 = get_path(after.tree, "metrics", "nominal", "rmse", default={}) or {}
+    pairs = [(_num(n0.get(a)), _num(n1.get(a))) for a in AXES]
+    return all(
+        a is not None and b is not None and abs(a - b) <= 1e-9 * max(abs(a), 1e-300)
+        for a, b in pairs
+    )
+
+
+def _why_missed(tree: Mapping[str, Any], name: str) -> str:
+    """Which of the diagnosis' tests ``name`` failed on ``tree``, with their numbers."""
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    entry = next(
+        (
+            e
+            for e in diag.get("missing_effects") or []
+            if isinstance(e, Mapping) and e.get("name") == name
+        ),
+        None,
+    )
+    if entry is None:
+        return f"{name} was not among its candidates"
+    method = diag.get("method") or {}
+    ev, need = _num(entry.get("explained_variance")), _num(method.get("min_explained_variance"))
+    t, need_t = _num(entry.get("t_value")), _num(method.get("min_t_value"))
+    rms, floor = _num(entry.get("contribution_rms")), _num(method.get("min_contribution_rms"))
+    refit = _num(entry.get("refit_explained_variance"))
+    failed = []
+    if ev is not None and need is not None and ev < need:
+        failed.append(
+            f"it explained {_pct(max(ev, 0.0))} of the held-out error ({_pct(need)} needed)"
+        )
+    if t is not None and need_t is not None and t < need_t:
+        failed.append(f"t value {t:.2g} ({need_t:g} needed)")
+    if rms is not None and floor is not None and rms < floor:
+        failed.append(f"its part {rms:.2g} rad/s² RMS, below the claim floor {floor:.2g}")
+    if entry.get("plausible") is False:
+        failed.append("its estimate sat at a bound of its plausible range")
+    if refit is not None and refit <= 0:
+        failed.append(f"fitted as fit --effects would fit it, it explained {100 * refit:.0f} %")
+    return "; ".join(failed) if failed else "it passed its tests but another was preferred"
+
+
+def reconciled_head(head: Line, before: ModelScore, after: ModelScore) -> Line:
+    """``head``, the first sentence of ``before``'s verdict, unless it says nothing is
+    missing while ``after`` adds effects and the model error on the same flight falls
+    by :data:`MATERIAL_FALL` or more: then one sentence that says what the
+    measurement shows, and which of the diagnosis' tests missed the effect."""
+    diag = get_path(before.tree, "diagnosis", default={}) or {}
+    added = [e for e in after.effects if e not in before.effects]
+    if head.key != "missing" or diag.get("missing") or not added:
+        return head
+    b0 = [_num(before.rmse.get(a)) for a in AXES]
+    b1 = [_num(after.rmse.get(a)) for a in AXES]
+    if None in b0 or None in b1 or not _same_flight(before, after):
+        return head
+    fall = 1.0 - sum(v for v in b1 if v is not None) / max(
+        sum(v for v in b0 if v is not None), 1e-300
+    )
+    if fall < MATERIAL_FALL:
+        return head
+    why = "; ".join(f"{name}: {_why_missed(before.tree, name)}" for name in added)
+    text = (
+        f"Missing: {', '.join(added)}, measured — with {'it' if len(added) == 1 else 'them'} "
+        f"added ({after.label}) the model error on the same flight falls by {100 * fall:.1f} % "
+        f"(sum over axes), although this model's diagnosis claimed nothing missing ({why})."
+    )
+    return Line("missing", text, head.who, None)
+
+
+def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
+    """One evaluation's verdict with the before/after change of its models (``--model``
+    repeated) after the first sentence, reconciled with it (:func:`reconciled_head`);
+    a learned effect a later model adds is not offered again."""
+    own = verdict(tree)
+    models = scores_of_models(tree)
+    if len(models) < 2:
+        return own
+    added = {e for e in models[-1].effects if e not in models[0].effects}
+    # the first "missing" sentence, wherever flags put it, is reconciled with the change
+    at = next((i for i, ln in enumerate(own) if ln.key == "missing"), 0)
+    own[at] = reconciled_head(own[at], models[0], models[-1])
+    rest = [ln for ln in own[1:] if not (ln.key == "learned" and ln.subject in added)]
+    return [own[0], *change_lines(models), *rest]
+
+
 def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
     """The verdict of a report: one file's own; with several, what each but the last
     lacked, the before/after change per axis (each step when there are three or more,
@@ -152,7 +253,7 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
         return []
     if len(evals) == 1:
         tree = evals[0][0]
-        return verdict(tree)[:1] + change_lines(scores_of_models(tree)) + verdict(tree)[1:]
+        return verdict_of_models(tree)
     last, label1 = evals[-1]
     scores = scores_of_files(evals)
     lines: list[Line] = []
@@ -167,7 +268,7 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
     # with three or more each step's change: a step that made an axis worse must not
     # hide behind an overall gain; then first to last and the last file's verdict
     for i, (tree, label) in enumerate(evals[:-1]):
-        head = verdict(tree)[0]
+        head = reconciled_head(verdict(tree)[0], scores[i], scores[i + 1])
         lines.append(Line(head.key, head.text, label, head.command))
         if len(evals) > 2:
             lines += step(i, i + 1)

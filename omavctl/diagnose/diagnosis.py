@@ -26,6 +26,7 @@ from omavctl.diagnose.scoring import (
     EffectScore,
     score_effects,
 )
+from omavctl.diagnose.verdict import learned_not_modelled
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -33,6 +34,7 @@ from omavctl.physics.effects import EFFECTS, get_effect
 __all__ = [
     "BLOCK_SECONDS",
     "diagnose",
+    "effect_commands",
     "fit_command",
     "measurement_noise",
     "unexplained_structure",
@@ -126,12 +128,14 @@ def diagnose(
     model_std: np.ndarray,
     features: dict[str, np.ndarray],
     sg: SavitzkyGolay,
+    contributions: dict[str, np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """The ``diagnosis`` section (see module docstring).
 
     samples: the residual samples of every log built with every registry
     effect's regressor; model_mean (n, 3) the model's residual prediction on
-    the concatenated samples and model_std (n, 3) its predictive std.
+    the concatenated samples and model_std (n, 3) its predictive std. ``contributions``
+    receives each candidate's fitted part of the remaining error (n, 3) rad/s².
     """
     residual = np.concatenate([s.residual for s in samples])
     t = np.concatenate([s.t for s in samples])
@@ -158,6 +162,8 @@ def diagnose(
     noise = measurement_noise(samples, sg, model)
     floor = MIN_NOISE_RATIO * noise
     missing = score_effects(remaining, candidates, blocks, model_std, floor, refit)
+    if contributions is not None:
+        contributions.update({s.name: s.contribution for s in missing})
     # forward selection: accept the best missing effect, remove what it explains,
     # rescore the others on what is left (so one cause is not reported thrice)
     accepted: list[dict[str, Any]] = []
@@ -190,6 +196,7 @@ def diagnose(
         "missing_effects": [s.to_json() for s in missing],
         "missing": [a["name"] for a in accepted],
         "below_noise": None if accepted else _below_noise(missing, noise),
+        "refit_rejected": None if accepted else _refit_rejected(missing),
         "missing_steps": accepted,
         "unexplained": unexplained,
         "learned": [s.to_json() for s in learned],
@@ -212,6 +219,47 @@ def _below_noise(scores: Sequence[EffectScore], noise: float) -> str | None:
         ):
             return s.name
     return None
+
+
+def _refit_rejected(scores: Sequence[EffectScore]) -> str | None:
+    """The best effect that passes every test of a missing one but the refit test
+    (estimated as ``fit --effects`` would, from the model's training points, it does
+    not lower the held-out error), else None: the verdict says so with the number."""
+    for s in scores:
+        if (
+            s.significant
+            and s.plausible
+            and s.above_noise
+            and s.explained_variance >= MIN_EXPLAINED
+            and s.refit_explained_variance is not None
+            and s.refit_explained_variance <= 0
+        ):
+            return s.name
+    return None
+
+
+def effect_commands(
+    diagnosis: dict[str, Any], model_path: str, model: ResidualGP
+) -> dict[str, str]:
+    """The ``fit`` command that adds each effect the diagnosis names (missing, those
+    the top one is ambiguous with, held back by the noise floor or the refit test,
+    learned but not modelled), by effect name, in that order."""
+    top = (diagnosis.get("missing") or [None])[0]
+    entry: dict[str, Any] = next(
+        (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
+    )
+    names = [
+        *(diagnosis.get("missing") or []),
+        *(entry.get("ambiguous_with") or []),
+        diagnosis.get("below_noise"),
+        diagnosis.get("refit_rejected"),
+        *learned_not_modelled(diagnosis, list(model.effects)),
+    ]
+    out: dict[str, str] = {}
+    for name in names:
+        if name and name not in out and name not in model.effects:
+            out[str(name)] = fit_command(model_path, model, str(name))
+    return out
 
 
 def _where(given: str, absolute: str | None) -> str:

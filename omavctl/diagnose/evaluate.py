@@ -35,7 +35,7 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.diagnosis import diagnose, fit_command
+from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command
 from omavctl.diagnose.metrics import (
     AXES,
     axis_metrics,
@@ -314,13 +314,15 @@ def _diagnosis(
     features: dict[str, np.ndarray],
     sg: SavitzkyGolay,
 ) -> dict[str, Any]:
-    """The first model's ``diagnosis`` with its ``fit_command``; adds the
-    regressors of the named effects (or the top candidate) to ``series`` as
-    ``regressor_<name>`` (n, 3, p) for the report's effect-signature figures."""
-    diagnosis = diagnose(samples, model, series["mean_0"], series["std_0"], features, sg)
+    """The first model's ``diagnosis`` with its ``fit_command``; adds the fitted
+    part of the model's error of the named effects (or the top candidate) to
+    ``series`` as ``contribution_<name>`` (n, 3) rad/s², the quantity the diagnosis
+    scores, for the report's effect-signature figures."""
+    parts: dict[str, np.ndarray] = {}
+    diagnosis = diagnose(samples, model, series["mean_0"], series["std_0"], features, sg, parts)
     shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
     for name in shown:
-        series[f"regressor_{name}"] = np.concatenate([s.regressors[name] for s in samples])
+        series[f"contribution_{name}"] = parts[name]
     if diagnosis["missing"]:
         top = diagnosis["missing"][0]
         diagnosis["fit_command"] = fit_command(model_path, model, top)
@@ -329,6 +331,7 @@ def _diagnosis(
     near = diagnosis.get("below_noise")
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
+    diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
     return diagnosis
 
 
@@ -368,7 +371,7 @@ def evaluate(
     The diagnosis, worst segments and binned errors are of the first model;
     the series (n samples over all logs) are those of :func:`_measured_series`,
     then per model j ``effects_<j>``, ``mean_<j>``, ``std_<j>`` (n, 3), then
-    ``desired`` and ``regressor_<name>`` when known.
+    ``desired`` and ``contribution_<name>`` when known.
     """
     from omavctl.learn.model_file import load_model
 

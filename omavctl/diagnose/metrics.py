@@ -225,11 +225,19 @@ def envelope_flags(env: Mapping[str, Any] | None) -> list[dict[str, Any]]:
     training (``env``: :func:`training_envelope`'s result)."""
     if not env:
         return []
-    beyond = env.get("beyond") or {}
+    beyond = dict(env.get("beyond") or {})
     unvaried = list(env.get("unvaried") or {})
+    flags = []
+    # an input the fit flight barely moved is far in its own tiny range: say that first
+    weak = {
+        k: v for k, v in (env.get("underexcited") or {}).items() if beyond.get(k, 0) > FAR_RANGES
+    }
+    if weak:
+        flags.append(_underexcited_flag(weak, beyond))
+        beyond = {k: v for k, v in beyond.items() if k not in weak}
     name, far = max(beyond.items(), key=lambda kv: kv[1], default=("", 0.0))
     if far <= FAR_RANGES and not unvaried:
-        return []
+        return flags
     what = (
         [f"goes {far:.0f} training ranges beyond the model's inputs ({name})"]
         if far > FAR_RANGES
@@ -238,15 +246,55 @@ def envelope_flags(env: Mapping[str, Any] | None) -> list[dict[str, Any]]:
     if unvaried:
         what.append(f"varies {', '.join(unvaried)}, constant in training")
     return [
+        *flags,
         {
             "code": "far_outside_training",
             "axis": None,
             "value": far if far > FAR_RANGES else None,
             "message": f"The log {' and '.join(what)}: is the model this vehicle's, and "
             "are the log's units and frame the model's?",
-        }
+        },
     ]
 
+
+def input_unit(name: str) -> str:
+    """The unit of a GP input by its name (:func:`omavctl.learn.signal.feature_names`)."""
+    if name.startswith("d/dt"):
+        return "rad/s³"
+    if name.startswith("(I^-1 tau)"):
+        return "rad/s²"
+    if name.startswith("f"):
+        return "m/s²"
+    return "rad/s" if name.startswith("w") else ""
+
+
+def _underexcited_flag(
+    weak: Mapping[str, Mapping[str, float]], beyond: Mapping[str, float]
+) -> dict[str, Any]:
+    """The ``underexcited`` flag: inputs the fit flight barely moved, which this log
+    moves :data:`UNDEREXCITED_RATIO` times more (so it lies many of their training
+    ranges beyond the model's inputs without any mismatch of model and log)."""
+    parts = []
+    for name, span in weak.items():
+        s, f, unit = span["training_span"], span["flight_span"], input_unit(name)
+        parts.append(f"{name} (over {s:.2g} {unit} there, {f:.2g} {unit} here)".replace("  ", " "))
+    far = max(beyond[k] for k in weak)
+    names = ", ".join(weak)
+    return {
+        "code": "underexcited",
+        "axis": None,
+        "value": far,
+        "message": f"The fit flight barely excited {'; '.join(parts)}: this log goes "
+        f"{far:.0f} of those training ranges beyond the model's inputs because the fit "
+        f"flight did not move {'it' if len(weak) == 1 else 'them'}, not (as far as this "
+        f"shows) because model and log differ. Fit on a flight that moves {names} (or on "
+        "both logs) before trusting the model here.",
+    }
+
+
+#: An input varied in training counts as barely excited by the fit flight when the
+#: evaluated flight moves it over this many times its training range.
+UNDEREXCITED_RATIO = 10.0
 
 #: A held-out sample is outside the training envelope when one of its GP inputs
 #: lies beyond the training points' [min, max] by more than this fraction of it.
@@ -285,6 +333,8 @@ def training_envelope(
         n = int(sel.sum())
         return {a: float(within[sel, i].mean()) if n else None for i, a in enumerate(AXES)}
 
+    flight_span = np.ptp(inputs, axis=0) if inputs.size else np.zeros(len(names))
+    weak = varied & (flight_span >= UNDEREXCITED_RATIO * span)
     worst = beyond.max(axis=0) if inputs.size else np.zeros(len(names))
     far = gap.max(axis=0) if inputs.size else np.zeros(len(names))
     order = np.argsort(-worst)
@@ -293,6 +343,10 @@ def training_envelope(
         "outside_fraction": float(outside.mean()) if outside.size else 0.0,
         "beyond": {names[j]: float(worst[j]) for j in order if worst[j] > ENVELOPE_MARGIN},
         "unvaried": {names[j]: float(far[j]) for j in range(len(names)) if moved[:, j].any()},
+        "underexcited": {
+            names[j]: {"training_span": float(span[j]), "flight_span": float(flight_span[j])}
+            for j in map(int, np.flatnonzero(weak))
+        },
         "coverage_inside": coverage(~outside),
         "coverage_outside": coverage(outside),
     }

@@ -22,6 +22,7 @@ __all__ = [
     "activity",
     "coverage_of",
     "get_path",
+    "learned_not_modelled",
     "verdict",
 ]
 
@@ -37,7 +38,7 @@ COVERAGE_GOOD = 0.9
 
 @dataclass(frozen=True)
 class Line:
-    """One sentence of the verdict: ``key`` (missing, change, fails, uncertainty,
+    """One sentence of the verdict: ``key`` (missing, learned, change, fails, uncertainty,
     envelope, excluded, flag), its text, which file it is about (``who``, '' for the only one)
     and a command to run (the fit command that adds the missing effect)."""
 
@@ -45,6 +46,8 @@ class Line:
     text: str
     who: str = ""
     command: str | None = None
+    #: the effect the sentence is about, when it is about one ('' otherwise)
+    subject: str = ""
 
     def plain(self) -> str:
         """The sentence with its file and command, as one line of text."""
@@ -102,8 +105,11 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         test = diag.get("test_command") if near else None
         if near:
             text = f"Nothing claimed as missing: {near}"
-        if diag.get("unexplained"):
-            text += " Some structure remains that no registered effect explains (see Diagnosis)."
+        elif held := _refit_rejected(diag):
+            text, test = f"Nothing claimed as missing: {held[0]}", held[1]
+        structure = _structure(diag.get("unexplained"))
+        if structure:
+            text += f" Some structure remains that no registered effect explains: {structure}."
         return Line("missing", text, command=test if isinstance(test, str) and test else None)
     top = entries.get(missing[0], {})
     ev = _num(top.get("explained_variance"))
@@ -128,6 +134,25 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
 
 
+def _structure(items: Any, most: int = 2) -> str:
+    """The first ``most`` items of the diagnosis' ``unexplained`` (strongest first) in
+    words, '' when there are none: the verdict says what it refers to, in the terminal
+    (which has no Diagnosis section) as in the report."""
+    said: list[str] = []
+    for it in [i for i in items or [] if isinstance(i, Mapping)][:most]:
+        axis = it.get("axis", "?")
+        if it.get("kind") == "feature correlation" and (r := _num(it.get("correlation"))):
+            said.append(f"the {axis} error correlates with {it.get('feature', '?')} (r = {r:.2f})")
+        elif it.get("kind") == "spectral peak" and (f := _num(it.get("frequency_hz"))):
+            share = _num(it.get("power_share"))
+            part = f", {_pct(share)} of its power" if share is not None else ""
+            said.append(f"the {axis} error has a spectral peak at {f:.2g} Hz{part}")
+    more = len([i for i in items or [] if isinstance(i, Mapping)]) - len(said)
+    if said and more > 0:
+        said.append(f"{more} more in the evaluation JSON (diagnosis.unexplained)")
+    return "; ".join(said)
+
+
 def _below_noise(diag: Mapping[str, Any]) -> str:
     """The sentence for the effect the diagnosis holds back only by its noise floor
     (``below_noise``: its part of the error is above the log's noise, but below the
@@ -146,6 +171,102 @@ def _below_noise(diag: Mapping[str, Any]) -> str:
         f"and below the {floor:.2g} a claim needs (three times it). To test it, fit with it "
         "and compare both models on a flight neither saw."
     )
+
+
+def _alternative_lines(tree: Mapping[str, Any]) -> list[Line]:
+    """For each effect the top missing one is ambiguous with: the command that fits it
+    instead, to compare both on a flight neither saw."""
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    missing = [str(m) for m in diag.get("missing") or []]
+    if not missing:
+        return []
+    entry: Mapping[str, Any] = next(
+        (e for e in _entries(diag, "missing_effects") if e.get("name") == missing[0]), {}
+    )
+    commands = diag.get("effect_commands") or {}
+    out = []
+    for alt in map(str, entry.get("ambiguous_with") or []):
+        command = commands.get(alt) if isinstance(commands, Mapping) else None
+        if isinstance(command, str) and command:
+            text = (
+                f"To test {alt} instead (its signature looks like {missing[0]}'s), fit with "
+                "it and compare both models on a flight neither saw."
+            )
+            out.append(Line("missing", text, command=command, subject=alt))
+    return out
+
+
+def _entries(diag: Mapping[str, Any], key: str) -> list[Mapping[str, Any]]:
+    """The mappings in the list ``diag[key]`` (an evaluation file may hold anything)."""
+    items = diag.get(key)
+    return [e for e in items if isinstance(e, Mapping)] if isinstance(items, list) else []
+
+
+def _refit_rejected(diag: Mapping[str, Any]) -> tuple[str, str | None] | None:
+    """The sentence for the effect held back only by the refit test, with the number
+    that decided it, and the command that tests it; None when there is none."""
+    name = diag.get("refit_rejected")
+    entries = _entries(diag, "missing_effects")
+    entry: Mapping[str, Any] = next((e for e in entries if e.get("name") == name), {})
+    ev, refit = _num(entry.get("explained_variance")), _num(entry.get("refit_explained_variance"))
+    if not name or ev is None or refit is None:
+        return None
+    commands = diag.get("effect_commands") or {}
+    text = (
+        f"{name} would explain {_pct(ev)} of the model's remaining error on held-out data "
+        f"with parameters fitted to that error, but with the parameters fit --effects would "
+        f"estimate from the model's training points it explains {100 * refit:.0f} % (the "
+        "error would grow): not claimed. To test it, fit with it and compare both models on "
+        "a flight neither saw."
+    )
+    command = commands.get(name) if isinstance(commands, Mapping) else None
+    return text, command if isinstance(command, str) and command else None
+
+
+def learned_not_modelled(diag: Mapping[str, Any], effects: Sequence[str]) -> list[str]:
+    """Effects the nominal residual shows (``learned``, claimed there) that the model
+    does not hold as physics (not in ``effects``) and that are not named missing: what
+    the GP has absorbed, which ``fit --effects`` would make physical and testable."""
+    named = set(effects) | {str(m) for m in diag.get("missing") or []}
+    return [
+        str(e.get("name"))
+        for e in diag.get("learned") or []
+        if isinstance(e, Mapping) and e.get("missing") is True and e.get("name") not in named
+    ]
+
+
+def _learned_line(tree: Mapping[str, Any]) -> Line | None:
+    """When nothing is missing: the effect the GP has absorbed instead of the physics
+    (the nominal residual shows it, the model does not hold it and no effect it holds
+    looks alike), with the command that makes it physical and testable."""
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    if diag.get("missing"):
+        return None  # the missing effect's command is the next step
+    effects = [str(e) for e in get_path(tree, "models", 0, "effects", default={}) or {}]
+    entries = {str(e.get("name")): e for e in diag.get("learned") or [] if isinstance(e, Mapping)}
+    remaining = {str(e.get("name")): e for e in _entries(diag, "missing_effects")}
+    commands = diag.get("effect_commands") or {}
+    for name in learned_not_modelled(diag, effects):
+        entry = entries[name]
+        if set(map(str, entry.get("ambiguous_with") or [])) & set(effects):
+            continue  # what the model's own effects already explain
+        ev, rms = _num(entry.get("explained_variance")), _num(entry.get("contribution_rms"))
+        if ev is None or rms is None:
+            continue
+        left = _num(remaining.get(name, {}).get("contribution_rms"))
+        text = (
+            f"Not modelled as physics: {name}, which the nominal model's residual looks like "
+            f"(it explains {_pct(ev)} of it, {rms:.2g} rad/s² RMS"
+            + (f"; the model leaves {left:.2g} of it" if left is not None else "")
+            + "). What the GP learned of it holds only where the fit flight went; fitted as "
+            "a physical effect it is tested on every flight."
+        )
+        command = commands.get(name) if isinstance(commands, Mapping) else None
+        if name in (diag.get("below_noise"), diag.get("refit_rejected")):
+            return Line("learned", text + " Its fit command is the one above.", subject=name)
+        cmd = command if isinstance(command, str) else None
+        return Line("learned", text, command=cmd, subject=name)
+    return None
 
 
 def _look_alikes(name: str) -> str:
@@ -284,7 +405,8 @@ def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
         f"({'; '.join(where)})"
     )
     flags = tree.get("flags") or []
-    if any(isinstance(f, Mapping) and f.get("code") == "far_outside_training" for f in flags):
+    far = ("far_outside_training", "underexcited")
+    if any(isinstance(f, Mapping) and f.get("code") in far for f in flags):
         return Line("envelope", text + ".")  # no word on a band that far out: the flag's
     if low:
         there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
@@ -329,6 +451,7 @@ def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
 #: held-out judgement, or not of a model that belongs to the log.
 FIRST_FLAGS = {
     "training_data": "training",
+    "underexcited": "underexcited",
     "far_outside_training": "mismatch",
     # a model that does not help on some axis: said before "nothing missing"
     "worse_than_physics": "worse",
@@ -344,8 +467,9 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     first = set(FIRST_FLAGS.values())
     rank = {key: i for i, key in enumerate(dict.fromkeys(FIRST_FLAGS.values()))}
     firsts = sorted((ln for ln in flags if ln.key in first), key=lambda ln: rank[ln.key])
-    lines = [*firsts, _missing_line(tree)]
+    lines = [*firsts, _missing_line(tree), *_alternative_lines(tree)]
     for line in (
+        _learned_line(tree),
         _fails_line(tree),
         _uncertainty_line(tree),
         _envelope_line(tree),

@@ -51,7 +51,9 @@ def envelope_lines(result: Any) -> list[str]:
         lines.append(
             f"warning: the planned reference tilts to {tilt:.0f} deg, "
             f"{tilt / max(task_tilt, 1e-9):.1f}x the task's {task_tilt:.0f}: check the vehicle "
-            "can fly it (actuator limits, flight area), or lower --amplitude or --max-tilt"
+            "can fly it (actuator limits, flight area), or lower --amplitude or plan with "
+            f"--max-tilt {max(TILT_WARNING_DEG, 2.0 * task_tilt):.0f} (candidates that tilt "
+            "further are rejected)"
         )
     if plan["max_body_rate"] > max(3.0, 3.0 * task["max_body_rate"]):
         lines.append(

@@ -124,23 +124,24 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
                 ", ".join(str(x) for x in e.get("ambiguous_with", []) or []) or "–",
             ]
         )
-    return Table(
-        columns=[
-            "#",
-            "effect",
-            "explained variance",
-            "per axis",
-            "parameters ± std. error",
-            "t value",
-            "significant",
-            "plausible",
-            "its part, rad/s² RMS",
-            what,
-            "ambiguous with",
-        ],
-        rows=rows,
-        align="rlrrrrlllll",
-    )
+        if what == "missing":  # the refit test's number decides too: shown where it does
+            rows[-1].insert(-2, pct(e.get("refit_explained_variance")))
+    columns = [
+        "#",
+        "effect",
+        "explained variance",
+        "per axis",
+        "parameters ± std. error",
+        "t value",
+        "significant",
+        "plausible",
+        "its part, rad/s² RMS",
+        what,
+        "ambiguous with",
+    ]
+    if what == "missing":
+        columns.insert(-2, "explained as fit --effects would fit it")
+    return Table(columns=columns, rows=rows, align="rlrrrrlll" + "r" * (what == "missing") + "ll")
 
 
 def _unexplained_items(items: Sequence[Any]) -> list[Content]:
@@ -228,6 +229,34 @@ def diagnosis_section(
     else:
         blocks.append(Para("None found (no feature correlation, no spectral peak)."))
     blocks += _learned_blocks(diag.get("learned") or [], learned_as, torque_unknown)
+    blocks += _learned_commands(tree, diag)
+    return blocks
+
+
+def _learned_commands(tree: Mapping[str, Any], diag: Mapping[str, Any]) -> list[Block]:
+    """The ``fit`` command of each effect the nominal residual shows that the model does
+    not hold as physics: what makes it physical and testable."""
+    from omavctl.diagnose.verdict import learned_not_modelled
+
+    effects = [str(e) for e in ((tree.get("models") or [{}])[0].get("effects") or {})]
+    commands = diag.get("effect_commands") or {}
+    blocks: list[Block] = []
+    for name in learned_not_modelled(diag, effects):
+        command = commands.get(name) if isinstance(commands, Mapping) else None
+        if not isinstance(command, str):
+            continue
+        if not blocks:
+            blocks.append(Heading(4, "Commands that make a learned effect physical"))
+            blocks.append(
+                Para(
+                    "Each learned effect the model does not hold as physics, fitted as one: "
+                    "compare both models on a flight neither saw (an effect that only looks "
+                    "like the residual, e.g. a look-alike of an effect the model has, will "
+                    "not lower the error there)."
+                )
+            )
+        blocks.append(Para((Span(name, "code"), ":")))
+        blocks.append(Code(command))
     return blocks
 
 

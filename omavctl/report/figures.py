@@ -33,6 +33,7 @@ __all__ = [
     "png",
     "runs",
     "signature_figure",
+    "signature_slopes",
     "style",
 ]
 
@@ -147,33 +148,51 @@ def error_figure(
         return png(fig)
 
 
-def signature_figure(
-    regressor: np.ndarray, error: np.ndarray, name: str, explained: float | None, title: str
-) -> bytes | None:
-    """The model's error (n, 3) against the effect's regressor (n, 3, p), per axis.
+def signature_slopes(contribution: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """Per axis (3,), the least-squares slope through the origin of the model's error
+    (n, 3) on an effect's fitted part of it (n, 3), both rad/s²: 1 where the error
+    follows the effect at the size the diagnosis estimated, 0 where it does not
+    follow it at all; NaN on an axis the effect does not reach."""
+    xx = np.einsum("na,na->a", contribution, contribution)
+    xy = np.einsum("na,na->a", contribution, error)
+    scale = np.maximum(np.abs(contribution).max(axis=0, initial=0.0), 1e-300)
+    return np.where(xx > 1e-18 * scale**2 * max(len(error), 1), xy / np.maximum(xx, 1e-300), np.nan)
 
-    Per axis the regressor column with the most spread is shown; the line is the
-    least-squares fit through the origin (the effects are linear in their
-    parameters), the dots are bin means.
+
+def signature_figure(
+    contribution: np.ndarray,
+    error: np.ndarray,
+    name: str,
+    explained: Mapping[str, Any] | None,
+    title: str,
+) -> bytes | None:
+    """The model's error (n, 3) against an effect's fitted part of it (n, 3), per axis,
+    both in rad/s²: the quantity the diagnosis scores, on the same samples.
+
+    The line is the least-squares fit through the origin (:func:`signature_slopes`;
+    1 = the diagnosis' estimate explains the error at its size), the dots bin means;
+    ``explained`` the held-out explained variance per axis (``x``, ``y``, ``z``).
     """
     from matplotlib.figure import Figure
 
-    if regressor.ndim != 3 or regressor.shape[:2] != error.shape:
+    if contribution.ndim != 2 or contribution.shape != error.shape or error.shape[1] != 3:
         return None
+    slopes = signature_slopes(contribution, error)
     with style():
         fig = Figure(figsize=(10, 3.6), dpi=DPI, layout="constrained")
         axs = fig.subplots(1, 3, sharey=True)
         lim = float(np.nanpercentile(np.abs(error), 99.5)) * 1.2 if error.size else 1.0
         for i, ax in enumerate(axs):
-            spread = regressor[:, i, :].std(axis=0)
-            j = int(np.argmax(spread))
-            x, y = regressor[:, i, j], error[:, i]
+            x, y = contribution[:, i], error[:, i]
             ax.scatter(x, y, s=2, color=AXIS_COLOURS[i], alpha=0.25, lw=0, rasterized=True)
-            if spread[j] > 0:
-                slope = float(x @ y / max(float(x @ x), 1e-300))
+            if np.isfinite(slopes[i]):
                 xs = np.linspace(x.min(), x.max(), 2)
-                ax.plot(xs, slope * xs, color="k", lw=1.2)
-                ax.set_title(f"axis {AXES[i]}: fitted slope {slope:.3g}", fontsize=9)
+                ax.plot(xs, slopes[i] * xs, color="k", lw=1.2)
+                ev = (explained or {}).get(AXES[i])
+                held = (
+                    f", explains {100 * ev:.0f} % held out" if isinstance(ev, int | float) else ""
+                )
+                ax.set_title(f"axis {AXES[i]}: slope {slopes[i]:.2f}{held}", fontsize=9)
                 edges = np.unique(np.quantile(x, np.linspace(0, 1, 11)))
                 which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
                 count = np.bincount(which, minlength=edges.size - 1)
@@ -181,14 +200,13 @@ def signature_figure(
                 centres = np.bincount(which, x, edges.size - 1) / np.maximum(count, 1)
                 ax.plot(centres[count > 0], means[count > 0], "o", color="k", ms=3.5, mfc="w")
             else:
-                ax.text(0.5, 0.5, "not excited", transform=ax.transAxes, ha="center")
+                ax.text(0.5, 0.5, "no fitted part here", transform=ax.transAxes, ha="center")
             ax.axhline(0.0, color="0.6", lw=0.5)
             ax.set_ylim(-max(lim, 1e-6), max(lim, 1e-6))
-            ax.set_xlabel(f"{name} regressor, axis {AXES[i]}", fontsize=9)
+            ax.set_xlabel(f"fitted {name}, axis {AXES[i]}, rad/s²", fontsize=9)
             ax.grid(True, lw=0.3, alpha=0.6)
         axs[0].set_ylabel("model error, rad/s²")
-        share = f" — explains {100 * explained:.0f} % held out" if explained is not None else ""
-        fig.suptitle(f"{title}{share}", fontsize=10)
+        fig.suptitle(title, fontsize=10)
         return png(fig)
 
 

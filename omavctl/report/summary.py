@@ -13,8 +13,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from omavctl.diagnose.change import change_lines, scores_of_models
-from omavctl.diagnose.verdict import AXES, coverage_of, verdict
+from omavctl.diagnose.change import verdict_of_models
+from omavctl.diagnose.verdict import AXES, coverage_of
 
 __all__ = ["evaluation_json", "fit_json", "inspect_json", "render_evaluation"]
 
@@ -38,8 +38,7 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
 
     models = tree.get("models") or []
     by_model = _by_model(tree)
-    lines = verdict(tree)
-    lines = lines[:1] + change_lines(scores_of_models(tree)) + lines[1:]
+    lines = verdict_of_models(tree)
     con.print(Text("verdict", style="bold"))
     for line in lines:
         con.print(Text(f"  {line.text}"))
@@ -105,8 +104,7 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
             }
         )
     diag = tree.get("diagnosis") or {}
-    lines = verdict(tree)
-    lines = lines[:1] + change_lines(scores_of_models(tree)) + lines[1:]
+    lines = verdict_of_models(tree)
     return {
         "command": "evaluate",
         "files": {k: str(v) for k, v in files.items()},
@@ -115,6 +113,8 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
         "tracking": tree.get("tracking"),
         "missing": list(diag.get("missing") or []),
         "fit_command": diag.get("fit_command"),
+        # the fit command of every effect the diagnosis names (missing, held back, learned)
+        "effect_commands": dict(diag.get("effect_commands") or {}),
         "flags": list(tree.get("flags") or []),
         "verdict": [
             {"key": line.key, "text": line.text, "command": line.command} for line in lines

@@ -26,6 +26,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
     lines = report_verdict([(tree, label) for tree, _, label in evals])
     titles = {
         "missing": "What is missing",
+        "learned": "Not modelled as physics",
         "change": "Error change",
         "fails": "Where it fails",
         "uncertainty": "Uncertainty",
@@ -33,6 +34,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "excluded": "Excluded",
         "flag": "Warning",
         "training": "Not held out",
+        "underexcited": "Not excited by the fit flight",
         "mismatch": "Model and log",
         "worse": "No help",
     }
@@ -105,16 +107,16 @@ def _signature_blocks(
         - np.asarray(series["mean_0"], float)
     )
     out: list[Block] = []
-    for key in sorted(k for k in series if k.startswith("regressor_")):
-        name = key.removeprefix("regressor_")
-        ev = entries.get(name, {}).get("explained_variance")
+    for key in sorted(k for k in series if k.startswith("contribution_")):
+        name = key.removeprefix("contribution_")
+        per_axis = entries.get(name, {}).get("explained_variance_per_axis")
         status = "missing" if name in (diag.get("missing") or []) else "not missing"
         data = (
             rf.signature_figure(
                 np.asarray(series[key], float),
                 err,
                 name,
-                float(ev) if isinstance(ev, int | float) else None,
+                per_axis if isinstance(per_axis, Mapping) else None,
                 f"{label}: signature of {name} ({status})",
             )
             if figures
@@ -126,9 +128,11 @@ def _signature_blocks(
             FigureBlock(
                 data,
                 f"signature of {name}",
-                f"{label}: the model's error against the regressor of {name}, per axis, with "
-                "the least-squares line through the origin and bin means: a slope is the "
-                "effect's signature, a flat cloud says it is not there.",
+                f"{label}: the model's error against the part of it {name} explains as the "
+                "diagnosis fitted it (its regressor times the estimate in the diagnosis "
+                "table, rad/s²), per axis, with the least-squares line through the origin "
+                "and bin means: slope 1 is the effect at the estimated size, a flat cloud "
+                "says it is not there.",
             )
         )
     return out

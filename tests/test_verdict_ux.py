@@ -1,0 +1,380 @@
+"""What a new user reads in the verdict refers only to what they can see, and every
+effect it names comes with the command that adds or tests it."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+import pytest
+
+from omavctl.diagnose.verdict import verdict
+from omavctl.report.summary import render_evaluation
+
+
+def _nothing_missing() -> dict[str, Any]:
+    """An evaluation tree where no registered effect is missing."""
+    return {
+        "models": [{"name": "m.npz", "effects": {}}],
+        "metrics": {"model": {"rmse": {"x": 0.1, "y": 0.2, "z": 0.1}}},
+        "diagnosis": {
+            "method": {"min_explained_variance": 0.15, "measurement_noise_std": 0.03},
+            "missing": [],
+            "missing_effects": [],
+            "fit_command": None,
+            "unexplained": [
+                {"kind": "feature correlation", "axis": "y", "feature": "wz", "correlation": -0.47},
+                {
+                    "kind": "spectral peak",
+                    "axis": "x",
+                    "frequency_hz": 1.25,
+                    "power_ratio": 30.0,
+                    "power_share": 0.22,
+                },
+                {
+                    "kind": "feature correlation",
+                    "axis": "z",
+                    "feature": "roll",
+                    "correlation": 0.31,
+                },
+            ],
+        },
+    }
+
+
+def _terminal(tree: dict[str, Any]) -> str:
+    import io
+
+    from rich.console import Console
+
+    con = Console(width=400, record=True, file=io.StringIO())
+    render_evaluation(con, tree, {})
+    return con.export_text()
+
+
+def test_the_terminal_verdict_shows_the_structure_it_refers_to():
+    """The verdict said "(see Diagnosis)" in a terminal that has no Diagnosis: it says
+    what the structure is instead."""
+    tree = _nothing_missing()
+    text = verdict(tree)[0].text
+    assert "see Diagnosis" not in text
+    assert text.endswith(
+        "Some structure remains that no registered effect explains: the y error "
+        "correlates with wz (r = -0.47); the x error has a spectral peak at 1.2 Hz, 22 % "
+        "of its power; 1 more in the evaluation JSON (diagnosis.unexplained)."
+    )
+    shown = _terminal(tree)
+    assert "correlates with wz (r = -0.47)" in shown and "Diagnosis" not in shown
+    clean = copy.deepcopy(tree)
+    clean["diagnosis"]["unexplained"] = []
+    assert "structure" not in verdict(clean)[0].text
+
+
+def _absorbed() -> dict[str, Any]:
+    """Nothing missing, but the nominal residual is a CoM offset the GP has absorbed
+    (the issue's case: physics-only error 2.76 rad/s², the model's 0.045)."""
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing_effects"] = [
+        {"name": "com_offset", "explained_variance": 0.02, "contribution_rms": 0.004}
+    ]
+    diag["learned"] = [
+        {
+            "name": "com_offset",
+            "missing": True,
+            "explained_variance": 0.97,
+            "contribution_rms": 2.7,
+            "ambiguous_with": [],
+        },
+        {"name": "gyro_bias", "missing": False, "explained_variance": 0.01},
+    ]
+    diag["effect_commands"] = {"com_offset": "omavctl fit f.bag --effects com_offset --out m+c.npz"}
+    return tree
+
+
+def test_an_effect_the_gp_absorbed_comes_with_the_command_that_makes_it_physical():
+    tree = _absorbed()
+    learned = [ln for ln in verdict(tree) if ln.key == "learned"]
+    assert len(learned) == 1
+    assert learned[0].text.startswith(
+        "Not modelled as physics: com_offset, which the nominal model's residual looks like "
+        "(it explains 97 % of it, 2.7 rad/s² RMS; the model leaves 0.004 of it)."
+    )
+    assert learned[0].command == "omavctl fit f.bag --effects com_offset --out m+c.npz"
+    shown = _terminal(tree)
+    assert "add it with: omavctl fit f.bag --effects com_offset --out m+c.npz" in shown
+    # a look-alike of an effect the model already holds is not claimed as learned
+    alike = copy.deepcopy(tree)
+    alike["models"][0]["effects"] = {"rotor_interference": {}}
+    alike["diagnosis"]["learned"][0]["ambiguous_with"] = ["rotor_interference"]
+    assert not [ln for ln in verdict(alike) if ln.key == "learned"]
+    # and a named missing effect is the next step: no second command
+    named = copy.deepcopy(tree)
+    named["diagnosis"]["missing"] = ["com_offset"]
+    assert not [ln for ln in verdict(named) if ln.key == "learned"]
+
+
+def test_the_json_and_report_carry_the_learned_effects_command():
+    from omavctl.report.diagnosis import diagnosis_section
+    from omavctl.report.document import Code
+    from omavctl.report.summary import evaluation_json
+
+    tree = _absorbed()
+    out = evaluation_json(tree, {})
+    assert out["fit_command"] is None  # a script's "what is missing" stays as it was
+    assert out["effect_commands"] == tree["diagnosis"]["effect_commands"]
+    assert any(v["key"] == "learned" and v["command"] for v in out["verdict"])
+    codes = [b.text for b in diagnosis_section(tree, 0, "eval.json") if isinstance(b, Code)]
+    assert codes == ["omavctl fit f.bag --effects com_offset --out m+c.npz"]
+
+
+def test_an_effect_held_back_by_the_refit_test_says_its_number_and_the_test():
+    """ "inertia was rejected by a refit test whose −1.60 appears in no table": the
+    verdict says the number and the command, the report's ranking shows it."""
+    from omavctl.report.diagnosis import _ranking_table
+
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    entry = {
+        "name": "inertia_error",
+        "explained_variance": 0.41,
+        "refit_explained_variance": -1.60,
+        "significant": True,
+        "plausible": True,
+        "above_noise": True,
+        "missing": False,
+    }
+    diag["missing_effects"] = [entry]
+    diag["refit_rejected"] = "inertia_error"
+    diag["effect_commands"] = {"inertia_error": "omavctl fit f.bag --effects inertia_error"}
+    first = verdict(tree)[0]
+    assert first.text.startswith(
+        "Nothing claimed as missing: inertia_error would explain 41 % of the model's "
+        "remaining error on held-out data with parameters fitted to that error, but with the "
+        "parameters fit --effects would estimate from the model's training points it "
+        "explains -160 % (the error would grow): not claimed."
+    )
+    assert first.command == "omavctl fit f.bag --effects inertia_error"
+    table = _ranking_table([entry], False, "missing")
+    col = table.columns.index("explained as fit --effects would fit it")
+    assert table.rows[0][col] == "-160.0 %"
+
+
+def test_the_refit_test_picks_the_effect_only_it_held_back():
+    from omavctl.diagnose.diagnosis import _refit_rejected
+    from omavctl.diagnose.scoring import EffectScore
+
+    def score(name, ev, refit, significant=True):
+        return EffectScore(
+            name, ev, {}, {}, {}, 9.0 if significant else 1.0, significant, True,
+            np.zeros((1, 3)), 1.0, True, refit,
+        )  # fmt: skip
+
+    assert _refit_rejected([score("a", 0.5, 0.1), score("b", 0.4, -1.6)]) == "b"
+    assert _refit_rejected([score("a", 0.5, None), score("b", 0.4, -1.6, False)]) is None
+
+
+def _pair(fall: float, same_flight: bool = True) -> list[tuple[dict[str, Any], str]]:
+    """Two evaluation files: the first model's diagnosis claims nothing missing (a
+    30 ms delay it scored below its thresholds); the second adds command_delay and its
+    error falls by ``fall`` (sum over axes)."""
+    before = _nothing_missing()
+    before["diagnosis"]["unexplained"] = []
+    before["diagnosis"]["method"].update({"min_t_value": 4.0, "min_contribution_rms": 0.09})
+    before["diagnosis"]["missing_effects"] = [
+        {
+            "name": "command_delay",
+            "explained_variance": 0.10,
+            "t_value": 2.1,
+            "contribution_rms": 0.05,
+            "plausible": True,
+            "refit_explained_variance": 0.08,
+        }
+    ]
+    before["metrics"]["nominal"] = {"rmse": {"x": 0.9, "y": 1.6, "z": 0.16}}
+    after = copy.deepcopy(before)
+    after["models"][0]["effects"] = {"command_delay": {"delay": [0.03]}}
+    after["metrics"]["model"]["rmse"] = {
+        a: v * (1 - fall) for a, v in before["metrics"]["model"]["rmse"].items()
+    }
+    if not same_flight:
+        after["metrics"]["nominal"]["rmse"]["x"] = 0.8
+    return [(before, "eval.json"), (after, "eval-delay.json")]
+
+
+def test_nothing_missing_is_never_said_above_a_measured_fall_with_an_effect_added():
+    from omavctl.diagnose.change import report_verdict
+
+    lines = report_verdict(_pair(0.388))
+    texts = [ln.text for ln in lines]
+    assert not any(t.startswith("Nothing") for t in texts[:-4]), texts
+    assert lines[0].who == "eval.json" and lines[0].text == (
+        "Missing: command_delay, measured — with it added (eval-delay.json) the model error "
+        "on the same flight falls by 38.8 % (sum over axes), although this model's "
+        "diagnosis claimed nothing missing (command_delay: it explained 10 % of the "
+        "held-out error (15 % needed); t value 2.1 (4 needed); its part 0.05 rad/s² RMS, "
+        "below the claim floor 0.09)."
+    )
+    assert "falls by 38.8 %" in lines[1].text
+    # a small fall, or another flight, does not overrule the diagnosis
+    assert report_verdict(_pair(0.03))[0].text.startswith("Nothing missing")
+    assert report_verdict(_pair(0.388, same_flight=False))[0].text.startswith("Nothing missing")
+
+
+def test_one_file_with_two_models_is_reconciled_in_the_terminal_and_report_alike():
+    from omavctl.diagnose.change import report_verdict
+    from omavctl.report.summary import evaluation_json
+
+    (before, _), (after, _) = _pair(0.388)
+    tree = copy.deepcopy(before)
+    tree["models"] = [before["models"][0], {**after["models"][0], "name": "m2.npz"}]
+    tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
+    report = [ln.text for ln in report_verdict([(tree, "eval.json")])]
+    terminal = [v["text"] for v in evaluation_json(tree, {})["verdict"]]
+    assert report == terminal
+    assert terminal[0].startswith("Missing: command_delay, measured — with it added (m2.npz)")
+    assert "Nothing missing" not in " ".join(terminal)
+
+
+def test_an_axis_the_fit_flight_barely_excited_is_said_as_such_first():
+    """ "goes 23 training ranges beyond the model's inputs: is the model this vehicle's?"
+    when the fit flight simply did not yaw: the verdict says that first, and keeps the
+    vehicle question for an input that is off by more than its own range here too."""
+    from omavctl.diagnose.metrics import envelope_flags, training_envelope
+
+    rng = np.random.default_rng(0)
+    t = np.linspace(0.0, 10.0, 400)
+    train = np.stack([np.sin(t), 0.01 * np.sin(3 * t)], axis=1)  # wz barely moves
+    flight = np.stack([np.sin(1.3 * t), 0.5 * np.sin(2 * t)], axis=1)  # wz moves 50x more
+    err, std = rng.normal(0, 0.1, (400, 3)), np.full((400, 3), 0.1)
+    env = training_envelope(train, flight, ["fx/m", "wz"], err, std)
+    assert set(env["underexcited"]) == {"wz"}
+    assert env["underexcited"]["wz"]["flight_span"] == pytest.approx(1.0, rel=0.01)
+    flags = envelope_flags(env)
+    assert [f["code"] for f in flags] == ["underexcited"]
+    assert flags[0]["message"].startswith(
+        "The fit flight barely excited wz (over 0.02 rad/s there, 1 rad/s here): this log goes 25 "
+        "of those training ranges beyond the model's inputs because the fit flight did "
+        "not move it"
+    )
+    tree = _nothing_missing()
+    tree["envelope"], tree["flags"] = env, flags
+    lines = verdict(tree)
+    assert lines[0].key == "underexcited" and lines[1].key == "missing"
+    assert not any("this vehicle's" in ln.text for ln in lines)
+    # an input offset far beyond its training range, though it moves alike: the question
+    shifted = np.stack([np.sin(t) + 30.0, 0.01 * np.sin(3 * t)], axis=1)
+    env = training_envelope(train, shifted, ["fx/m", "wz"], err, std)
+    assert env["underexcited"] == {}
+    assert [f["code"] for f in envelope_flags(env)] == ["far_outside_training"]
+
+
+def test_the_signature_slope_agrees_with_the_diagnosis_estimate():
+    """The com_offset signature showed a flat slope (-0.000379 against one column of the
+    raw regressor, x axis ±100 without unit) beside a verdict of 54 % on y: the figure
+    now plots the part of the error the diagnosis' estimate explains (rad/s², the
+    regressor as scored times the reported r), whose slope is 1 where the verdict says
+    the effect explains the error, and near 0 where it explains nothing."""
+    from omavctl.diagnose.scoring import score_effects
+    from omavctl.physics.effects import get_effect
+    from omavctl.report.figures import signature_figure, signature_slopes
+
+    rng = np.random.default_rng(3)
+    n = 1200
+    t = np.arange(n) * 0.01
+    force = np.stack([3 * np.sin(0.7 * t), 3 * np.cos(1.1 * t), 9.8 + np.sin(0.3 * t)], axis=1)
+    inertia_inv = np.diag([1 / 0.08, 1 / 0.09, 1 / 0.15])
+    x = np.stack([np.cross(np.eye(3)[j], force) @ inertia_inv.T for j in range(3)], axis=-1)
+    r_true = np.array([0.0, -0.015, 0.0])  # only r_y: torque on x and z, not on y
+    residual = x @ r_true + rng.normal(0.0, 0.02, (n, 3))
+    blocks = (t // 2.0).astype(int)
+    (score,) = score_effects(residual, {"com_offset": x}, blocks)
+    r = np.array(score.parameters["r"])
+    assert r[1] == pytest.approx(-0.015, rel=0.05)
+    # the plotted quantity is the regressor times the reported estimate, in rad/s²
+    assert np.allclose(score.contribution, x @ r)
+    slopes = signature_slopes(score.contribution, residual)
+    for i, axis in enumerate("xyz"):
+        if score.explained_per_axis[axis] > 0.5:
+            assert slopes[i] == pytest.approx(1.0, abs=0.05), (axis, slopes)
+    assert score.explained_per_axis["x"] > 0.5 and score.explained_per_axis["z"] > 0.5
+    # an error the effect does not follow has a flat signature
+    assert abs(signature_slopes(score.contribution, rng.normal(0, 0.02, (n, 3)))[0]) < 0.05
+    assert get_effect("com_offset").parameters[0].unit == "m"
+    png = signature_figure(
+        score.contribution, residual, "com_offset", score.explained_per_axis, "t"
+    )
+    assert png is not None and png.startswith(b"\x89PNG")
+
+
+def test_a_learned_effect_already_offered_as_a_test_is_not_given_twice():
+    tree = _absorbed()
+    tree["diagnosis"]["below_noise"] = "com_offset"
+    learned = next(ln for ln in verdict(tree) if ln.key == "learned")
+    assert learned.command is None and learned.text.endswith("Its fit command is the one above.")
+
+
+def test_a_learned_effect_the_second_model_adds_is_not_offered_again():
+    """evaluate --model gp.npz --model gp+com_offset.npz: the first model's verdict
+    offered com_offset; the second adds it and the error falls, so the verdict says
+    the measurement and does not point to a command it no longer shows."""
+    from omavctl.diagnose.change import report_verdict
+    from omavctl.report.summary import evaluation_json
+
+    tree = _absorbed()
+    tree["diagnosis"]["below_noise"] = "com_offset"
+    tree["metrics"]["nominal"] = {"rmse": {"x": 6.7, "y": 0.47, "z": 0.39}}
+    second = {"rmse": {"x": 0.06, "y": 0.15, "z": 0.04}}
+    tree["models"].append({"name": "gp+com_offset.npz", "effects": {"com_offset": {}}})
+    tree["metrics_by_model"] = [tree["metrics"], {**tree["metrics"], "model": second}]
+    texts = [v["text"] for v in evaluation_json(tree, {})["verdict"]]
+    assert texts[0].startswith("Missing: com_offset, measured — with it added (gp+com_offset.npz)")
+    assert not any(t.startswith("Not modelled as physics") for t in texts)
+    assert [ln.text for ln in report_verdict([(tree, "eval.json")])] == texts
+
+
+def test_an_effect_named_as_a_look_alike_comes_with_the_command_that_tests_it():
+    """ "Ambiguous with command_delay" named an effect without a way to test it."""
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing"] = ["rotational_drag"]
+    diag["missing_effects"] = [
+        {"name": "rotational_drag", "explained_variance": 0.31, "ambiguous_with": ["command_delay"]}
+    ]
+    diag["fit_command"] = "omavctl fit f.bag --effects rotational_drag"
+    diag["effect_commands"] = {
+        "rotational_drag": "omavctl fit f.bag --effects rotational_drag",
+        "command_delay": "omavctl fit f.bag --effects command_delay",
+    }
+    lines = verdict(tree)
+    assert "Ambiguous with command_delay" in lines[0].text
+    assert lines[1].text == (
+        "To test command_delay instead (its signature looks like rotational_drag's), fit "
+        "with it and compare both models on a flight neither saw."
+    )
+    assert lines[1].command == "omavctl fit f.bag --effects command_delay"
+    named = {
+        w.strip(".,()").removesuffix("'s") for ln in lines for w in ln.text.split() if "_" in w
+    }
+    commanded = {ln.subject or "rotational_drag" for ln in lines if ln.command}
+    assert named <= commanded
+
+
+def test_nothing_missing_is_reconciled_also_below_the_flags_said_first():
+    """Flags (a model no better than physics on an axis) come before the "missing"
+    sentence: it is reconciled there too."""
+    from omavctl.report.summary import evaluation_json
+
+    (before, _), (after, _) = _pair(0.388)
+    tree = copy.deepcopy(before)
+    tree["flags"] = [{"code": "worse_than_physics", "axis": "x", "message": "axis x: worse"}]
+    tree["models"] = [before["models"][0], {**after["models"][0], "name": "m2.npz"}]
+    tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
+    texts = [v["text"] for v in evaluation_json(tree, {})["verdict"]]
+    assert texts[0] == "axis x: worse"
+    assert "Nothing missing" not in " ".join(texts)
+    assert any(t.startswith("Missing: command_delay, measured") for t in texts)
