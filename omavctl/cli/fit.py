@@ -33,7 +33,7 @@ ModelOut = Annotated[
         "--out",
         "-o",
         metavar="MODEL.npz",
-        help="Output model file (.npz, schema omavctl.model/1).",
+        help="Output model file (.npz, schema omavctl.model/2).",
     ),
 ]
 Effects = Annotated[

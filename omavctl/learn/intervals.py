@@ -162,14 +162,17 @@ def plausible_range(name: str) -> dict[str, tuple[float, float]]:
 
 def pinned_down(name: str, param: str, interval: np.ndarray) -> np.ndarray:
     """bool (size,): the 95 % interval (size, 2) of ``name``'s parameter ``param``
-    determines it: finite, narrower than the plausible range and not holding the
-    value at which the effect is absent."""
+    determines it: finite, not holding the value at which the effect is absent, and
+    narrower than the plausible range (for an estimate outside that range, a
+    normalised command's gain say: a half-width below the estimate's magnitude)."""
     lo, hi = plausible_range(name)[param]
     null = null_values(name)[param]
     iv = np.asarray(interval, float).reshape(-1, 2)
     width = iv[:, 1] - iv[:, 0]
+    centre = 0.5 * (iv[:, 0] + iv[:, 1])
     finite = np.isfinite(iv).all(axis=1)
-    narrow = width < (hi - lo) if math.isfinite(hi - lo) else np.ones(iv.shape[0], bool)
     with np.errstate(invalid="ignore"):
+        inside = (centre >= lo) & (centre <= hi)
+        narrow = np.where(inside, width < (hi - lo), 0.5 * width < np.abs(centre))
         excludes_null = (iv[:, 0] > null) | (iv[:, 1] < null)
     return np.asarray(finite & narrow & excludes_null)

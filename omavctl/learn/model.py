@@ -16,7 +16,7 @@ kernel on normalised inputs ``zn = (z - input_mean) / input_scale``::
 Predictions are computed here in numpy (Cholesky of ``K + sigma^2 I``), so
 loading and using a model never needs scikit-learn.
 
-The file that holds it (schema ``omavctl.model/1``): :mod:`omavctl.learn.model_file`.
+The file that holds it (schema ``omavctl.model/2``): :mod:`omavctl.learn.model_file`.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
+from omavctl.learn.intervals import interval95, pinned_down
 from omavctl.learn.validation import beyond_envelope_variance
 from omavctl.physics.effects import Effect, EffectContext, get_effect
 from omavctl.physics.rigid_body import cross
@@ -42,7 +43,7 @@ __all__ = [
 ]
 
 SCHEMA_NAME = "omavctl.model"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 SCHEMA = f"{SCHEMA_NAME}/{SCHEMA_VERSION}"
 
 #: Query rows per block in predictions (bounds the (B, n) kernel matrix).
@@ -54,12 +55,26 @@ class EffectEstimate:
     """Fitted parameters of one registry effect.
 
     ``values[p]`` and ``stderr[p]`` have shape (size,) per parameter name ``p``
-    of the effect, in the registry's units.
+    of the effect, in the registry's units. ``stderr_method``: how the standard
+    errors were obtained: ``"hac"`` (autocorrelation-robust, model schema 2 on)
+    or ``"white"`` (white residuals, optimistic: files of schema 1).
     """
 
     name: str
     values: dict[str, np.ndarray]
     stderr: dict[str, np.ndarray]
+    stderr_method: str = "hac"
+
+    def interval95(self) -> dict[str, np.ndarray]:
+        """95 % interval (size, 2) per parameter: value -/+ 1.96 standard errors
+        (NaN where the standard error is not finite)."""
+        return {k: interval95(v, self.stderr[k]) for k, v in self.values.items()}
+
+    def pinned(self) -> dict[str, np.ndarray]:
+        """bool (size,) per parameter: its 95 % interval determines it (narrower than
+        the plausible range, excluding the value of no effect;
+        :func:`omavctl.learn.intervals.pinned_down`)."""
+        return {k: pinned_down(self.name, k, iv) for k, iv in self.interval95().items()}
 
     @property
     def effect(self) -> Effect:
@@ -87,15 +102,22 @@ class EffectEstimate:
                 var += (self.effect.to_theta(moved) - base) ** 2
         return np.sqrt(var)
 
-    def to_json(self) -> dict[str, list[float | None]]:
-        """Values and standard errors; a standard error that is not finite (a parameter
-        the data cannot determine) is null: JSON never holds NaN or Infinity."""
-        out: dict[str, list[float | None]] = {}
+    def to_json(self) -> dict[str, Any]:
+        """Values, standard errors (``P_stderr``), 95 % intervals (``P_ci95``, [low,
+        high] each) and whether each is pinned down (``P_pinned``); what is not finite
+        (a parameter the data cannot determine) is null: JSON never holds NaN or
+        Infinity. ``stderr_method`` says how the errors were obtained."""
+        out: dict[str, Any] = {"stderr_method": self.stderr_method}
+        intervals, pinned = self.interval95(), self.pinned()
         for p in self.effect.parameters:
             out[p.name] = [float(x) for x in self.values[p.name]]
             out[f"{p.name}_stderr"] = [
                 float(x) if math.isfinite(x) else None for x in self.stderr[p.name]
             ]
+            out[f"{p.name}_ci95"] = [
+                [float(x) if math.isfinite(x) else None for x in row] for row in intervals[p.name]
+            ]
+            out[f"{p.name}_pinned"] = [bool(x) for x in pinned[p.name]]
         return out
 
 
