@@ -14,13 +14,16 @@ derivative, the linear effects profiled out of it and of the residual;
 :func:`omavctl.learn.intervals.hac_covariance`): the samples are
 autocorrelated, and a form that does not fit (a lag searched as a delay)
 leaves correlated structure that widens it, where a curvature-based error
-would be optimistic.
+would be optimistic. A searched timing form is also checked against the other
+timing forms (:data:`TIMING_FORMS`): when another fits the samples better, the
+parameter's standard error grows by the shift that would cost as much as the
+better form saves (a lag searched as a delay says so in its interval).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,12 +32,15 @@ from scipy.optimize import minimize_scalar
 from omavctl.learn.intervals import hac_covariance, segment_ids
 from omavctl.learn.signal import ResidualSamples
 from omavctl.learn.validation import cholesky_of_k
-from omavctl.physics.effects import get_effect
+from omavctl.physics.effects import EFFECTS, get_effect
 
 __all__ = ["GRID", "SearchResult", "search_effects"]
 
 #: Trial values on the search interval before refinement.
 GRID = 31
+#: The effects whose form is a timing of the wrench (a delay or a lag): each
+#: searched one is checked against the others (:func:`_form_allowance`).
+TIMING_FORMS = tuple(name for name, e in EFFECTS.items() if e.search is not None)
 #: Coordinate-descent sweeps over several searched effects.
 SWEEPS = 2
 
@@ -42,13 +48,18 @@ SWEEPS = 2
 @dataclass(frozen=True)
 class SearchResult:
     """Estimate of one searched effect: value and standard error in its unit;
-    ``inflation`` the variance factor of autocorrelated residuals (HAC over white)."""
+    ``inflation`` the variance factor of autocorrelated residuals (HAC over white);
+    ``better_form`` another timing form that fits the samples better (the form may be
+    wrong) and ``form_allowance`` the standard-error share it added (see
+    :func:`_form_allowance`)."""
 
     name: str
     value: float
     stderr: float
     at_bound: bool
     inflation: float = 1.0
+    better_form: str | None = None
+    form_allowance: float = 0.0
 
 
 class _Problem:
@@ -133,6 +144,34 @@ def _sandwich(prob: _Problem, name: str, base: np.ndarray, value: float) -> tupl
     return math.sqrt(max(var, var_white)), inflation
 
 
+def _form_allowance(
+    prob: _Problem, name: str, base: np.ndarray, value: float, searched: Sequence[str]
+) -> tuple[str | None, float]:
+    """The timing form (another searched effect not estimated here) that fits ``base``
+    better than ``name`` at ``value``, and the allowance for the wrong form: the shift
+    ``delta = sqrt(dRSS / |J|^2)`` of ``name``'s parameter that would cost as much as
+    the better form saves (J the exact form's derivative, linear effects profiled).
+    A first-order lag searched as a delay fits worse than the lag itself: its
+    parameter is then not determined better than that shift. (None, 0) when no
+    other form fits better."""
+    rss = prob.rss(base - prob.exact(name, value))
+    best, best_rss = None, rss
+    for other in TIMING_FORMS:
+        if other == name or other in searched:
+            continue
+        v = _search_one(prob, other, base)
+        r = prob.rss(base - prob.exact(other, v))
+        if r < best_rss:
+            best, best_rss = other, r
+    if best is None:
+        return None, 0.0
+    lo, hi = get_effect(name).search  # type: ignore[misc]
+    h = 1e-3 * (hi - lo)
+    jac = (prob.exact(name, value + h) - prob.exact(name, value - h)) / (2 * h)
+    jj = prob.rss(jac)  # |J|^2 with the linear effects profiled out
+    return best, math.sqrt((rss - best_rss) / jj) if jj > 0 else float("inf")
+
+
 def search_effects(
     samples: Sequence[ResidualSamples], searched: Sequence[str], linear: Sequence[str] = ()
 ) -> dict[str, SearchResult]:
@@ -156,11 +195,15 @@ def search_effects(
             values[name] = _search_one(prob, name, base_without(name))
     out = {}
     for name in searched:
-        se, inflation = _sandwich(prob, name, base_without(name), values[name])
+        base = base_without(name)
+        se, inflation = _sandwich(prob, name, base, values[name])
+        better, delta = _form_allowance(prob, name, base, values[name], searched)
         lo, hi = get_effect(name).search  # type: ignore[misc]
         step = (hi - lo) / (GRID - 1)
         at_bound = min(values[name] - lo, hi - values[name]) < 0.05 * step
-        out[name] = SearchResult(name, values[name], se, bool(at_bound), inflation)
+        out[name] = SearchResult(
+            name, values[name], math.hypot(se, delta), bool(at_bound), inflation, better, delta
+        )
     return out
 
 
@@ -230,6 +273,16 @@ def gls_search(
             values[name] = _refine(
                 lambda v, n=name: objective(n, v), lo, hi, best, 2 * (hi - lo) / (GRID - 1)
             )
+    return _curvature_results(objective, values, start)
+
+
+def _curvature_results(
+    objective: Callable[[str, float], float],
+    values: dict[str, float],
+    start: dict[str, SearchResult],
+) -> dict[str, SearchResult]:
+    """Each searched value with its standard error from the curvature of
+    ``objective`` (minus twice a log-likelihood: ``se = sqrt(2 / J'')``)."""
     out = {}
     for name, v in values.items():
         lo, hi = get_effect(name).search  # type: ignore[misc]
@@ -247,5 +300,7 @@ def gls_search(
         se = max(se * math.sqrt(first.inflation), first.stderr)
         step = (hi - lo) / (GRID - 1)
         at_bound = min(v - lo, hi - v) < 0.05 * step
-        out[name] = SearchResult(name, v, se, bool(at_bound), first.inflation)
+        out[name] = SearchResult(
+            name, v, se, bool(at_bound), first.inflation, first.better_form, first.form_allowance
+        )
     return out

@@ -163,16 +163,22 @@ def plausible_range(name: str) -> dict[str, tuple[float, float]]:
 def pinned_down(name: str, param: str, interval: np.ndarray) -> np.ndarray:
     """bool (size,): the 95 % interval (size, 2) of ``name``'s parameter ``param``
     determines it: finite, not holding the value at which the effect is absent, and
-    narrower than the plausible range (for an estimate outside that range, a
-    normalised command's gain say: a half-width below the estimate's magnitude)."""
+    within and narrower than the plausible range (for ``inertia_error``'s scale
+    outside it, the inverse gain of a normalised torque command: a half-width below
+    the estimate's magnitude)."""
     lo, hi = plausible_range(name)[param]
-    null = null_values(name)[param]
     iv = np.asarray(interval, float).reshape(-1, 2)
+    null = null_values(name)[param]
+    null = null if null.size == iv.shape[0] else np.full(iv.shape[0], null.flat[0])
     width = iv[:, 1] - iv[:, 0]
     centre = 0.5 * (iv[:, 0] + iv[:, 1])
     finite = np.isfinite(iv).all(axis=1)
     with np.errstate(invalid="ignore"):
         inside = (centre >= lo) & (centre <= hi)
-        narrow = np.where(inside, width < (hi - lo), 0.5 * width < np.abs(centre))
+        # a normalised torque command's gain is estimated as inertia_error's scale
+        # (1 / gain): any positive value is plausible, judged by its relative width
+        gain = name == "inertia_error"
+        outside = 0.5 * width < np.abs(centre) if gain else np.zeros_like(inside)
+        narrow = np.where(inside, width < (hi - lo), outside)
         excludes_null = (iv[:, 0] > null) | (iv[:, 1] < null)
     return np.asarray(finite & narrow & excludes_null)
