@@ -193,3 +193,30 @@ def test_diagnosis_and_fit_agree_on_the_octocopters_motor_lag():
     assert abs(r - d) > 2 * math.hypot(r_se, sandwich), (r, r_se, d, sandwich)
     # neither pins it down: the interval holds 0 (the flight hardly excites a lag)
     assert not diag.pinned()["T_m"][0] and not est.pinned()["T_m"][0]
+
+
+def test_the_verdict_gives_the_missing_effects_estimate_and_interval():
+    from omavctl.diagnose.verdict import verdict
+
+    def tree(ci: list, pinned: bool) -> dict:
+        learned = {
+            "name": "motor_lag",
+            "units": {"T_m": "s"},
+            "estimate": {"T_m": [0.05], "T_m_ci95": [ci], "T_m_pinned": [pinned]},
+        }
+        missing = {"name": "motor_lag", "explained_variance": 0.5}
+        return {
+            "diagnosis": {
+                "missing": ["motor_lag"],
+                "missing_effects": [missing],
+                "learned": [learned],
+            }
+        }
+
+    (line,) = [ln for ln in verdict(tree([0.04, 0.06], True)) if ln.key == "missing"]
+    assert line.text.endswith(" Estimated as fit would: T_m = 0.05 s (95 %: 0.04 to 0.06).")
+    (line,) = [ln for ln in verdict(tree([-0.01, 0.11], False)) if ln.key == "missing"]
+    assert line.text.endswith(
+        " Estimated as fit would: T_m = 0.05 s (95 %: -0.01 to 0.11, "
+        "cannot be pinned down from this flight)."
+    )
