@@ -27,7 +27,7 @@ from omavctl.report.document import (
 )
 from omavctl.report.numfmt import AXES, as_list, axes_of, finite, num, pct, torque_unit_unknown
 
-__all__ = ["diagnosis_section"]
+__all__ = ["diagnosis_section", "fitted_effect_items"]
 
 
 def _unit(unit: str, torque_unknown: bool) -> str:
@@ -84,6 +84,21 @@ def _param_lines(
     if skipped:
         lines.append(Span(f"not excited: {', '.join(skipped)}", "em"))
     return tuple(lines)
+
+
+def fitted_effect_items(effects: Mapping[str, Any], torque_unknown: bool) -> list[Content]:
+    """One item per effect a model fitted: its parameters ± standard errors and 95 %
+    intervals (the model file's ``P``, ``P_stderr``, ``P_ci95``, ``P_pinned``)."""
+    from omavctl.physics.effects import EFFECTS
+
+    out: list[Content] = []
+    for name, params in effects.items():
+        if not isinstance(params, Mapping) or name not in EFFECTS:
+            continue
+        units = {p.name: p.unit for p in EFFECTS[name].parameters}
+        lines = _param_lines(params, units, torque_unknown)
+        out.append(f"fitted {name}: " + "; ".join(str(x) for x in lines if isinstance(x, str)))
+    return out
 
 
 def _interval_note(params: Mapping[str, Any], k: str, i: int) -> str:
