@@ -120,7 +120,8 @@ def white_first_pass(
     res = first_pass([samples], [name])
     if name in res.found:
         r = res.found[name]
-        return np.array([r.value]), np.array([r.stderr / math.sqrt(r.inflation)])
+        white = math.sqrt(max(r.stderr**2 - r.form_allowance**2, 0.0) / r.inflation)
+        return np.array([r.value]), np.array([white])
     fp = res.first_pass
     assert fp.cov_white is not None
     phys = fp.estimates[name].effect.to_parameters(fp.theta, fp.cov_white)
