@@ -6,6 +6,8 @@
 #                      agreement tests (the same training points as under NumPy 2)
 #   make generalise    the generalisation benchmark (docs/generalisation.md)
 #   make bench-effects the effects-plan benchmark (docs/plan-effects-results.md)
+#   make bench-intervals coverage of the effect parameters' 95 % intervals
+#                      (docs/intervals-results.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
@@ -13,7 +15,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects fuzz generalise clean
+.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals fuzz generalise clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -67,6 +69,11 @@ generalise: $(STAMP)
 # hidden drag and command delay (docs/plan-effects.md; about 1 minute per seed)
 bench-effects: $(STAMP)
 	$(BIN)/python benchmarks/bench_effects_plan.py --out docs/plan-effects-results.md
+
+# the effects' 95 % intervals on simulated flights with known truths, against the
+# white-residual least-squares ones (docs/intervals.md; about 5 minutes on 2 cores)
+bench-intervals: $(STAMP)
+	nice -n 10 $(BIN)/python benchmarks/intervals.py --markdown docs/intervals-results.md
 
 test-numpy1: $(VENV1)/.installed
 	$(VENV1)/bin/pytest -q tests/test_kmedoids.py

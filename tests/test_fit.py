@@ -232,7 +232,9 @@ def test_same_inputs_and_seed_give_the_same_bytes(flights, tmp_path):
     with np.load(tmp_path / "a.npz", allow_pickle=False) as npz:
         effects = json.loads(str(npz["effects"]))
         provenance = json.loads(str(npz["provenance"]))
-    assert set(effects["rotational_drag"]) == {"D", "D_stderr"}
+    assert set(effects["rotational_drag"]) == {
+        "D", "D_stderr", "D_ci95", "D_pinned", "stderr_method"
+    }  # fmt: skip
     assert provenance["savitzky_golay"]["window"] == DEFAULT_SG_WINDOW
     assert provenance["seed"] == 0 and provenance["kmedoids"]["metric"] == "sqeuclidean"
 

@@ -156,12 +156,15 @@ def test_round_trip_and_plain_numpy_load(vehicle, tmp_path):
     path = tmp_path / "m.npz"
     save_model(path, model)
     with np.load(path, allow_pickle=False) as npz:
-        assert str(npz["schema"]) == SCHEMA == "omavctl.model/1"
+        assert str(npz["schema"]) == SCHEMA == "omavctl.model/2"
         assert npz["train_inputs"].shape == (40, 9) and npz["length_scales"].shape == (3, 9)
         effects = json.loads(str(npz["effects"]))
-        assert effects == {
-            "rotational_drag": {"D": [0.03, 0.02, 0.01], "D_stderr": [0.001, 0.001, 0.001]}
-        }
+        ci = [[v - 1.959963984540054e-3, v + 1.959963984540054e-3] for v in (0.03, 0.02, 0.01)]
+        assert effects.keys() == {"rotational_drag"}
+        drag = effects["rotational_drag"]
+        assert drag["D"] == [0.03, 0.02, 0.01] and drag["D_stderr"] == [0.001, 0.001, 0.001]
+        np.testing.assert_allclose(drag["D_ci95"], ci, rtol=1e-12)
+        assert drag["D_pinned"] == [True, True, True] and drag["stderr_method"] == "hac"
         assert json.loads(str(npz["vehicle"]))["mass"] == vehicle.mass
         assert all(not npz[k].dtype.hasobject for k in npz.files)
     back = load_model(path)
@@ -195,14 +198,47 @@ def test_newer_and_unknown_schemas_are_refused(vehicle, tmp_path):
     good = tmp_path / "good.npz"
     save_model(good, make_model(vehicle))
     newer = tmp_path / "newer.npz"
-    _rewrite(good, newer, schema=np.array("omavctl.model/2"))
+    _rewrite(good, newer, schema=np.array("omavctl.model/3"))
     assert _refused(newer) == (
-        f"{newer}: schema 'omavctl.model/2' is newer than this omavctl supports (omavctl.model/1)"
+        f"{newer}: schema 'omavctl.model/3' is newer than this omavctl supports (omavctl.model/2)"
     )
     other = tmp_path / "other.npz"
     _rewrite(good, other, schema=np.array("somebody.gp/1"))
     assert _refused(other) == (
-        f"{other}: unknown schema 'somebody.gp/1' (this omavctl reads omavctl.model/1)"
+        f"{other}: unknown schema 'somebody.gp/1' (this omavctl reads omavctl.model/2)"
+    )
+
+
+def test_version_1_file_is_read_with_its_white_standard_errors(vehicle, tmp_path):
+    """A file written before the intervals (schema 1: values and white-residual
+    standard errors only) loads; its errors are marked optimistic, its intervals
+    derived from them, and writing it again gives a version 2 file that says so."""
+    good = tmp_path / "good.npz"
+    save_model(good, make_model(vehicle, effects=True))
+    old = tmp_path / "old.npz"
+    v1_effects = {"rotational_drag": {"D": [0.03, 0.0, 0.01], "D_stderr": [0.001, 0.02, 0.01]}}
+    _rewrite(
+        good, old, schema=np.array("omavctl.model/1"), effects=np.array(json.dumps(v1_effects))
+    )
+    est = load_model(old).effects["rotational_drag"]
+    assert est.stderr_method == "white"
+    np.testing.assert_allclose(
+        est.interval95()["D"], [[0.02804, 0.03196], [-0.0392, 0.0392], [-0.0096, 0.0296]],
+        atol=1e-5,
+    )  # fmt: skip
+    # 0.03 +- 0.002 is pinned down; 0 +- 0.04 and 0.01 +- 0.02 hold the value of no drag
+    assert est.pinned()["D"].tolist() == [True, False, False]
+    again = tmp_path / "again.npz"
+    save_model(again, load_model(old))
+    with np.load(again, allow_pickle=False) as npz:
+        assert str(npz["schema"]) == "omavctl.model/2"
+        assert json.loads(str(npz["effects"]))["rotational_drag"]["stderr_method"] == "white"
+    assert load_model(again).effects["rotational_drag"].stderr_method == "white"
+    bad = tmp_path / "bad.npz"
+    v2_bad = {"rotational_drag": {**v1_effects["rotational_drag"], "stderr_method": "guess"}}
+    _rewrite(good, bad, effects=np.array(json.dumps(v2_bad)))
+    assert _refused(bad) == (
+        f"{bad}: effect 'rotational_drag': unknown stderr_method 'guess' (known: hac, white)"
     )
     bare = tmp_path / "bare.npz"
     np.savez(bare, x=np.zeros(3))

@@ -89,8 +89,12 @@ def test_the_prior_information_reproduces_the_drag_standard_errors_fit_wrote(set
     prior = EffectsPrior.from_model(model, GPAxes.from_model(model), ["rotational_drag"])
     se = prior.standard_errors(prior.information)
     # the same GLS as fit's joint estimate; fit's cross-validation adjusts the noise and
-    # signal variances afterwards, which moves them by a few tens of percent at most
-    np.testing.assert_allclose(se, model.effects["rotational_drag"].stderr["D"], rtol=0.3)
+    # signal variances afterwards, which moves them by a few tens of percent at most.
+    # fit then widens its errors for autocorrelated residuals (docs/intervals.md): the
+    # planner's white GLS errors are at most those, equal where the prior decides (D_z)
+    fit_se = model.effects["rotational_drag"].stderr["D"]
+    assert np.all(se <= 1.3 * fit_se), (se, fit_se)
+    np.testing.assert_allclose(se[2], fit_se[2], rtol=0.3)
 
 
 def test_cli_effects_plan_scores_both_objectives_and_is_deterministic(setup):

@@ -181,8 +181,19 @@ def test_px4tools_fit_evaluate_report_through_the_cli(tmp_path: Path) -> None:
         "no better than predicting zero on", sorted(flagged), zero, tree["metrics"]["model"]["rmse"]
     )
 
+    # every learned effect carries its estimate as fit --effects makes it, with 95 %
+    # intervals; the model's gain too (and, here, none of the gains is pinned down)
+    for entry in tree["diagnosis"]["learned"]:
+        est = entry["estimate"]
+        for p in entry["units"]:
+            assert len(est[f"{p}_ci95"]) == len(est[p]) == len(est[f"{p}_pinned"])
+    scale = tree["models"][0]["effects"]["inertia_error"]
+    assert scale["stderr_method"] == "hac" and scale["scale_pinned"] == [False] * 3
+
     _ok(runner.invoke(app, ["report", str(ev), "--out", str(rep), "-q"]))
     assert "torques are in unknown units" in rep.read_text()
+    assert "fitted inertia\\_error: scale\\_x = " in rep.read_text()
+    assert "cannot be pinned down from this flight" in rep.read_text()
     assert PX4_CSV.stat().st_mtime_ns == before
 
 

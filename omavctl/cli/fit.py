@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -33,7 +34,7 @@ ModelOut = Annotated[
         "--out",
         "-o",
         metavar="MODEL.npz",
-        help="Output model file (.npz, schema omavctl.model/1).",
+        help="Output model file (.npz, schema omavctl.model/2).",
     ),
 ]
 Effects = Annotated[
@@ -171,19 +172,30 @@ def _effects_table(summary: Any) -> Any:
     from rich.text import Text
 
     from omavctl.learn.fit_notes import effect_unit
+    from omavctl.learn.intervals import Z95
     from omavctl.physics.effects import get_effect
 
     units = summary.command_units
-    eff = Table(title="effects (least squares, value ± standard error)", title_justify="left")
-    for col in ("effect", "parameter", "value ± std. error", "unit"):
+    eff = Table(
+        title="effects (value ± standard error, robust to autocorrelated residuals)",
+        title_justify="left",
+    )
+    for col in ("effect", "parameter", "value ± std. error", "95 % interval", "unit"):
         eff.add_column(col)
     for name, est in summary.effects.items():
+        intervals, pinned = est.interval95(), est.pinned()
         for p in get_effect(name).parameters:
             labels = "xyz" if p.size == 3 else [str(i) for i in range(p.size)]
             for i, (v, e) in enumerate(zip(est.values[p.name], est.stderr[p.name], strict=True)):
                 label = p.name if p.size == 1 else f"{p.name}_{labels[i]}"
                 unit = effect_unit(name, p.unit, units)
-                eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", Text(unit))
+                eff.add_row(
+                    name,
+                    label,
+                    f"{v:.4g} ± {e:.2g}",
+                    _interval_text(intervals[p.name][i], bool(pinned[p.name][i])),
+                    Text(unit),
+                )
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         for axis, g, e in gains:
@@ -191,9 +203,17 @@ def _effects_table(summary: Any) -> Any:
                 "torque command gain",
                 f"gain_{axis} = 1/scale_{axis}",
                 f"{g:.4g} ± {e:.2g}",
+                f"[{g - Z95 * e:.3g}, {g + Z95 * e:.3g}]",
                 Text("N m per command unit (assumed inertia)"),
             )
     return eff
+
+
+def _interval_text(interval: Any, pinned: bool) -> str:
+    """'[low, high]' of a 95 % interval, and whether it pins the parameter down."""
+    lo, hi = (float(x) for x in interval)
+    text = f"[{lo:.3g}, {hi:.3g}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
+    return text if pinned else f"{text}: cannot be pinned down from this flight"
 
 
 def _gp_table(summary: Any) -> Any:

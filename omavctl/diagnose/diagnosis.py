@@ -6,7 +6,9 @@ missing one is accepted, what it explains removed and the others rescored
 (forward selection, up to 3). Structure left after that (correlation with
 an input or state feature, a spectral peak) is reported as unexplained. The
 same ranking on the nominal residual says what the GP (with the effects) has
-learned, in physical terms. :func:`fit_command` is the ``omavctl fit``
+learned, in physical terms; each learned effect's ``estimate`` is made as
+``fit --effects`` would make it (:mod:`omavctl.diagnose.estimates`), so that
+the two agree. :func:`fit_command` is the ``omavctl fit``
 command that adds the top missing effect.
 """
 
@@ -18,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from omavctl.diagnose.estimates import ESTIMATE_METHOD, fit_estimates
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     MIN_EXPLAINED,
@@ -180,6 +183,7 @@ def diagnose(
     # "effect" below the measurement's own noise is not claimed as learned
     learned = score_effects(residual, regs, blocks, noise_floor=floor)
     unexplained = unexplained_structure(after, features, sg.dt)
+    estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned])
     return {
         "method": {
             "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
@@ -192,6 +196,7 @@ def diagnose(
             "would (GP hyperparameters kept); a missing effect must lower the error with them",
             "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
             "selection": "forward: best missing effect removed, others rescored, up to 3",
+            "learned_estimate": ESTIMATE_METHOD,
         },
         "missing_effects": [s.to_json() for s in missing],
         "missing": [a["name"] for a in accepted],
@@ -199,7 +204,7 @@ def diagnose(
         "refit_rejected": None if accepted else _refit_rejected(missing),
         "missing_steps": accepted,
         "unexplained": unexplained,
-        "learned": [s.to_json() for s in learned],
+        "learned": [{**s.to_json(), "estimate": estimates[s.name]} for s in learned],
     }
 
 

@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from math import isfinite
 from typing import Any
 
 import numpy as np
 
 from omavctl.diagnose.metrics import AXES
+from omavctl.learn.intervals import interval95
 from omavctl.physics.effects import EFFECTS, Effect, get_effect
 
 __all__ = [
@@ -230,14 +232,22 @@ def _t_value(
 def _parameters(
     effect: Effect, theta_all: np.ndarray, cov: np.ndarray, excited: np.ndarray
 ) -> dict[str, Any]:
-    """The JSON ``parameters`` of a score: physical values, their standard errors
-    (none for parameters not excited) and which parameters were excited."""
+    """The JSON ``parameters`` of a score: physical values, their (jackknife)
+    standard errors (none for parameters not excited), 95 % intervals ``P_ci95``
+    (value -/+ 1.96 standard errors) and which parameters were excited."""
     cov = cov.copy()
     cov[~excited, :] = 0.0
     cov[:, ~excited] = 0.0
     phys = effect.to_parameters(theta_all, cov)
     params: dict[str, Any] = {k: v.tolist() for k, (v, _) in phys.items()}
     params.update({f"{k}_stderr": s.tolist() for k, (_, s) in phys.items()})
+    params.update(
+        {
+            f"{k}_ci95": [[lo if isfinite(lo) else None, hi if isfinite(hi) else None]
+                          for lo, hi in interval95(v, s).tolist()]
+            for k, (v, s) in phys.items()
+        }
+    )  # fmt: skip
     params["excited"] = excited.tolist()
     return params
 

@@ -15,6 +15,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from omavctl.diagnose.estimate_text import estimate_sentence
+
 __all__ = [
     "COVERAGE_MIN",
     "Line",
@@ -122,6 +124,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" — it explains {_pct(ev)} of the model's remaining error on held-out data"
         text += f" ({axes})" if axes else ""
     text += "."
+    learned = {str(e.get("name")): e for e in diag.get("learned", []) or []}
+    text += estimate_sentence(learned.get(missing[0], {}))
     if len(missing) > 1:
         text += f" Then: {', '.join(missing[1:])}."
     amb = top.get("ambiguous_with") or []

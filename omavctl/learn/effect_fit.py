@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from omavctl.learn.effect_search import SearchResult, search_effects
+from omavctl.learn.intervals import hac_covariance, segment_ids
 from omavctl.learn.model import EffectEstimate
 from omavctl.learn.signal import ResidualSamples
 from omavctl.learn.validation import cholesky_of_k
@@ -34,6 +35,7 @@ __all__ = [
     "EffectFit",
     "effect_prior",
     "estimate_effects",
+    "honest_covariance",
     "joint_effects",
     "merged_estimates",
     "refit_estimates",
@@ -50,9 +52,10 @@ GAIN_EFFECT = "inertia_error"
 class EffectFit:
     """Least-squares estimate of the stacked effect parameters.
 
-    theta (p,), cov (p, p); estimates by effect name; residual_std (3,) per axis
-    after subtracting the effects; explained (3,) fraction of residual variance
-    the effects explain per axis.
+    theta (p,), cov (p, p) (HAC: autocorrelated residuals); estimates by effect
+    name; residual_std (3,) per axis after subtracting the effects; explained (3,)
+    fraction of residual variance the effects explain per axis; cov_white (p, p)
+    the white-residual covariance ``s^2 (A^T A)^+`` (None when not computed).
     """
 
     theta: np.ndarray
@@ -60,14 +63,28 @@ class EffectFit:
     estimates: dict[str, EffectEstimate]
     residual_std: np.ndarray
     explained: np.ndarray
+    cov_white: np.ndarray | None = None
+
+    @property
+    def inflation(self) -> np.ndarray:
+        """Variance inflation (p,) of the autocorrelated residuals: diag(cov) over
+        diag(cov_white), at least 1 (ones without cov_white)."""
+        if self.cov_white is None:
+            return np.ones(self.theta.size)
+        white = np.diag(self.cov_white)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(white > 0, np.diag(self.cov) / white, 1.0)
+        return np.maximum(np.nan_to_num(ratio, nan=1.0, posinf=1.0), 1.0)
 
 
 def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str]) -> EffectFit:
     """Least squares of the residual on the stacked held regressors of ``effects``.
 
     ``residual ~= sum_e X_e theta_e`` over every axis and sample (3n equations);
-    covariance ``s^2 (X^T X)^+`` with ``s^2`` the residual variance (the samples
-    are autocorrelated by the filter, so these standard errors are optimistic).
+    covariance by the Newey-West sandwich over contiguous samples
+    (:func:`omavctl.learn.intervals.hac_covariance`: the samples are
+    autocorrelated by the filter and by what no effect explains, and
+    ``s^2 (X^T X)^+``, kept as ``cov_white``, would be optimistic).
     """
     residual = np.concatenate([s.residual for s in samples])
     n = residual.shape[0]
@@ -84,9 +101,7 @@ def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str])
     theta, *_ = np.linalg.lstsq(a, b, rcond=None)
     fitted = (x @ theta).reshape(n, 3)
     rest = residual - fitted
-    dof = max(3 * n - p, 1)
-    s2 = float(np.sum(rest**2) / dof)
-    cov = s2 * np.linalg.pinv(a.T @ a)
+    cov, cov_white = hac_covariance(x, rest, segment_ids(samples))
     estimates: dict[str, EffectEstimate] = {}
     i = 0
     for name, size in zip(effects, sizes, strict=True):
@@ -98,7 +113,7 @@ def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str])
         i += size
     var = residual.var(axis=0)
     explained = np.where(var > 0, 1.0 - rest.var(axis=0) / np.where(var > 0, var, 1.0), 0.0)
-    return EffectFit(theta, cov, estimates, rest.std(axis=0), explained)
+    return EffectFit(theta, cov, estimates, rest.std(axis=0), explained, cov_white)
 
 
 #: Prior standard deviation of each effect's estimation parameters in the joint
@@ -195,6 +210,25 @@ def joint_effects(
         b_vec += x[:, a, :].T @ cho_solve(c, y[:, a] - mean[a])
     cov = np.linalg.inv(a_mat)
     return cov @ b_vec, cov
+
+
+def honest_covariance(cov_joint: np.ndarray, first_pass: EffectFit) -> np.ndarray:
+    """The joint fit's posterior covariance (p, p) made honest about autocorrelation.
+
+    The joint posterior accounts for what the GP could absorb (confounding) but
+    treats the training points' misfit as white; each parameter's variance is
+    multiplied by the first pass's inflation (HAC over white,
+    :attr:`EffectFit.inflation`) and raised to at least the first pass's HAC
+    variance, correlations kept.
+    """
+    if cov_joint.size == 0:
+        return cov_joint
+    var = np.diag(cov_joint)
+    target = np.maximum(var * first_pass.inflation, np.diag(first_pass.cov))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = np.where(var > 0, np.sqrt(target / var), 1.0)
+    factor = np.nan_to_num(factor, nan=1.0, posinf=1.0)
+    return np.asarray(cov_joint * np.outer(factor, factor))
 
 
 def refit_estimates(

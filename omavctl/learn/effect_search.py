@@ -8,44 +8,58 @@ for a trial value the exact residual is subtracted and the *linear* effects
 fitted with it are profiled out by ordinary least squares; the value with the
 smallest remaining sum of squares wins (a grid of :data:`GRID` values over the
 effect's search interval, then a bounded scalar refinement). Several searched
-effects are found by coordinate descent. The standard error is a
-delete-one-group jackknife over :data:`GROUPS` groups of
-:data:`BLOCK_SECONDS` time blocks (the samples are autocorrelated: a
-curvature-based error would be optimistic).
+effects are found by coordinate descent. The standard error is the
+Newey-West sandwich of the search linearised at its optimum (the exact form's
+derivative, the linear effects profiled out of it and of the residual;
+:func:`omavctl.learn.intervals.hac_covariance`): the samples are
+autocorrelated, and a form that does not fit (a lag searched as a delay)
+leaves correlated structure that widens it, where a curvature-based error
+would be optimistic. A searched timing form is also checked against the other
+timing forms (:data:`TIMING_FORMS`): when another fits the samples better, the
+parameter's standard error grows by the shift that would cost as much as the
+better form saves (a lag searched as a delay says so in its interval).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from omavctl.learn.intervals import hac_covariance, segment_ids
 from omavctl.learn.signal import ResidualSamples
 from omavctl.learn.validation import cholesky_of_k
-from omavctl.physics.effects import get_effect
+from omavctl.physics.effects import EFFECTS, get_effect
 
-__all__ = ["BLOCK_SECONDS", "GRID", "GROUPS", "SearchResult", "search_effects"]
+__all__ = ["GRID", "SearchResult", "search_effects"]
 
 #: Trial values on the search interval before refinement.
 GRID = 31
-#: Time blocks (s) and jackknife groups of the standard error.
-BLOCK_SECONDS = 2.0
-GROUPS = 10
+#: The effects whose form is a timing of the wrench (a delay or a lag): each
+#: searched one is checked against the others (:func:`_form_allowance`).
+TIMING_FORMS = tuple(name for name, e in EFFECTS.items() if e.search is not None)
 #: Coordinate-descent sweeps over several searched effects.
 SWEEPS = 2
 
 
 @dataclass(frozen=True)
 class SearchResult:
-    """Estimate of one searched effect: value and standard error in its unit."""
+    """Estimate of one searched effect: value and standard error in its unit;
+    ``inflation`` the variance factor of autocorrelated residuals (HAC over white);
+    ``better_form`` another timing form that fits the samples better (the form may be
+    wrong) and ``form_allowance`` the standard-error share it added (see
+    :func:`_form_allowance`)."""
 
     name: str
     value: float
     stderr: float
     at_bound: bool
+    inflation: float = 1.0
+    better_form: str | None = None
+    form_allowance: float = 0.0
 
 
 class _Problem:
@@ -61,11 +75,7 @@ class _Problem:
             if linear
             else np.zeros((self.residual.shape[0], 3, 0))
         )
-        t = np.concatenate([s.t - s.t.min() if s.n else s.t for s in samples])
-        log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
-        block = np.floor(t / BLOCK_SECONDS).astype(np.int64) + 100000 * log_id
-        _, block = np.unique(block, return_inverse=True)
-        self.group = block % GROUPS
+        self.segment = segment_ids(samples)
 
     def exact(self, name: str, value: float) -> np.ndarray:
         return np.concatenate([s.exact(name, value) for s in self.samples])
@@ -113,9 +123,10 @@ def _search_one(
     return _refine(cost, lo, hi, start, 2 * step)
 
 
-def _jackknife(prob: _Problem, name: str, base: np.ndarray, value: float) -> float:
-    """Delete-one-group jackknife standard error of ``value``, each group's estimate by
-    one Gauss-Newton step from ``value`` (the exact form linearised there)."""
+def _sandwich(prob: _Problem, name: str, base: np.ndarray, value: float) -> tuple[float, float]:
+    """HAC standard error of ``value`` and its variance inflation over white residuals:
+    the exact form linearised at ``value``, the linear effects profiled out of it and
+    of the residual (the Gauss-Newton step of the search, a sandwich around it)."""
     lo, hi = get_effect(name).search  # type: ignore[misc]
     h = 1e-3 * (hi - lo)
     jac = (prob.exact(name, value + h) - prob.exact(name, value - h)) / (2 * h)  # (n, 3)
@@ -125,17 +136,40 @@ def _jackknife(prob: _Problem, name: str, base: np.ndarray, value: float) -> flo
         q, _ = np.linalg.qr(a)
         jac = (jac.reshape(-1) - q @ (q.T @ jac.reshape(-1))).reshape(jac.shape)
         rest = (rest.reshape(-1) - q @ (q.T @ rest.reshape(-1))).reshape(rest.shape)
-    est = []
-    for g in range(GROUPS):
-        rows = prob.group != g
-        if rows.all() or not rows.any():
+    if not float(np.sum(jac**2)) > 0:
+        return float("inf"), 1.0
+    cov, white = hac_covariance(jac[:, :, None], rest, prob.segment)
+    var, var_white = float(cov[0, 0]), float(white[0, 0])
+    inflation = max(var / var_white, 1.0) if var_white > 0 else 1.0
+    return math.sqrt(max(var, var_white)), inflation
+
+
+def _form_allowance(
+    prob: _Problem, name: str, base: np.ndarray, value: float, searched: Sequence[str]
+) -> tuple[str | None, float]:
+    """The timing form (another searched effect not estimated here) that fits ``base``
+    better than ``name`` at ``value``, and the allowance for the wrong form: the shift
+    ``delta = sqrt(dRSS / |J|^2)`` of ``name``'s parameter that would cost as much as
+    the better form saves (J the exact form's derivative, linear effects profiled).
+    A first-order lag searched as a delay fits worse than the lag itself: its
+    parameter is then not determined better than that shift. (None, 0) when no
+    other form fits better."""
+    rss = prob.rss(base - prob.exact(name, value))
+    best, best_rss = None, rss
+    for other in TIMING_FORMS:
+        if other == name or other in searched:
             continue
-        jj = float(np.sum(jac[rows] ** 2))
-        est.append(value + (float(np.sum(jac[rows] * rest[rows])) / jj if jj > 0 else 0.0))
-    k = len(est)
-    if k < 3:
-        return float("inf")
-    return math.sqrt((k - 1) / k * float(np.sum((np.array(est) - np.mean(est)) ** 2)))
+        v = _search_one(prob, other, base)
+        r = prob.rss(base - prob.exact(other, v))
+        if r < best_rss:
+            best, best_rss = other, r
+    if best is None:
+        return None, 0.0
+    lo, hi = get_effect(name).search  # type: ignore[misc]
+    h = 1e-3 * (hi - lo)
+    jac = (prob.exact(name, value + h) - prob.exact(name, value - h)) / (2 * h)
+    jj = prob.rss(jac)  # |J|^2 with the linear effects profiled out
+    return best, math.sqrt((rss - best_rss) / jj) if jj > 0 else float("inf")
 
 
 def search_effects(
@@ -161,11 +195,15 @@ def search_effects(
             values[name] = _search_one(prob, name, base_without(name))
     out = {}
     for name in searched:
-        se = _jackknife(prob, name, base_without(name), values[name])
+        base = base_without(name)
+        se, inflation = _sandwich(prob, name, base, values[name])
+        better, delta = _form_allowance(prob, name, base, values[name], searched)
         lo, hi = get_effect(name).search  # type: ignore[misc]
         step = (hi - lo) / (GRID - 1)
         at_bound = min(values[name] - lo, hi - values[name]) < 0.05 * step
-        out[name] = SearchResult(name, values[name], se, bool(at_bound))
+        out[name] = SearchResult(
+            name, values[name], math.hypot(se, delta), bool(at_bound), inflation, better, delta
+        )
     return out
 
 
@@ -191,7 +229,8 @@ def gls_search(
     ``K_a`` the GP covariance with hyperparameters ``hyper`` = (target means,
     signal variances, length scales, noise variances) at the normalised inputs
     z_train (m, d). Standard error from the curvature: ``2 / J''`` (J is minus
-    twice a log-likelihood). Coordinate descent over several effects.
+    twice a log-likelihood), inflated by the first search's variance factor and
+    at least its sandwich error. Coordinate descent over several effects.
     """
     from scipy.linalg import cho_solve
 
@@ -234,6 +273,16 @@ def gls_search(
             values[name] = _refine(
                 lambda v, n=name: objective(n, v), lo, hi, best, 2 * (hi - lo) / (GRID - 1)
             )
+    return _curvature_results(objective, values, start)
+
+
+def _curvature_results(
+    objective: Callable[[str, float], float],
+    values: dict[str, float],
+    start: dict[str, SearchResult],
+) -> dict[str, SearchResult]:
+    """Each searched value with its standard error from the curvature of
+    ``objective`` (minus twice a log-likelihood: ``se = sqrt(2 / J'')``)."""
     out = {}
     for name, v in values.items():
         lo, hi = get_effect(name).search  # type: ignore[misc]
@@ -244,7 +293,14 @@ def gls_search(
             (0.5 * (b - a)) ** 2
         )
         se = math.sqrt(2.0 / curv) if curv > 0 else float("inf")
+        # the curvature treats the training points' misfit as white: inflate it as
+        # the autocorrelated residuals inflate the first search's, and never report
+        # less than that search's sandwich error
+        first = start[name]
+        se = max(se * math.sqrt(first.inflation), first.stderr)
         step = (hi - lo) / (GRID - 1)
         at_bound = min(v - lo, hi - v) < 0.05 * step
-        out[name] = SearchResult(name, v, se, bool(at_bound))
+        out[name] = SearchResult(
+            name, v, se, bool(at_bound), first.inflation, first.better_form, first.form_allowance
+        )
     return out

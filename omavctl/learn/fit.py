@@ -11,9 +11,10 @@ Pipeline (each step a function; :func:`fit_model` runs them in order):
    subtracts the nominal model, commands filtered like the derivative
    (:func:`omavctl.learn.flights.read_samples`).
 3. :func:`omavctl.learn.effect_fit.estimate_effects` fits the named physical
-   effects by least squares on their registry regressors (standard errors from
-   the residual variance) and subtracts them; effects nonlinear in their
-   parameter are found by a 1-D search first (:func:`omavctl.learn.fit_steps.first_pass`).
+   effects by least squares on their registry regressors (standard errors robust
+   to autocorrelated residuals, :mod:`omavctl.learn.intervals`) and subtracts
+   them; effects nonlinear in their parameter are found by a 1-D search first
+   (:func:`omavctl.learn.fit_steps.first_pass`).
 4. :func:`omavctl.learn.points.select_points` picks the GP training points by
    k-medoids on the normalised inputs (squared Euclidean distance); ``--prior``
    adds the prior model's training points (:func:`omavctl.learn.fit_steps.training_set`).

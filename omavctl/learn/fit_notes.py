@@ -133,6 +133,13 @@ def search_notes(found: Mapping[str, SearchResult]) -> list[str]:
             f"{r.name}: {p.name} = {r.value * 1e3:.1f} ± {r.stderr * 1e3:.1f} ms "
             "(exact form, 1-D search jointly with the GP and the linear effects)"
         )
+        if r.better_form is not None:
+            notes.append(
+                f"{r.name}: the form of {r.better_form} fits these samples better: "
+                f"{r.name}'s form may be wrong, and its standard error allows "
+                f"{r.form_allowance * 1e3:.1f} ms for it (try --effects with "
+                f"{r.better_form} instead)"
+            )
         if r.at_bound:
             lo, hi = get_effect(r.name).search  # type: ignore[misc]
             notes.append(

@@ -26,6 +26,7 @@ from omavctl.learn.effect_fit import (
     EffectFit,
     effect_prior,
     estimate_effects,
+    honest_covariance,
     joint_effects,
     refit_estimates,
     search_step,
@@ -366,7 +367,7 @@ def joint_step(
         gp.z, y_raw, x_tr, gp.t_mean, gp.sv, gp.ls, gp.noise_variances, p_std, p_mean
     )
     train.y = y_raw - x_tr @ theta
-    eff = refit_estimates(names, theta, cov, eff)
+    eff = refit_estimates(names, theta, honest_covariance(cov, res.first_pass), eff)
     notes = effect_notes(eff, vehicle.torque_normalised)
     notes.append(
         "effects estimated jointly with the GP (generalised least squares at the "

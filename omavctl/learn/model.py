@@ -16,22 +16,21 @@ kernel on normalised inputs ``zn = (z - input_mean) / input_scale``::
 Predictions are computed here in numpy (Cholesky of ``K + sigma^2 I``), so
 loading and using a model never needs scikit-learn.
 
-The file that holds it (schema ``omavctl.model/1``): :mod:`omavctl.learn.model_file`.
+The file that holds it (schema ``omavctl.model/2``): :mod:`omavctl.learn.model_file`.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
+from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.validation import beyond_envelope_variance
-from omavctl.physics.effects import Effect, EffectContext, get_effect
+from omavctl.physics.effects import EffectContext
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
 
@@ -42,61 +41,11 @@ __all__ = [
 ]
 
 SCHEMA_NAME = "omavctl.model"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 SCHEMA = f"{SCHEMA_NAME}/{SCHEMA_VERSION}"
 
 #: Query rows per block in predictions (bounds the (B, n) kernel matrix).
 _CHUNK = 4096
-
-
-@dataclass(frozen=True)
-class EffectEstimate:
-    """Fitted parameters of one registry effect.
-
-    ``values[p]`` and ``stderr[p]`` have shape (size,) per parameter name ``p``
-    of the effect, in the registry's units.
-    """
-
-    name: str
-    values: dict[str, np.ndarray]
-    stderr: dict[str, np.ndarray]
-
-    @property
-    def effect(self) -> Effect:
-        return get_effect(self.name)
-
-    @property
-    def theta(self) -> np.ndarray:
-        """Regression coefficients (p,) of the effect's regressor."""
-        return self.effect.to_theta(self.values)
-
-    @property
-    def theta_stderr(self) -> np.ndarray:
-        """Standard errors (p,) of :attr:`theta`: each parameter moved by its standard
-        error through ``to_theta`` (exact where theta is the parameter); NaN when a
-        parameter's is not finite."""
-        base = self.theta
-        var = np.zeros_like(base)
-        for name, se in self.stderr.items():
-            for j in range(np.size(se)):
-                if not np.isfinite(se[j]):
-                    var[:] = np.nan
-                    continue
-                moved = {k: np.array(v, dtype=float, copy=True) for k, v in self.values.items()}
-                moved[name][j] += se[j]
-                var += (self.effect.to_theta(moved) - base) ** 2
-        return np.sqrt(var)
-
-    def to_json(self) -> dict[str, list[float | None]]:
-        """Values and standard errors; a standard error that is not finite (a parameter
-        the data cannot determine) is null: JSON never holds NaN or Infinity."""
-        out: dict[str, list[float | None]] = {}
-        for p in self.effect.parameters:
-            out[p.name] = [float(x) for x in self.values[p.name]]
-            out[f"{p.name}_stderr"] = [
-                float(x) if math.isfinite(x) else None for x in self.stderr[p.name]
-            ]
-        return out
 
 
 class ResidualGP:

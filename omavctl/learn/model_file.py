@@ -4,14 +4,14 @@
 :func:`load_model` reads one back, refusing anything but a valid model;
 :func:`check_vehicle` refuses a model fitted for another vehicle.
 
-File format (``.npz``, schema ``omavctl.model/1``; loadable with
+File format (``.npz``, schema ``omavctl.model/2``; loadable with
 ``numpy.load(allow_pickle=False)``; strings are numpy unicode scalars, JSON for
 structured data):
 
 =================  ==========  ==================================================
 key                shape       meaning
 =================  ==========  ==================================================
-schema             ()          ``"omavctl.model/1"``
+schema             ()          ``"omavctl.model/2"``
 features           ()          ``"wrench"`` or ``"wrench+rate"``
 input_names        (d,)        GP input columns (``fx/m`` ... ``wz``)
 train_inputs       (n, d)      training inputs z, physical units
@@ -29,7 +29,12 @@ latent_scale       (3,)        optional: factor on the posterior (latent) varian
 beyond_scale       (3,)        optional: weight on the variance the residual may
                                gain beyond the training inputs' box, fit's
                                calibration on held-out input ends (absent: 0)
-effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..]}}``
+effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..],
+                               "P_ci95": [[low, high], ..], "P_pinned": [..],
+                               "stderr_method": "hac"}}``: values, standard
+                               errors, 95 % intervals (value -/+ 1.96 standard
+                               errors; null where not finite), whether each
+                               interval pins the parameter down
 vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
 provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
                                GP fitting settings, seed, omavctl version
@@ -42,7 +47,13 @@ regressor_<name>   (n, 3, p)   optional, one per registered effect: its regresso
 Version history: ``omavctl.model/1`` (omavctl 0.1); the optional
 ``regressor_<name>`` keys were added within version 1 (readers that do not
 know them ignore them; files without them load, their diagnosis then ignores
-what the GP absorbed).
+what the GP absorbed). ``omavctl.model/2``: the effects' standard errors are
+autocorrelation-robust (``stderr_method`` ``"hac"``,
+:mod:`omavctl.learn.intervals`) and each parameter carries ``P_ci95`` and
+``P_pinned``. Version 1 files are still read: their standard errors were
+white-residual least squares (``stderr_method`` ``"white"``, optimistic), and
+their intervals are derived from them (omavctl derives ``P_ci95`` from ``P``
+and ``P_stderr`` on reading, whatever the file holds).
 
 Files are written deterministically (fixed zip timestamps, sorted JSON):
 the same inputs give the same bytes.
@@ -119,7 +130,7 @@ def save_model(path: str | Path, model: ResidualGP) -> None:
             zf.writestr(info, buf.getvalue())
 
 
-def _check_schema(value: str, path: Path) -> None:
+def _check_schema(value: str, path: Path) -> int:
     m = re.fullmatch(r"(.+)/(\d+)", value)
     if m is None or m.group(1) != SCHEMA_NAME:
         raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
@@ -128,6 +139,7 @@ def _check_schema(value: str, path: Path) -> None:
         raise ModelError(f"schema '{value}' is newer than this omavctl supports ({SCHEMA})", path)
     if version < 1:
         raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
+    return version
 
 
 def check_model_paths(paths: Iterable[str | Path | None]) -> None:
@@ -213,9 +225,13 @@ def _float(
 #: Largest magnitude of any number in a model: normalised inputs, rad/s^2 targets,
 #: variances and effect parameters are all far below it; beyond is a corrupt file.
 MAX_MAGNITUDE = 1e12
+#: The ways of obtaining a standard error a model file may name.
+STDERR_METHODS = ("hac", "white")
 
 
-def _effects_from_json(tree: Any, path: Path) -> dict[str, EffectEstimate]:
+def _effects_from_json(tree: Any, path: Path, version: int) -> dict[str, EffectEstimate]:
+    """The effect estimates of a model file; version 1 files hold white-residual
+    standard errors (``stderr_method`` "white"), later ones say which they hold."""
     if not isinstance(tree, dict):
         raise ModelError("key 'effects' must map effect names to parameters", path)
     out: dict[str, EffectEstimate] = {}
@@ -240,12 +256,20 @@ def _effects_from_json(tree: Any, path: Path) -> dict[str, EffectEstimate]:
                 raise ModelError(
                     f"effect '{name}': parameter '{p.name}' is not finite or implausible", path
                 )
-        out[name] = EffectEstimate(name, values, stderr)
+        method = params.get("stderr_method", "hac") if version >= 2 else "white"
+        if method not in STDERR_METHODS:
+            raise ModelError(
+                f"effect '{name}': unknown stderr_method '{method}' "
+                f"(known: {', '.join(STDERR_METHODS)})",
+                path,
+            )
+        out[name] = EffectEstimate(name, values, stderr, method)
     return out
 
 
 def load_model(path: str | Path) -> ResidualGP:
-    """Read a model file; :class:`ModelError` for anything but a valid ``omavctl.model/1``.
+    """Read a model file; :class:`ModelError` for anything but a valid ``omavctl.model/1``
+    or ``/2``.
 
     Refuses: a missing file, a file that is not an npz, pickled data or object
     arrays, a missing or unknown schema, a newer schema, missing keys, wrong
@@ -255,7 +279,7 @@ def load_model(path: str | Path) -> ResidualGP:
     if not p.exists():
         raise ModelError("file not found", p)
     arrays = _read_members(p)
-    _check_keys(arrays, p)
+    version = _check_keys(arrays, p)
     features = _text(arrays, "features", p)
     names = _input_names(arrays, features, p)
     d = len(names)
@@ -266,6 +290,7 @@ def load_model(path: str | Path) -> ResidualGP:
     if not isinstance(provenance, dict):
         raise ModelError("key 'provenance' must be a JSON object", p)
     regressors = _regressors(arrays, n, p)
+    effects = _effects_from_json(_json(arrays, "effects", p), p, version)
     try:
         return ResidualGP(
             vehicle=vehicle,
@@ -273,7 +298,7 @@ def load_model(path: str | Path) -> ResidualGP:
             input_names=names,
             input_mean=_float(arrays, "input_mean", (d,), p),
             target_mean=_float(arrays, "target_mean", (3,), p),
-            effects=_effects_from_json(_json(arrays, "effects", p), p),
+            effects=effects,
             provenance=provenance,
             train_regressors=regressors,
             **gp,
@@ -283,14 +308,16 @@ def load_model(path: str | Path) -> ResidualGP:
         raise ModelError(f"inconsistent model: {reason}", p) from None
 
 
-def _check_keys(arrays: Mapping[str, np.ndarray], p: Path) -> None:
-    """ModelError unless the file has a schema this omavctl reads and every required key."""
+def _check_keys(arrays: Mapping[str, np.ndarray], p: Path) -> int:
+    """The schema version; ModelError unless the file has a schema this omavctl reads
+    and every required key."""
     if "schema" not in arrays:
         raise ModelError("no 'schema' key: not an omavctl model", p)
-    _check_schema(_text(arrays, "schema", p), p)
+    version = _check_schema(_text(arrays, "schema", p), p)
     missing = [k for k in _KEYS if k not in arrays]
     if missing:
         raise ModelError(f"missing keys: {', '.join(missing)}", p)
+    return version
 
 
 def _input_names(arrays: Mapping[str, np.ndarray], features: str, p: Path) -> tuple[str, ...]:

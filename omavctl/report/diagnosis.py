@@ -27,7 +27,7 @@ from omavctl.report.document import (
 )
 from omavctl.report.numfmt import AXES, as_list, axes_of, finite, num, pct, torque_unit_unknown
 
-__all__ = ["diagnosis_section"]
+__all__ = ["diagnosis_section", "fitted_effect_items"]
 
 
 def _unit(unit: str, torque_unknown: bool) -> str:
@@ -42,9 +42,13 @@ def _unit(unit: str, torque_unknown: bool) -> str:
 def _param_lines(
     params: Mapping[str, Any], units: Mapping[str, str], torque_unknown: bool
 ) -> tuple[Content, ...]:
-    """'name_axis = value ± stderr unit' per parameter component; components whose
-    ``excited`` flag is false are left out (and named as such)."""
-    names = [k for k in params if k != "excited" and not str(k).endswith("_stderr")]
+    """'name_axis = value ± stderr unit [95 % interval]' per parameter component (with
+    "cannot be pinned down from this flight" where ``P_pinned`` says so); components
+    whose ``excited`` flag is false are left out (and named as such)."""
+    derived = ("_stderr", "_ci95", "_pinned")
+    names = [
+        k for k in params if k not in ("excited", "stderr_method") and not str(k).endswith(derived)
+    ]
     values = {k: as_list(params[k]) for k in names}
     excited = params.get("excited")
     total = sum(len(v) for v in values.values())
@@ -73,11 +77,41 @@ def _param_lines(
                 # the jackknife spread collapses (to 0 or rounding) at a bound of the
                 # plausible range, 0 included (drag, lags)
                 err, note = "", " (at its bound: no std. error)"
+            if not note:
+                note = _interval_note(params, k, i)
             lines.append(f"{labels[i]} = {num(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
         offset += len(vals)
     if skipped:
         lines.append(Span(f"not excited: {', '.join(skipped)}", "em"))
     return tuple(lines)
+
+
+def fitted_effect_items(effects: Mapping[str, Any], torque_unknown: bool) -> list[Content]:
+    """One item per effect a model fitted: its parameters ± standard errors and 95 %
+    intervals (the model file's ``P``, ``P_stderr``, ``P_ci95``, ``P_pinned``)."""
+    from omavctl.physics.effects import EFFECTS
+
+    out: list[Content] = []
+    for name, params in effects.items():
+        if not isinstance(params, Mapping) or name not in EFFECTS:
+            continue
+        units = {p.name: p.unit for p in EFFECTS[name].parameters}
+        lines = _param_lines(params, units, torque_unknown)
+        out.append(f"fitted {name}: " + "; ".join(str(x) for x in lines if isinstance(x, str)))
+    return out
+
+
+def _interval_note(params: Mapping[str, Any], k: str, i: int) -> str:
+    """' [low, high]' of component i's 95 % interval, and whether it pins it down."""
+    ci = as_list(params.get(f"{k}_ci95", []))
+    pinned = as_list(params.get(f"{k}_pinned", []))
+    if i >= len(ci) or not isinstance(ci[i], list) or len(ci[i]) != 2:
+        return ""
+    lo, hi = ci[i]
+    text = f" [{num(lo, 2)}, {num(hi, 2)}]" if finite(lo) and finite(hi) else " [unbounded]"
+    if i < len(pinned) and pinned[i] is False:
+        text += ": cannot be pinned down from this flight"
+    return text
 
 
 def _flag(v: Any) -> str:
@@ -114,7 +148,11 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
                 pct(e.get("explained_variance")),
                 per_axis,
                 Lines(
-                    _param_lines(e.get("parameters") or {}, e.get("units") or {}, torque_unknown)
+                    _param_lines(
+                        e.get("estimate") or e.get("parameters") or {},
+                        e.get("units") or {},
+                        torque_unknown,
+                    )
                 ),
                 num(e.get("t_value"), 3),
                 _flag(e.get("significant")),
@@ -131,7 +169,7 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
         "effect",
         "explained variance",
         "per axis",
-        "parameters ± std. error",
+        "parameters ± std. error [95 % interval]",
         "t value",
         "significant",
         "plausible",

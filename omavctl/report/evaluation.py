@@ -32,7 +32,7 @@ the evaluation files.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -116,14 +116,24 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
         doc.add(*worst_section(tree, k, label))
     doc.add(Heading(2, sections[4][1], "diagnosis"))
     for k, (tree, _, label) in enumerate(evals):
-        same = k > 0 and _get(tree, "diagnosis", "learned") == _get(
-            evals[0][0], "diagnosis", "learned"
-        )
+        same = k > 0 and _ranking(tree) == _ranking(evals[0][0])
         doc.add(*diagnosis_section(tree, k, label, evals[0][2] if same else None))
     if len(evals) > 1:
         doc.add(Heading(2, sections[5][1], "comparison"))
         doc.add(*comparison_section(evals, figures))
     return doc
+
+
+def _ranking(tree: Mapping[str, Any]) -> Any:
+    """The diagnosis's ``learned`` ranking without each effect's ``estimate`` (made with
+    the model's effects alongside, so it differs between models of one log)."""
+    learned = _get(tree, "diagnosis", "learned")
+    if not isinstance(learned, list):
+        return learned
+    return [
+        {k: v for k, v in e.items() if k != "estimate"} if isinstance(e, Mapping) else e
+        for e in learned
+    ]
 
 
 def render_report(evals: Sequence[Evaluation], fmt: str = "html") -> str:

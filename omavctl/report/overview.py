@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.verdict import get_path as _get
+from omavctl.report.diagnosis import fitted_effect_items
 from omavctl.report.document import Block, Bullets, Cell, Content, Heading, Lines, Para, Span, Table
 from omavctl.report.load import Evaluation
 from omavctl.report.numfmt import AXES, axes_of, num, torque_unit_unknown
@@ -140,6 +141,7 @@ def summary_of(
                 f"{m.get('n_train', '?')} training points",
             )
         )
+        items += fitted_effect_items(m.get("effects") or {}, torque_unit_unknown(tree))
     sg = tree.get("savitzky_golay") or {}
     items.append(
         f"{int(np.asarray(series['t']).size)} samples on a "

@@ -139,6 +139,9 @@ def fit_json(summary: Any, out: Path) -> dict[str, Any]:
             name: {
                 "values": {k: v for k, v in est.values.items()},
                 "stderr": {k: v for k, v in est.stderr.items()},
+                "ci95": est.interval95(),
+                "pinned": est.pinned(),
+                "stderr_method": est.stderr_method,
             }
             for name, est in summary.effects.items()
         },

@@ -1,0 +1,90 @@
+"""The estimate of one physical effect's parameters: values, standard errors, 95 % intervals.
+
+:class:`EffectEstimate` is what ``fit`` reports per effect and the model file
+holds (:mod:`omavctl.learn.model_file`); :mod:`omavctl.learn.intervals` says how
+its standard errors are made and when an interval pins a parameter down.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from omavctl.learn.intervals import interval95, pinned_down
+from omavctl.physics.effects import Effect, get_effect
+
+__all__ = ["EffectEstimate"]
+
+
+@dataclass(frozen=True)
+class EffectEstimate:
+    """Fitted parameters of one registry effect.
+
+    ``values[p]`` and ``stderr[p]`` have shape (size,) per parameter name ``p``
+    of the effect, in the registry's units. ``stderr_method``: how the standard
+    errors were obtained: ``"hac"`` (autocorrelation-robust, model schema 2 on)
+    or ``"white"`` (white residuals, optimistic: files of schema 1).
+    """
+
+    name: str
+    values: dict[str, np.ndarray]
+    stderr: dict[str, np.ndarray]
+    stderr_method: str = "hac"
+
+    def interval95(self) -> dict[str, np.ndarray]:
+        """95 % interval (size, 2) per parameter: value -/+ 1.96 standard errors
+        (NaN where the standard error is not finite)."""
+        return {k: interval95(v, self.stderr[k]) for k, v in self.values.items()}
+
+    def pinned(self) -> dict[str, np.ndarray]:
+        """bool (size,) per parameter: its 95 % interval determines it (narrower than
+        the plausible range, excluding the value of no effect;
+        :func:`omavctl.learn.intervals.pinned_down`)."""
+        return {k: pinned_down(self.name, k, iv) for k, iv in self.interval95().items()}
+
+    @property
+    def effect(self) -> Effect:
+        return get_effect(self.name)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Regression coefficients (p,) of the effect's regressor."""
+        return self.effect.to_theta(self.values)
+
+    @property
+    def theta_stderr(self) -> np.ndarray:
+        """Standard errors (p,) of :attr:`theta`: each parameter moved by its standard
+        error through ``to_theta`` (exact where theta is the parameter); NaN when a
+        parameter's is not finite."""
+        base = self.theta
+        var = np.zeros_like(base)
+        for name, se in self.stderr.items():
+            for j in range(np.size(se)):
+                if not np.isfinite(se[j]):
+                    var[:] = np.nan
+                    continue
+                moved = {k: np.array(v, dtype=float, copy=True) for k, v in self.values.items()}
+                moved[name][j] += se[j]
+                var += (self.effect.to_theta(moved) - base) ** 2
+        return np.sqrt(var)
+
+    def to_json(self) -> dict[str, Any]:
+        """Values, standard errors (``P_stderr``), 95 % intervals (``P_ci95``, [low,
+        high] each) and whether each is pinned down (``P_pinned``); what is not finite
+        (a parameter the data cannot determine) is null: JSON never holds NaN or
+        Infinity. ``stderr_method`` says how the errors were obtained."""
+        out: dict[str, Any] = {"stderr_method": self.stderr_method}
+        intervals, pinned = self.interval95(), self.pinned()
+        for p in self.effect.parameters:
+            out[p.name] = [float(x) for x in self.values[p.name]]
+            out[f"{p.name}_stderr"] = [
+                float(x) if math.isfinite(x) else None for x in self.stderr[p.name]
+            ]
+            out[f"{p.name}_ci95"] = [
+                [float(x) if math.isfinite(x) else None for x in row] for row in intervals[p.name]
+            ]
+            out[f"{p.name}_pinned"] = [bool(x) for x in pinned[p.name]]
+        return out

@@ -1,0 +1,184 @@
+"""Honest standard errors and 95 % intervals of effect parameters.
+
+The residual samples of a flight are not independent: the Savitzky-Golay
+derivative smooths over a window, the controller couples neighbouring
+samples, and whatever the effects and the GP do not explain (a misspecified
+form, a lag fitted as a delay) stays in the residual as slow structure. The
+ordinary least-squares covariance ``s^2 (A^T A)^-1`` assumes white residuals
+and is then several times too narrow.
+
+:func:`hac_covariance` is the Newey-West sandwich of a least-squares fit:
+``(A^T A)^-1 S (A^T A)^-1`` with ``S`` the Bartlett-weighted sum of the
+autocovariances of the per-sample scores ``g_t = sum_a x_ta e_ta`` up to a
+bandwidth chosen from the scores' own lag-1 autocorrelation (Andrews' AR(1)
+plug-in rule, 1991), summed only within contiguous segments of one log. A
+misspecified form leaves correlated residual structure in the scores, so its
+interval widens with it.
+
+:func:`interval95` turns a value and its standard error into a 95 % interval,
+and :func:`pinned_down` says whether the interval determines the parameter:
+not when it is wider than the parameter's plausible range or includes the
+value at which the effect is absent.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from omavctl.learn.signal import ResidualSamples
+from omavctl.physics.effects import get_effect
+
+__all__ = [
+    "Z95",
+    "bandwidth",
+    "hac_covariance",
+    "hac_meat",
+    "interval95",
+    "null_values",
+    "pinned_down",
+    "plausible_range",
+    "segment_ids",
+]
+
+#: Two-sided 95 % normal quantile.
+Z95 = 1.959963984540054
+#: The largest bandwidth, as a fraction of the samples of the longest segment.
+_MAX_BANDWIDTH_FRACTION = 0.25
+
+
+def segment_ids(samples: Sequence[ResidualSamples]) -> np.ndarray:
+    """Contiguous-segment number (N,) of every stacked sample: a new segment at each
+    log and wherever the time step exceeds 1.5x the log's median step."""
+    out = []
+    offset = 0
+    for s in samples:
+        if s.n == 0:
+            continue
+        t = np.asarray(s.t, float)
+        dt = np.diff(t)
+        step = float(np.median(dt)) if dt.size else 1.0
+        seg = np.concatenate([[0], np.cumsum(dt > 1.5 * step)])
+        out.append(seg + offset)
+        offset = int(seg.max()) + offset + 1
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+
+
+def _lagged(g: np.ndarray, seg: np.ndarray, lag: int) -> np.ndarray:
+    """sum_t g_t g_{t-lag}^T (p, p) over pairs in the same segment; g (n, p)."""
+    same = seg[lag:] == seg[:-lag]
+    return np.asarray(g[lag:][same].T @ g[:-lag][same])
+
+
+def bandwidth(g: np.ndarray, seg: np.ndarray) -> int:
+    """Bartlett bandwidth (samples) from the lag-1 autocorrelation of each score
+    column of g (n, p): Andrews' AR(1) plug-in ``1.1447 (alpha n)^(1/3)``."""
+    n = g.shape[0]
+    if n < 4:
+        return 0
+    same = seg[1:] == seg[:-1]
+    num = den = 0.0
+    for j in range(g.shape[1]):
+        x, y = g[1:, j][same], g[:-1, j][same]
+        var = float(np.dot(y, y))
+        if var <= 0:
+            continue
+        rho = min(max(float(np.dot(x, y)) / var, -0.97), 0.97)
+        s4 = (var / max(y.size, 1)) ** 2
+        num += 4 * rho**2 * s4 / ((1 - rho) ** 6 * (1 + rho) ** 2)
+        den += s4 / (1 - rho) ** 4
+    if den <= 0:
+        return 0
+    longest = int(np.max(np.bincount(seg - seg.min()))) if seg.size else n
+    cap = max(int(_MAX_BANDWIDTH_FRACTION * longest), 1)
+    return int(min(math.ceil(1.1447 * (num / den * n) ** (1 / 3)), cap))
+
+
+def hac_meat(g: np.ndarray, seg: np.ndarray, lags: int | None = None) -> np.ndarray:
+    """Newey-West long-run covariance (p, p) of the scores g (n, p), Bartlett weights
+    up to ``lags`` (default :func:`bandwidth`), only within segments seg (n,)."""
+    lags = bandwidth(g, seg) if lags is None else lags
+    meat = g.T @ g
+    for lag in range(1, min(lags, g.shape[0] - 1) + 1):
+        gam = _lagged(g, seg, lag)
+        meat += (1.0 - lag / (lags + 1.0)) * (gam + gam.T)
+    return np.asarray(meat)
+
+
+def hac_covariance(
+    x: np.ndarray, resid: np.ndarray, seg: np.ndarray, lags: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """HAC (Newey-West) covariance (p, p) of the least-squares fit of a residual on
+    x (n, 3, p) with remaining residual ``resid`` (n, 3), and the white-residual
+    covariance ``s^2 (A^T A)^+`` (p, p) beside it (their diagonal ratio is the
+    variance inflation the autocorrelation causes)."""
+    n, _, p = x.shape
+    a = x.reshape(3 * n, p)
+    bread = np.linalg.pinv(a.T @ a)
+    g = np.einsum("nap,na->np", x, resid)  # per-sample scores
+    cov = bread @ hac_meat(g, seg, lags) @ bread
+    s2 = float(np.sum(resid**2) / max(3 * n - p, 1))
+    return 0.5 * (cov + cov.T), s2 * bread
+
+
+def interval95(value: np.ndarray, stderr: np.ndarray) -> np.ndarray:
+    """95 % intervals (size, 2) ``value -/+ 1.96 stderr``; NaN where the standard
+    error is not finite."""
+    v = np.asarray(value, float).reshape(-1)
+    se = np.asarray(stderr, float).reshape(-1)
+    half = np.where(np.isfinite(se), Z95 * se, np.nan)
+    return np.stack([v - half, v + half], axis=-1)
+
+
+def null_values(name: str) -> dict[str, np.ndarray]:
+    """Each parameter's value (size,) at which the effect ``name`` is absent (theta 0)."""
+    effect = get_effect(name)
+    zero = np.zeros(effect.n_theta)
+    return {
+        k: np.asarray(v, float)
+        for k, (v, _) in effect.to_parameters(zero, np.zeros((zero.size, zero.size))).items()
+    }
+
+
+def plausible_range(name: str) -> dict[str, tuple[float, float]]:
+    """Each parameter's plausible (low, high), from the effect's ``theta_range``."""
+    effect = get_effect(name)
+    lo, hi = effect.theta_range
+    out = {}
+    for theta in (lo, hi):
+        if not math.isfinite(theta):
+            return {p.name: (-math.inf, math.inf) for p in effect.parameters}
+    zero = np.zeros((effect.n_theta, effect.n_theta))
+    at_lo = effect.to_parameters(np.full(effect.n_theta, lo), zero)
+    at_hi = effect.to_parameters(np.full(effect.n_theta, hi), zero)
+    for p in effect.parameters:
+        a = float(np.min(at_lo[p.name][0]))
+        b = float(np.max(at_hi[p.name][0]))
+        out[p.name] = (min(a, b), max(a, b))
+    return out
+
+
+def pinned_down(name: str, param: str, interval: np.ndarray) -> np.ndarray:
+    """bool (size,): the 95 % interval (size, 2) of ``name``'s parameter ``param``
+    determines it: finite, not holding the value at which the effect is absent, and
+    within and narrower than the plausible range (for ``inertia_error``'s scale
+    outside it, the inverse gain of a normalised torque command: a half-width below
+    the estimate's magnitude)."""
+    lo, hi = plausible_range(name)[param]
+    iv = np.asarray(interval, float).reshape(-1, 2)
+    null = null_values(name)[param]
+    null = null if null.size == iv.shape[0] else np.full(iv.shape[0], null.flat[0])
+    width = iv[:, 1] - iv[:, 0]
+    centre = 0.5 * (iv[:, 0] + iv[:, 1])
+    finite = np.isfinite(iv).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        inside = (centre >= lo) & (centre <= hi)
+        # a normalised torque command's gain is estimated as inertia_error's scale
+        # (1 / gain): any positive value is plausible, judged by its relative width
+        gain = name == "inertia_error"
+        outside = 0.5 * width < np.abs(centre) if gain else np.zeros_like(inside)
+        narrow = np.where(inside, width < (hi - lo), outside)
+        excludes_null = (iv[:, 0] > null) | (iv[:, 1] < null)
+    return np.asarray(finite & narrow & excludes_null)
