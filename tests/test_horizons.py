@@ -215,3 +215,18 @@ def test_the_band_covers_a_held_out_flight(tmp_path, vehicle):
         table = tree["horizons"]["table"]
         last = {key: table[key][-1]["rate_error"]["norm"] for key in ("naive", "nominal", "model")}
         assert last["model"] < 0.5 * min(last["naive"], last["nominal"])
+
+
+def test_the_fused_float32_mean_matches_the_model(exact, tmp_path, vehicle):
+    """The rollouts' float32 GP mean agrees with the model's float64 one."""
+    from omavctl.learn.gp_mean import FusedMean
+
+    _, log, _, _ = exact
+    model = fit_model([log], vehicle, points=60, restarts=0).model
+    rng = np.random.default_rng(0)
+    z = model.inputs[rng.integers(0, model.n_train, 500)]
+    z = z + 0.3 * rng.standard_normal(z.shape) * model.input_scale
+    want, _ = model.gp_predict(z, variance=False)
+    got = FusedMean(model)(z)
+    assert np.abs(got - want).max() < 1e-4 * max(1.0, np.abs(want).max())
+    assert np.abs(want).max() > 1e-3  # a GP that predicts something

@@ -39,6 +39,7 @@ import numpy as np
 
 from omavctl.base.errors import ConfigError, OmavctlError
 from omavctl.diagnose.horizon_findings import findings
+from omavctl.learn.gp_mean import FusedMean
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.open_loop import rollout
@@ -215,6 +216,7 @@ def _residual_fn(
     """The residual ``f(k, omega)`` (W, 3) of the effects (and the GP mean) at step k."""
     history = _per_sample(win, samples, [_history_effects(m, s) for s in samples])
     gp_static = None
+    fused = FusedMean(m) if with_gp else None
     if with_gp and "rate" not in m.features.split("+"):  # the GP mean needs no rollout
         gp = [m.gp_predict(s.inputs(m.features), variance=False)[0] for s in samples]
         gp_static = _per_sample(win, samples, gp)
@@ -225,8 +227,8 @@ def _residual_fn(
             if gp_static is not None:
                 out = out + gp_static[:, k]
             else:
-                z = m.gp_inputs(win.u[:, k], omega, win.du[:, k])
-                out = out + m.gp_predict(z, variance=False)[0]
+                assert fused is not None
+                out = out + fused(m.gp_inputs(win.u[:, k], omega, win.du[:, k]))
         return out
 
     return residual

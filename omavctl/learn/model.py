@@ -193,6 +193,14 @@ class ResidualGP:
         return int(self.inputs.shape[0])
 
     @property
+    def mean_weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """The GP mean's length-scaled training inputs (3, n, d) (normalised, over each
+        axis' length scales) and weights (3, n): ``mean_a(z) = target_mean_a +
+        k_a(z, Z) @ weights_a`` (for fast evaluators such as
+        :class:`omavctl.learn.gp_mean.FusedMean`)."""
+        return self._z, self._alpha
+
+    @property
     def gp_enabled(self) -> np.ndarray:
         """Per axis (3,) whether the GP is on; off (signal variance 0, ``fit``'s blocked
         cross-validation found it did not help): mean 0, constant variance."""
