@@ -144,6 +144,17 @@ def checks(result: dict[str, Any]) -> list[str]:
     if j:
         one = [tree["metrics_by_model"][k]["effects"]["rmse"] for k in (0, 1)]
         long = [h["table"][k][-1]["rate_error"] for k in ("effects", "effects_1")]
+        one_full = [tree["metrics_by_model"][k]["model"]["rmse"] for k in (0, 1)]
+        long_full = [h["table"][k][-1]["rate_error"] for k in ("model", "model_1")]
+        for a in AXES:
+            d1, d50 = one_full[1][a] - one_full[0][a], long_full[1][a] - long_full[0][a]
+            agree = (d1 < 0) == (d50 < 0)
+            lines.append(
+                f"adding {result['named']} (full model), {a}: one-step RMSE "
+                f"{one_full[0][a]:.3g} -> {one_full[1][a]:.3g} rad/s², 0.5 s error "
+                f"{long_full[0][a]:.3g} -> {long_full[1][a]:.3g} rad/s"
+                + ("" if agree else " (DISAGREE)")
+            )
         for a in AXES:
             d1, d50 = one[1][a] - one[0][a], long[1][a] - long[0][a]
             agree = (d1 < 0) == (d50 < 0)

@@ -197,7 +197,7 @@ def test_markdown_and_determinism(evals, tmp_path):
     assert "data:image" not in md and "<table" not in md
     assert "Figure not available in Markdown" in md
     assert "| evaluation | logs |" in md and "`rotational_drag`" in md
-    assert "## 6. Before/after comparison" in md
+    assert "## 7. Before/after comparison" in md
     tree = json.loads(files[0].read_text())
     assert f"```\n{tree['diagnosis']['fit_command']}\n```" in md
     assert "held &lt;out&gt;.mcap" in md

@@ -145,5 +145,9 @@ def findings(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
     models = sorted({p["model"] for p in tree["predictors"] if p["model"] is not None})
     out: list[dict[str, Any]] = []
     for j in models:
-        out += _model_findings(tree, j)
+        found = _model_findings(tree, j)
+        if len(models) > 1:  # say whose finding it is (the --model order, from 0)
+            for f in found:
+                f["message"] = f"model {j}: {f['message']}"
+        out += found
     return out + _ranking(tree)

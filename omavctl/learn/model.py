@@ -194,10 +194,7 @@ class ResidualGP:
 
     @property
     def mean_weights(self) -> tuple[np.ndarray, np.ndarray]:
-        """The GP mean's length-scaled training inputs (3, n, d) (normalised, over each
-        axis' length scales) and weights (3, n): ``mean_a(z) = target_mean_a +
-        k_a(z, Z) @ weights_a`` (for fast evaluators such as
-        :class:`omavctl.learn.gp_mean.FusedMean`)."""
+        """Length-scaled training inputs (3, n, d) and weights (3, n) of the GP mean."""
         return self._z, self._alpha
 
     @property

@@ -129,7 +129,8 @@ def _table(h: Mapping[str, Any]) -> Table:
 def _evaluation_blocks(tree: Mapping[str, Any], label_: str, figures: bool) -> list[Block]:
     h = horizons_of(tree)
     if h is None:
-        return [Para(f"{label_}: no horizon table (evaluated without --horizons).", note=True)]
+        why = "written before evaluate had one, or with --horizons none"
+        return [Para(f"{label_}: no horizon table ({why}).", note=True)]
     blocks: list[Block] = [
         Para(
             f"{label_}: {h['windows']} windows (a start every {h['stride']} sample(s)); mean "
@@ -139,15 +140,14 @@ def _evaluation_blocks(tree: Mapping[str, Any], label_: str, figures: bool) -> l
         ),
         _table(h),
     ]
-    if figures:
-        blocks.append(
-            FigureBlock(
-                horizon_figure(h),
-                f"{label_}: error against the horizon",
-                "Mean error against the prediction horizon; shaded: the full model's 2σ band "
-                "(mean half-width). A line above the band means the band is too narrow there.",
-            )
+    blocks.append(
+        FigureBlock(
+            horizon_figure(h) if figures else b"",
+            f"{label_}: error against the horizon",
+            "Mean error against the prediction horizon; shaded: the full model's 2σ band "
+            "(mean half-width). A line above the band means the band is too narrow there.",
         )
+    )
     found: list[Content] = [str(f["message"]) for f in h.get("findings") or []]
     if found:
         blocks.append(Bullets([*found]))
