@@ -11,6 +11,7 @@ Run: python benchmarks/bench_horizons.py
 
 from __future__ import annotations
 
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -40,24 +41,29 @@ def main() -> None:
         model = load_model(d / "m.npz")
         rate, sg = _grid(model)
         samples, grids, _, _ = _read_logs([d / "eval.csv"], model.vehicle, rate, sg, None, None)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     table = horizon_table([model], samples, grids, rate, (0.01, 0.1, 0.5), stride=1)
-    batched = time.perf_counter() - start
+    batched, batched_cpu = time.perf_counter() - start, time.process_time() - cpu
     windows = table["windows"]
     # one window at a time: the stride makes each call hold a single window
     part = [s.select(s.index < s.index[0] + UNBATCHED + 50) for s in samples]
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for offset in range(UNBATCHED):
         keep = [s.select(s.index >= s.index[0] + offset) for s in part]
         horizon_table([model], keep, _cut(grids, part, keep), rate, (0.5,), stride=10_000)
     single = (time.perf_counter() - start) / UNBATCHED * windows
+    single_cpu = (time.process_time() - cpu) / UNBATCHED * windows
     n = samples[0].n
     print(
         f"horizon table of a 60 s log ({n} samples, {model.n_train} training points, GP "
         f"features {model.features}): {windows} windows of 0.5 s at stride 1, 4 predictors"
     )
-    print(f"  batched: {batched:.2f} s")
-    print(f"  one window at a time (from {UNBATCHED} windows): {single:.0f} s")
+    load = os.getloadavg()[0]
+    print(f"  batched: {batched:.2f} s wall, {batched_cpu:.2f} s CPU (load average {load:.1f})")
+    print(
+        f"  one window at a time (from {UNBATCHED} windows): {single:.0f} s wall, "
+        f"{single_cpu:.0f} s CPU"
+    )
     model_row = table["table"]["model"]
     for key in ("naive", "nominal", "effects", "model"):
         cells = ", ".join(

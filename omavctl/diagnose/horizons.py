@@ -31,6 +31,7 @@ length scales. Coverage is the fraction of windows whose error is within 2 std.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -210,25 +211,51 @@ def _function_std(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
     return np.sqrt(np.maximum(var, 0.0))
 
 
+def _with_effects(m: ResidualGP, names: Sequence[str]) -> ResidualGP | None:
+    """The model with only the named effects (a shallow copy; None for none)."""
+    if not names:
+        return None
+    sub = copy.copy(m)
+    sub.effects = {n: m.effects[n] for n in names}
+    return sub
+
+
+def _split_effects(m: ResidualGP, win: Windows) -> tuple[ResidualGP | None, ResidualGP | None]:
+    """The model's effects that do not depend on the body rate (evaluated once per
+    sample: the rotor interference's allocation is costly) and those that do (per
+    step), found by moving the body rate of a few windows' starts."""
+    u, omega = win.u[:8, 0], win.omega[:8, 0]
+    static, moving = [], []
+    for name in m.effects:
+        sub = _with_effects(m, [name])
+        assert sub is not None
+        same = np.array_equal(sub.effects_mean(u, omega), sub.effects_mean(u, omega + 0.37))
+        (static if same else moving).append(name)
+    return _with_effects(m, static), _with_effects(m, moving)
+
+
 def _residual_fn(
     m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], with_gp: bool
 ) -> Any:
     """The residual ``f(k, omega)`` (W, 3) of the effects (and the GP mean) at step k."""
-    history = _per_sample(win, samples, [_history_effects(m, s) for s in samples])
-    gp_static = None
-    fused = FusedMean(m) if with_gp else None
+    static, moving = _split_effects(m, win)
+    fixed = [_history_effects(m, s) for s in samples]  # what the body rate does not change
+    if static is not None:
+        fixed = [f + static.effects_mean(s.u, s.omega) for f, s in zip(fixed, samples, strict=True)]
     if with_gp and "rate" not in m.features.split("+"):  # the GP mean needs no rollout
-        gp = [m.gp_predict(s.inputs(m.features), variance=False)[0] for s in samples]
-        gp_static = _per_sample(win, samples, gp)
+        fixed = [
+            f + m.gp_predict(s.inputs(m.features), variance=False)[0]
+            for f, s in zip(fixed, samples, strict=True)
+        ]
+    gp_rolled = FusedMean(m) if with_gp and "rate" in m.features.split("+") else None
+    base = _per_sample(win, samples, fixed)
 
     def residual(k: int, omega: np.ndarray) -> np.ndarray:
-        out = history[:, k] + m.effects_mean(win.u[:, k], omega) if m.effects else history[:, k]
-        if with_gp:
-            if gp_static is not None:
-                out = out + gp_static[:, k]
-            else:
-                assert fused is not None
-                out = out + fused(m.gp_inputs(win.u[:, k], omega, win.du[:, k]))
+        out = base[:, k]
+        if moving is not None:
+            out = out + moving.effects_mean(win.u[:, k], omega)
+        if gp_rolled is not None:
+            out = out + gp_rolled(m.gp_inputs(win.u[:, k], omega, win.du[:, k]))
         return out
 
     return residual
@@ -371,7 +398,11 @@ def horizon_table(
             f"no stretch of {steps[-1]} consecutive usable samples ({steps[-1] * dt:g} s) "
             "in the logs: shorten --horizons"
         )
-    runs = _predictors(models, win, samples, dt)
+    from threadpoolctl import threadpool_limits
+
+    # small GEMMs per step: threaded BLAS spends more than it saves (7x on 2 busy cores)
+    with threadpool_limits(limits=1, user_api="blas"):
+        runs = _predictors(models, win, samples, dt)
     table = {d["key"]: [_row(run, k, dt) for k in steps] for d, run in runs}
     tree: dict[str, Any] = {
         "steps": steps,
