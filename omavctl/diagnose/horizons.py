@@ -225,7 +225,8 @@ def _split_effects(m: ResidualGP, win: Windows) -> tuple[ResidualGP | None, Resi
     sample: the rotor interference's allocation is costly) and those that do (per
     step), found by moving the body rate of a few windows' starts."""
     u, omega = win.u[:8, 0], win.omega[:8, 0]
-    static, moving = [], []
+    static: list[str] = []
+    moving: list[str] = []
     for name in m.effects:
         sub = _with_effects(m, [name])
         assert sub is not None
