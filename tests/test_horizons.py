@@ -230,3 +230,23 @@ def test_the_fused_float32_mean_matches_the_model(exact, tmp_path, vehicle):
     got = FusedMean(model)(z)
     assert np.abs(got - want).max() < 1e-4 * max(1.0, np.abs(want).max())
     assert np.abs(want).max() > 1e-3  # a GP that predicts something
+
+
+def test_logs_without_a_long_enough_stretch_get_no_table_not_an_error(vehicle):
+    s, g = _synthetic(80, 40, 0.01)  # two stretches of 40 samples, none of 51
+    h = horizon_table([_model(vehicle)], [s], [g], 100.0)
+    assert h["windows"] == 0 and h["table"] == {}
+    assert [f["code"] for f in h["findings"]] == ["no_windows"]
+    assert "no stretch of 51 consecutive usable samples (0.5 s)" in h["findings"][0]["message"]
+    # a shorter horizon fits
+    assert horizon_table([_model(vehicle)], [s], [g], 100.0, (0.1,))["windows"] == 2 * 30
+
+
+def test_a_long_log_gets_a_larger_stride(vehicle, monkeypatch):
+    import omavctl.diagnose.horizons as hz
+
+    monkeypatch.setattr(hz, "MAX_WINDOW_SAMPLES", 5100)
+    s, g = _synthetic(300, 150, 0.01)
+    h = horizon_table([_model(vehicle)], [s], [g], 100.0)
+    assert h["stride_requested"] == 1 and h["stride"] == 3  # 300 x 51 / 5100
+    assert h["windows"] == 34 + 34  # starts 0, 3, .. 99 and 150, 153, .. 249

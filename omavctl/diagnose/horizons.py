@@ -32,6 +32,7 @@ length scales. Coverage is the fraction of windows whose error is within 2 std.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -60,6 +61,9 @@ __all__ = [
 DEFAULT_HORIZONS = (0.01, 0.1, 0.5)
 #: the predictive band's half-width in std
 BAND_SIGMA = 2.0
+#: most window samples (windows x (K + 1)) held at once: a stride 1 on a 4 min log
+#: at 100 Hz with 0.5 s windows (about 400 MB); longer logs get a larger stride
+MAX_WINDOW_SAMPLES = 1_200_000
 AXES = ("x", "y", "z")
 
 
@@ -378,6 +382,30 @@ def _predictors(
     return out
 
 
+def _no_windows(steps: Sequence[int], dt: float, stride: int, n_logs: int) -> dict[str, Any]:
+    """The section of logs without a stretch as long as the longest horizon: no table,
+    a finding that says why (the rest of the evaluation stands)."""
+    message = (
+        f"no stretch of {steps[-1] + 1} consecutive usable samples ({steps[-1] * dt:g} s) in "
+        "the logs: no horizon table (shorten --horizons)"
+    )
+    return {
+        "steps": list(steps),
+        "seconds": [k * dt for k in steps],
+        "stride": stride,
+        "windows": 0,
+        "windows_by_log": [0] * n_logs,
+        "band_sigma": BAND_SIGMA,
+        "attitude": False,
+        "predictors": [],
+        "table": {},
+        "curves": {},
+        "findings": [
+            {"code": "no_windows", "model": None, "axis": None, "value": None, "message": message}
+        ],
+    }
+
+
 def horizon_table(
     models: Sequence[ResidualGP],
     samples: Sequence[ResidualSamples],
@@ -393,12 +421,12 @@ def horizon_table(
         raise OmavctlError(f"--horizon-stride: {stride} is not a positive number of samples")
     steps = horizon_steps(horizons, rate)
     dt = 1.0 / rate
+    requested = stride
+    n_total = sum(s.n for s in samples)
+    stride = max(stride, math.ceil(n_total * (steps[-1] + 1) / MAX_WINDOW_SAMPLES))
     win = _gather(samples, signals, steps[-1], stride)
     if win.count == 0:
-        raise OmavctlError(
-            f"no stretch of {steps[-1]} consecutive usable samples ({steps[-1] * dt:g} s) "
-            "in the logs: shorten --horizons"
-        )
+        return _no_windows(steps, dt, stride, len(samples))
     from threadpoolctl import threadpool_limits
 
     # small GEMMs per step: threaded BLAS spends more than it saves (7x on 2 busy cores)
@@ -409,6 +437,7 @@ def horizon_table(
         "steps": steps,
         "seconds": [k * dt for k in steps],
         "stride": stride,
+        "stride_requested": requested,
         "windows": win.count,
         "windows_by_log": np.bincount(win.log, minlength=len(samples)).tolist(),
         "band_sigma": BAND_SIGMA,

@@ -47,6 +47,13 @@ def horizons_of(tree: Mapping[str, Any]) -> Mapping[str, Any] | None:
     return h if isinstance(h, Mapping) and h.get("table") else None
 
 
+def _floats(values: Any) -> np.ndarray | None:
+    """A curve as floats (null, written for a number that was not finite: NaN)."""
+    if values is None:
+        return None
+    return np.array([np.nan if v is None else float(v) for v in values])
+
+
 def _n_models(h: Mapping[str, Any]) -> int:
     return 1 + max((p.get("model") or 0) for p in h["predictors"])
 
@@ -67,7 +74,7 @@ def horizon_figure(h: Mapping[str, Any]) -> bytes:
             dashed = (p.get("model") or 0) > 0
             colour = COLOURS.get(p["kind"], "k")
             for ax, panel in zip(axs, panels, strict=True):
-                values = curve[panel] if panel != "attitude" else curve.get("attitude")
+                values = _floats(curve.get(panel))
                 if values is None:
                     continue
                 ax.plot(
@@ -83,7 +90,7 @@ def horizon_figure(h: Mapping[str, Any]) -> bytes:
                     ax.fill_between(
                         t,
                         0,
-                        band[panel],
+                        _floats(band[panel]),
                         color=colour,
                         alpha=0.12,
                         lw=0,
@@ -129,7 +136,13 @@ def _table(h: Mapping[str, Any]) -> Table:
 def _evaluation_blocks(tree: Mapping[str, Any], label_: str, figures: bool) -> list[Block]:
     h = horizons_of(tree)
     if h is None:
-        why = "written before evaluate had one, or with --horizons none"
+        raw = tree.get("horizons")
+        said = raw.get("findings") if isinstance(raw, Mapping) else None
+        why = (
+            str(said[0].get("message"))
+            if said and isinstance(said[0], Mapping)
+            else "written before evaluate had one, or with --horizons none"
+        )
         return [Para(f"{label_}: no horizon table ({why}).", note=True)]
     blocks: list[Block] = [
         Para(

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
+from omavctl.base.errors import ConfigError
 from omavctl.diagnose.evalio import series_path, write_evaluation
 from omavctl.diagnose.evaluate import EvalResult, evaluate
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, parse_horizons
@@ -55,6 +56,8 @@ def run_evaluation(
     """
     window = parse_time_window(time_window) if time_window else None
     spans = parse_horizons(horizons) if horizons is not None else DEFAULT_HORIZONS
+    if horizon_stride < 1:
+        raise ConfigError(f"--horizon-stride: {horizon_stride} is not a positive number of samples")
     check_model_paths(models)
     if out is None and models:
         out = default_evaluation_path(models)
