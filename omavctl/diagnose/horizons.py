@@ -20,13 +20,16 @@ out-of-control span. Every horizon uses the same starts (those valid for the
 longest), so the rows of the table are comparable.
 
 The full model's band: the body-rate error at step k has the std
-``sqrt(2 s_r^2 + (dt sum_{j<k} s_j)^2)`` per axis, with ``s_r`` the log's
-body-rate noise (start and end sample) and ``s_j`` the std of the model's
-residual function at step j (GP latent variance + the effects' parameter
-variance, at the logged inputs). Summing the std along the window treats the
-function's error as fully correlated over the window: exact for an error in a
-constant parameter, an upper bound for a GP whose inputs move less than its
-length scales. Coverage is the fraction of windows whose error is within 2 std.
+``sqrt(2 s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
+the log's body-rate noise (start and end sample), ``s_j`` the std of the
+model's residual function at step j (GP latent variance + the effects'
+parameter variance, at the logged inputs) and ``s_p^2`` the GP's noise
+variance less what the rate noise puts into the Savitzky-Golay derivative
+(white motion the model cannot predict, integrated as a random walk).
+Summing the std along the window treats the function's error as fully
+correlated over the window: exact for an error in a constant parameter, an
+upper bound for a GP whose inputs move less than its length scales. Coverage
+is the fraction of windows whose error is within 2 std.
 """
 
 from __future__ import annotations
@@ -310,7 +313,19 @@ def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: f
     s_fun = _per_sample(win, samples, [_function_std(m, s) for s in samples])
     drift = np.zeros_like(s_fun)
     drift[:, 1:] = dt * np.cumsum(s_fun[:, :-1], axis=1)
-    return np.sqrt(2.0 * win.noise[:, None, :] ** 2 + drift**2)
+    process = np.stack([_process_variance(m, s) for s in samples])[win.log]  # (W, 3)
+    steps = np.arange(s_fun.shape[1])[None, :, None]
+    walk = steps * dt**2 * process[:, None, :]
+    return np.sqrt(2.0 * win.noise[:, None, :] ** 2 + drift**2 + walk)
+
+
+def _process_variance(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
+    """Variance (3,) (rad/s^2)^2 of the white residual the body rate integrates: the
+    GP's noise variance less what the log's rate noise puts into the Savitzky-Golay
+    derivative (that part is measurement, not motion)."""
+    rate_noise = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
+    gain = s.sg.noise_gain if s.sg is not None else 0.0
+    return np.maximum(m.noise_variance - (gain * rate_noise) ** 2, 0.0)
 
 
 def _axes(v: np.ndarray) -> dict[str, float]:
