@@ -24,10 +24,12 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from omavctl.diagnose.evalio import write_evaluation
 from omavctl.diagnose.evaluate import evaluate
 from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import save_model
 from omavctl.logs import write_log
+from omavctl.report.evaluation import write_report
 from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.truth import load_truth, truth_from_tree
@@ -60,31 +62,38 @@ def run_draw(draw: str, work: Path) -> dict[str, Any]:
     d = work / draw
     d.mkdir(parents=True, exist_ok=True)
     fit_log, held = d / "flight-01.csv", d / "flight-02.csv"
-    ref = fig8(roll_deg=26, pitch_deg=26, period=8, duration=20)
-    write_log(fit_log, simulate(ref, vehicle, truth, seed=1).log)
-    other = fig8(roll_deg=20, pitch_deg=30, period=6, duration=20)
-    write_log(held, simulate(other, vehicle, truth, seed=2).log)
+    # files of an earlier run in the same --workdir are reused (same draws, same seeds)
+    if not held.exists():
+        ref = fig8(roll_deg=26, pitch_deg=26, period=8, duration=20)
+        write_log(fit_log, simulate(ref, vehicle, truth, seed=1).log)
+        other = fig8(roll_deg=20, pitch_deg=30, period=6, duration=20)
+        write_log(held, simulate(other, vehicle, truth, seed=2).log)
     base = d / "gp.npz"
-    save_model(base, fit_model([fit_log], vehicle, effects=("rotor_interference",)).model)
+    if not base.exists():
+        save_model(base, fit_model([fit_log], vehicle, effects=("rotor_interference",)).model)
     first = evaluate([base], [held], horizons=())
     named = list(first.tree["diagnosis"]["missing"])[:1]
     out: dict[str, Any] = {"draw": draw, "named": named[0] if named else None}
     models = [base]
     if named:
-        added = d / "gp-named.npz"
+        added = d / f"gp-{named[0]}.npz"
         effects = ("rotor_interference", named[0])
-        save_model(added, fit_model([fit_log], vehicle, effects=effects).model)
+        if not added.exists():
+            save_model(added, fit_model([fit_log], vehicle, effects=effects).model)
         models.append(added)
-    out["tree"] = evaluate(models, [held]).tree
+    result = evaluate(models, [held])
+    write_evaluation(work / f"{draw}.eval.json", result)
+    out["tree"] = result.tree
     return out
 
 
-def run_real() -> dict[str, Any]:
+def run_real(work: Path) -> dict[str, Any]:
+    """The px4tools octocopter: fit on 6.5-15 s, evaluate on 15 s to the end."""
     vehicle = load_vehicle(ROOT / "examples" / "px4tools-octocopter.yaml")
-    with tempfile.TemporaryDirectory() as tmp:
-        model = Path(tmp) / "gp.npz"
+    model = work / "px4tools-gp.npz"
+    if not model.exists():
         save_model(model, fit_model([REAL], vehicle, time_window=(6.5, 15.0)).model)
-        tree = evaluate([model], [REAL], time_window=(15.0, None)).tree
+    tree = evaluate([model], [REAL], time_window=(15.0, None)).tree
     return {"draw": "px4tools octocopter (real)", "named": None, "tree": tree}
 
 
@@ -181,12 +190,18 @@ def main() -> None:
     out: list[str] = []
     results = [run_draw(d, work) for d in args.draws.split(",") if d]
     if not args.no_real and REAL.exists():
-        results.append(run_real())
+        results.append(run_real(work))
     for r in results:
         out += [f"### {r['draw']}", ""]
         if r["named"]:
             out += [f"evaluate named `{r['named']}` missing; the second model adds it.", ""]
         out += table_lines(r) + [""] + [f"- {line}" for line in checks(r)] + [""]
+    evals = [work / f"{d}.eval.json" for d in args.draws.split(",") if d]
+    if len(evals) > 1:  # the report sets the draws side by side and names where the GP hurts
+        write_report(evals, work / "draws-report.md")
+        report = (work / "draws-report.md").read_text()
+        part = report[report.index("The files side by side") :]
+        out += ["### The report over the draws (section 6, end)", "", part.split("## 7.")[0]]
     text = "\n".join(out)
     print(text)
     if args.markdown:
