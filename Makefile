@@ -5,6 +5,7 @@
 #                      agreement tests (the same training points as under NumPy 2)
 #   make generalise    the generalisation benchmark (docs/generalisation.md)
 #   make bench-effects the effects-plan benchmark (docs/plan-effects-results.md)
+#   make bench-horizons open-loop prediction over horizons: speed, draws, real log (docs/horizons.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
@@ -12,7 +13,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo test test-numpy1 lint bench bench-effects fuzz generalise clean
+.PHONY: install demo test test-numpy1 lint bench bench-effects bench-horizons fuzz generalise clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -63,6 +64,12 @@ generalise: $(STAMP)
 # hidden drag and command delay (docs/plan-effects.md; about 1 minute per seed)
 bench-effects: $(STAMP)
 	$(BIN)/python benchmarks/bench_effects_plan.py --out docs/plan-effects-results.md
+
+# open-loop prediction over horizons (docs/horizons.md): the batched rollouts' speed on a
+# 60 s log, then four hidden-effect draws and the real px4tools log (about 25 minutes)
+bench-horizons: $(STAMP)
+	$(BIN)/python benchmarks/bench_horizons.py
+	$(BIN)/python benchmarks/horizons_study.py --workdir build/horizons --markdown build/horizons/study.md
 
 test-numpy1: $(VENV1)/.installed
 	$(VENV1)/bin/pytest -q tests/test_kmedoids.py

@@ -250,3 +250,52 @@ def test_a_long_log_gets_a_larger_stride(vehicle, monkeypatch):
     h = horizon_table([_model(vehicle)], [s], [g], 100.0)
     assert h["stride_requested"] == 1 and h["stride"] == 3  # 300 x 51 / 5100
     assert h["windows"] == 34 + 34  # starts 0, 3, .. 99 and 150, 153, .. 249
+
+
+def _tree(errors: dict[str, list[float]], name: str = "a.bag") -> dict:
+    """A minimal evaluation with a horizon table of the given error norms (all axes)."""
+    from omavctl.diagnose.horizon_findings import findings
+
+    preds = [
+        {"key": k, "kind": k, "model": None if k in ("naive", "nominal") else 0} for k in errors
+    ]
+
+    def row(k: int, e: float) -> dict:
+        return {"seconds": k / 100, "steps": k, "rate_error": {"x": e, "y": e, "z": e, "norm": e},
+                "coverage": {"x": 0.9, "y": 0.9, "z": 0.9, "all": 0.9}}  # fmt: skip
+
+    h = {
+        "steps": [1, 50], "seconds": [0.01, 0.5], "band_sigma": 2.0, "predictors": preds,
+        "table": {k: [row(1, v[0]), row(50, v[1])] for k, v in errors.items()},
+    }  # fmt: skip
+    h["findings"] = findings(h)
+    return {"horizons": h, "logs": [{"name": name, "sha256": name, "t0": 0.0}]}
+
+
+def test_the_findings_and_the_report_name_a_model_that_wins_early_and_loses_late():
+    from omavctl.report.horizons import _side_by_side
+
+    errors = {"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "effects": [0.01, 0.1]}
+    gp_hurts = _tree({**errors, "model": [0.008, 0.2]})
+    codes = [f["code"] for f in gp_hurts["horizons"]["findings"]]
+    assert codes.count("gp_hurts_long") == 3 and codes.count("gp_worse_long") == 3
+    assert "ranking_changes" in codes and "band_narrow" not in codes
+    x = next(f for f in gp_hurts["horizons"]["findings"] if f["code"] == "gp_hurts_long")
+    assert x["message"] == (
+        "x: the GP lowers the 0.01 s body-rate error (0.01 -> 0.008 rad/s) but raises it "
+        "at 0.5 s (0.1 -> 0.2 rad/s)"
+    )
+    good = _tree({**errors, "model": [0.009, 0.05]})
+    assert [f["code"] for f in good["horizons"]["findings"]] == []
+    blocks = _side_by_side([(gp_hurts, {}, "one.json"), (good, {}, "two.json")])
+    notes = [str(item) for b in blocks if hasattr(b, "items") for item in b.items]
+    assert notes[0] == (
+        "one.json: full model wins at 0.01 s (0.008 vs 0.009 rad/s) and loses at 0.5 s "
+        "(0.2 vs 0.05) to two.json: full model"
+    )
+    assert any(n.startswith("one.json: x: the GP lowers") for n in notes)
+    # on other logs the two files' models are not compared
+    other = _tree({**errors, "model": [0.009, 0.05]}, name="b.bag")
+    blocks = _side_by_side([(gp_hurts, {}, "one.json"), (other, {}, "two.json")])
+    notes = [str(item) for b in blocks if hasattr(b, "items") for item in b.items]
+    assert not any("wins at" in n for n in notes)

@@ -167,41 +167,59 @@ def _evaluation_blocks(tree: Mapping[str, Any], label_: str, figures: bool) -> l
     return blocks
 
 
+def _logset(tree: Mapping[str, Any]) -> tuple[str, ...]:
+    """The logs (and time window) an evaluation was made on, to tell comparable files."""
+    logs = tree.get("logs") or []
+    return tuple(sorted(f"{lg.get('sha256', lg.get('name'))}@{lg.get('t0')}" for lg in logs))
+
+
+def _crossing_notes(
+    full: Sequence[tuple[str, tuple[str, ...], list[float]]], secs: list[float]
+) -> list[Content]:
+    """Pairs of full models on the same logs where one wins at the first horizon and
+    loses at the last: ``full`` (name, logs, error norm per horizon)."""
+    notes: list[Content] = []
+    for i, (na, la, a) in enumerate(full):
+        for nb, lb, b in full[i + 1 :]:
+            if la != lb or len(a) != len(b):
+                continue
+            for (win, w), (lose, o) in (((na, a), (nb, b)), ((nb, b), (na, a))):
+                if w[0] < o[0] and w[-1] > o[-1]:
+                    notes.append(
+                        f"{win} wins at {secs[0]:g} s ({w[0]:.3g} vs {o[0]:.3g} rad/s) and "
+                        f"loses at {secs[-1]:g} s ({w[-1]:.3g} vs {o[-1]:.3g}) to {lose}"
+                    )
+    return notes
+
+
 def _side_by_side(evals: Sequence[Evaluation]) -> list[Block]:
-    """The full model's and physics + effects' body-rate error of every file at each
-    horizon, and where a file that wins at the first horizon loses at the last."""
-    have: list[tuple[Mapping[str, Any], str]] = []
-    for tree, _, lab in evals:
-        found = horizons_of(tree)
-        if found is not None:
-            have.append((found, lab))
+    """Every file's physics + effects and full models at each horizon; where a full
+    model that wins at the first horizon loses at the last to another on the same
+    logs; and the files whose GP helps at one step and hurts at the last horizon."""
+    have = [(h, tree, lab) for tree, _, lab in evals if (h := horizons_of(tree)) is not None]
     if len(have) < 2:
         return []
     secs = [float(s) for s in have[0][0]["seconds"]]
     rows: list[list[Cell]] = []
-    for h, lab in have:
+    full: list[tuple[str, tuple[str, ...], list[float]]] = []
+    notes: list[Content] = []
+    for h, tree, lab in have:
         if [float(s) for s in h["seconds"]] != secs:
             continue
-        for key in ("effects", "model"):
-            errors = [num(e["rate_error"]["norm"], 3) for e in h["table"][key]]
-            rows.append([lab, label({"kind": key}), *errors])
-    notes: list[Content] = []
-    full = [(lab, [e["rate_error"]["norm"] for e in h["table"]["model"]]) for h, lab in have]
-    for (la, a), (lb, b) in ((x, y) for i, x in enumerate(full) for y in full[i + 1 :]):
-        if len(a) != len(b):
-            continue
-        for (win, w), (lose, o) in (((la, a), (lb, b)), ((lb, b), (la, a))):
-            if w[0] < o[0] and w[-1] > o[-1]:
-                notes.append(
-                    f"the full model of {win} wins at {secs[0]:g} s ({w[0]:.3g} vs {o[0]:.3g} "
-                    f"rad/s) and loses at {secs[-1]:g} s ({w[-1]:.3g} vs {o[-1]:.3g}) to {lose}'s"
-                )
-    for h, lab in have:
+        n_models = _n_models(h)
+        for p in h["predictors"]:
+            if p["kind"] not in ("effects", "model"):
+                continue
+            errors = [float(e["rate_error"]["norm"]) for e in h["table"][p["key"]]]
+            rows.append([lab, label(p, n_models), *(num(e, 3) for e in errors)])
+            if p["kind"] == "model":
+                full.append((f"{lab}: {label(p, n_models)}", _logset(tree), errors))
         notes += [
             f"{lab}: {f['message']}"
             for f in h.get("findings") or []
             if f["code"] == "gp_hurts_long"
         ]
+    notes = _crossing_notes(full, secs) + notes
     blocks: list[Block] = [
         Para("The files side by side: mean body-rate error norm (rad/s) at each horizon."),
         Table(
@@ -214,7 +232,10 @@ def _side_by_side(evals: Sequence[Evaluation]) -> list[Block]:
         blocks.append(Bullets(list(notes)))
     else:
         blocks.append(
-            Para("No file's full model wins at the shortest horizon and loses at the longest.")
+            Para(
+                "No full model wins at the shortest horizon and loses at the longest (to "
+                "another on the same logs, or to its own physics + effects)."
+            )
         )
     return blocks
 
