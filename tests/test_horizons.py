@@ -188,10 +188,11 @@ def test_bad_horizons_are_refused_in_one_line(exact, tmp_path):
         assert not out.exists()
 
 
-def test_the_band_covers_a_held_out_flight(tmp_path, vehicle):
-    """On another flight of the fit flight's task (other noise, not fitted on) the band
-    covers >= 85 % at every horizon and axis; on a flight of another figure-8 it is as
-    calibrated as the model's one-step band, whose calibration it inherits."""
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory, vehicle):
+    """A fit flight, another flight of its task and one of another figure-8 (drag and the
+    default actuator imperfections), and a model fitted on the first."""
+    tmp = tmp_path_factory.mktemp("fitted")
     truth = truth_from_tree({"seed": 1, "effects": {"rotational_drag": {"D": DRAG}}}, vehicle)
     logs = {
         "fit": (fig8(duration=10.0, ramp=1.0), 1),
@@ -199,13 +200,21 @@ def test_the_band_covers_a_held_out_flight(tmp_path, vehicle):
         "other": (fig8(roll_deg=20, pitch_deg=25, period=6.0, duration=8.0, ramp=1.0), 3),
     }
     for name, (ref, seed) in logs.items():
-        write_log(tmp_path / f"{name}.csv", simulate(ref, vehicle, truth, seed=seed).log)
-    model = tmp_path / "m.npz"
-    save_model(model, fit_model([tmp_path / "fit.csv"], vehicle, points=80, restarts=0).model)
-    same = evaluate([model], [tmp_path / "same.csv"], horizon_stride=2).tree
+        write_log(tmp / f"{name}.csv", simulate(ref, vehicle, truth, seed=seed).log)
+    model = tmp / "m.npz"
+    save_model(model, fit_model([tmp / "fit.csv"], vehicle, points=80, restarts=0).model)
+    return tmp, model
+
+
+def test_the_band_covers_a_held_out_flight(fitted):
+    """On another flight of the fit flight's task (other noise, not fitted on) the band
+    covers >= 85 % at every horizon and axis; on a flight of another figure-8 it is as
+    calibrated as the model's one-step band, whose calibration it inherits."""
+    tmp, model = fitted
+    same = evaluate([model], [tmp / "same.csv"], horizon_stride=2).tree
     for row in same["horizons"]["table"]["model"]:
         assert min(row["coverage"].values()) >= 0.85, row
-    other = evaluate([model], [tmp_path / "other.csv"], horizon_stride=2).tree
+    other = evaluate([model], [tmp / "other.csv"], horizon_stride=2).tree
     one_step = other["metrics"]["model"]["coverage_2sigma"]
     for row in other["horizons"]["table"]["model"]:
         for a in "xyz":
@@ -217,12 +226,12 @@ def test_the_band_covers_a_held_out_flight(tmp_path, vehicle):
         assert last["model"] < 0.5 * min(last["naive"], last["nominal"])
 
 
-def test_the_fused_float32_mean_matches_the_model(exact, tmp_path, vehicle):
+def test_the_fused_float32_mean_matches_the_model(fitted):
     """The rollouts' float32 GP mean agrees with the model's float64 one."""
     from omavctl.learn.gp_mean import FusedMean
+    from omavctl.learn.model_file import load_model
 
-    _, log, _, _ = exact
-    model = fit_model([log], vehicle, points=60, restarts=0).model
+    model = load_model(fitted[1])
     rng = np.random.default_rng(0)
     z = model.inputs[rng.integers(0, model.n_train, 500)]
     z = z + 0.3 * rng.standard_normal(z.shape) * model.input_scale
