@@ -308,3 +308,19 @@ def test_the_findings_and_the_report_name_a_model_that_wins_early_and_loses_late
     blocks = _side_by_side([(gp_hurts, {}, "one.json"), (other, {}, "two.json")])
     notes = [str(item) for b in blocks if hasattr(b, "items") for item in b.items]
     assert not any("wins at" in n for n in notes)
+
+
+def test_a_diverging_rollout_is_written_as_null_not_nan(vehicle, tmp_path):
+    """A model far from the log (a huge negative drag) blows its rollout up: the table
+    holds inf (the evaluation file writes null), and nothing warns or fails."""
+    import warnings
+
+    s, g = _synthetic(300, 150, 0.01)
+    s.regressors = {"rotational_drag": np.zeros((s.n, 3, 3))}
+    g = GridSignals(body_rate=g.body_rate * 40.0, torque=g.torque, attitude=None)
+    drag = EffectEstimate("rotational_drag", {"D": np.full(3, -1e3)}, {"D": np.zeros(3)})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        h = horizon_table([_model(vehicle, {"rotational_drag": drag})], [s], [g], 100.0)
+    assert not np.isfinite(h["table"]["model"][-1]["rate_error"]["norm"])
+    assert np.isfinite(h["table"]["naive"][-1]["rate_error"]["norm"])

@@ -445,9 +445,11 @@ def horizon_table(
     from threadpoolctl import threadpool_limits
 
     # small GEMMs per step: threaded BLAS spends more than it saves (7x on 2 busy cores)
-    with threadpool_limits(limits=1, user_api="blas"):
+    # a rollout that diverges (a model far outside its inputs) gives inf, written as null
+    with threadpool_limits(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore"):
         runs = _predictors(models, win, samples, dt)
-    table = {d["key"]: [_row(run, k, dt) for k in steps] for d, run in runs}
+        table = {d["key"]: [_row(run, k, dt) for k in steps] for d, run in runs}
+        curves = {d["key"]: _curve(run) for d, run in runs}
     tree: dict[str, Any] = {
         "steps": steps,
         "seconds": [k * dt for k in steps],
@@ -459,7 +461,7 @@ def horizon_table(
         "attitude": win.attitude is not None,
         "predictors": [d for d, _ in runs],
         "table": table,
-        "curves": {d["key"]: _curve(run) for d, run in runs},
+        "curves": curves,
     }
     tree["findings"] = findings(tree)
     return tree
