@@ -324,3 +324,18 @@ def test_a_diverging_rollout_is_written_as_null_not_nan(vehicle, tmp_path):
         h = horizon_table([_model(vehicle, {"rotational_drag": drag})], [s], [g], 100.0)
     assert not np.isfinite(h["table"]["model"][-1]["rate_error"]["norm"])
     assert np.isfinite(h["table"]["naive"][-1]["rate_error"]["norm"])
+
+
+def test_json_output_carries_the_table(exact, tmp_path):
+    _, log, truth_model, _ = exact
+    out = tmp_path / "e.json"
+    args = ["evaluate", str(log), "--model", str(truth_model), "--out", str(out)]
+    res = runner.invoke(app, [*args, "--horizons", "0.05,0.2", "--horizon-stride", "3", "--json"])
+    assert res.exit_code == 0, res.output
+    obj = json.loads(res.stdout)
+    h = obj["horizons"]
+    assert h["steps"] == [5, 20] and h["stride"] == 3 and "curves" not in h
+    assert h["table"] == json.loads(out.read_text())["horizons"]["table"]
+    assert "open-loop error over horizons" in res.stderr
+    res = runner.invoke(app, [*args, "--horizons", "none", "--json"])
+    assert res.exit_code == 0 and json.loads(res.stdout)["horizons"] is None
