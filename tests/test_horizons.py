@@ -339,3 +339,16 @@ def test_json_output_carries_the_table(exact, tmp_path):
     assert "open-loop error over horizons" in res.stderr
     res = runner.invoke(app, [*args, "--horizons", "none", "--json"])
     assert res.exit_code == 0 and json.loads(res.stdout)["horizons"] is None
+
+
+def test_an_evaluation_written_before_the_horizons_is_still_reported(exact, tmp_path):
+    from omavctl.report.evaluation import render_report
+
+    _, log, truth_model, _ = exact
+    result = evaluate([truth_model], [log], horizons=(0.1,))
+    write_evaluation(tmp_path / "new.json", result)
+    tree, series = load_evaluation(tmp_path / "new.json")
+    old = {k: v for k, v in tree.items() if k != "horizons"}
+    md = render_report([(old, series, "old.json"), (tree, series, "new.json")], "md")
+    assert "old.json: no horizon table (written before evaluate had one" in md
+    assert "new.json: " in md and "| full model |" in md
