@@ -36,7 +36,8 @@ from omavctl.sim.truth import load_truth, truth_from_tree
 from omavctl.vehicle import default_vehicle, load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
-REAL = Path("/work/shared/data/real/px4tools_octocopter/01_07_59.csv")
+#: the shared real flight, relative to the repository (as benchmarks/generalise.py)
+REAL = ROOT.parent / "shared/data/real/px4tools_octocopter/01_07_59.csv"
 #: draw -> (truth YAML under examples/ or a truth tree, fit seed, flight seeds)
 DRAWS: dict[str, Any] = {
     "drag": "truth-drag.yaml",
