@@ -13,6 +13,9 @@ docs/schemas.md) and lists findings ``{code, model, axis, value, message}``:
   (``value`` the coverage, ``axis`` null);
 - ``ranking_changes``: the order of the predictors by the error norm differs
   between the shortest and the longest horizon.
+
+(``no_windows``, a log without a stretch as long as the longest horizon, comes
+from :func:`omavctl.diagnose.horizons.horizon_table` itself.)
 """
 
 from __future__ import annotations
