@@ -8,6 +8,7 @@
 #   make bench-effects the effects-plan benchmark (docs/plan-effects-results.md)
 #   make bench-intervals coverage of the effect parameters' 95 % intervals
 #                      (docs/intervals-results.md)
+#   make bench-horizons open-loop prediction over horizons: speed, draws, real log (docs/horizons.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
@@ -15,7 +16,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals fuzz generalise clean
+.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -74,6 +75,11 @@ bench-effects: $(STAMP)
 # white-residual least-squares ones (docs/intervals.md; about 5 minutes on 2 cores)
 bench-intervals: $(STAMP)
 	nice -n 10 $(BIN)/python benchmarks/intervals.py --markdown docs/intervals-results.md
+# open-loop prediction over horizons (docs/horizons.md): the batched rollouts' speed on a
+# 60 s log, then four hidden-effect draws and the real px4tools log (about 25 minutes)
+bench-horizons: $(STAMP)
+	$(BIN)/python benchmarks/bench_horizons.py
+	$(BIN)/python benchmarks/horizons_study.py --workdir build/horizons --markdown build/horizons/study.md
 
 test-numpy1: $(VENV1)/.installed
 	$(VENV1)/bin/pytest -q tests/test_kmedoids.py

@@ -109,10 +109,10 @@ def test_single_report_is_valid_self_contained_html(evals, tmp_path):
     assert text.startswith("<!DOCTYPE html>")
     # figures: error over time with the worst segments, the signature of the missing
     # effect, the candidates' explained variance; measured vs predicted for the one log;
-    # model and nominal residual vs feature
+    # model and nominal residual vs feature; the error against the horizon
     pngs = [s for s in doc.srcs if s.startswith("data:image/png;base64,")]
-    assert len(pngs) == len(doc.srcs) == summary.figures == 6
-    assert text.count("data:image/png;base64,") == 6
+    assert len(pngs) == len(doc.srcs) == summary.figures == 7
+    assert text.count("data:image/png;base64,") == 7
     assert base64.b64decode(pngs[0].split(",", 1)[1]).startswith(b"\x89PNG\r\n\x1a\n")
     # nothing fetched from anywhere
     for bad in ("http://", "https://", 'src="//', "<script", "<link", "@import", "url("):
@@ -159,8 +159,14 @@ def test_two_file_report_compares(evals, tmp_path):
     # the hidden effect drives x and y: adding it makes the error fall there
     assert after["x"] < before["x"] and after["y"] < before["y"]
     # the before/after bars + 2 evaluations x (error over time, effect signature,
-    # candidates; measured vs predicted, 2 binned)
-    assert summary.figures == 13
+    # candidates; measured vs predicted, 2 binned; error against the horizon)
+    assert summary.figures == 15
+    # the horizon tables side by side, the full model's error falls at every horizon
+    horizons = text[text.index('id="horizons"') : text.index('id="comparison"')]
+    assert "The files side by side" in horizons
+    rows = [json.loads(f.read_text())["horizons"]["table"]["model"] for f in files]
+    for b, a in zip(*rows, strict=True):
+        assert a["rate_error"]["norm"] < b["rate_error"]["norm"]
     # the verdict comes first: the missing effect and the % change per axis
     first = _text_lines(text)[:6]
     assert first[0] == "omavctl report" and first[1] == "Verdict"
@@ -197,7 +203,7 @@ def test_markdown_and_determinism(evals, tmp_path):
     assert "data:image" not in md and "<table" not in md
     assert "Figure not available in Markdown" in md
     assert "| evaluation | logs |" in md and "`rotational_drag`" in md
-    assert "## 6. Before/after comparison" in md
+    assert "## 7. Before/after comparison" in md
     tree = json.loads(files[0].read_text())
     assert f"```\n{tree['diagnosis']['fit_command']}\n```" in md
     assert "held &lt;out&gt;.mcap" in md

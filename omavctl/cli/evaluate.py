@@ -56,6 +56,20 @@ TimeWindow = Annotated[
         help="Only samples with START <= t < END (s from log start), e.g. 15: or 2.5:10.",
     ),
 ]
+Horizons = Annotated[
+    str | None,
+    typer.Option(
+        metavar="S,S,...",
+        help="Open-loop prediction horizons in seconds (default 0.01,0.1,0.5; 'none': no "
+        "horizon table): from each start the body rate and attitude are rolled forward "
+        "over the logged commands and compared with the log, for holding the state, "
+        "physics only, physics + effects and each model.",
+    ),
+]
+HorizonStride = Annotated[
+    int,
+    typer.Option(metavar="N", help="Samples between the starts of the horizon windows."),
+]
 
 
 @app.command(short_help="Compare models with a flight: verdict, errors, missing physics.")
@@ -66,6 +80,8 @@ def evaluate(
     out: EvalOut = None,
     mcap: Mcap = None,
     time_window: TimeWindow = None,
+    horizons: Horizons = None,
+    horizon_stride: HorizonStride = 1,
     quiet: Quiet = False,
     as_json: Json = False,
 ) -> None:
@@ -75,11 +91,12 @@ def evaluate(
     Prints the verdict first (what is missing and the fit command that adds it, where
     the model fails and what the vehicle was doing, whether its 2σ band can be trusted),
     then the RMSE (rad/s^2) of the nominal model, nominal + effects and each model side
-    by side. Writes the evaluation JSON, its .series.npz and an MCAP of the series.
+    by side, then the open-loop body-rate and attitude errors over the horizons. Writes
+    the evaluation JSON, its .series.npz and an MCAP of the series.
     """
     from omavctl.report.run import run_evaluation
     from omavctl.report.summary import evaluation_json, render_evaluation
 
-    run = run_evaluation(logs, model, out, mcap, time_window)
+    run = run_evaluation(logs, model, out, mcap, time_window, horizons, horizon_stride)
     render_evaluation(console(quiet), run.result.tree, run.files)
     emit(as_json, evaluation_json(run.result.tree, run.files))

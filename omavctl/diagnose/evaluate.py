@@ -36,6 +36,7 @@ import numpy as np
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
 from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command
+from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
 from omavctl.diagnose.metrics import (
     AXES,
     axis_metrics,
@@ -121,9 +122,10 @@ def _read_log(
     rate: float,
     sg: SavitzkyGolay,
     time_window: tuple[float | None, float | None] | None,
-) -> tuple[ResidualSamples, np.ndarray, dict[str, Any], list[dict[str, Any]]]:
+) -> tuple[ResidualSamples, GridSignals, dict[str, Any], list[dict[str, Any]]]:
     """One log's residual samples (every registry regressor, out-of-control samples
-    removed), its attitude (n, 3) at them, its ``logs`` entry and its excluded spans."""
+    removed), its unfiltered signals at them (attitude zero when not logged), its
+    ``logs`` entry and its excluded spans."""
     from omavctl.logs import read_vehicle_log
 
     flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
@@ -141,7 +143,11 @@ def _read_log(
             f"(need at least {10 * sg.window})",
             flight.path,
         )
-    attitude = flight.signals["attitude"][s.index] if flight.has("attitude") else np.zeros((s.n, 3))
+    grid = GridSignals(
+        body_rate=flight.signals["body_rate"][s.index],
+        torque=flight.signals["torque_command"][s.index],
+        attitude=flight.signals["attitude"][s.index] if flight.has("attitude") else None,
+    )
     log_json = {
         "path": str(p),
         "name": p.name,
@@ -154,7 +160,7 @@ def _read_log(
         "samples_total": s.total,
         "notes": list(flight.notes),
     }
-    return s, attitude, log_json, spans
+    return s, grid, log_json, spans
 
 
 def _model_metrics(
@@ -218,26 +224,26 @@ def _read_logs(
     sg: SavitzkyGolay,
     time_window: tuple[float | None, float | None] | None,
     progress: Progress | None,
-) -> tuple[list[ResidualSamples], list[np.ndarray], list[dict[str, Any]], list[dict[str, Any]]]:
-    """Every log's residual samples and attitude (:func:`_read_log`), the ``logs``
-    entries and the excluded (out-of-control) spans of all of them."""
+) -> tuple[list[ResidualSamples], list[GridSignals], list[dict[str, Any]], list[dict[str, Any]]]:
+    """Every log's residual samples and unfiltered signals (:func:`_read_log`), the
+    ``logs`` entries and the excluded (out-of-control) spans of all of them."""
     samples: list[ResidualSamples] = []
-    attitudes: list[np.ndarray] = []
+    grids: list[GridSignals] = []
     logs_json = []
     excluded: list[dict[str, Any]] = []
     for i, path in enumerate(log_paths):
-        s, attitude_i, log_json, spans = _read_log(path, vehicle, rate, sg, time_window)
+        s, grid, log_json, spans = _read_log(path, vehicle, rate, sg, time_window)
         samples.append(s)
-        attitudes.append(attitude_i)
+        grids.append(grid)
         logs_json.append(log_json)
         excluded += spans
         if progress is not None:
             progress("reading logs", (i + 1) / len(log_paths))
-    return samples, attitudes, logs_json, excluded
+    return samples, grids, logs_json, excluded
 
 
 def _measured_series(
-    samples: Sequence[ResidualSamples], attitudes: Sequence[np.ndarray]
+    samples: Sequence[ResidualSamples], grids: Sequence[GridSignals]
 ) -> dict[str, np.ndarray]:
     """The series every evaluation holds, concatenated over the logs: ``t`` (n,),
     ``log`` (n,) index of the log, ``measured`` and ``nominal`` angular
@@ -250,7 +256,12 @@ def _measured_series(
         "nominal": np.concatenate([s.nominal for s in samples]),
         "u": np.concatenate([s.u for s in samples]),
         "omega": np.concatenate([s.omega for s in samples]),
-        "attitude": np.concatenate(attitudes),
+        "attitude": np.concatenate(
+            [
+                g.attitude if g.attitude is not None else np.zeros((s.n, 3))
+                for s, g in zip(samples, grids, strict=True)
+            ]
+        ),
     }
 
 
@@ -365,8 +376,14 @@ def evaluate(
     log_paths: Sequence[str | Path],
     time_window: tuple[float | None, float | None] | None = None,
     progress: Progress | None = None,
+    horizons: Sequence[float] = DEFAULT_HORIZONS,
+    horizon_stride: int = 1,
 ) -> EvalResult:
     """Evaluate one or more models on one or more logs (see module docstring).
+
+    ``horizons`` (s) and ``horizon_stride`` (samples between starts): the open-loop
+    prediction table (:func:`omavctl.diagnose.horizons.horizon_table`); no
+    horizons: none.
 
     The diagnosis, worst segments and binned errors are of the first model;
     the series (n samples over all logs) are those of :func:`_measured_series`,
@@ -384,11 +401,11 @@ def evaluate(
     _check_models(models, mpaths)
     model = models[0]
     rate, sg = _grid(model)
-    samples, attitudes, logs_json, excluded = _read_logs(
+    samples, grids, logs_json, excluded = _read_logs(
         log_paths, model.vehicle, rate, sg, time_window, progress
     )
     log_names = [str(lj["name"]) for lj in logs_json]
-    series = _measured_series(samples, attitudes)
+    series = _measured_series(samples, grids)
     per_model = _predict_models(models, mpaths, samples, series, log_names, progress)
     features = _features(series)
     tracking = _tracking(samples, series)
@@ -417,6 +434,9 @@ def evaluate(
         + quality_flags(per_model[0]["metrics"], excluded)
         + envelope_flags(envelope),
         "envelope": envelope,
+        "horizons": horizon_table(models, samples, grids, rate, horizons, horizon_stride)
+        if horizons
+        else None,
     }
     return EvalResult(tree=tree, series=series)
 

@@ -142,6 +142,11 @@ class ResidualGP:
         return int(self.inputs.shape[0])
 
     @property
+    def mean_weights(self) -> tuple[np.ndarray, np.ndarray]:
+        """Length-scaled training inputs (3, n, d) and weights (3, n) of the GP mean."""
+        return self._z, self._alpha
+
+    @property
     def gp_enabled(self) -> np.ndarray:
         """Per axis (3,) whether the GP is on; off (signal variance 0, ``fit``'s blocked
         cross-validation found it did not help): mean 0, constant variance."""

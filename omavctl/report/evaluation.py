@@ -19,7 +19,9 @@ Sections, per evaluation file where that applies:
    missing, unexplained structure, the ``omavctl fit`` command that adds the
    top effect, and what the GP has learned in physical terms
    (:mod:`omavctl.report.diagnosis`);
-6. with several files: model RMSE per axis before/after, % change from the first
+6. open-loop prediction over horizons: error against the horizon per predictor,
+   the band's coverage, with several files side by side (:mod:`omavctl.report.horizons`);
+7. with several files: model RMSE per axis before/after, % change from the first
    (:mod:`omavctl.report.comparison`).
 
 The document is first built as a list of format-neutral blocks (headings,
@@ -43,6 +45,7 @@ from omavctl.diagnose.verdict import get_path as _get
 from omavctl.report.comparison import comparison_section
 from omavctl.report.diagnosis import diagnosis_section
 from omavctl.report.document import Bullets, Document, Heading, Para, Span, to_html, to_markdown
+from omavctl.report.horizons import horizons_section
 from omavctl.report.load import Evaluation, load_for_report
 from omavctl.report.numfmt import AXES, percent_change
 from omavctl.report.overview import overview_table, summary_of
@@ -94,9 +97,10 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
         ("binned", "3. Residual vs feature"),
         ("worst", "4. Worst segments"),
         ("diagnosis", "5. Diagnosis"),
+        ("horizons", "6. Prediction over horizons"),
     ]
     if len(evals) > 1:
-        sections.append(("comparison", "6. Before/after comparison"))
+        sections.append(("comparison", "7. Before/after comparison"))
     doc.add(Bullets([Span(f"#{anchor}|{title}", "link") for anchor, title in sections]))
     doc.add(*figure_sections(evals, figures))
     sections = sections[2 if figures else 1 :]
@@ -118,8 +122,10 @@ def build_document(evals: Sequence[Evaluation], figures: bool = True) -> Documen
     for k, (tree, _, label) in enumerate(evals):
         same = k > 0 and _ranking(tree) == _ranking(evals[0][0])
         doc.add(*diagnosis_section(tree, k, label, evals[0][2] if same else None))
+    doc.add(Heading(2, sections[5][1], "horizons"))
+    doc.add(*horizons_section(evals, figures))
     if len(evals) > 1:
-        doc.add(Heading(2, sections[5][1], "comparison"))
+        doc.add(Heading(2, sections[6][1], "comparison"))
         doc.add(*comparison_section(evals, figures))
     return doc
 

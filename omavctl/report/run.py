@@ -13,8 +13,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
+from omavctl.base.errors import ConfigError
 from omavctl.diagnose.evalio import series_path, write_evaluation
 from omavctl.diagnose.evaluate import EvalResult, evaluate
+from omavctl.diagnose.horizons import DEFAULT_HORIZONS, parse_horizons
 from omavctl.learn.model_file import check_model_paths
 from omavctl.logs import parse_time_window
 from omavctl.report.evaluation import ReportSummary, write_report
@@ -42,21 +44,29 @@ def run_evaluation(
     out: Path | None = None,
     mcap: Path | None = None,
     time_window: str | None = None,
+    horizons: str | None = None,
+    horizon_stride: int = 1,
 ) -> EvaluationRun:
     """Evaluate ``models`` on ``logs`` and write the evaluation JSON, its series and MCAP.
 
     ``out`` None: :func:`default_evaluation_path`; ``mcap`` None: beside ``out``
     (:func:`omavctl.report.series_mcap.mcap_path`); ``time_window`` is the
-    ``START:END`` text of ``--time-window``.
+    ``START:END`` text of ``--time-window``; ``horizons`` the text of ``--horizons``
+    (None: 0.01, 0.1 and 0.5 s) and ``horizon_stride`` the samples between starts.
     """
     window = parse_time_window(time_window) if time_window else None
+    spans = parse_horizons(horizons) if horizons is not None else DEFAULT_HORIZONS
+    if horizon_stride < 1:
+        raise ConfigError(f"--horizon-stride: {horizon_stride} is not a positive number of samples")
     check_model_paths(models)
     if out is None and models:
         out = default_evaluation_path(models)
     assert out is not None
     mcap_out = mcap if mcap is not None else mcap_path(out)
     check_outputs([*logs, *models], [out, series_path(out), mcap_out])
-    result = evaluate(models, logs, time_window=window)
+    result = evaluate(
+        models, logs, time_window=window, horizons=spans, horizon_stride=horizon_stride
+    )
     write_evaluation(out, result)
     write_series_mcap(mcap_out, result.tree, result.series)
     files = {"evaluation": out, "series": series_path(out), "mcap": mcap_out}

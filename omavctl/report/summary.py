@@ -15,6 +15,7 @@ from typing import Any
 
 from omavctl.diagnose.change import verdict_of_models
 from omavctl.diagnose.verdict import AXES, coverage_of
+from omavctl.report.horizons import horizons_json, render_horizons
 
 __all__ = ["evaluation_json", "fit_json", "inspect_json", "render_evaluation"]
 
@@ -83,6 +84,7 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
             "tracking |a* - w_dot| of the flight (its own controller, whatever model): "
             + ", ".join(f"{a} {_g(tracking[a], 3)}" for a in AXES)
         )
+    render_horizons(con, tree)
     for what, path in files.items():
         con.print(Text(f"wrote {path} ({what})"))
 
@@ -116,6 +118,7 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
         # the fit command of every effect the diagnosis names (missing, held back, learned)
         "effect_commands": dict(diag.get("effect_commands") or {}),
         "flags": list(tree.get("flags") or []),
+        "horizons": horizons_json(tree),
         "verdict": [
             {"key": line.key, "text": line.text, "command": line.command} for line in lines
         ],

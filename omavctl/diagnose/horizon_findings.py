@@ -1,0 +1,156 @@
+"""What a horizon table says in words: where a model that wins at one step loses later.
+
+Reads the ``horizons`` section of an evaluation (:mod:`omavctl.diagnose.horizons`,
+docs/schemas.md) and lists findings ``{code, model, axis, value, message}``:
+
+- ``gp_hurts_long``: the GP lowers the body-rate error at the shortest horizon
+  and raises it at the longest (on ``axis``, of model ``model``);
+- ``gp_worse_long``: the full model's error at the longest horizon is above
+  1.05x that of physics + effects;
+- ``effects_hurt_long``: the effects lower the error at the shortest horizon and
+  raise it at the longest (against physics only);
+- ``band_narrow``: the full model's band covers less than 85 % at a horizon
+  (``value`` the coverage, ``axis`` null);
+- ``ranking_changes``: the order of the predictors by the error norm differs
+  between the shortest and the longest horizon.
+
+(``no_windows``, a log without a stretch as long as the longest horizon, comes
+from :func:`omavctl.diagnose.horizons.horizon_table` itself.)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["LABELS", "MIN_COVERAGE", "TOLERANCE", "findings", "label"]
+
+#: the full model's longest-horizon error may exceed physics + effects by this factor
+TOLERANCE = 1.05
+#: the least band coverage at any horizon before a finding says the band is too narrow
+MIN_COVERAGE = 0.85
+LABELS = {
+    "naive": "hold the state",
+    "nominal": "physics only",
+    "effects": "physics + effects",
+    "model": "full model",
+}
+AXES = ("x", "y", "z")
+
+
+def label(predictor: Mapping[str, Any], n_models: int = 1) -> str:
+    """A predictor's name for people; with several models the model's index."""
+    text = LABELS.get(str(predictor.get("kind")), str(predictor.get("key")))
+    j = predictor.get("model")
+    return f"{text} (model {j})" if n_models > 1 and j is not None else text
+
+
+def _err(row: Mapping[str, Any], axis: str) -> float:
+    return float(row["rate_error"][axis])
+
+
+def _crossings(
+    table: Mapping[str, Any], short: str, long: str, code: str, what: str, tree: Mapping[str, Any]
+) -> list[dict[str, Any]]:
+    """Axes where ``long`` beats ``short`` at the first horizon and loses at the last."""
+    out = []
+    first, last = tree["seconds"][0], tree["seconds"][-1]
+    a_rows, b_rows = table[short], table[long]
+    for axis in AXES:
+        a0, b0, a1, b1 = (
+            _err(a_rows[0], axis),
+            _err(b_rows[0], axis),
+            _err(a_rows[-1], axis),
+            _err(b_rows[-1], axis),
+        )
+        if b0 < a0 and b1 > a1:
+            out.append(
+                {
+                    "code": code,
+                    "axis": axis,
+                    "value": b1 / a1 if a1 > 0 else None,
+                    "message": f"{axis}: {what} lowers the {first:g} s body-rate error "
+                    f"({a0:.3g} -> {b0:.3g} rad/s) but raises it at {last:g} s "
+                    f"({a1:.3g} -> {b1:.3g} rad/s)",
+                }
+            )
+    return out
+
+
+def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, Any]]:
+    """Findings of one model (its effects and full-model rows)."""
+    sfx = "" if not j else f"_{j}"
+    table = tree["table"]
+    eff, full = f"effects{sfx}", f"model{sfx}"
+    if eff not in table or full not in table:
+        return []
+    out = _crossings(table, eff, full, "gp_hurts_long", "the GP", tree)
+    if j is None or j == 0:
+        out += _crossings(table, "nominal", eff, "effects_hurt_long", "adding the effects", tree)
+    last = tree["seconds"][-1]
+    for axis in AXES:
+        a, b = _err(table[eff][-1], axis), _err(table[full][-1], axis)
+        if b > TOLERANCE * a:
+            out.append(
+                {
+                    "code": "gp_worse_long",
+                    "axis": axis,
+                    "value": b / a if a > 0 else None,
+                    "message": f"{axis}: at {last:g} s the full model's body-rate error "
+                    f"({b:.3g} rad/s) is above {TOLERANCE:g}x physics + effects' ({a:.3g})",
+                }
+            )
+    for row in table[full]:
+        cov = row.get("coverage")
+        if cov is not None and cov["all"] < MIN_COVERAGE:
+            out.append(
+                {
+                    "code": "band_narrow",
+                    "axis": None,
+                    "value": cov["all"],
+                    "message": f"at {row['seconds']:g} s the full model's {tree['band_sigma']:g}σ "
+                    f"band holds {100 * cov['all']:.0f} % of the body rates "
+                    f"(below {100 * MIN_COVERAGE:.0f} %): it is too narrow there",
+                }
+            )
+    for f in out:
+        f["model"] = 0 if j is None else j
+    return out
+
+
+def _ranking(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """A ``ranking_changes`` finding when the order by error norm changes."""
+    table, preds = tree["table"], tree["predictors"]
+    n_models = 1 + max((p["model"] or 0) for p in preds)
+
+    def order(i: int) -> list[str]:
+        keyed = sorted(preds, key=lambda p: table[p["key"]][i]["rate_error"]["norm"])
+        return [label(p, n_models) for p in keyed]
+
+    first, last = order(0), order(-1)
+    if first == last:
+        return []
+    s0, s1 = tree["seconds"][0], tree["seconds"][-1]
+    return [
+        {
+            "code": "ranking_changes",
+            "model": None,
+            "axis": None,
+            "value": None,
+            "message": f"best to worst at {s0:g} s: {', '.join(first)}; "
+            f"at {s1:g} s: {', '.join(last)}",
+        }
+    ]
+
+
+def findings(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Every finding of a ``horizons`` section (module docstring), models in order."""
+    models = sorted({p["model"] for p in tree["predictors"] if p["model"] is not None})
+    out: list[dict[str, Any]] = []
+    for j in models:
+        found = _model_findings(tree, j)
+        if len(models) > 1:  # say whose finding it is (the --model order, from 0)
+            for f in found:
+                f["message"] = f"model {j}: {f['message']}"
+        out += found
+    return out + _ranking(tree)

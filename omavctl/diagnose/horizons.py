@@ -1,0 +1,467 @@
+"""Open-loop prediction over horizons: how far ahead each model sees.
+
+From every start sample (every ``stride``-th) of a log, the angular dynamics
+are rolled forward open loop over the logged torque commands for the longest
+horizon (:func:`omavctl.physics.open_loop.rollout`, all windows at once) and
+compared with the logged body rate and attitude at each horizon. Four
+predictors:
+
+- ``naive``: hold the state (body rate and attitude stay as at the start);
+- ``nominal``: the rigid body alone (physics only);
+- ``effects``: rigid body + the model's fitted physical effects;
+- ``model``: + the GP mean (the full model).
+
+The residual of ``effects`` and ``model`` is evaluated at the rolled-out body
+rate and the commands held like the fit's inputs; effects that act through
+the command history only (lags, delay) through their exact held form on the
+log. Windows are starts whose next K samples are consecutive grid samples
+kept by ``evaluate``: no window crosses a gap, a segment edge or an
+out-of-control span. Every horizon uses the same starts (those valid for the
+longest), so the rows of the table are comparable.
+
+The full model's band: the body-rate error at step k has the std
+``sqrt(2 s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
+the log's body-rate noise (start and end sample), ``s_j`` the std of the
+model's residual function at step j (GP latent variance + the effects'
+parameter variance, at the logged inputs) and ``s_p^2`` the GP's noise
+variance less what the rate noise puts into the Savitzky-Golay derivative
+(white motion the model cannot predict, integrated as a random walk).
+Summing the std along the window treats the function's error as fully
+correlated over the window: exact for an error in a constant parameter, an
+upper bound for a GP whose inputs move less than its length scales. Coverage
+is the fraction of windows whose error is within 2 std.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from omavctl.base.errors import ConfigError, OmavctlError
+from omavctl.diagnose.horizon_findings import findings
+from omavctl.learn.gp_mean import FusedMean
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.signal import ResidualSamples
+from omavctl.physics.open_loop import rollout
+from omavctl.physics.rigid_body import rotation_matrix
+
+__all__ = [
+    "DEFAULT_HORIZONS",
+    "GridSignals",
+    "Windows",
+    "horizon_steps",
+    "horizon_table",
+    "parse_horizons",
+    "window_starts",
+]
+
+#: horizons (s) of the system-identification benchmarks: 1, 10 and 50 steps at 100 Hz
+DEFAULT_HORIZONS = (0.01, 0.1, 0.5)
+#: the predictive band's half-width in std
+BAND_SIGMA = 2.0
+#: most window samples (windows x (K + 1)) held at once: a stride 1 on a 4 min log
+#: at 100 Hz with 0.5 s windows (about 400 MB); longer logs get a larger stride
+MAX_WINDOW_SAMPLES = 1_200_000
+AXES = ("x", "y", "z")
+
+
+@dataclass(frozen=True)
+class GridSignals:
+    """Unfiltered grid signals of one log at its kept samples (n of them): body rate
+    (n, 3) rad/s, torque command (n, 3), attitude (n, 3) ZYX Euler rad or None."""
+
+    body_rate: np.ndarray
+    torque: np.ndarray
+    attitude: np.ndarray | None
+
+
+@dataclass
+class Windows:
+    """The windows of all logs, concatenated (W of them, K + 1 samples each).
+
+    log (W,) index of the log; pos (W, K + 1) sample positions in their log;
+    omega, torque, u, du, attitude gathered at them ((W, K + 1, c)); noise (W, 3)
+    the body-rate noise std of their log (rad/s).
+    """
+
+    log: np.ndarray
+    pos: np.ndarray
+    omega: np.ndarray
+    torque: np.ndarray
+    u: np.ndarray
+    du: np.ndarray
+    attitude: np.ndarray | None
+    noise: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.log.size)
+
+
+def parse_horizons(text: str) -> tuple[float, ...]:
+    """``--horizons`` text: comma-separated seconds (``"0.01,0.1,0.5"``) or ``none``."""
+    if text.strip().lower() == "none":
+        return ()
+    out = []
+    for part in text.split(","):
+        try:
+            h = float(part)
+        except ValueError:
+            raise ConfigError(
+                f"--horizons must be seconds separated by commas (e.g. 0.01,0.1,0.5) or "
+                f"none, got '{text[:60]}'"
+            ) from None
+        if not (np.isfinite(h) and h > 0):
+            raise ConfigError(f"--horizons: {part.strip()} is not a positive number of seconds")
+        out.append(h)
+    return tuple(out)
+
+
+def horizon_steps(horizons: Sequence[float], rate: float) -> list[int]:
+    """Grid steps (rounded) of horizons (s) at ``rate`` Hz; refuses a horizon shorter
+    than one step, not finite, or repeated."""
+    steps = []
+    for h in horizons:
+        if not np.isfinite(h) or h <= 0:
+            raise OmavctlError(f"--horizons: {h:g} is not a positive number of seconds")
+        k = round(float(h) * rate)
+        if k < 1:
+            raise OmavctlError(
+                f"--horizons: {h:g} s is shorter than one step of the {rate:g} Hz grid"
+            )
+        if k in steps:
+            raise OmavctlError(f"--horizons: {h:g} s is the same number of grid steps ({k}) twice")
+        steps.append(k)
+    return sorted(steps)
+
+
+def window_starts(index: np.ndarray, k: int, stride: int) -> np.ndarray:
+    """Positions p (every ``stride``-th) whose samples p .. p + k are consecutive grid
+    indices: index (n,) the kept grid indices of a log, increasing."""
+    n = index.size
+    if n <= k:
+        return np.empty(0, dtype=int)
+    p = np.arange(0, n - k, stride)
+    return p[index[p + k] - index[p] == k]
+
+
+def _gather(
+    samples: Sequence[ResidualSamples], signals: Sequence[GridSignals], k: int, stride: int
+) -> Windows:
+    """Every log's windows of k steps (:func:`window_starts`), gathered."""
+    parts: dict[str, list[np.ndarray]] = {
+        key: [] for key in ("log", "pos", "omega", "torque", "u", "du", "attitude", "noise")
+    }
+    has_attitude = all(g.attitude is not None for g in signals)
+    for i, (s, g) in enumerate(zip(samples, signals, strict=True)):
+        pos = window_starts(s.index, k, stride)[:, None] + np.arange(k + 1)
+        parts["log"].append(np.full(pos.shape[0], i))
+        parts["pos"].append(pos)
+        parts["omega"].append(g.body_rate[pos])
+        parts["torque"].append(g.torque[pos])
+        parts["u"].append(s.u[pos])
+        parts["du"].append(s.du[pos] if s.du.shape[0] == s.n else np.zeros((*pos.shape, 6)))
+        if has_attitude:
+            assert g.attitude is not None
+            parts["attitude"].append(g.attitude[pos])
+        noise = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
+        parts["noise"].append(np.broadcast_to(noise, (pos.shape[0], 3)))
+    cat = {key: np.concatenate(v) if v else np.empty(0) for key, v in parts.items()}
+    return Windows(
+        log=cat["log"].astype(int),
+        pos=cat["pos"].reshape(-1, k + 1).astype(int),
+        omega=cat["omega"].reshape(-1, k + 1, 3),
+        torque=cat["torque"].reshape(-1, k + 1, 3),
+        u=cat["u"].reshape(-1, k + 1, 6),
+        du=cat["du"].reshape(-1, k + 1, 6),
+        attitude=cat["attitude"].reshape(-1, k + 1, 3) if has_attitude else None,
+        noise=cat["noise"].reshape(-1, 3),
+    )
+
+
+def _per_sample(
+    win: Windows, samples: Sequence[ResidualSamples], values: Sequence[np.ndarray]
+) -> np.ndarray:
+    """Per-log sample series ``values[i]`` (n_i, c) gathered at the windows (W, K + 1, c)."""
+    if win.count == 0:
+        return np.empty((0, win.pos.shape[1], values[0].shape[1] if values else 0))
+    out = np.empty((win.count, win.pos.shape[1], values[0].shape[1]))
+    for i in range(len(samples)):
+        sel = win.log == i
+        out[sel] = values[i][win.pos[sel]]
+    return out
+
+
+def _history_effects(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
+    """Residual (n, 3) of the model's effects that act through the command history
+    (lags, delay: estimated by a 1-D search), in their exact held form on the log."""
+    out = np.zeros((s.n, 3))
+    for est in m.effects.values():
+        effect = est.effect
+        if effect.search is not None:
+            out += s.exact(est.name, float(est.values[effect.parameters[0].name][0]))
+    return out
+
+
+def _function_std(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
+    """Std (n, 3) of the model's residual function at the log's inputs: GP latent
+    variance plus the effects' parameter variance (no measurement noise)."""
+    _, var = m.gp_predict(s.inputs(m.features), noise=False)
+    assert var is not None
+    if m.effects:
+        var = var + m.effects_variance(s)
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def _with_effects(m: ResidualGP, names: Sequence[str]) -> ResidualGP | None:
+    """The model with only the named effects (a shallow copy; None for none)."""
+    if not names:
+        return None
+    sub = copy.copy(m)
+    sub.effects = {n: m.effects[n] for n in names}
+    return sub
+
+
+def _split_effects(m: ResidualGP, win: Windows) -> tuple[ResidualGP | None, ResidualGP | None]:
+    """The model's effects that do not depend on the body rate (evaluated once per
+    sample: the rotor interference's allocation is costly) and those that do (per
+    step), found by moving the body rate of a few windows' starts."""
+    u, omega = win.u[:8, 0], win.omega[:8, 0]
+    static: list[str] = []
+    moving: list[str] = []
+    for name in m.effects:
+        sub = _with_effects(m, [name])
+        assert sub is not None
+        same = np.array_equal(sub.effects_mean(u, omega), sub.effects_mean(u, omega + 0.37))
+        (static if same else moving).append(name)
+    return _with_effects(m, static), _with_effects(m, moving)
+
+
+def _residual_fn(
+    m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], with_gp: bool
+) -> Any:
+    """The residual ``f(k, omega)`` (W, 3) of the effects (and the GP mean) at step k."""
+    static, moving = _split_effects(m, win)
+    fixed = [_history_effects(m, s) for s in samples]  # what the body rate does not change
+    if static is not None:
+        fixed = [f + static.effects_mean(s.u, s.omega) for f, s in zip(fixed, samples, strict=True)]
+    if with_gp and "rate" not in m.features.split("+"):  # the GP mean needs no rollout
+        fixed = [
+            f + m.gp_predict(s.inputs(m.features), variance=False)[0]
+            for f, s in zip(fixed, samples, strict=True)
+        ]
+    gp_rolled = FusedMean(m) if with_gp and "rate" in m.features.split("+") else None
+    base = _per_sample(win, samples, fixed)
+
+    def residual(k: int, omega: np.ndarray) -> np.ndarray:
+        out = base[:, k]
+        if moving is not None:
+            out = out + moving.effects_mean(win.u[:, k], omega)
+        if gp_rolled is not None:
+            out = out + gp_rolled(m.gp_inputs(win.u[:, k], omega, win.du[:, k]))
+        return out
+
+    return residual
+
+
+def _geodesic(eta_a: np.ndarray, eta_b: np.ndarray) -> np.ndarray:
+    """Rotation angle (...) rad between ZYX Euler attitudes (..., 3):
+    ``2 arcsin(|R_a - R_b|_F / (2 sqrt 2))``, accurate for small angles."""
+    diff = rotation_matrix(eta_a) - rotation_matrix(eta_b)
+    norm = np.sqrt(np.einsum("...ij,...ij->...", diff, diff))
+    return 2.0 * np.arcsin(np.clip(norm / (2.0 * np.sqrt(2.0)), 0.0, 1.0))
+
+
+@dataclass
+class _Run:
+    """One predictor's errors: rate (W, K + 1, 3) rad/s, attitude (W, K + 1) rad or
+    None, band std (W, K + 1, 3) or None."""
+
+    rate: np.ndarray
+    attitude: np.ndarray | None
+    std: np.ndarray | None = None
+
+
+def _rolled(
+    win: Windows, inertia: np.ndarray, inertia_inv: np.ndarray, dt: float, residual: Any
+) -> _Run:
+    """Errors of a rollout from every window's measured start (residual None: physics only)."""
+    k = win.pos.shape[1] - 1
+    eta0 = win.attitude[:, 0] if win.attitude is not None else np.zeros((win.count, 3))
+    omega, eta = rollout(
+        win.omega[:, 0], eta0, win.torque[:, :k], inertia, inertia_inv, dt, residual
+    )
+    attitude = None if win.attitude is None else _geodesic(eta, win.attitude)
+    return _Run(rate=omega - win.omega, attitude=attitude)
+
+
+def _naive(win: Windows) -> _Run:
+    """Errors of holding the start state over the window."""
+    attitude = None
+    if win.attitude is not None:
+        attitude = _geodesic(np.broadcast_to(win.attitude[:, :1], win.attitude.shape), win.attitude)
+    return _Run(rate=win.omega[:, :1] - win.omega, attitude=attitude)
+
+
+def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: float) -> np.ndarray:
+    """Std (W, K + 1, 3) of the full model's body-rate error (module docstring)."""
+    s_fun = _per_sample(win, samples, [_function_std(m, s) for s in samples])
+    drift = np.zeros_like(s_fun)
+    drift[:, 1:] = dt * np.cumsum(s_fun[:, :-1], axis=1)
+    process = np.stack([_process_variance(m, s) for s in samples])[win.log]  # (W, 3)
+    steps = np.arange(s_fun.shape[1])[None, :, None]
+    walk = steps * dt**2 * process[:, None, :]
+    return np.sqrt(2.0 * win.noise[:, None, :] ** 2 + drift**2 + walk)
+
+
+def _process_variance(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
+    """Variance (3,) (rad/s^2)^2 of the white residual the body rate integrates: the
+    GP's noise variance less what the log's rate noise puts into the Savitzky-Golay
+    derivative (that part is measurement, not motion)."""
+    rate_noise = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
+    gain = s.sg.noise_gain if s.sg is not None else 0.0
+    return np.maximum(m.noise_variance - (gain * rate_noise) ** 2, 0.0)
+
+
+def _axes(v: np.ndarray) -> dict[str, float]:
+    return {a: float(v[i]) for i, a in enumerate(AXES)}
+
+
+def _row(run: _Run, k: int, dt: float) -> dict[str, Any]:
+    """One predictor's table entry at k steps: mean |error| per axis and of the norm,
+    their sums over steps 1..k, and the band's coverage when it has one."""
+    rate = run.rate[:, 1 : k + 1]
+    norm = np.linalg.norm(rate, axis=-1)  # (W, k)
+    row: dict[str, Any] = {
+        "seconds": k * dt,
+        "steps": k,
+        "rate_error": {
+            **_axes(np.abs(rate[:, -1]).mean(axis=0)),
+            "norm": float(norm[:, -1].mean()),
+        },
+        "rate_error_sum": float(norm.sum(axis=1).mean()),
+        "attitude_error": None,
+        "attitude_error_sum": None,
+        "coverage": None,
+        "band_halfwidth": None,
+    }
+    if run.attitude is not None:
+        row["attitude_error"] = float(run.attitude[:, k].mean())
+        row["attitude_error_sum"] = float(run.attitude[:, 1 : k + 1].sum(axis=1).mean())
+    if run.std is not None:
+        inside = np.abs(run.rate[:, k]) <= BAND_SIGMA * run.std[:, k]
+        row["coverage"] = {**_axes(inside.mean(axis=0)), "all": float(inside.mean())}
+        row["band_halfwidth"] = _axes(BAND_SIGMA * run.std[:, k].mean(axis=0))
+    return row
+
+
+def _curve(run: _Run) -> dict[str, Any]:
+    """Mean |error| per step 0..K: per axis, the norm, the attitude and the band."""
+    out: dict[str, Any] = {
+        a: np.abs(run.rate[:, :, i]).mean(axis=0).tolist() for i, a in enumerate(AXES)
+    }
+    out["norm"] = np.linalg.norm(run.rate, axis=-1).mean(axis=0).tolist()
+    out["attitude"] = None if run.attitude is None else run.attitude.mean(axis=0).tolist()
+    if run.std is not None:
+        half = BAND_SIGMA * run.std.mean(axis=0)
+        out["band"] = {a: half[:, i].tolist() for i, a in enumerate(AXES)}
+    return out
+
+
+def _predictors(
+    models: Sequence[ResidualGP],
+    win: Windows,
+    samples: Sequence[ResidualSamples],
+    dt: float,
+) -> list[tuple[dict[str, Any], _Run]]:
+    """Every predictor's description and errors: naive, nominal, then per model
+    effects and the full model (with its band)."""
+    v = models[0].vehicle
+    out: list[tuple[dict[str, Any], _Run]] = [
+        ({"key": "naive", "kind": "naive", "model": None}, _naive(win)),
+        ({"key": "nominal", "kind": "nominal", "model": None},
+         _rolled(win, v.inertia, v.inertia_inv, dt, None)),
+    ]  # fmt: skip
+    for j, m in enumerate(models):
+        suffix = "" if j == 0 else f"_{j}"
+        eff = _rolled(win, v.inertia, v.inertia_inv, dt, _residual_fn(m, win, samples, False))
+        full = _rolled(win, v.inertia, v.inertia_inv, dt, _residual_fn(m, win, samples, True))
+        full.std = _band(m, win, samples, dt)
+        out.append(({"key": f"effects{suffix}", "kind": "effects", "model": j}, eff))
+        out.append(({"key": f"model{suffix}", "kind": "model", "model": j}, full))
+    return out
+
+
+def _no_windows(steps: Sequence[int], dt: float, stride: int, n_logs: int) -> dict[str, Any]:
+    """The section of logs without a stretch as long as the longest horizon: no table,
+    a finding that says why (the rest of the evaluation stands)."""
+    message = (
+        f"no stretch of {steps[-1] + 1} consecutive usable samples ({steps[-1] * dt:g} s) in "
+        "the logs: no horizon table (shorten --horizons)"
+    )
+    return {
+        "steps": list(steps),
+        "seconds": [k * dt for k in steps],
+        "stride": stride,
+        "windows": 0,
+        "windows_by_log": [0] * n_logs,
+        "band_sigma": BAND_SIGMA,
+        "attitude": False,
+        "predictors": [],
+        "table": {},
+        "curves": {},
+        "findings": [
+            {"code": "no_windows", "model": None, "axis": None, "value": None, "message": message}
+        ],
+    }
+
+
+def horizon_table(
+    models: Sequence[ResidualGP],
+    samples: Sequence[ResidualSamples],
+    signals: Sequence[GridSignals],
+    rate: float,
+    horizons: Sequence[float] = DEFAULT_HORIZONS,
+    stride: int = 1,
+) -> dict[str, Any]:
+    """The evaluation's ``horizons`` section (docs/schemas.md): per predictor and
+    horizon the mean error of body rate and attitude, their sums over the horizon,
+    the full model's band coverage, the curves per step and the findings."""
+    if stride < 1:
+        raise OmavctlError(f"--horizon-stride: {stride} is not a positive number of samples")
+    steps = horizon_steps(horizons, rate)
+    dt = 1.0 / rate
+    requested = stride
+    n_total = sum(s.n for s in samples)
+    stride = max(stride, math.ceil(n_total * (steps[-1] + 1) / MAX_WINDOW_SAMPLES))
+    win = _gather(samples, signals, steps[-1], stride)
+    if win.count == 0:
+        return _no_windows(steps, dt, stride, len(samples))
+    from threadpoolctl import threadpool_limits
+
+    # small GEMMs per step: threaded BLAS spends more than it saves (7x on 2 busy cores)
+    # a rollout that diverges (a model far outside its inputs) gives inf, written as null
+    with threadpool_limits(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore"):
+        runs = _predictors(models, win, samples, dt)
+        table = {d["key"]: [_row(run, k, dt) for k in steps] for d, run in runs}
+        curves = {d["key"]: _curve(run) for d, run in runs}
+    tree: dict[str, Any] = {
+        "steps": steps,
+        "seconds": [k * dt for k in steps],
+        "stride": stride,
+        "stride_requested": requested,
+        "windows": win.count,
+        "windows_by_log": np.bincount(win.log, minlength=len(samples)).tolist(),
+        "band_sigma": BAND_SIGMA,
+        "attitude": win.attitude is not None,
+        "predictors": [d for d, _ in runs],
+        "table": table,
+        "curves": curves,
+    }
+    tree["findings"] = findings(tree)
+    return tree

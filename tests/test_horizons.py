@@ -1,0 +1,354 @@
+"""evaluate --horizons: open-loop prediction of body rate and attitude over horizons.
+
+A noiseless flight through an ideal plant with a rotational drag, predicted by
+a model that holds exactly that drag (and no GP), must be rolled out with
+~zero error at every horizon; holding the state must err as computed by hand;
+no window may cross an excluded span; the table survives the evaluation JSON;
+a fitted model's band covers a held-out flight.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from omavctl.cli import app
+from omavctl.diagnose.evalio import load_evaluation, write_evaluation
+from omavctl.diagnose.evaluate import evaluate
+from omavctl.diagnose.horizons import GridSignals, horizon_table, window_starts
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model import EffectEstimate, ResidualGP
+from omavctl.learn.model_file import save_model
+from omavctl.learn.signal import ResidualSamples, feature_names
+from omavctl.logs import write_log
+from omavctl.sim.plant import simulate
+from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
+from tests.conftest import NO_NOISE
+
+runner = CliRunner()
+DRAG = [0.05, 0.05, 0.03]
+
+
+def _model(vehicle, effects=None) -> ResidualGP:
+    """A model without a GP (signal variance 0) holding ``effects`` exactly."""
+    names = feature_names("wrench")
+    d = len(names)
+    return ResidualGP(
+        vehicle=vehicle,
+        features="wrench",
+        input_names=tuple(names),
+        inputs=np.eye(2, d),
+        targets=np.zeros((2, 3)),
+        input_mean=np.zeros(d),
+        input_scale=np.ones(d),
+        target_mean=np.zeros(3),
+        signal_variance=np.zeros(3),
+        length_scales=np.ones((3, d)),
+        noise_variance=np.full(3, 1e-6),
+        effects=effects or {},
+    )
+
+
+@pytest.fixture(scope="module")
+def exact(tmp_path_factory, vehicle):
+    """A noiseless ideal-plant flight with drag, the exact model and a drag-less one."""
+    tmp = tmp_path_factory.mktemp("horizons")
+    tree = {"ideal": True, "noise": NO_NOISE, "effects": {"rotational_drag": {"D": DRAG}}}
+    log = tmp / "flight.csv"
+    ref = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.0)
+    write_log(log, simulate(ref, vehicle, truth_from_tree(tree, vehicle), seed=1).log)
+    drag = EffectEstimate("rotational_drag", {"D": np.array(DRAG)}, {"D": np.zeros(3)})
+    truth_model, physics_model = tmp / "truth.npz", tmp / "physics.npz"
+    save_model(truth_model, _model(vehicle, {"rotational_drag": drag}))
+    save_model(physics_model, _model(vehicle))
+    return tmp, log, truth_model, physics_model
+
+
+def test_the_exact_truth_model_rolls_out_with_zero_error(exact):
+    _, log, truth_model, _ = exact
+    h = evaluate([truth_model], [log]).tree["horizons"]
+    assert h["steps"] == [1, 10, 50] and h["windows"] > 300 and h["attitude"]
+    for row in h["table"]["model"]:
+        assert row["rate_error"]["norm"] < 2e-3 * max(1.0, row["steps"] / 10), row
+        assert row["attitude_error"] < 1e-5 * row["steps"], row
+    # the drag matters: physics alone is off by far more at 0.5 s
+    nominal = h["table"]["nominal"][-1]
+    assert nominal["rate_error"]["norm"] > 100 * h["table"]["model"][-1]["rate_error"]["norm"]
+    # effects alone are the truth too here (the GP is off)
+    for eff, full in zip(h["table"]["effects"], h["table"]["model"], strict=True):
+        assert eff["rate_error"] == pytest.approx(full["rate_error"], rel=1e-9)
+
+
+def _synthetic(n: int, gap_at: int, dt: float) -> tuple[ResidualSamples, GridSignals]:
+    """Samples whose grid indices jump by 5 after position ``gap_at`` (an excluded
+    span); body rate [a t, b t^2, 0] on the grid time, torque zero."""
+    index = np.arange(n)
+    index[gap_at:] += 5
+    t = index * dt
+    omega = np.stack([0.7 * t, 0.3 * t**2, np.zeros(n)], axis=1)
+    z3, z6 = np.zeros((n, 3)), np.zeros((n, 6))
+    s = ResidualSamples(Path("synthetic"), index, t, omega, z6, z3, z3, z3, du=z6)
+    s.rate_noise = np.zeros(3)
+    return s, GridSignals(body_rate=omega, torque=z3, attitude=None)
+
+
+def test_holding_the_state_errs_as_computed_by_hand(vehicle):
+    dt, n, gap = 0.01, 300, 150
+    s, g = _synthetic(n, gap, dt)
+    h = horizon_table([_model(vehicle)], [s], [g], 100.0, (0.01, 0.1, 0.5))
+    starts = np.concatenate([np.arange(0, gap - 50), np.arange(gap, n - 50)])
+    assert h["windows"] == starts.size == 200
+    t0 = s.t[starts]
+    for row in h["table"]["naive"]:
+        k = row["steps"]
+        hor = k * dt
+        assert row["rate_error"]["x"] == pytest.approx(0.7 * hor, rel=1e-9)
+        by_hand = np.mean(0.3 * (2 * t0 * hor + hor**2))
+        assert row["rate_error"]["y"] == pytest.approx(by_hand, rel=1e-9)
+        sums = [
+            np.hypot(0.7 * j * dt, 0.3 * (2 * t0 * j * dt + (j * dt) ** 2)) for j in range(1, k + 1)
+        ]
+        assert row["rate_error_sum"] == pytest.approx(np.mean(np.sum(sums, axis=0)), rel=1e-9)
+        assert row["attitude_error"] is None
+    errors = [row["rate_error"]["norm"] for row in h["table"]["naive"]]
+    assert errors == sorted(errors) and errors[-1] > 10 * errors[0]
+
+
+def test_windows_never_cross_an_excluded_span():
+    rng = np.random.default_rng(3)
+    index = np.cumsum(1 + (rng.random(2000) < 0.01) * rng.integers(1, 30, 2000))
+    for k, stride in ((1, 1), (10, 3), (50, 1)):
+        p = window_starts(index, k, stride)
+        assert p.size > 0 and np.all(p % stride == 0)
+        spans = index[p[:, None] + np.arange(k + 1)]
+        assert np.all(np.diff(spans, axis=1) == 1)
+        # and every start that fits is used
+        ok = [q for q in range(0, index.size - k, stride) if index[q + k] - index[q] == k]
+        assert p.tolist() == ok
+
+
+def test_the_table_survives_the_evaluation_json(exact, tmp_path):
+    _, log, truth_model, physics_model = exact
+    result = evaluate([truth_model, physics_model], [log], horizons=(0.02, 0.3), horizon_stride=4)
+    out = tmp_path / "e.json"
+    write_evaluation(out, result)
+    text = out.read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    tree, _ = load_evaluation(out)
+    h = tree["horizons"]
+    assert h == json.loads(json.dumps(result.tree["horizons"]))
+    assert h["steps"] == [2, 30] and h["stride"] == 4
+    assert [p["key"] for p in h["predictors"]] == [
+        "naive",
+        "nominal",
+        "effects",
+        "model",
+        "effects_1",
+        "model_1",
+    ]
+    # the drag-less model is physics only: its rows are the nominal ones
+    assert h["table"]["model_1"][-1]["rate_error"] == pytest.approx(
+        h["table"]["nominal"][-1]["rate_error"]
+    )
+    assert len(h["curves"]["model"]["x"]) == 31
+
+
+def test_bad_horizons_are_refused_in_one_line(exact, tmp_path):
+    _, log, truth_model, _ = exact
+    for text, message in (
+        (
+            "0.1,abc",
+            "error: --horizons must be seconds separated by commas (e.g. 0.01,0.1,0.5) "
+            "or none, got '0.1,abc'",
+        ),
+        ("0.001", "error: --horizons: 0.001 s is shorter than one step of the 100 Hz grid"),
+        ("0.1,-1", "error: --horizons: -1 is not a positive number of seconds"),
+    ):
+        out = tmp_path / "bad.json"
+        res = runner.invoke(
+            app,
+            [
+                "evaluate",
+                str(log),
+                "--model",
+                str(truth_model),
+                "--out",
+                str(out),
+                "--horizons",
+                text,
+            ],
+        )
+        assert res.exit_code == 2, res.output
+        assert res.stderr.strip() == message
+        assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory, vehicle):
+    """A fit flight, another flight of its task and one of another figure-8 (drag and the
+    default actuator imperfections), and a model fitted on the first."""
+    tmp = tmp_path_factory.mktemp("fitted")
+    truth = truth_from_tree({"seed": 1, "effects": {"rotational_drag": {"D": DRAG}}}, vehicle)
+    logs = {
+        "fit": (fig8(duration=10.0, ramp=1.0), 1),
+        "same": (fig8(duration=10.0, ramp=1.0), 2),
+        "other": (fig8(roll_deg=20, pitch_deg=25, period=6.0, duration=8.0, ramp=1.0), 3),
+    }
+    for name, (ref, seed) in logs.items():
+        write_log(tmp / f"{name}.csv", simulate(ref, vehicle, truth, seed=seed).log)
+    model = tmp / "m.npz"
+    save_model(model, fit_model([tmp / "fit.csv"], vehicle, points=80, restarts=0).model)
+    return tmp, model
+
+
+def test_the_band_covers_a_held_out_flight(fitted):
+    """On another flight of the fit flight's task (other noise, not fitted on) the band
+    covers >= 85 % at every horizon and axis; on a flight of another figure-8 it is as
+    calibrated as the model's one-step band, whose calibration it inherits."""
+    tmp, model = fitted
+    same = evaluate([model], [tmp / "same.csv"], horizon_stride=2).tree
+    for row in same["horizons"]["table"]["model"]:
+        assert min(row["coverage"].values()) >= 0.85, row
+    other = evaluate([model], [tmp / "other.csv"], horizon_stride=2).tree
+    one_step = other["metrics"]["model"]["coverage_2sigma"]
+    for row in other["horizons"]["table"]["model"]:
+        for a in "xyz":
+            assert row["coverage"][a] >= one_step[a] - 0.05, (a, row, one_step)
+    # the full model sees further than hold-the-state and physics only
+    for tree in (same, other):
+        table = tree["horizons"]["table"]
+        last = {key: table[key][-1]["rate_error"]["norm"] for key in ("naive", "nominal", "model")}
+        assert last["model"] < 0.5 * min(last["naive"], last["nominal"])
+
+
+def test_the_fused_float32_mean_matches_the_model(fitted):
+    """The rollouts' float32 GP mean agrees with the model's float64 one."""
+    from omavctl.learn.gp_mean import FusedMean
+    from omavctl.learn.model_file import load_model
+
+    model = load_model(fitted[1])
+    rng = np.random.default_rng(0)
+    z = model.inputs[rng.integers(0, model.n_train, 500)]
+    z = z + 0.3 * rng.standard_normal(z.shape) * model.input_scale
+    want, _ = model.gp_predict(z, variance=False)
+    got = FusedMean(model)(z)
+    assert np.abs(got - want).max() < 1e-4 * max(1.0, np.abs(want).max())
+    assert np.abs(want).max() > 1e-3  # a GP that predicts something
+
+
+def test_logs_without_a_long_enough_stretch_get_no_table_not_an_error(vehicle):
+    s, g = _synthetic(80, 40, 0.01)  # two stretches of 40 samples, none of 51
+    h = horizon_table([_model(vehicle)], [s], [g], 100.0)
+    assert h["windows"] == 0 and h["table"] == {}
+    assert [f["code"] for f in h["findings"]] == ["no_windows"]
+    assert "no stretch of 51 consecutive usable samples (0.5 s)" in h["findings"][0]["message"]
+    # a shorter horizon fits
+    assert horizon_table([_model(vehicle)], [s], [g], 100.0, (0.1,))["windows"] == 2 * 30
+
+
+def test_a_long_log_gets_a_larger_stride(vehicle, monkeypatch):
+    import omavctl.diagnose.horizons as hz
+
+    monkeypatch.setattr(hz, "MAX_WINDOW_SAMPLES", 5100)
+    s, g = _synthetic(300, 150, 0.01)
+    h = horizon_table([_model(vehicle)], [s], [g], 100.0)
+    assert h["stride_requested"] == 1 and h["stride"] == 3  # 300 x 51 / 5100
+    assert h["windows"] == 34 + 34  # starts 0, 3, .. 99 and 150, 153, .. 249
+
+
+def _tree(errors: dict[str, list[float]], name: str = "a.bag") -> dict:
+    """A minimal evaluation with a horizon table of the given error norms (all axes)."""
+    from omavctl.diagnose.horizon_findings import findings
+
+    preds = [
+        {"key": k, "kind": k, "model": None if k in ("naive", "nominal") else 0} for k in errors
+    ]
+
+    def row(k: int, e: float) -> dict:
+        return {"seconds": k / 100, "steps": k, "rate_error": {"x": e, "y": e, "z": e, "norm": e},
+                "coverage": {"x": 0.9, "y": 0.9, "z": 0.9, "all": 0.9}}  # fmt: skip
+
+    h = {
+        "steps": [1, 50], "seconds": [0.01, 0.5], "band_sigma": 2.0, "predictors": preds,
+        "table": {k: [row(1, v[0]), row(50, v[1])] for k, v in errors.items()},
+    }  # fmt: skip
+    h["findings"] = findings(h)
+    return {"horizons": h, "logs": [{"name": name, "sha256": name, "t0": 0.0}]}
+
+
+def test_the_findings_and_the_report_name_a_model_that_wins_early_and_loses_late():
+    from omavctl.report.horizons import _side_by_side
+
+    errors = {"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "effects": [0.01, 0.1]}
+    gp_hurts = _tree({**errors, "model": [0.008, 0.2]})
+    codes = [f["code"] for f in gp_hurts["horizons"]["findings"]]
+    assert codes.count("gp_hurts_long") == 3 and codes.count("gp_worse_long") == 3
+    assert "ranking_changes" in codes and "band_narrow" not in codes
+    x = next(f for f in gp_hurts["horizons"]["findings"] if f["code"] == "gp_hurts_long")
+    assert x["message"] == (
+        "x: the GP lowers the 0.01 s body-rate error (0.01 -> 0.008 rad/s) but raises it "
+        "at 0.5 s (0.1 -> 0.2 rad/s)"
+    )
+    good = _tree({**errors, "model": [0.009, 0.05]})
+    assert [f["code"] for f in good["horizons"]["findings"]] == []
+    blocks = _side_by_side([(gp_hurts, {}, "one.json"), (good, {}, "two.json")])
+    notes = [str(item) for b in blocks if hasattr(b, "items") for item in b.items]
+    assert notes[0] == (
+        "one.json: full model wins at 0.01 s (0.008 vs 0.009 rad/s) and loses at 0.5 s "
+        "(0.2 vs 0.05) to two.json: full model"
+    )
+    assert any(n.startswith("one.json: x: the GP lowers") for n in notes)
+    # on other logs the two files' models are not compared
+    other = _tree({**errors, "model": [0.009, 0.05]}, name="b.bag")
+    blocks = _side_by_side([(gp_hurts, {}, "one.json"), (other, {}, "two.json")])
+    notes = [str(item) for b in blocks if hasattr(b, "items") for item in b.items]
+    assert not any("wins at" in n for n in notes)
+
+
+def test_a_diverging_rollout_is_written_as_null_not_nan(vehicle, tmp_path):
+    """A model far from the log (a huge negative drag) blows its rollout up: the table
+    holds inf (the evaluation file writes null), and nothing warns or fails."""
+    import warnings
+
+    s, g = _synthetic(300, 150, 0.01)
+    s.regressors = {"rotational_drag": np.zeros((s.n, 3, 3))}
+    g = GridSignals(body_rate=g.body_rate * 40.0, torque=g.torque, attitude=None)
+    drag = EffectEstimate("rotational_drag", {"D": np.full(3, -1e3)}, {"D": np.zeros(3)})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        h = horizon_table([_model(vehicle, {"rotational_drag": drag})], [s], [g], 100.0)
+    assert not np.isfinite(h["table"]["model"][-1]["rate_error"]["norm"])
+    assert np.isfinite(h["table"]["naive"][-1]["rate_error"]["norm"])
+
+
+def test_json_output_carries_the_table(exact, tmp_path):
+    _, log, truth_model, _ = exact
+    out = tmp_path / "e.json"
+    args = ["evaluate", str(log), "--model", str(truth_model), "--out", str(out)]
+    res = runner.invoke(app, [*args, "--horizons", "0.05,0.2", "--horizon-stride", "3", "--json"])
+    assert res.exit_code == 0, res.output
+    obj = json.loads(res.stdout)
+    h = obj["horizons"]
+    assert h["steps"] == [5, 20] and h["stride"] == 3 and "curves" not in h
+    assert h["table"] == json.loads(out.read_text())["horizons"]["table"]
+    assert "open-loop error over horizons" in res.stderr
+    res = runner.invoke(app, [*args, "--horizons", "none", "--json"])
+    assert res.exit_code == 0 and json.loads(res.stdout)["horizons"] is None
+
+
+def test_an_evaluation_written_before_the_horizons_is_still_reported(exact, tmp_path):
+    from omavctl.report.evaluation import render_report
+
+    _, log, truth_model, _ = exact
+    result = evaluate([truth_model], [log], horizons=(0.1,))
+    write_evaluation(tmp_path / "new.json", result)
+    tree, series = load_evaluation(tmp_path / "new.json")
+    old = {k: v for k, v in tree.items() if k != "horizons"}
+    md = render_report([(old, series, "old.json"), (tree, series, "new.json")], "md")
+    assert "old.json: no horizon table (written before evaluate had one" in md
+    assert "new.json: " in md and "| full model |" in md
