@@ -14,7 +14,7 @@ command that adds the top missing effect.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -167,18 +167,12 @@ def diagnose(
     missing = score_effects(remaining, candidates, blocks, model_std, floor, refit)
     if contributions is not None:
         contributions.update({s.name: s.contribution for s in missing})
-    # forward selection: accept the best missing effect, remove what it explains,
-    # rescore the others on what is left (so one cause is not reported thrice)
-    accepted: list[dict[str, Any]] = []
-    after = remaining
-    pool = dict(candidates)
-    ranking = missing
-    while ranking and ranking[0].missing and len(accepted) < 3:
-        best = ranking[0]
-        accepted.append({"name": best.name, "explained_variance": best.explained_variance})
-        after = after - best.contribution
-        pool.pop(best.name)
-        ranking = score_effects(after, pool, blocks, model_std, floor, refit)
+    accepted, after = _forward_selection(
+        missing,
+        remaining,
+        candidates,
+        lambda rem, pool: score_effects(rem, pool, blocks, model_std, floor, refit),
+    )
     # what the physics-free residual behaves like, with the same materiality: an
     # "effect" below the measurement's own noise is not claimed as learned
     learned = score_effects(residual, regs, blocks, noise_floor=floor)
@@ -206,6 +200,29 @@ def diagnose(
         "unexplained": unexplained,
         "learned": [{**s.to_json(), "estimate": estimates[s.name]} for s in learned],
     }
+
+
+def _forward_selection(
+    ranking: list[EffectScore],
+    remaining: np.ndarray,
+    candidates: dict[str, np.ndarray],
+    rescore: Callable[[np.ndarray, dict[str, np.ndarray]], list[EffectScore]],
+) -> tuple[list[dict[str, Any]], np.ndarray]:
+    """Accept the best missing effect, remove what it explains, rescore the others
+    on what is left (so one cause is not reported thrice), up to 3 effects.
+
+    Returns the accepted effects and the error (n, 3) they leave.
+    """
+    accepted: list[dict[str, Any]] = []
+    after = remaining
+    pool = dict(candidates)
+    while ranking and ranking[0].missing and len(accepted) < 3:
+        best = ranking[0]
+        accepted.append({"name": best.name, "explained_variance": best.explained_variance})
+        after = after - best.contribution
+        pool.pop(best.name)
+        ranking = rescore(after, pool)
+    return accepted, after
 
 
 def _below_noise(scores: Sequence[EffectScore], noise: float) -> str | None:
