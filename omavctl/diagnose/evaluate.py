@@ -46,7 +46,7 @@ from omavctl.diagnose.metrics import (
     worst_segments,
 )
 from omavctl.learn.control_loss import out_of_control
-from omavctl.learn.flights import body_rate_rate, sha256_of, training_logs
+from omavctl.learn.flights import REQUIRED_ROLES, body_rate_rate, sha256_of, training_logs
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
@@ -124,9 +124,19 @@ def _read_log(
 ) -> tuple[ResidualSamples, np.ndarray, dict[str, Any], list[dict[str, Any]]]:
     """One log's residual samples (every registry regressor, out-of-control samples
     removed), its attitude (n, 3) at them, its ``logs`` entry and its excluded spans."""
-    from omavctl.logs import read_vehicle_log
+    from omavctl.logs import DEFAULT_REQUIRED, read_vehicle_log
+    from omavctl.physics.mixer import wrench_hook
 
-    flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
+    # a vehicle described by its rotors flies IMU-only logs too (no attitude)
+    required = REQUIRED_ROLES if vehicle.motors is not None else DEFAULT_REQUIRED
+    flight = read_vehicle_log(
+        path,
+        vehicle,
+        rate=rate,
+        time_window=time_window,
+        required=required,
+        wrench=wrench_hook(vehicle),
+    )
     _check_rate(flight, vehicle, rate)
     extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
     s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)

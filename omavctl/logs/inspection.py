@@ -127,7 +127,7 @@ def inspect_log(
         elif raw.format == "csv":
             where = f"CSV columns {role}_*"
         else:
-            where = names[ROLE_TOPIC[role]]
+            where = names.get(ROLE_TOPIC[role], "no topic: column maps only")
         (found if role in raw.series else missing)[role] = where
     return Inspection(
         path=p,

@@ -64,6 +64,12 @@ class MotorLag(Effect):
     ``F ~= F_cmd - T_m F_cmd_dot`` per arm, so the wrench error is
     ``-T_m J_F F_cmd_dot`` (``J_F`` = thrust directions and their moments);
     residual ``-T_m I^-1 [J_F F_cmd_dot]_torque``. ``T_m`` in s.
+
+    On a vehicle described by a fixed rotor list (``ctx.fixed_rotors``: the
+    wrench is a fixed matrix times the rotor thrusts, :mod:`omavctl.physics.mixer`)
+    a first-order lag of every rotor's thrust with one ``T_m`` is exactly the
+    same lag of the commanded torque: residual ``I^-1 (lag(tau_cmd) - tau_cmd)``,
+    to first order ``-T_m I^-1 tau_cmd_dot``.
     """
 
     name = "motor_lag"
@@ -74,6 +80,8 @@ class MotorLag(Effect):
     search = (0.0, 0.3)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.fixed_rotors:
+            return -(ctx.derivative(ctx.torque) @ ctx.inertia_inv.T)[:, :, None]
         tilt, thrust = ctx.allocated
         rate = ctx.derivative(thrust)
         jac = ctx.allocation.thrust_jacobian(tilt)
@@ -81,7 +89,11 @@ class MotorLag(Effect):
         return ctx.angular(dw)[:, :, None]
 
     def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
-        """Arm thrusts through the exact first-order lag of the held setpoints."""
+        """Arm thrusts (rotor thrusts: the torque) through the exact first-order lag
+        of the held setpoints."""
+        if ctx.fixed_rotors:
+            lagged = first_order_lag(ctx.torque, value, ctx.dt)
+            return (lagged - ctx.torque) @ ctx.inertia_inv.T
         tilt, thrust = ctx.allocated
         lagged = first_order_lag(thrust, value, ctx.dt)
         dw = ctx.allocation.forward(tilt, np.repeat(lagged / 2.0, 2, axis=-1))

@@ -1,0 +1,220 @@
+"""Vehicles described by their rotors (``motors:``) and logs of motor outputs.
+
+A hexa-X described by a YAML file alone: its motor log is synthesised here with
+numpy (per-rotor first-order thrust lag, rigid body integrated at 1 kHz), then
+``fit`` recovers the motor time constant, ``evaluate`` on another flight
+names it when it is left out, and ``report`` renders the evaluation.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from omavctl.base.errors import ConfigError
+from omavctl.cli import app
+from omavctl.learn.fit import fit_model
+from omavctl.physics.actuator_effects import first_order_lag
+from omavctl.physics.allocation import Allocation
+from omavctl.vehicle import Vehicle, load_vehicle, preset_names
+
+HEXA_YAML = """preset: hexa-x
+columns:
+  time: {column: time}
+  body_rate: {x: gx, y: gy, z: gz}
+  motor_command: [m0, m1, m2, m3, m4, m5]
+"""
+
+
+def _vehicle(tmp_path: Path, text: str, name: str = "v.yaml") -> tuple[Vehicle, Path]:
+    path = tmp_path / name
+    path.write_text(text)
+    return load_vehicle(path), path
+
+
+def synthesise(
+    vehicle: Vehicle, seed: int, lag: float, duration: float = 20.0, rate: float = 100.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A motor log of ``vehicle``: t (n,), gyro (n, 3) rad/s, PWM commands (n, rotors) us.
+
+    Each rotor's command is hover plus four random sines (0.2-3 Hz); the thrust
+    follows its setpoint with a first-order lag ``lag`` s (exact, at 1 kHz) and
+    the body rate integrates ``I w' = tau - w x I w``; gyro noise 2 mrad/s.
+    """
+    motors = vehicle.motors
+    assert motors is not None
+    rng = np.random.default_rng(seed)
+    n, sub = int(duration * rate), 10
+    t = np.arange(n) / rate
+    x_hover = np.sqrt(vehicle.mass * vehicle.gravity / motors.n_rotors / motors.rotors[0].curve[2])
+    x = np.full((n, motors.n_rotors), x_hover)
+    for j in range(motors.n_rotors):
+        for f, ph in zip(rng.uniform(0.2, 3.0, 4), rng.uniform(0, 2 * np.pi, 4), strict=True):
+            x[:, j] += 0.03 * np.sin(2 * np.pi * f * t + ph)
+    cmd = 1000.0 + 1000.0 * x
+    dt = 1.0 / (rate * sub)
+    thrust = first_order_lag(np.repeat(motors.thrust(cmd), sub, axis=0), lag, dt)
+    _, tau = motors.wrench(thrust)
+    inertia, inv = vehicle.inertia, vehicle.inertia_inv
+    w = np.zeros(3)
+    gyro = np.zeros((n, 3))
+    for k in range(n * sub):
+        if k % sub == 0:
+            gyro[k // sub] = w
+        w = w + dt * inv @ (tau[k] - np.cross(w, inertia @ w))
+    return t, gyro + 0.002 * rng.standard_normal(gyro.shape), cmd
+
+
+def write_motor_csv(path: Path, t: np.ndarray, gyro: np.ndarray, cmd: np.ndarray) -> Path:
+    header = "time,gx,gy,gz," + ",".join(f"m{i}" for i in range(cmd.shape[1]))
+    np.savetxt(path, np.c_[t, gyro, cmd], delimiter=",", header=header, comments="")
+    return path
+
+
+# --- the rotor list ---------------------------------------------------------------
+
+
+def test_every_preset_loads_with_its_rotor_count(tmp_path: Path) -> None:
+    rotors = {
+        "quad-x-betaflight": 4,
+        "quad-x-crazyflie": 4,
+        "hexa-x": 6,
+        "octo-x": 8,
+        "coax-x8": 8,
+        "omav": 12,
+    }
+    assert set(preset_names()) == set(rotors)
+    for name, count in rotors.items():
+        veh, _ = _vehicle(tmp_path, f"preset: {name}\n")
+        assert veh.motors is not None and veh.motors.n_rotors == count, name
+        # a hover: equal thrusts give no torque (the layout is balanced)
+        force, torque = veh.motors.wrench(np.ones((1, count)), np.zeros((1, 6)))
+        np.testing.assert_allclose(torque, 0.0, atol=1e-9, err_msg=name)
+        np.testing.assert_allclose(force[0], [0.0, 0.0, count], atol=1e-9, err_msg=name)
+
+
+def test_the_omav_preset_mixes_as_the_allocation(tmp_path: Path) -> None:
+    veh, _ = _vehicle(tmp_path, "preset: omav\n")
+    assert veh.motors is not None and veh.motors.tilting
+    rng = np.random.default_rng(0)
+    tilt = rng.uniform(-1.5, 1.5, (20, 6))
+    thrust = rng.uniform(0.0, 15.0, (20, 12))
+    force, torque = veh.motors.wrench(thrust, tilt)
+    expected = Allocation(veh).forward(tilt, thrust)
+    np.testing.assert_allclose(np.c_[force, torque], expected, atol=1e-4)
+
+
+def test_crazyflie_yaw_and_roll_signs(tmp_path: Path) -> None:
+    """m2 and m4 push +yaw (reaction +1 in the authors' table); m3, m4 (left) roll right."""
+    veh, _ = _vehicle(tmp_path, "preset: quad-x-crazyflie\n")
+    assert veh.motors is not None
+    _, yaw = veh.motors.wrench(np.array([[0.0, 1.0, 0.0, 1.0]]))
+    assert yaw[0, 2] > 0 and abs(yaw[0, 0]) < 1e-12
+    _, roll = veh.motors.wrench(np.array([[0.0, 0.0, 1.0, 1.0]]))
+    assert roll[0, 0] > 0  # thrust on the left (+y) rolls right-side down: +x in FLU
+    # PWM 0..65535 -> thrust 0.15 x^2 N
+    np.testing.assert_allclose(veh.motors.thrust(np.array([[65535.0, 0, 32767.5, 0]]))[0],
+                               [0.15, 0.0, 0.0375, 0.0], rtol=1e-9)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("preset: quad-x-nope\n", "unknown preset 'quad-x-nope' in 'preset' (known: coax-x8"),
+        (
+            "motors: {unit: pwm_us, thrust_curve: [0, 0, 1], rotors: [{position: [1, 0, 0]}]}\n",
+            "key 'motors.rotors[0].spin' is missing",
+        ),
+        (
+            "motors: {unit: volts, thrust_curve: [0, 1], rotors: [{position: [1, 0, 0], "
+            "spin: cw}]}\n",
+            "key 'motors.unit' must be one of pwm_us, dshot, pwm16, normalised, rad/s, rpm, "
+            "got 'volts'",
+        ),
+        (
+            "preset: hexa-x\nmotors: {unit: dshot, thrust_curve: [0, 1], rotors: "
+            "[{position: [1, 0], spin: cw}]}\n",
+            "key 'motors.rotors[0].position' must be 3 numbers",
+        ),
+        (
+            "motors: {unit: rpm, range: [0, 1], thrust_curve: {k: 1.0e-7}, rotors: "
+            "[{position: [1, 0, 0], spin: cw}]}\n",
+            "key 'motors.range' applies only to pwm_us, dshot, pwm16, normalised",
+        ),
+        (
+            "motors: {unit: pwm16, thrust_curve: [1.0], rotors: [{position: [1, 0, 0], "
+            "spin: cw}]}\n",
+            "key 'motors.thrust_curve' gives no thrust change with the command",
+        ),
+        (
+            "motors: {unit: pwm16, thrust_curve: [0, 1], rotors: [{position: [1, 0, 0], "
+            "spin: cw}, {position: [0, 1, 0], spin: ccw, output: 0}]}\n",
+            "key 'motors.rotors[1].output' = 0 is also rotor 0's",
+        ),
+        (
+            "motors: {unit: pwm16, thrust_curve: [0, 1], rotors: [{position: [1, 0, 0], "
+            "spin: left}]}\n",
+            "key 'motors.rotors[0].spin' must be cw or ccw, got 'left'",
+        ),
+    ],
+)
+def test_a_bad_rotor_list_is_one_line_naming_the_file_and_key(
+    tmp_path: Path, text: str, message: str
+) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_vehicle(path)
+    assert str(err.value).startswith(f"{path}: {message}")
+    assert "\n" not in str(err.value)
+
+
+# --- a hexa-X from its YAML alone: fit, evaluate, report --------------------------------
+
+
+def test_hexa_fit_recovers_the_motor_time_constant_from_a_motor_log(tmp_path: Path) -> None:
+    veh, _ = _vehicle(tmp_path, HEXA_YAML)
+    log = write_motor_csv(tmp_path / "a.csv", *synthesise(veh, seed=1, lag=0.04))
+    result = fit_model([log], veh, effects=["motor_lag"], points=60, restarts=0)
+    est = result.model.effects["motor_lag"]
+    t_m = float(np.asarray(est.values["T_m"])[0])
+    assert abs(t_m - 0.04) < 0.002, t_m
+    # with the lag the physics explains the flight: what is left is gyro noise
+    assert all(a.cv_rmse_physics < 0.05 for a in result.summary.axes)
+
+
+def test_hexa_evaluate_names_the_lag_and_report_renders(tmp_path: Path) -> None:
+    veh, vfile = _vehicle(tmp_path, HEXA_YAML)
+    a = write_motor_csv(tmp_path / "a.csv", *synthesise(veh, seed=1, lag=0.04))
+    b = write_motor_csv(tmp_path / "b.csv", *synthesise(veh, seed=2, lag=0.04))
+    runner = CliRunner()
+    model = tmp_path / "m.npz"
+    fit = ["fit", str(a), "--vehicle", str(vfile), "--out", str(model)]
+    res = runner.invoke(app, [*fit, "--points", "60", "--restarts", "0"])
+    assert res.exit_code == 0, res.output
+    out = tmp_path / "e.json"
+    res = runner.invoke(app, ["evaluate", str(b), "--model", str(model), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    diag = json.loads(out.read_text())["diagnosis"]
+    named = [e["name"] for e in diag["missing"] + diag["learned"]]
+    assert "motor_lag" in named, diag
+    entry = next(e for e in diag["missing"] + diag["learned"] if e["name"] == "motor_lag")
+    assert abs(entry["parameters"]["T_m"][0] - 0.04) < 0.012
+    html = tmp_path / "r.html"
+    res = runner.invoke(app, ["report", str(out), "--out", str(html)])
+    assert res.exit_code == 0, res.output
+    assert "motor_lag" in html.read_text()
+
+
+def test_a_log_with_motor_outputs_needs_a_rotor_list(tmp_path: Path) -> None:
+    veh, _ = _vehicle(tmp_path, HEXA_YAML)
+    log = write_motor_csv(tmp_path / "a.csv", *synthesise(veh, seed=1, lag=0.0, duration=2.0))
+    plain = tmp_path / "plain.yaml"
+    plain.write_text(HEXA_YAML.replace("preset: hexa-x\n", ""))
+    res = CliRunner().invoke(app, ["fit", str(log), "--vehicle", str(plain), "--out", "m.npz"])
+    assert res.exit_code == 2
+    assert "motor_command cannot be mixed without the vehicle's rotors" in res.output
