@@ -82,6 +82,7 @@ def test_every_preset_loads_with_its_rotor_count(tmp_path: Path) -> None:
     rotors = {
         "quad-x-betaflight": 4,
         "quad-x-crazyflie": 4,
+        "quad-x-px4": 4,
         "hexa-x": 6,
         "octo-x": 8,
         "coax-x8": 8,
@@ -171,6 +172,94 @@ def test_a_bad_rotor_list_is_one_line_naming_the_file_and_key(
         load_vehicle(path)
     assert str(err.value).startswith(f"{path}: {message}")
     assert "\n" not in str(err.value)
+
+
+# --- inspect suggests the map and the preset --------------------------------------------
+
+
+def _table(path: Path, header: list[str], columns: dict[str, np.ndarray]) -> Path:
+    n = len(next(iter(columns.values())))
+    rows = [",".join(repr(float(columns[h][i])) if h in columns else "0" for h in header)
+            for i in range(n)]  # fmt: skip
+    path.write_text(",".join(header) + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("header", "time", "gyro", "motors", "scale", "preset", "unit"),
+    [
+        (
+            "timestamp,acc.x,acc.y,acc.z,gyro.x,gyro.y,gyro.z,motor.m1,motor.m2,motor.m3,motor.m4",
+            ("timestamp", 1.0),
+            ["gyro.x", "gyro.y", "gyro.z"],
+            ["motor.m1", "motor.m2", "motor.m3", "motor.m4"],
+            30000.0,
+            "quad-x-crazyflie",
+            "pwm16",
+        ),
+        (
+            "loopIteration,time,axisP[0],axisP[1],axisP[2],rcCommand[0],rcCommand[1],"
+            "rcCommand[2],rcCommand[3],vbatLatest,gyroADC[0],gyroADC[1],gyroADC[2],"
+            "motor[0],motor[1],motor[2],motor[3]",
+            ("time", 500.0),
+            ["gyroADC[0]", "gyroADC[1]", "gyroADC[2]"],
+            ["motor[0]", "motor[1]", "motor[2]", "motor[3]"],
+            300.0,
+            "quad-x-betaflight",
+            "dshot",
+        ),
+        (
+            "timestamp,gyro_x,gyro_y,gyro_z,actuator_outputs.output[0],"
+            "actuator_outputs.output[1],actuator_outputs.output[2],actuator_outputs.output[3],"
+            "actuator_outputs.output[4],actuator_outputs.output[5]",
+            ("timestamp", 4000.0),
+            ["gyro_x", "gyro_y", "gyro_z"],
+            [f"actuator_outputs.output[{i}]" for i in range(4)],
+            1500.0,
+            "quad-x-px4",
+            "pwm_us",
+        ),
+    ],
+)
+def test_inspect_suggests_motor_outputs_and_the_preset(
+    tmp_path: Path,
+    header: str,
+    time: tuple[str, float],
+    gyro: list[str],
+    motors: list[str],
+    scale: float,
+    preset: str,
+    unit: str,
+) -> None:
+    """Header names as the loggers write them; gyro in deg/s, outputs 5 and 6 unused."""
+    rng = np.random.default_rng(0)
+    n = 300
+    cols = {time[0]: np.arange(n) * time[1]}
+    for g in gyro:
+        cols[g] = rng.normal(0.0, 80.0, n)
+    for m in motors:
+        cols[m] = scale + 0.1 * scale * rng.random(n)
+    log = _table(tmp_path / "log.csv", header.split(","), cols)
+    res = CliRunner().invoke(app, ["inspect", str(log), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    columns = out["suggested_columns"]
+    assert columns["motor_command"] == motors
+    assert columns["body_rate"]["x"] == gyro[0]
+    assert "torque_command" not in columns and "force_command" not in columns
+    assert preset in preset_names()
+    text = res.stderr
+    assert f"preset: {preset}" in text and f"motor commands look like {unit}" in text
+    # the suggestion, pasted into a vehicle file, reads the log and mixes its outputs
+    suggestion = text[text.index("# Column map GUESSED") :]
+    vfile = tmp_path / "v.yaml"
+    vfile.write_text(suggestion.replace("frame: FLU", "frame: FLU\n", 1))
+    veh = load_vehicle(vfile)
+    assert veh.motors is not None and len(veh.columns["motor_command"]) == len(motors)
+    res = CliRunner().invoke(app, ["inspect", str(log), "--vehicle", str(vfile), "--json"])
+    assert res.exit_code == 0, res.output
+    roles = json.loads(res.stdout)["roles_found"]
+    assert "computed from motor_command" in roles["torque_command"]
 
 
 # --- a hexa-X from its YAML alone: fit, evaluate, report --------------------------------

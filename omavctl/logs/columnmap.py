@@ -396,6 +396,8 @@ def read_mapped(table: MappedTable, specs: dict[str, ColumnSpec], notes: list[st
         series[role] = RawSeries(stamps=stamps, values=values)
         topics.append(topic_info(role, f"{table.format} columns (mapped)", stamps))
         for j, key in enumerate(csv_columns(role)):
+            if role == "motor_command" and specs[key].column is None:
+                continue  # an output the map does not name (0)
             ranges[key] = (float(values[:, j].min()), float(values[:, j].max()))
     raw = RawLog(
         path=path,

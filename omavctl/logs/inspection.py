@@ -62,11 +62,14 @@ class Inspection:
     column_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     suggested_columns: dict[str, Any] | None = None
     suggestion: str | None = None
+    #: the roles ``fit``/``evaluate`` need of this log (body rate and motor
+    #: outputs when a rotor list mixes them, :mod:`omavctl.physics.mixer`)
+    required: tuple[str, ...] = DEFAULT_REQUIRED
 
     @property
     def required_missing(self) -> list[str]:
         """Roles that ``fit``/``evaluate`` need but the log lacks."""
-        return [r for r in DEFAULT_REQUIRED if r in self.roles_missing]
+        return [r for r in self.required if r in self.roles_missing]
 
 
 def _duration(raw: RawLog) -> float:
@@ -172,6 +175,8 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
 
     scan = scan_csv(path)
     guess = suggest_column_map(scan)
+    # motor outputs: a rotor list (preset) mixes them, no torque command is needed
+    required = ("body_rate", "motor_command") if guess.motors else DEFAULT_REQUIRED
     notes = [
         f"not a wide contract CSV: {len(scan.header)} columns, {len(scan.values)} numeric "
         "with values; a column map (vehicle 'columns:') is needed to read it"
@@ -189,11 +194,12 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
         topics=[],
         roles_found={},
         # nothing is read without a column map: what fit and evaluate need is missing
-        roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
+        roles_missing={role: "needs a column map" for role in required},
         notes=notes,
         column_ranges=scan.ranges(),
         suggested_columns=guess.columns,
         suggestion=suggestion_yaml(guess, path.name),
+        required=required,
     )
 
 

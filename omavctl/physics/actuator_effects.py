@@ -69,8 +69,17 @@ class MotorLag(Effect):
     wrench is a fixed matrix times the rotor thrusts, :mod:`omavctl.physics.mixer`)
     a first-order lag of every rotor's thrust with one ``T_m`` is exactly the
     same lag of the commanded torque: residual ``I^-1 (lag(tau_cmd) - tau_cmd)``,
-    to first order ``-T_m I^-1 tau_cmd_dot``.
+    to first order ``-T_m I^-1 tau_cmd_dot``. Small motors lag by tens of ms
+    while their commands carry the rate controller's fast content, where that
+    first order fails (and would look exactly like ``command_delay``): the
+    linear regressor the diagnosis uses is then the secant
+    ``I^-1 (lag(tau_cmd, T_ref) - tau_cmd) / T_ref`` at :attr:`SECANT` (its
+    ``T_m`` is exact at ``T_ref`` and a rough value elsewhere; ``fit``'s 1-D
+    search over the exact form gives the estimate).
     """
+
+    #: Reference time constant (s) of the rotor-list regressor's secant.
+    SECANT: float = 0.04
 
     name = "motor_lag"
     summary = "first-order rotor-thrust lag T_m"
@@ -81,7 +90,8 @@ class MotorLag(Effect):
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         if ctx.fixed_rotors:
-            return -(ctx.derivative(ctx.torque) @ ctx.inertia_inv.T)[:, :, None]
+            lagged = first_order_lag(ctx.torque, self.SECANT, ctx.dt)
+            return ((lagged - ctx.torque) @ ctx.inertia_inv.T / self.SECANT)[:, :, None]
         tilt, thrust = ctx.allocated
         rate = ctx.derivative(thrust)
         jac = ctx.allocation.thrust_jacobian(tilt)

@@ -16,17 +16,21 @@ a first-order lag of the mixed wrench: ``motor_lag`` models it so on this path
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import replace
 
 from omavctl.base.errors import LogError
+from omavctl.logs.inspection import Inspection
 from omavctl.logs.types import FlightLog
 from omavctl.vehicle import Vehicle
 
-__all__ = ["motor_source", "motor_wrench", "wrench_hook"]
+__all__ = ["REQUIRED_MIXED", "mixed_inspection", "motor_source", "motor_wrench", "wrench_hook"]
+
+#: Roles ``fit`` and ``evaluate`` need of a log whose motor outputs are mixed.
+REQUIRED_MIXED = ("body_rate", "motor_command")
 
 
-def motor_source(vehicle: Vehicle, roles: set[str] | dict[str, object]) -> str | None:
+def motor_source(vehicle: Vehicle, roles: Collection[str]) -> str | None:
     """The role a log's motor commands come from for ``vehicle``, or None.
 
     ``motor_command`` when the log has it; else ``rotor`` (measured speeds,
@@ -88,3 +92,18 @@ def wrench_hook(vehicle: Vehicle) -> Callable[[set[str]], Mix | None]:
         return source, lambda flight: motor_wrench(flight, vehicle, source)
 
     return hook
+
+
+def mixed_inspection(ins: Inspection, vehicle: Vehicle) -> Inspection:
+    """``ins`` as ``fit``/``evaluate`` of ``vehicle`` see the log: when the vehicle's
+    rotor list mixes the log's motor outputs, the force and torque commands count as
+    found (computed) and the roles needed are the body rate and those outputs."""
+    source = motor_source(vehicle, ins.roles_found)
+    if source is None or vehicle.motors is None:
+        return ins
+    where = f"computed from {source} by the vehicle's {vehicle.motors.n_rotors} rotors"
+    found = {**ins.roles_found, "force_command": where, "torque_command": where}
+    missing = {
+        r: w for r, w in ins.roles_missing.items() if r not in ("force_command", "torque_command")
+    }
+    return replace(ins, roles_found=found, roles_missing=missing, required=REQUIRED_MIXED)
