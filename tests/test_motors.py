@@ -289,9 +289,13 @@ def test_hexa_evaluate_names_the_lag_and_report_renders(tmp_path: Path) -> None:
     res = runner.invoke(app, ["evaluate", str(b), "--model", str(model), "--out", str(out)])
     assert res.exit_code == 0, res.output
     diag = json.loads(out.read_text())["diagnosis"]
-    named = [e["name"] for e in diag["missing"] + diag["learned"]]
+    # missing (its remaining error) or learned by the GP, and not taken for a delay
+    entries = [e for e in diag["missing_effects"] if e["name"] in diag["missing"]]
+    entries += diag["learned"]
+    named = [e["name"] for e in entries if e["missing"]]
     assert "motor_lag" in named, diag
-    entry = next(e for e in diag["missing"] + diag["learned"] if e["name"] == "motor_lag")
+    entry = next(e for e in entries if e["name"] == "motor_lag")
+    assert "command_delay" not in entry["ambiguous_with"]
     assert abs(entry["parameters"]["T_m"][0] - 0.04) < 0.012
     html = tmp_path / "r.html"
     res = runner.invoke(app, ["report", str(out), "--out", str(html)])
