@@ -255,6 +255,23 @@ class Vehicle:
         """Whether the logged force (thrust) command is normalised (units unknown)."""
         return self.command_units.get("force") == NORMALISED
 
+    @property
+    def fixed_rotors(self) -> bool:
+        """Whether the vehicle is a rotor list without tilt servos (``motors:``)."""
+        return self.motors is not None and not self.motors.tilting
+
+    def check_flyable(self, command: str, path: str | Path | None = None) -> None:
+        """Refuse, in one line, to ``simulate`` or ``plan`` a vehicle of fixed rotors:
+        the simulator and the planner fly the omav (six tilting arms) only."""
+        if self.fixed_rotors:
+            assert self.motors is not None
+            raise ConfigError(
+                f"{command} flies only the omav (six tilting arms); this vehicle's "
+                f"{self.motors.n_rotors} fixed rotors (motors:) are for fit, evaluate and "
+                "report",
+                path,
+            )
+
     def to_json(self) -> str:
         """The merged YAML tree as canonical JSON (stored in model artifacts)."""
         return json.dumps(self.tree, sort_keys=True)

@@ -311,3 +311,28 @@ def test_a_log_with_motor_outputs_needs_a_rotor_list(tmp_path: Path) -> None:
     res = CliRunner().invoke(app, ["fit", str(log), "--vehicle", str(plain), "--out", "m.npz"])
     assert res.exit_code == 2
     assert "motor_command cannot be mixed without the vehicle's rotors" in res.output
+
+
+def test_simulate_and_plan_refuse_a_vehicle_of_fixed_rotors(tmp_path: Path) -> None:
+    veh, vfile = _vehicle(tmp_path, HEXA_YAML)
+    runner = CliRunner()
+    task = tmp_path / "t.csv"
+    assert runner.invoke(app, ["task", "fig8", "--out", str(task)]).exit_code == 0
+    res = runner.invoke(
+        app, ["simulate", "--reference", str(task), "--vehicle", str(vfile), "--out", "s.csv"]
+    )
+    assert res.exit_code == 2
+    assert res.output.strip().splitlines()[-1] == (
+        f"error: {vfile}: simulate flies only the omav (six tilting arms); this vehicle's "
+        "6 fixed rotors (motors:) are for fit, evaluate and report"
+    )
+    log = write_motor_csv(tmp_path / "a.csv", *synthesise(veh, seed=1, lag=0.0, duration=4.0))
+    model = fit_model([log], veh, points=20, restarts=0).model
+    from omavctl.learn.model_file import save_model
+
+    path = tmp_path / "m.npz"
+    save_model(path, model)
+    res = runner.invoke(app, ["plan", "--task", str(task), "--model", str(path), "--out", "p.csv"])
+    assert res.exit_code == 2
+    assert "plan flies only the omav (six tilting arms)" in res.output
+    assert not (tmp_path / "p.csv").exists()
