@@ -11,6 +11,11 @@ whose comments give the source of every value) key by key: a file holding only
 or ``normalised`` (a throttle 0..1). With a normalised torque, ``fit``
 estimates the per-axis gain through the ``inertia_error`` effect and every
 torque unit it reports is unknown (see ``docs/logs.md``).
+
+``motors`` lists the rotors of a vehicle whose logs hold per-motor outputs
+(:mod:`omavctl.rotors`); a file with ``preset: NAME`` starts from a built-in
+rotor layout (``omavctl/data/presets/``, :func:`preset_names`) instead of
+the omav.
 """
 
 from __future__ import annotations

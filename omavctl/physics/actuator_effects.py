@@ -29,7 +29,8 @@ class ServoLag(Effect):
     ``alpha_dot = (alpha_cmd - alpha) / T_s`` gives ``alpha ~= alpha_cmd - T_s
     alpha_cmd_dot``, so the wrench error is ``-T_s J_alpha alpha_cmd_dot`` with
     ``J_alpha = d wrench / d alpha`` of the allocation; residual
-    ``-T_s I^-1 [J_alpha alpha_cmd_dot]_torque``. ``T_s`` in s.
+    ``-T_s I^-1 [J_alpha alpha_cmd_dot]_torque``. ``T_s`` in s. A vehicle of fixed
+    rotors (``ctx.fixed_rotors``) has no servos: the regressor is zero, never excited.
     """
 
     name = "servo_lag"
@@ -40,6 +41,8 @@ class ServoLag(Effect):
     search = (0.0, 0.3)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.fixed_rotors:  # no tilt servos: nothing to lag (never excited)
+            return np.zeros((ctx.torque.shape[0], 3, 1))
         tilt, thrust = ctx.allocated
         rate = ctx.derivative(tilt)  # (N, 6)
         jac = ctx.allocation.tilt_jacobian(tilt, thrust)  # (N, 6, 6)
@@ -48,6 +51,8 @@ class ServoLag(Effect):
 
     def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
         """Tilts through the exact first-order lag of the held setpoints (period means)."""
+        if ctx.fixed_rotors:
+            return np.zeros((ctx.torque.shape[0], 3))
         tilt, thrust = ctx.allocated
         lagged = first_order_lag(tilt, value, ctx.dt)
         rotor = np.repeat(thrust / 2.0, 2, axis=-1)
@@ -165,6 +170,7 @@ class RotorInterference(Effect):
     At small tilts it acts like a thrust-centre offset (a torque growing with
     the force and the tilt): on flights of one kind it is easily taken for a
     ``com_offset``; flights with large, varied tilts separate the two.
+    On a vehicle of fixed rotors (``ctx.fixed_rotors``) the regressor is zero.
     """
 
     name = "rotor_interference"
@@ -177,6 +183,8 @@ class RotorInterference(Effect):
     theta_range = (0.0, 1.0)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.fixed_rotors:  # the omav's tilting pairs only (never excited)
+            return np.zeros((ctx.torque.shape[0], 3, 2))
         tilt, thrust = ctx.allocated
         cols = []
         for shape in ctx.allocation.interference(tilt):
