@@ -288,7 +288,9 @@ def test_hexa_evaluate_names_the_lag_and_report_renders(tmp_path: Path) -> None:
     out = tmp_path / "e.json"
     res = runner.invoke(app, ["evaluate", str(b), "--model", str(model), "--out", str(out)])
     assert res.exit_code == 0, res.output
-    diag = json.loads(out.read_text())["diagnosis"]
+    evaluation = json.loads(out.read_text())
+    diag = evaluation["diagnosis"]
+    assert any("no attitude in the log" in n for n in evaluation["logs"][0]["notes"])
     # missing (its remaining error) or learned by the GP, and not taken for a delay
     entries = [e for e in diag["missing_effects"] if e["name"] in diag["missing"]]
     entries += diag["learned"]
@@ -336,3 +338,33 @@ def test_simulate_and_plan_refuse_a_vehicle_of_fixed_rotors(tmp_path: Path) -> N
     assert res.exit_code == 2
     assert "plan flies only the omav (six tilting arms)" in res.output
     assert not (tmp_path / "p.csv").exists()
+
+
+def test_the_omav_preset_mixes_measured_rotor_speeds_into_the_logged_wrench(
+    tmp_path: Path,
+) -> None:
+    """A simulated omav flight with ideal actuators, written without its wrench command:
+    the omav preset gets it back from the rotor speeds and tilts (its /omav/actuators)."""
+    from test_fit import attitude_sines
+
+    from omavctl.logs import read_vehicle_log, write_log
+    from omavctl.physics.mixer import wrench_hook
+    from omavctl.sim.plant import simulate
+    from omavctl.sim.truth import truth_from_tree
+
+    omav, _ = _vehicle(tmp_path, "preset: omav\n")
+    ref = attitude_sines((20, 20, 30), (2, 2.6, 3), duration=3.0)
+    log = simulate(ref, omav, truth_from_tree({"ideal": True}, omav), seed=0).log
+    wrench = {k: log.series.pop(k) for k in ("force_command", "torque_command")}
+    path = tmp_path / "actuators.csv"
+    write_log(path, log)
+    flight = read_vehicle_log(path, omav, required=("body_rate",), wrench=wrench_hook(omav))
+    assert any("computed from rotor" in n for n in flight.notes)
+    # the logged command at the grid times (the CSV's rows are the controller's)
+    stamps = wrench["torque_command"].stamps - wrench["torque_command"].stamps[0]
+    for role in ("force_command", "torque_command"):
+        want = np.array([np.interp(flight.t, stamps, c) for c in wrench[role].values.T]).T
+        got = flight.signals[role]
+        mid = slice(10, -10)
+        err = np.abs(got[mid] - want[mid]).max()
+        assert err < 0.02 * np.abs(want[mid]).max() + 1e-6, (role, err)

@@ -152,6 +152,12 @@ def _read_log(
             flight.path,
         )
     attitude = flight.signals["attitude"][s.index] if flight.has("attitude") else np.zeros((s.n, 3))
+    notes = list(flight.notes)
+    if not flight.has("attitude"):  # an IMU-only log (a vehicle with a rotor list)
+        notes.append(
+            "no attitude in the log: the tilt is unknown, and 'what the vehicle was doing' "
+            "takes it as level"
+        )
     log_json = {
         "path": str(p),
         "name": p.name,
@@ -162,7 +168,7 @@ def _read_log(
         "duration": float(flight.t[-1] - flight.t[0]),
         "samples": s.n,
         "samples_total": s.total,
-        "notes": list(flight.notes),
+        "notes": notes,
     }
     return s, attitude, log_json, spans
 
