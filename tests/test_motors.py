@@ -368,3 +368,21 @@ def test_the_omav_preset_mixes_measured_rotor_speeds_into_the_logged_wrench(
         mid = slice(10, -10)
         err = np.abs(got[mid] - want[mid]).max()
         assert err < 0.02 * np.abs(want[mid]).max() + 1e-6, (role, err)
+
+
+def test_motor_command_round_trips_through_the_wide_csv(tmp_path: Path) -> None:
+    from omavctl.logs import RawLog, RawSeries, read_log, write_log
+
+    t = np.arange(50) / 100.0
+    cmd = np.zeros((50, 18))
+    cmd[:, :4] = 1000.0 + np.random.default_rng(0).uniform(0, 1000, (50, 4))
+    series = {
+        "body_rate": RawSeries(t, np.zeros((50, 3))),
+        "motor_command": RawSeries(t, cmd),
+    }
+    path = tmp_path / "m.csv"
+    write_log(path, RawLog(tmp_path / "src", "synthetic", 0.0, series))
+    header = path.read_text().splitlines()[0].split(",")
+    assert header[-18:] == [f"motor_command_{i}" for i in range(18)]
+    log = read_log(path, required=("body_rate", "motor_command"))
+    np.testing.assert_array_equal(log.signals["motor_command"], cmd)

@@ -129,8 +129,10 @@ def inspect_log(
                 where = f"no usable rows in {where}"
         elif raw.format == "csv":
             where = f"CSV columns {role}_*"
+        elif ROLE_TOPIC[role] not in names:
+            continue  # no bag topic carries it (motor_command: column maps only)
         else:
-            where = names.get(ROLE_TOPIC[role], "no topic: column maps only")
+            where = names[ROLE_TOPIC[role]]
         (found if role in raw.series else missing)[role] = where
     return Inspection(
         path=p,
