@@ -109,7 +109,8 @@ def test_unknown_extension(tmp_path: Path) -> None:
     path = tmp_path / "flight.px4log"
     path.write_bytes(b"\xa3\x95\x80")
     assert_log_error(
-        path, r"unknown log format \('\.px4log'\): expected a \.bag, \.mcap, \.ulg or \.csv"
+        path,
+        r"unknown log format \('\.px4log'\): expected a \.bag, \.mcap, \.ulg, \.csv or \.csv\.gz",
     )
 
 

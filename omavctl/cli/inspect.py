@@ -13,7 +13,9 @@ from omavctl.cli.common import Json, VehicleOpt, emit, reports_errors
 Log = Annotated[
     Path,
     typer.Argument(
-        metavar="LOG", help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap, .csv or PX4 .ulg."
+        metavar="LOG",
+        help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap, .csv (.csv.gz), PX4 .ulg, "
+        "Crazyflie SD-card log or Betaflight blackbox CSV.",
     ),
 ]
 
@@ -27,8 +29,9 @@ def inspect(log: Log, vehicle: VehicleOpt = None, as_json: Json = False) -> None
     `omavctl inspect LOG | grep TOPIC` works); with --json it goes to stderr and stdout
     holds one JSON object.
 
-    A CSV of another layout without a column map in --vehicle: list its columns with
-    ranges and suggest a column map.
+    A CSV of another layout, a ULog, a Crazyflie SD-card log or a Betaflight blackbox
+    CSV without a column map in --vehicle: list its columns with ranges (and, where the
+    format tells, rates and units) and suggest a column map.
     """
     from omavctl.cliout import console
     from omavctl.logs import inspect_log, render_inspect

@@ -18,6 +18,7 @@ import numpy as np
 from omavctl.base.atomic import atomic_path
 from omavctl.base.errors import LogError
 from omavctl.logs.stats import topic_info
+from omavctl.logs.textio import read_text
 from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog, RawSeries
 
 __all__ = [
@@ -111,13 +112,9 @@ def read_csv(path: Path, strict: bool = True) -> CsvRead:
 
 
 def _csv_text(path: Path) -> str:
-    """The text of a CSV file; LogError when it cannot be read or is not UTF-8."""
-    try:
-        return path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise LogError("not a CSV file: it is not UTF-8 text", path) from None
-    except OSError as err:
-        raise LogError(f"cannot read: {err.strerror or err}", path) from err
+    """The text of a CSV file, gzip-compressed or not; LogError when it cannot be
+    read, its gzip stream is broken or it is not UTF-8 (:func:`~.textio.read_text`)."""
+    return read_text(path)
 
 
 def _text_and_header(path: Path) -> tuple[str, list[str]]:

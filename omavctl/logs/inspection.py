@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from omavctl.base.errors import LogError
 from omavctl.logs.align import DEFAULT_REQUIRED
 from omavctl.logs.contract import merge_topics
 from omavctl.logs.read import detect_format
@@ -36,6 +37,8 @@ _FORMAT_TITLES = {
     "mcap": "MCAP file",
     "csv": "CSV",
     "ulog": "PX4 ULog",
+    "cfusdlog": "Crazyflie SD-card log (cfusdlog)",
+    "betaflight": "Betaflight blackbox CSV",
 }
 
 
@@ -65,6 +68,13 @@ class Inspection:
     #: the roles ``fit``/``evaluate`` need of this log (body rate and motor
     #: outputs when a rotor list mixes them, :mod:`omavctl.physics.mixer`)
     required: tuple[str, ...] = DEFAULT_REQUIRED
+    #: unit and rate (Hz) of each listed column, where the format tells
+    #: (:func:`~.inventory.column_inventory`)
+    column_units: dict[str, str] = field(default_factory=dict)
+    column_rates: dict[str, float] = field(default_factory=dict)
+    #: what the log's own header says, parsed (Betaflight: looptime_us, motor_output,
+    #: vbatscale, vbatref, ...; Crazyflie: format version and event names)
+    header_values: dict[str, Any] = field(default_factory=dict)
 
     @property
     def required_missing(self) -> list[str]:
@@ -98,7 +108,15 @@ def inspect_log(
     p = Path(path)
     ranges: dict[str, tuple[float, float]] = {}
     kind = detect_format(p)
-    if kind == "ulog":
+    if kind in ("cfusdlog", "betaflight"):
+        if not columns:
+            return _inspect_table(p)
+        from omavctl.logs.columnlogs import load_table
+        from omavctl.logs.tables import read_mapped_columns
+
+        result = read_mapped_columns(load_table(p, kind), columns)
+        raw, ranges = result.raw, result.ranges
+    elif kind == "ulog":
         from omavctl.logs.ulog import load_ulog, read_mapped_ulog
 
         if not columns:
@@ -159,13 +177,15 @@ def _idle_notes(raw: RawLog) -> list[str]:
 def _is_foreign_csv(path: Path) -> bool:
     """Whether a CSV is not a wide contract CSV: no ``t`` or no contract column."""
     import csv
+    import io
 
     from omavctl.logs.csvlog import csv_columns
+    from omavctl.logs.textio import read_head
 
     try:
-        with path.open(encoding="utf-8-sig", newline="") as f:
-            header = {h.strip() for h in next(csv.reader(f), [])}
-    except (OSError, UnicodeDecodeError):
+        head = read_head(path).decode("utf-8-sig", errors="replace")
+        header = {h.strip() for h in next(csv.reader(io.StringIO(head, newline="")), [])}
+    except (LogError, csv.Error):
         return False  # the wide-CSV reader reports it
     contract = {c for role in ROLE_COLUMNS for c in csv_columns(role)}
     return "t" not in header or not header & contract
@@ -210,7 +230,7 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
     suggested column map."""
     from omavctl.logs.stats import topic_info
     from omavctl.logs.suggest import suggest_column_map, suggestion_yaml
-    from omavctl.logs.ulog import PX4_COLUMNS, scan_ulog
+    from omavctl.logs.ulog import PX4_COLUMNS, scan_ulog, ulog_unit
 
     scan = scan_ulog(u)
     guess = suggest_column_map(scan, PX4_COLUMNS)
@@ -247,6 +267,57 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
         column_ranges={k: v for k, v in scan.ranges().items() if k != "timestamp"},
         suggested_columns=guess.columns,
         suggestion=suggestion_yaml(guess, path.name),
+        column_units={k: ulog_unit(k) for k in scan.values if k != "timestamp"},
+        column_rates={k: t.rate for t in topics for k in u.topics[t.name][1]},
+    )
+
+
+def _inspect_table(path: Path) -> Inspection:
+    """Inspection of a Crazyflie SD-card log or Betaflight blackbox CSV read without a
+    column map: each group of rows as a topic, every column with its unit and rate,
+    and a suggested column map with the reader's time column."""
+    from omavctl.logs.columnlogs import load_table
+    from omavctl.logs.inventory import table_inventory
+    from omavctl.logs.read import FORMAT_LABELS
+    from omavctl.logs.stats import topic_info
+    from omavctl.logs.suggest import suggest_column_map, suggestion_yaml
+    from omavctl.logs.tables import scan_table
+
+    table = load_table(path, detect_format(path))
+    inv = table_inventory(table)
+    scan = scan_table(table)
+    guess = suggest_column_map(scan)
+    time: dict[str, Any] = {"column": table.time_column}
+    if table.time_scale != 1.0:
+        time["scale"] = table.time_scale
+    guess.columns = {"time": time} | {k: v for k, v in guess.columns.items() if k != "time"}
+    unit = table.units.get(table.time_column, "s")
+    guess.comments["time"] = f"{FORMAT_LABELS[inv.format]}: {unit}"
+    guess.alternatives.pop("time", None)
+    guess.unrecognised = [r for r in guess.unrecognised if r != "time"]
+    if inv.format == "betaflight":
+        guess.frame = ("FLU", "the reader turns Betaflight's gyro into rad/s FLU")
+    stamps = scan.values[table.time_column] * table.time_scale
+    guess.t0, guess.duration = float(stamps[0]), float(stamps[-1] - stamps[0])
+    topics = [topic_info(g.name, f"{len(g.columns)} columns", g.stamps * table.time_scale
+                         - guess.t0) for g in table.groups]  # fmt: skip
+    notes = [*inv.notes, f"{len(inv.columns)} numeric columns; a column map (vehicle "
+             "'columns:') is needed to read it"]  # fmt: skip
+    return Inspection(
+        path=path,
+        format=inv.format,
+        duration=guess.duration,
+        t0=guess.t0,
+        topics=topics,
+        roles_found={},
+        roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
+        notes=notes,
+        column_ranges={c.name: (c.lo, c.hi) for c in inv.columns if c.count},
+        suggested_columns=guess.columns,
+        suggestion=suggestion_yaml(guess, path.name),
+        column_units=inv.units(),
+        column_rates={c.name: c.rate for c in inv.columns},
+        header_values={k: v for k, v in inv.meta.items() if k != "header"},
     )
 
 
@@ -285,6 +356,13 @@ def _shown_columns(ins: Inspection) -> list[str]:
     return [name for name in ins.column_ranges if name in named]
 
 
+def _cell(value: float | str | None) -> str:
+    """A rate (one decimal) or unit for the columns table; empty when unknown."""
+    if value is None:
+        return ""
+    return f"{value:.1f}" if isinstance(value, float) else value
+
+
 def render_inspect(ins: Inspection, console: Console) -> None:
     """Print an :class:`Inspection` to a rich console: topic table, roles, notes."""
     from rich.markup import escape
@@ -319,9 +397,17 @@ def render_inspect(ins: Inspection, console: Console) -> None:
         ranges.add_column("column", overflow="fold")
         ranges.add_column("min", justify="right")
         ranges.add_column("max", justify="right")
+        extra: list[tuple[str, Mapping[str, float | str]]] = [
+            (title, values)
+            for title, values in (("rate Hz", ins.column_rates), ("unit", ins.column_units))
+            if values
+        ]
+        for title, _ in extra:
+            ranges.add_column(title, justify="right" if title == "rate Hz" else "left")
         for name in shown:
             lo, hi = ins.column_ranges[name]
-            ranges.add_row(name, f"{lo:.6g}", f"{hi:.6g}")
+            more = [_cell(values.get(name)) for _, values in extra]
+            ranges.add_row(name, f"{lo:.6g}", f"{hi:.6g}", *more)
         console.print(ranges)
         if len(shown) < len(ins.column_ranges):
             console.print(
@@ -341,6 +427,10 @@ def render_inspect(ins: Inspection, console: Console) -> None:
         console.print(f"optional roles not in the log: {', '.join(optional)}", soft_wrap=True)
     if ins.required_missing:
         console.print("[red]fit and evaluate need[/red]: " + ", ".join(ins.required_missing))
+    shown_header = {k: v for k, v in ins.header_values.items() if v is not None}
+    if shown_header:
+        text = ", ".join(f"{k} {v}" for k, v in shown_header.items())
+        console.print(f"log header: {text}", markup=False, highlight=False, soft_wrap=True)
     for note in ins.notes:
         console.print(f"note: {note}", markup=False, highlight=False)
     if ins.suggestion:

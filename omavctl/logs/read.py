@@ -37,6 +37,8 @@ FORMAT_LABELS = {
     "mcap": "MCAP file",
     "csv": "CSV file",
     "ulog": "ULog file",
+    "cfusdlog": "Crazyflie SD-card log",
+    "betaflight": "Betaflight blackbox CSV",
 }
 
 _SUFFIX_KIND = {".bag": "ros1", ".mcap": "mcap", ".csv": "csv", ".db3": "ros2", ".ulg": "ulog"}
@@ -71,7 +73,7 @@ def _check_magic(path: Path, kind: str) -> None:
     """Refuse a file whose content is not the format its name says."""
     real = _sniff(path)
     want = "sqlite" if path.suffix.lower() == ".db3" else kind
-    if real == want or (kind == "csv" and real is None):
+    if real == want or (kind == "csv" and real is None) or kind in ("cfusdlog", "betaflight"):
         return
     label = _MAGIC_LABELS[want]
     if real is not None:
@@ -138,12 +140,17 @@ def detect_format(path: Path) -> str:
             _check_metadata(path)
             return "ros2"
         raise LogError("directory is not a ROS 2 bag (no metadata.yaml in it)", path)
-    kind = _SUFFIX_KIND.get(path.suffix.lower())
+    name = path.name.lower()
+    kind = "csv" if name.endswith(".csv.gz") else _SUFFIX_KIND.get(path.suffix.lower())
+    if kind is None:
+        from omavctl.logs.columnlogs import content_kind
+
+        kind = content_kind(path)
     if kind is None:
         shown = f"'{path.suffix}'" if path.suffix else "no suffix"
         raise LogError(
-            f"unknown log format ({shown}): expected a .bag, .mcap, .ulg or .csv file "
-            "or a ROS 2 bag directory",
+            f"unknown log format ({shown}): expected a .bag, .mcap, .ulg, .csv or .csv.gz "
+            "file, a ROS 2 bag directory, a Crazyflie SD-card log or a Betaflight blackbox CSV",
             path,
         )
     try:
@@ -154,6 +161,10 @@ def detect_format(path: Path) -> str:
         label = "CSV file" if kind == "csv" else f"readable {FORMAT_LABELS[kind]}"
         raise LogError(f"not a {label}: the file is empty", path)
     _check_magic(path, kind)
+    if kind == "csv":
+        from omavctl.logs.betaflight import sniff_betaflight
+
+        return "betaflight" if sniff_betaflight(path) else "csv"
     return kind
 
 
@@ -421,6 +432,17 @@ def _read(
         from omavctl.logs.csvlog import read_csv
 
         return read_csv(p, strict=strict).raw
+    if kind in ("cfusdlog", "betaflight"):
+        from omavctl.logs.columnlogs import load_table
+        from omavctl.logs.tables import read_mapped_columns
+
+        if not columns:
+            raise LogError(
+                f"a {FORMAT_LABELS[kind]} is read through a column map (the vehicle's "
+                f"'columns:'); 'omavctl inspect {p}' suggests one",
+                p,
+            )
+        return read_mapped_columns(load_table(p, kind), columns).raw
     if kind == "ulog":
         from omavctl.logs.ulog import read_mapped_ulog
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,7 +41,16 @@ from omavctl.logs.columnmap import (
 from omavctl.logs.csvlog import CsvRead, csv_columns
 from omavctl.logs.types import ROLE_COLUMNS
 
-__all__ = ["PX4_COLUMNS", "TIME_COLUMN", "UlogTopics", "load_ulog", "read_mapped_ulog", "scan_ulog"]
+__all__ = [
+    "PX4_COLUMNS",
+    "TIME_COLUMN",
+    "ULOG_UNITS",
+    "UlogTopics",
+    "load_ulog",
+    "read_mapped_ulog",
+    "scan_ulog",
+    "ulog_unit",
+]
 
 #: The time column of every row, microseconds.
 TIME_COLUMN = "timestamp"
@@ -63,6 +73,35 @@ PX4_COLUMNS: tuple[tuple[str, dict[str, str], bool], ...] = (
     ("force_command", {"z": "vehicle_thrust_setpoint.xyz[2]"}, False),
     ("force_command", {"z": "actuator_controls_0.control[3]"}, False),
 )
+
+
+#: Units of the ULog fields a column map reads most, by topic.field without the index
+#: (PX4's uORB message definitions; instance N > 0 of a topic shares them).
+ULOG_UNITS = {
+    "sensor_combined.gyro_rad": "rad/s FRD",
+    "vehicle_angular_velocity.xyz": "rad/s FRD",
+    "vehicle_attitude.q": "quaternion FRD/NED",
+    "actuator_controls_0.control": "normalised -1..1 (control[3] thrust 0..1)",
+    "vehicle_torque_setpoint.xyz": "normalised -1..1 FRD",
+    "vehicle_thrust_setpoint.xyz": "normalised -1..1 FRD",
+    "actuator_outputs.output": "output value, PWM us for PWM outputs (the first noutputs used)",
+    "actuator_outputs.noutputs": "count",
+    "actuator_motors.control": "normalised motor thrust 0..1 (-1..1 reversible; NaN off)",
+    "battery_status.voltage_v": "V",
+    "battery_status.voltage_filtered_v": "V",
+    "battery_status.current_a": "A",
+    "battery_status.remaining": "fraction 0..1",
+}
+
+
+def ulog_unit(column: str) -> str:
+    """Unit of a ULog column (``topic.field[i]``, ``topic_N.field``), "as logged" when
+    :data:`ULOG_UNITS` does not know it."""
+    topic, _, fieldname = column.partition(".")
+    key = f"{re.sub(r'_[0-9]+$', '', topic)}.{fieldname.split('[')[0]}"
+    if key in ULOG_UNITS:
+        return ULOG_UNITS[key]
+    return ULOG_UNITS.get(f"{topic}.{fieldname.split('[')[0]}", "as logged")
 
 
 @dataclass

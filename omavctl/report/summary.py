@@ -190,5 +190,8 @@ def inspect_json(ins: Any) -> dict[str, Any]:
         "required_missing": ins.required_missing,
         "column_ranges": {k: list(v) for k, v in ins.column_ranges.items()},
         "suggested_columns": ins.suggested_columns,
+        "column_units": dict(ins.column_units),
+        "column_rates": dict(ins.column_rates),
+        "header_values": dict(ins.header_values),
         "notes": list(ins.notes),
     }

@@ -19,6 +19,7 @@ from typing import Any
 import yaml
 
 from . import mutate as mu
+from .formats import write_betaflight_csv, write_cfusdlog, write_gzip_csv
 
 #: Cheap settings that keep each run short.
 FIT = ["--points", "15", "--restarts", "0", "-q"]
@@ -35,7 +36,7 @@ PLAN = [
     "5",
     "-q",
 ]
-LOG_KINDS = ("log.csv", "log.bag", "log.mcap", "log_dir")
+LOG_KINDS = ("log.csv", "log.bag", "log.mcap", "log_dir", "log.csv.gz", "cflog", "bf.csv")
 CSV_REQUIRED = {
     "t",
     *(f"body_rate_{a}" for a in "xyz"),
@@ -94,8 +95,11 @@ def build_base(base: Path) -> Path:
     short = fig8(20, 20, 3.0, 6.0, 100.0, 1.0, 1.0)
     truth = {"seed": 1, "effects": {"rotational_drag": {"D": [0.02, 0.02, 0.04]}}}
     result = simulate(short, veh, truth_from_tree(truth, veh), seed=1)
-    for name in LOG_KINDS:
+    for name in LOG_KINDS[:4]:
         write_log(base / name, result.log, topics=veh.topics)
+    write_gzip_csv(base / "log.csv", base / "log.csv.gz")
+    write_cfusdlog(result.log, base / "cflog")
+    write_betaflight_csv(result.log, base / "bf.csv")
     (base / "vehicle.yaml").write_text(yaml.safe_dump(veh.tree))
     (base / "truth.yaml").write_text(yaml.safe_dump(truth))
     from typer.testing import CliRunner
@@ -243,7 +247,7 @@ def make_case(rng: random.Random, index: int, base: Path, work: Path) -> Case:
             target = "bad_dir"
             desc, bad = _mutate_ros2(rng, src, work / target)
         else:
-            target = f"bad{src.suffix}"
+            target = f"bad{''.join(src.suffixes)}"  # bad.csv.gz, bad (a Crazyflie log)
             desc, bad = _mutate_file(rng, kind, src, work / target)
         paths["log"] = target
     elif kind == "series":
