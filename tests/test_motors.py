@@ -123,6 +123,32 @@ def test_crazyflie_yaw_and_roll_signs(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
+    ("preset", "left", "rear", "cw"),
+    [
+        ("quad-x-betaflight", [2, 3], [0, 2], [0, 3]),  # motors 1 RR, 2 FR, 3 RL, 4 FL
+        ("quad-x-px4", [1, 2], [1, 3], [2, 3]),  # 1 FR, 2 RL, 3 FL, 4 RR
+        ("quad-x-crazyflie", [2, 3], [1, 2], [1, 3]),  # m1 FR, m2 RR, m3 RL, m4 FL
+    ],
+)
+def test_quad_presets_turn_the_way_their_flight_controllers_mix(
+    tmp_path: Path, preset: str, left: list[int], rear: list[int], cw: list[int]
+) -> None:
+    """Raising the left motors rolls right side down (+x in FLU), the rear ones pitches
+    nose down (+y), the clockwise ones yaws nose left (+z): Betaflight's mixerQuadX,
+    PX4's quad-X and the Crazyflie's yaw reaction table."""
+    veh, _ = _vehicle(tmp_path, f"preset: {preset}\n")
+    assert veh.motors is not None
+    for axis, motors in enumerate((left, rear, cw)):
+        thrust = np.zeros((1, 4))
+        thrust[0, motors] = 1.0
+        thrust[0, [i for i in range(4) if i not in motors]] = -1.0
+        _, torque = veh.motors.wrench(thrust)
+        assert torque[0, axis] > 0, (preset, axis)
+        others = [a for a in range(3) if a != axis]
+        np.testing.assert_allclose(torque[0, others], 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
     ("text", "message"),
     [
         ("preset: quad-x-nope\n", "unknown preset 'quad-x-nope' in 'preset' (known: coax-x8"),
