@@ -412,3 +412,40 @@ def test_motor_command_round_trips_through_the_wide_csv(tmp_path: Path) -> None:
     assert header[-18:] == [f"motor_command_{i}" for i in range(18)]
     log = read_log(path, required=("body_rate", "motor_command"))
     np.testing.assert_array_equal(log.signals["motor_command"], cmd)
+
+
+REAL = Path(__file__).parents[2] / "shared/data/real"
+CF_LOG15 = REAL / "arpl_crazyflie/log15"
+needs_crazyflie = pytest.mark.skipif(
+    not CF_LOG15.exists(),
+    reason=f"real Crazyflie log not available at {CF_LOG15} (shared test data not mounted)",
+)
+
+
+@needs_crazyflie
+def test_the_crazyflie_roll_pitch_window_shows_a_motor_lag_of_tens_of_ms() -> None:
+    """log15's roll/pitch window through examples/crazyflie.yaml: the mixed torque
+    explains almost none of the roll and pitch acceleration as commanded, most of it
+    through a 60 ms first-order lag (docs/real-motors.md, benchmarks/motor_lag_scan.py)."""
+    from omavctl.learn.flights import read_flights
+    from omavctl.learn.signal import SavitzkyGolay
+
+    veh = load_vehicle(Path(__file__).parents[1] / "examples/crazyflie.yaml")
+    flight = read_flights([CF_LOG15], veh, (15.76, 50.76))[0]
+    assert flight.rate == 500.0 and "attitude" not in flight.signals
+    sg = SavitzkyGolay(11, 2, flight.dt)
+
+    def r2(lag: float) -> np.ndarray:
+        xs, ys = [], []
+        for a, b in flight.segments:
+            if b - a < 5 * sg.window:
+                continue
+            torque = first_order_lag(flight.signals["torque_command"][a:b], lag, flight.dt)
+            xs.append(sg.hold(torque @ veh.inertia_inv.T)[5:-5, :2])
+            ys.append(sg.derivative(flight.signals["body_rate"][a:b])[5:-5, :2])
+        x, y = np.concatenate(xs), np.concatenate(ys)
+        gain = (x * y).sum(0) / (x * x).sum(0)
+        return np.asarray(1.0 - ((y - gain * x) ** 2).sum(0) / (y**2).sum(0))
+
+    assert np.all(r2(0.0) < 0.1)
+    assert np.all(r2(0.06) > 0.75)
