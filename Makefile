@@ -5,6 +5,7 @@
 #   make test-numpy1   install with NumPy 1.26 into .venv-numpy1, run the k-medoids
 #                      agreement tests (the same training points as under NumPy 2)
 #   make generalise    the generalisation benchmark (docs/generalisation.md)
+#   make real          the worked examples on real motor-output logs (docs/real-motors.md)
 #   make bench-effects the effects-plan benchmark (docs/plan-effects-results.md)
 #   make bench-intervals coverage of the effect parameters' 95 % intervals
 #                      (docs/intervals-results.md)
@@ -16,7 +17,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise clean
+.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise real clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -65,6 +66,11 @@ generalise: $(STAMP)
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair check --with-effects
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair two-flights
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair two-flights --with-effects
+
+# fit and evaluate the Crazyflie and Betaflight logs of ../shared/data/real from
+# their motor outputs (docs/real-motors.md; about 10 minutes on 2 cores)
+real: $(STAMP)
+	$(MAKE) -C examples real OMAVCTL=$(abspath $(BIN))/omavctl
 
 # plan --objective effects against the variance plan and the task flown again, with
 # hidden drag and command delay (docs/plan-effects.md; about 1 minute per seed)

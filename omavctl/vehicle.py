@@ -11,6 +11,11 @@ whose comments give the source of every value) key by key: a file holding only
 or ``normalised`` (a throttle 0..1). With a normalised torque, ``fit``
 estimates the per-axis gain through the ``inertia_error`` effect and every
 torque unit it reports is unknown (see ``docs/logs.md``).
+
+``motors`` lists the rotors of a vehicle whose logs hold per-motor outputs
+(:mod:`omavctl.rotors`); a file with ``preset: NAME`` starts from a built-in
+rotor layout (``omavctl/data/presets/``, :func:`preset_names`) instead of
+the omav.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import numpy as np
 import yaml
 
 from omavctl.base.errors import ConfigError
+from omavctl.rotors import Motors, parse_motors
 
 __all__ = [
     "FORCE_UNITS",
@@ -37,6 +43,7 @@ __all__ = [
     "default_vehicle",
     "load_vehicle",
     "load_yaml_mapping",
+    "preset_names",
 ]
 
 TOPIC_ROLES = (
@@ -83,7 +90,7 @@ EFFECT_NAMES = (
 )
 
 #: Top-level keys whose value replaces the default's instead of being merged.
-_FREE_FORM = ("effects", "columns")
+_FREE_FORM = ("effects", "columns", "motors")
 
 
 def _default_tree() -> dict[str, Any]:
@@ -230,6 +237,8 @@ class Vehicle:
         default_factory=lambda: {"torque": TORQUE_UNITS[0], "force": FORCE_UNITS[0]}
     )
     source: str = "built-in default omav"
+    #: the rotors and their mixer (``motors:``), None when not described
+    motors: Motors | None = None
     tree: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @cached_property
@@ -250,6 +259,23 @@ class Vehicle:
     def force_normalised(self) -> bool:
         """Whether the logged force (thrust) command is normalised (units unknown)."""
         return self.command_units.get("force") == NORMALISED
+
+    @property
+    def fixed_rotors(self) -> bool:
+        """Whether the vehicle is a rotor list without tilt servos (``motors:``)."""
+        return self.motors is not None and not self.motors.tilting
+
+    def check_flyable(self, command: str, path: str | Path | None = None) -> None:
+        """Refuse, in one line, to ``simulate`` or ``plan`` a vehicle of fixed rotors:
+        the simulator and the planner fly the omav (six tilting arms) only."""
+        if self.fixed_rotors:
+            assert self.motors is not None
+            raise ConfigError(
+                f"{command} flies only the omav (six tilting arms); this vehicle's "
+                f"{self.motors.n_rotors} fixed rotors (motors:) are for fit, evaluate and "
+                "report",
+                path,
+            )
 
     def to_json(self) -> str:
         """The merged YAML tree as canonical JSON (stored in model artifacts)."""
@@ -294,6 +320,7 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
     effects = _effect_names(tree.get("effects"), path)
     columns, frame = _log_layout(tree, path)
     command_units = _command_units(tree, path)
+    motors = parse_motors(tree.get("motors"), path)
     max_thrust = _positive(rot["max_thrust"], "rotor.max_thrust", path)
     min_thrust = _positive(rot["min_thrust"], "rotor.min_thrust", path, allow_zero=True)
     if min_thrust >= max_thrust:
@@ -316,6 +343,7 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
         frame=frame,
         command_units=command_units,
         source=source,
+        motors=motors,
         tree=tree,
     )
 
@@ -386,11 +414,35 @@ def default_vehicle() -> Vehicle:
     return _build(_default_tree(), None, "built-in default omav")
 
 
+def preset_names() -> list[str]:
+    """Names of the built-in vehicle presets (``omavctl/data/presets/*.yaml``)."""
+    folder = resources.files("omavctl.data").joinpath("presets")
+    names = (f.name.removesuffix(".yaml") for f in folder.iterdir() if f.name.endswith(".yaml"))
+    return sorted(names)
+
+
+def _preset_tree(name: Any, path: Path) -> dict[str, Any]:
+    """The default tree with preset ``name`` merged over it."""
+    names = preset_names()
+    if not isinstance(name, str) or name not in names:
+        raise ConfigError(f"unknown preset {name!r} in 'preset' (known: {', '.join(names)})", path)
+    text = resources.files("omavctl.data").joinpath("presets").joinpath(f"{name}.yaml").read_text()
+    tree = _default_tree()
+    _merge(tree, yaml.safe_load(text), Path(f"preset {name}"), "")
+    return tree
+
+
 def load_vehicle(path: str | Path | None = None) -> Vehicle:
-    """Load a vehicle YAML over the built-in default; ``None`` gives the default."""
+    """Load a vehicle YAML over the built-in default; ``None`` gives the default.
+
+    A file with ``preset: NAME`` starts from that preset (:func:`preset_names`:
+    ``quad-x-betaflight``, ``quad-x-crazyflie``, ``hexa-x``, ...) instead of
+    the omav; its other keys override the preset's.
+    """
     if path is None:
         return default_vehicle()
     p = Path(path)
-    tree = _default_tree()
-    _merge(tree, load_yaml_mapping(p), p, "")
+    override = load_yaml_mapping(p)
+    tree = _preset_tree(override.pop("preset"), p) if "preset" in override else _default_tree()
+    _merge(tree, override, p, "")
     return _build(copy.deepcopy(tree), p, str(p))

@@ -622,7 +622,8 @@ SMALL_MAP: dict[str, Any] = {
             {**SMALL_MAP, "gyro": {"x": "GX"}},
             "unknown key 'columns.gyro': expected a role (time, body_rate, attitude, position, "
             "velocity, force_command, torque_command, desired_acceleration, "
-            "desired_linear_acceleration, reference_position, reference_attitude, tilt, rotor) "
+            "desired_linear_acceleration, reference_position, reference_attitude, tilt, rotor, "
+            "motor_command) "
             "or a wide-CSV column such as body_rate_x",
         ),
         (

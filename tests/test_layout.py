@@ -25,6 +25,7 @@ LAYERS = {
     "omavctl.base": 0,
     "omavctl.logs": 1,
     "omavctl.vehicle": 2,
+    "omavctl.rotors": 2,  # the rotor list of a vehicle file (motors:)
     "omavctl.physics": 3,
     "omavctl.sim": 4,
     "omavctl.learn": 5,

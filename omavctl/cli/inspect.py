@@ -35,11 +35,12 @@ def inspect(log: Log, vehicle: VehicleOpt = None, as_json: Json = False) -> None
     """
     from omavctl.cliout import console
     from omavctl.logs import inspect_log, render_inspect
+    from omavctl.physics.mixer import mixed_inspection
     from omavctl.report.summary import inspect_json
     from omavctl.vehicle import load_vehicle
 
     veh = load_vehicle(vehicle)
-    ins = inspect_log(log, topics=veh.topics, columns=veh.columns or None)
+    ins = mixed_inspection(inspect_log(log, topics=veh.topics, columns=veh.columns or None), veh)
     if veh.frame != "FLU" and ins.column_ranges:
         # ranges are of the columns as read (scaled), before fit turns them into FLU
         ins.notes.append(

@@ -47,7 +47,7 @@ from omavctl.diagnose.metrics import (
     worst_segments,
 )
 from omavctl.learn.control_loss import out_of_control
-from omavctl.learn.flights import body_rate_rate, sha256_of, training_logs
+from omavctl.learn.flights import REQUIRED_ROLES, body_rate_rate, sha256_of, training_logs
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
@@ -126,9 +126,19 @@ def _read_log(
     """One log's residual samples (every registry regressor, out-of-control samples
     removed), its unfiltered signals at them (attitude zero when not logged), its
     ``logs`` entry and its excluded spans."""
-    from omavctl.logs import read_vehicle_log
+    from omavctl.logs import DEFAULT_REQUIRED, read_vehicle_log
+    from omavctl.physics.mixer import wrench_hook
 
-    flight = read_vehicle_log(path, vehicle, rate=rate, time_window=time_window)
+    # a vehicle described by its rotors flies IMU-only logs too (no attitude)
+    required = REQUIRED_ROLES if vehicle.motors is not None else DEFAULT_REQUIRED
+    flight = read_vehicle_log(
+        path,
+        vehicle,
+        rate=rate,
+        time_window=time_window,
+        required=required,
+        wrench=wrench_hook(vehicle),
+    )
     _check_rate(flight, vehicle, rate)
     extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
     s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
@@ -148,6 +158,12 @@ def _read_log(
         torque=flight.signals["torque_command"][s.index],
         attitude=flight.signals["attitude"][s.index] if flight.has("attitude") else None,
     )
+    notes = list(flight.notes)
+    if not flight.has("attitude"):  # an IMU-only log (a vehicle with a rotor list)
+        notes.append(
+            "no attitude in the log: the tilt is unknown, and 'what the vehicle was doing' "
+            "takes it as level"
+        )
     log_json = {
         "path": str(p),
         "name": p.name,
@@ -158,7 +174,7 @@ def _read_log(
         "duration": float(flight.t[-1] - flight.t[0]),
         "samples": s.n,
         "samples_total": s.total,
-        "notes": list(flight.notes),
+        "notes": notes,
     }
     return s, grid, log_json, spans
 

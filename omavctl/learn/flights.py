@@ -72,10 +72,13 @@ def read_flights(
     A log whose body rate was recorded below the grid rate gets a note (its grid
     samples are interpolated, see :func:`upsampling_note`). Already aligned
     :class:`FlightLog` objects are passed through (the window still applies).
-    Raises LogError for an unreadable log, one lacking the body rate or the
-    wrench command, or an empty window.
+    A vehicle with a rotor list (``motors:``) and a log with motor outputs and
+    no torque command gets its wrench command from the mixer
+    (:mod:`omavctl.physics.mixer`). Raises LogError for an unreadable log, one
+    lacking the body rate or the wrench command, or an empty window.
     """
     from omavctl.logs import read_vehicle_log, restrict_window
+    from omavctl.physics.mixer import wrench_hook
 
     out = []
     for item in logs:
@@ -88,6 +91,7 @@ def read_flights(
                 rate=vehicle.gains.rate_hz,
                 required=REQUIRED_ROLES,
                 time_window=time_window,
+                wrench=wrench_hook(vehicle),
             )
         _check_body_rate(flight, vehicle)
         note = upsampling_note(flight, vehicle)

@@ -78,6 +78,7 @@ def prepare_simulation(
     check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)
     output_kind(out)  # an unknown extension is refused before the flight is flown
     veh = load_vehicle(vehicle)
+    veh.check_flyable("simulate", vehicle)
     ref = read_trajectory(reference)
     plant = load_truth(truth, veh)
     residual = None

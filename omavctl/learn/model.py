@@ -356,6 +356,7 @@ class ResidualGP:
             allocation=self.allocation,
             derivative=np.zeros_like,
             torque_normalised=v.torque_normalised,
+            fixed_rotors=v.motors is not None and not v.motors.tilting,
         )
         return self.effects_residual(ctx)
 

@@ -401,6 +401,7 @@ def _add_segment(
             allocation=alloc,
             derivative=sg.derivative,
             torque_normalised=vehicle.torque_normalised,
+            fixed_rotors=vehicle.motors is not None and not vehicle.motors.tilting,
         )
         for e in eff:
             parts.regressors[e.name].append(sg.hold(e.regressor(ctx))[keep])

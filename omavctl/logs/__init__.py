@@ -17,7 +17,7 @@ when a function needs them.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +72,11 @@ __all__ = [
 ]
 
 
+#: Given the roles a raw log holds: the role to mix and the function adding the
+#: force and torque commands to the aligned log, or None (no mixing).
+WrenchHook = Callable[[set[str]], "tuple[str, Callable[[FlightLog], FlightLog]] | None"]
+
+
 def read_log(
     path: str | Path,
     topics: Mapping[str, str] | None = None,
@@ -100,6 +105,7 @@ def read_vehicle_log(
     required: Sequence[str] = DEFAULT_REQUIRED,
     time_window: tuple[float | None, float | None] | None = None,
     trim: bool = True,
+    wrench: WrenchHook | None = None,
 ) -> FlightLog:
     """Read a flight log of ``vehicle`` the way ``fit`` and ``evaluate`` need it.
 
@@ -109,6 +115,10 @@ def read_vehicle_log(
     ``rate`` Hz (linear interpolation at ``start + k / rate``, gaps split
     segments); with ``trim``, mark ground / motors-idle samples invalid
     (:func:`segment_flight`, level computed over the whole log); with
+    ``wrench`` (a vehicle with a rotor list, :func:`omavctl.physics.mixer.wrench_hook`)
+    and a log whose roles it can mix (``motor_command``), that role replaces the
+    force and torque commands in ``required`` and the hook adds them after
+    alignment, before trimming; with
     ``time_window`` ``(start, end)`` in s from the log start (``None`` = open
     end), mark samples outside invalid (:func:`restrict_window`).
 
@@ -124,7 +134,13 @@ def read_vehicle_log(
     """
     columns = vehicle.columns or None
     raw = convert_frame(read_raw(path, vehicle.topics, columns=columns), vehicle.frame)
-    log = align(raw, rate=rate, required=required)
+    mix = wrench(set(raw.series)) if wrench is not None else None
+    if mix is None:
+        log = align(raw, rate=rate, required=required)
+    else:
+        source, add = mix
+        need = [r for r in required if r not in ("force_command", "torque_command")]
+        log = add(align(raw, rate=rate, required=[*need, source]))
     if trim:
         log = segment_flight(log)
     if time_window is not None:

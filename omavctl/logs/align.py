@@ -59,6 +59,12 @@ def _label(raw: RawLog, role: str) -> str:
 
 
 def _missing_error(raw: RawLog, role: str) -> LogError:
+    if role in ("force_command", "torque_command") and "motor_command" in raw.series:
+        return LogError(
+            f"no {role}, and motor_command cannot be mixed without the vehicle's rotors: "
+            "give a vehicle file with a rotor list (motors:, or preset: NAME, docs/logs.md)",
+            raw.path,
+        )
     if raw.mapped:  # a CSV read through a column map
         if role in raw.mapped:
             return LogError(f"no usable values for {role} in {raw.mapped[role]}", raw.path)

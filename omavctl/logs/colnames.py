@@ -47,7 +47,7 @@ class ColumnScan:
 _TOKEN = re.compile(r"[A-Z]+(?=[A-Z][a-z])\d*|[A-Z]?[a-z]+\d*|[A-Z]+\d*|\d+")
 _SETPOINT = {
     "sp", "setpoint", "des", "desired", "dem", "demand", "ref", "reference", "target",
-    "tgt", "goal", "cmdvel",
+    "tgt", "goal", "cmdvel", "rc",  # rc: a pilot's stick input (Betaflight rcCommand)
 }  # fmt: skip
 _NOISE = {
     "bias", "offset", "scale", "var", "variance", "std", "cov", "covariance", "err",

@@ -17,7 +17,10 @@ A role maps its axes (:data:`ROLE_COLUMNS`: ``x/y/z``, ``roll/pitch/yaw``,
 ``0..5`` for ``tilt``) to columns. Role-level ``scale``/``offset`` apply to all
 its axes; an axis may be ``{column:, scale:, offset:}`` itself, and then the
 value is ``(cell * axis_scale + axis_offset) * role_scale + role_offset``.
-Only ``force_command`` and ``torque_command`` may leave axes out (they are 0).
+Only ``force_command``, ``torque_command`` and ``motor_command`` may leave axes
+out (they are 0). ``motor_command`` (raw per-output motor commands in the
+vehicle's output order, :mod:`omavctl.rotors`) is also given as a list:
+``motor_command: [motor.m1, motor.m2, motor.m3, motor.m4]`` maps outputs 0..3.
 
 Flat (one key per wide-CSV column, converted from the role-based form by
 :func:`flatten_column_map`)::
@@ -65,7 +68,7 @@ __all__ = [
 ]
 
 #: Roles whose unmapped axes are zero in a role-based map.
-COMMAND_ROLES: tuple[str, ...] = ("force_command", "torque_command")
+COMMAND_ROLES: tuple[str, ...] = ("force_command", "torque_command", "motor_command")
 #: Roles that may be given as a quaternion ``(w, x, y, z)`` instead of Euler angles.
 QUATERNION_ROLES: tuple[str, ...] = ("attitude", "reference_attitude")
 _QUAT_AXES = ("w", "x", "y", "z")
@@ -141,6 +144,8 @@ def _expand_role(role: str, entry: Any) -> dict[str, tuple[Any, str]]:
     if role == TIME_ROLE:
         return {"t": (_axis_entry(entry, name, 1.0, 0.0), TIME_ROLE)}
     axes = ROLE_COLUMNS[role]
+    if role == "motor_command" and isinstance(entry, list):  # outputs in order
+        entry = dict(enumerate(entry))
     if not isinstance(entry, Mapping):
         example = ", ".join(f"{a}: ..." for a in axes[:3])
         raise ConfigError(f"key '{name}' must be a mapping of axes to columns, e.g. {{{example}}}")
@@ -391,6 +396,8 @@ def read_mapped(table: MappedTable, specs: dict[str, ColumnSpec], notes: list[st
         series[role] = RawSeries(stamps=stamps, values=values)
         topics.append(topic_info(role, f"{table.format} columns (mapped)", stamps))
         for j, key in enumerate(csv_columns(role)):
+            if role == "motor_command" and specs[key].column is None:
+                continue  # an output the map does not name (0)
             ranges[key] = (float(values[:, j].min()), float(values[:, j].max()))
     raw = RawLog(
         path=path,

@@ -65,6 +65,9 @@ class Inspection:
     column_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     suggested_columns: dict[str, Any] | None = None
     suggestion: str | None = None
+    #: the roles ``fit``/``evaluate`` need of this log (body rate and motor
+    #: outputs when a rotor list mixes them, :mod:`omavctl.physics.mixer`)
+    required: tuple[str, ...] = DEFAULT_REQUIRED
     #: unit and rate (Hz) of each listed column, where the format tells
     #: (:func:`~.inventory.column_inventory`)
     column_units: dict[str, str] = field(default_factory=dict)
@@ -76,7 +79,7 @@ class Inspection:
     @property
     def required_missing(self) -> list[str]:
         """Roles that ``fit``/``evaluate`` need but the log lacks."""
-        return [r for r in DEFAULT_REQUIRED if r in self.roles_missing]
+        return [r for r in self.required if r in self.roles_missing]
 
 
 def _duration(raw: RawLog) -> float:
@@ -144,6 +147,8 @@ def inspect_log(
                 where = f"no usable rows in {where}"
         elif raw.format == "csv":
             where = f"CSV columns {role}_*"
+        elif ROLE_TOPIC[role] not in names:
+            continue  # no bag topic carries it (motor_command: column maps only)
         else:
             where = names[ROLE_TOPIC[role]]
         (found if role in raw.series else missing)[role] = where
@@ -192,6 +197,8 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
 
     scan = scan_csv(path)
     guess = suggest_column_map(scan)
+    # motor outputs: a rotor list (preset) mixes them, no torque command is needed
+    required = ("body_rate", "motor_command") if guess.motors else DEFAULT_REQUIRED
     notes = [
         f"not a wide contract CSV: {len(scan.header)} columns, {len(scan.values)} numeric "
         "with values; a column map (vehicle 'columns:') is needed to read it"
@@ -209,11 +216,12 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
         topics=[],
         roles_found={},
         # nothing is read without a column map: what fit and evaluate need is missing
-        roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
+        roles_missing={role: "needs a column map" for role in required},
         notes=notes,
         column_ranges=scan.ranges(),
         suggested_columns=guess.columns,
         suggestion=suggestion_yaml(guess, path.name),
+        required=required,
     )
 
 

@@ -47,6 +47,7 @@ from omavctl.logs.colnames import (
     word_base,
 )
 from omavctl.logs.csvlog import MISSING_CELLS, read_table
+from omavctl.logs.motorcols import MotorGuess, guess_motor_outputs
 
 __all__ = ["ColumnScan", "Suggestion", "scan_csv", "suggest_column_map", "suggestion_yaml"]
 
@@ -148,6 +149,8 @@ class Suggestion:
     #: the frame the logged vectors are in, and why (an accelerometer's sign of g);
     #: None when nothing in the log tells
     frame: tuple[str, str] | None = None
+    #: per-motor output columns (``motor_command``) and the preset they fit
+    motors: MotorGuess | None = None
 
 
 def _compact(cols: list[str]) -> str:
@@ -273,7 +276,7 @@ def suggest_column_map(
         others = [_compact(c.columns()) for c in cands[1:]]
         if others:
             alternatives[role] = others[:6]
-    required = ("time", "body_rate", "attitude", "torque_command", "force_command")
+    motors, required = _motor_columns(scan, columns, comments)
     unrecognised = [r for r in required if r not in columns]
     frame = _frame(scan)
     force = columns.get("force_command")
@@ -284,13 +287,28 @@ def suggest_column_map(
             comments["force_command"] += (
                 "; thrust positive in an FRD log: scale -1 points it along -z, up"
             )
-    return Suggestion(columns, comments, alternatives, unrecognised, t0, duration, frame)
+    return Suggestion(columns, comments, alternatives, unrecognised, t0, duration, frame, motors)
+
+
+def _motor_columns(
+    scan: ColumnScan, columns: dict[str, Any], comments: dict[str, str]
+) -> tuple[MotorGuess | None, tuple[str, ...]]:
+    """Add the motor outputs to a map without a torque command (a preset's rotor list
+    mixes them into the wrench); the guess and the roles the map then needs."""
+    motors = guess_motor_outputs(scan) if "torque_command" not in columns else None
+    if motors is None:
+        return None, ("time", "body_rate", "attitude", "torque_command", "force_command")
+    columns["motor_command"] = list(motors.columns)
+    comments["motor_command"] = motors.note
+    return motors, ("time", "body_rate")
 
 
 def _flow(value: Any) -> str:
     """A YAML flow mapping of strings (quoted) and floats."""
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k}: {_flow(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(_flow(v) for v in value) + "]"
     if isinstance(value, str):
         return json.dumps(value)
     return _fmt(value)
@@ -301,8 +319,19 @@ def suggestion_yaml(s: Suggestion, source: str) -> str:
     lines = [
         f"# Column map GUESSED by omavctl inspect from the column names of {source}.",
         "# Check every entry (column, unit -> scale, sign) and the frame before use.",
-        "columns:",
     ]
+    m = s.motors
+    if m is not None:
+        if m.preset:
+            lines.append(f"preset: {m.preset}  # {m.why}")
+        else:
+            lines.append(f"# {m.why}")
+        lo, hi = (_fmt(v) for v in m.range)
+        lines.append(
+            f"# motor commands look like {m.unit}: the rotor list must say so "
+            f"(motors: {{unit: {m.unit}, range: [{lo}, {hi}]}}; docs/logs.md)"
+        )
+    lines.append("columns:")
     for role, value in s.columns.items():
         lines.append(f"  {role}: {_flow(value)}  # {s.comments[role]}")
         if role in s.alternatives:

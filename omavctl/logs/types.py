@@ -17,6 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 
 __all__ = [
+    "MOTOR_OUTPUTS",
     "ROLE_COLUMNS",
     "ROLE_TOPIC",
     "FlightLog",
@@ -47,6 +48,9 @@ class LogLayout(Protocol):
 
 
 XYZ = ("x", "y", "z")
+#: Columns of the ``motor_command`` role: the most outputs a vehicle may have
+#: (the omav's 12 rotors and 6 servos); outputs a log does not map are 0.
+MOTOR_OUTPUTS = 18
 RPY = ("roll", "pitch", "yaw")
 
 #: Signal roles and their wide-CSV column suffixes (DESIGN.md section 3).
@@ -65,6 +69,9 @@ ROLE_COLUMNS: dict[str, tuple[str, ...]] = {
     "reference_attitude": RPY,  # rad
     "tilt": tuple(str(i) for i in range(6)),  # rad
     "rotor": tuple(str(i) for i in range(12)),  # rad/s
+    # raw per-output commands in the vehicle's output order and in the unit its
+    # ``motors:`` section declares (PWM us, DShot, 0-65535, normalised, rad/s, rpm)
+    "motor_command": tuple(str(i) for i in range(MOTOR_OUTPUTS)),
 }
 
 #: Which topic role (vehicle ``topics:`` key) carries each signal role.
@@ -81,6 +88,7 @@ ROLE_TOPIC: dict[str, str] = {
     "reference_attitude": "reference",
     "tilt": "actuators",
     "rotor": "actuators",
+    "motor_command": "motor_outputs",  # CSV and ULog column maps only (no bag topic)
 }
 
 #: Angle roles: unwrapped before interpolation, wrapped to (-pi, pi] after.

@@ -29,7 +29,8 @@ class ServoLag(Effect):
     ``alpha_dot = (alpha_cmd - alpha) / T_s`` gives ``alpha ~= alpha_cmd - T_s
     alpha_cmd_dot``, so the wrench error is ``-T_s J_alpha alpha_cmd_dot`` with
     ``J_alpha = d wrench / d alpha`` of the allocation; residual
-    ``-T_s I^-1 [J_alpha alpha_cmd_dot]_torque``. ``T_s`` in s.
+    ``-T_s I^-1 [J_alpha alpha_cmd_dot]_torque``. ``T_s`` in s. A vehicle of fixed
+    rotors (``ctx.fixed_rotors``) has no servos: the regressor is zero, never excited.
     """
 
     name = "servo_lag"
@@ -40,6 +41,8 @@ class ServoLag(Effect):
     search = (0.0, 0.3)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.fixed_rotors:  # no tilt servos: nothing to lag (never excited)
+            return np.zeros((ctx.torque.shape[0], 3, 1))
         tilt, thrust = ctx.allocated
         rate = ctx.derivative(tilt)  # (N, 6)
         jac = ctx.allocation.tilt_jacobian(tilt, thrust)  # (N, 6, 6)
@@ -48,6 +51,8 @@ class ServoLag(Effect):
 
     def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
         """Tilts through the exact first-order lag of the held setpoints (period means)."""
+        if ctx.fixed_rotors:
+            return np.zeros((ctx.torque.shape[0], 3))
         tilt, thrust = ctx.allocated
         lagged = first_order_lag(tilt, value, ctx.dt)
         rotor = np.repeat(thrust / 2.0, 2, axis=-1)
@@ -64,7 +69,22 @@ class MotorLag(Effect):
     ``F ~= F_cmd - T_m F_cmd_dot`` per arm, so the wrench error is
     ``-T_m J_F F_cmd_dot`` (``J_F`` = thrust directions and their moments);
     residual ``-T_m I^-1 [J_F F_cmd_dot]_torque``. ``T_m`` in s.
+
+    On a vehicle described by a fixed rotor list (``ctx.fixed_rotors``: the
+    wrench is a fixed matrix times the rotor thrusts, :mod:`omavctl.physics.mixer`)
+    a first-order lag of every rotor's thrust with one ``T_m`` is exactly the
+    same lag of the commanded torque: residual ``I^-1 (lag(tau_cmd) - tau_cmd)``,
+    to first order ``-T_m I^-1 tau_cmd_dot``. Small motors lag by tens of ms
+    while their commands carry the rate controller's fast content, where that
+    first order fails (and would look exactly like ``command_delay``): the
+    linear regressor the diagnosis uses is then the secant
+    ``I^-1 (lag(tau_cmd, T_ref) - tau_cmd) / T_ref`` at :attr:`SECANT` (its
+    ``T_m`` is exact at ``T_ref`` and a rough value elsewhere; ``fit``'s 1-D
+    search over the exact form gives the estimate).
     """
+
+    #: Reference time constant (s) of the rotor-list regressor's secant.
+    SECANT: float = 0.04
 
     name = "motor_lag"
     summary = "first-order rotor-thrust lag T_m"
@@ -74,6 +94,9 @@ class MotorLag(Effect):
     search = (0.0, 0.3)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.fixed_rotors:
+            lagged = first_order_lag(ctx.torque, self.SECANT, ctx.dt)
+            return ((lagged - ctx.torque) @ ctx.inertia_inv.T / self.SECANT)[:, :, None]
         tilt, thrust = ctx.allocated
         rate = ctx.derivative(thrust)
         jac = ctx.allocation.thrust_jacobian(tilt)
@@ -81,7 +104,11 @@ class MotorLag(Effect):
         return ctx.angular(dw)[:, :, None]
 
     def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
-        """Arm thrusts through the exact first-order lag of the held setpoints."""
+        """Arm thrusts (rotor thrusts: the torque) through the exact first-order lag
+        of the held setpoints."""
+        if ctx.fixed_rotors:
+            lagged = first_order_lag(ctx.torque, value, ctx.dt)
+            return (lagged - ctx.torque) @ ctx.inertia_inv.T
         tilt, thrust = ctx.allocated
         lagged = first_order_lag(thrust, value, ctx.dt)
         dw = ctx.allocation.forward(tilt, np.repeat(lagged / 2.0, 2, axis=-1))
@@ -143,6 +170,7 @@ class RotorInterference(Effect):
     At small tilts it acts like a thrust-centre offset (a torque growing with
     the force and the tilt): on flights of one kind it is easily taken for a
     ``com_offset``; flights with large, varied tilts separate the two.
+    On a vehicle of fixed rotors (``ctx.fixed_rotors``) the regressor is zero.
     """
 
     name = "rotor_interference"
@@ -155,6 +183,8 @@ class RotorInterference(Effect):
     theta_range = (0.0, 1.0)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.fixed_rotors:  # the omav's tilting pairs only (never excited)
+            return np.zeros((ctx.torque.shape[0], 3, 2))
         tilt, thrust = ctx.allocated
         cols = []
         for shape in ctx.allocation.interference(tilt):

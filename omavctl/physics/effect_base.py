@@ -59,6 +59,9 @@ class EffectContext:
     filtered alike). ``torque_normalised``: the torque command is in unknown
     units (vehicle ``command_units.torque: normalised``); ``torque`` is then
     that command, and ``inertia_error`` estimates its per-axis gain.
+    ``fixed_rotors``: the vehicle is a rotor list without tilt servos
+    (``motors:``, :mod:`omavctl.rotors`): its wrench is linear in the rotor
+    thrusts, and the omav's allocation (tilts, arm thrusts) does not apply.
     """
 
     omega: np.ndarray
@@ -70,6 +73,7 @@ class EffectContext:
     allocation: Allocation
     derivative: Any
     torque_normalised: bool = False
+    fixed_rotors: bool = False
 
     @property
     def inertia_inv(self) -> np.ndarray:

@@ -111,6 +111,7 @@ def prepare_plan(
         settings = replace(settings, effects=effects_from_evaluation(evaluation))
     check_plan_settings(settings)
     mdl = load_model(model)
+    mdl.vehicle.check_flyable("plan", model)
     if vehicle is not None:
         check_vehicle(mdl, load_vehicle(vehicle), vehicle)
     ref = read_trajectory(task)
