@@ -25,8 +25,7 @@ Writing and reading the result: :mod:`omavctl.diagnose.evalio`.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,6 +35,7 @@ import numpy as np
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
 from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command
+from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
 from omavctl.diagnose.metrics import (
     AXES,
@@ -47,7 +47,7 @@ from omavctl.diagnose.metrics import (
     worst_segments,
 )
 from omavctl.learn.control_loss import out_of_control
-from omavctl.learn.flights import REQUIRED_ROLES, body_rate_rate, sha256_of, training_logs
+from omavctl.learn.flights import REQUIRED_ROLES, body_rate_rate, sha256_of
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
@@ -446,7 +446,7 @@ def evaluate(
         **_failures(series, features, log_names, sg.dt, not model.vehicle.force_normalised),
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
-        "flags": _training_data_flags(model, logs_json, time_window)
+        "flags": training_data_flags(model, logs_json, time_window)
         + quality_flags(per_model[0]["metrics"], excluded)
         + envelope_flags(envelope),
         "envelope": envelope,
@@ -455,44 +455,6 @@ def evaluate(
         else None,
     }
     return EvalResult(tree=tree, series=series)
-
-
-def _overlap(fitted: Any, window: tuple[float | None, float | None] | None) -> bool:
-    """Whether a fit's time window (list [start, end] or None) and an evaluation's
-    overlap (None: the whole log)."""
-    fit_lo, fit_hi = fitted if isinstance(fitted, list) and len(fitted) == 2 else (None, None)
-    lo, hi = window if window is not None else (None, None)
-    start = max(float(fit_lo or 0.0), float(lo or 0.0))
-    end = min(math.inf if fit_hi is None else float(fit_hi), math.inf if hi is None else hi)
-    return start < end
-
-
-def _training_data_flags(
-    model: ResidualGP,
-    logs_json: Sequence[Mapping[str, Any]],
-    time_window: tuple[float | None, float | None] | None,
-) -> list[dict[str, Any]]:
-    """A ``training_data`` flag per log the first model holds points of (the same file,
-    by sha256, in an overlapping time window; also a prior's): not held out."""
-    out = []
-    trained = training_logs(model.provenance)
-    for lj in logs_json:
-        windows = [t["time_window"] for t in trained if t["sha256"] == lj.get("sha256")]
-        hits = [w for w in windows if _overlap(w, time_window)]
-        if not hits:
-            continue
-        whole = all(w is None for w in hits) and time_window is None
-        out.append(
-            {
-                "code": "training_data",
-                "axis": None,
-                "value": None,
-                "message": f"{lj['name']}: the model was fitted on this log"
-                + ("" if whole else " in an overlapping time window")
-                + ": its errors here are not those of a flight it has not seen",
-            }
-        )
-    return out
 
 
 def _envelope(
