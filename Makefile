@@ -70,7 +70,7 @@ bench-effects: $(STAMP)
 SCORECARD_DIR ?= build/scorecard
 SCORECARD_JOBS ?= 2
 SCORECARD_TUNE ?= 12
-SCORECARD_REPORT ?= 12
+SCORECARD_REPORT ?= 18
 scorecard: $(STAMP)
 	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split tune --draws $(SCORECARD_TUNE) \
 		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD_DIR)

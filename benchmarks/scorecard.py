@@ -38,7 +38,7 @@ if __package__ in (None, ""):
 from benchmarks import scorecard_score as sc
 from benchmarks.scorecard_draws import SPLITS, draw_spec, run_draw
 
-DEFAULT_DRAWS = {"tune": 12, "report": 12}
+DEFAULT_DRAWS = {"tune": 12, "report": 18}
 
 
 def _done(out: Path) -> set[tuple[str, int]]:
@@ -112,6 +112,24 @@ def table(records: Sequence[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def by_effect(records: Sequence[dict[str, Any]]) -> list[str]:
+    """First answer and error fall per hidden effect (a two-effect draw counts for both)."""
+    rows: dict[str, list[dict[str, Any]]] = {}
+    for r in records:
+        if not r["error"]:
+            for name in r["hidden"] or ["none"]:
+                rows.setdefault(name, []).append(sc.judge(r))
+    lines = [
+        "| hidden effect | draws | first answer right | error falls >= 50 % | ends invented |",
+        "|---|---|---|---|---|",
+    ]
+    for name in sorted(rows):
+        js = rows[name]
+        cells = [_rate(*sc.tally(js, k)) for k in ("first_right", "fall", "invented")]
+        lines.append(f"| {name} | {len(js)} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def _draw_label(r: dict[str, Any]) -> str:
     hidden = (
         ", ".join(
@@ -137,7 +155,10 @@ def failures(records: Sequence[dict[str, Any]]) -> list[str]:
         first = r["rounds"][0]
         said = ", ".join(first["missing"]) or "nothing missing"
         if not j["first_right"]:
-            groups.setdefault("first answer wrong", []).append(f"{_draw_label(r)}: said {said}")
+            verdict = (first.get("verdict") or [""])[0][:240]
+            groups.setdefault("first answer wrong", []).append(
+                f"{_draw_label(r)}: said {said} (verdict: “{verdict}”)"
+            )
         if j["fall"] is False:
             groups.setdefault("physics-only error fell < 50 %", []).append(
                 f"{_draw_label(r)}: fell {100 * sc.physics_fall(r):.0f} % over "
@@ -196,7 +217,8 @@ def analyse(paths: Sequence[Path], markdown: Path | None) -> None:
     for split in SPLITS:
         recs = [r for r in records if r["split"] == split]
         if recs:
-            lines += [f"### {split} split", "", *table(recs), "", f"Cost: {cost(recs)}.", ""]
+            lines += [f"### {split} split", "", *table(recs), "", *by_effect(recs), ""]
+            lines += [f"Cost: {cost(recs)}.", ""]
     lines += ["### Failures by metric", "", *failures(records)]
     text = "\n".join(lines) + "\n"
     print(text)

@@ -224,6 +224,7 @@ def judge(record: Mapping[str, Any]) -> dict[str, Any]:
     hidden = bool(record["hidden"])
     return {
         "first_right": first_answer_right(record),
+        "none_silent": None if hidden else not record["rounds"][0]["missing"],
         "fall": (physics_fall(record) >= FALL) if hidden else None,
         "invented": ends_invented(record),
         "worse": bool(worse_axes(record["rounds"][-1])),
@@ -242,6 +243,7 @@ METRICS: tuple[tuple[str, str, str], ...] = (
         "first_right",
         ">= 90 %",
     ),
+    ("none draws: no claim at all (strict: a default imperfection counts too)", "none_silent", "-"),
     ("physics-only held-out error falls >= 50 % (hidden effects only)", "fall", ">= 90 %"),
     ("ends with an effect the vehicle does not have", "invented", "0"),
     ("model > 1.05x physics-only on an axis (held-out)", "worse", "0"),
