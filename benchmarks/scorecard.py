@@ -97,7 +97,7 @@ def table(records: Sequence[dict[str, Any]]) -> list[str]:
     bins = ["none", *(b[0] for b in sc.SIZE_BINS)]
     head = ["metric", "goal", "all", "hidden >= 1x floor", *bins]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    above = [j for r, j in judged if r["hidden"] and (r.get("size_ratio") or 0.0) >= 1.0]
+    above = [j for r, j in judged if r["hidden"] and sc.size_ratio(r) >= 1.0]
     for label, key, goal in sc.METRICS:
         cells = [label, goal, _rate(*sc.tally([j for _, j in judged], key))]
         cells.append(_rate(*sc.tally(above, key)))

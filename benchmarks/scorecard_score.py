@@ -197,11 +197,22 @@ def param_checks(record: Mapping[str, Any]) -> list[ParamCheck]:
     return out
 
 
+def size_ratio(record: Mapping[str, Any]) -> float:
+    """The largest hidden effect's RMS contribution on the held-out flight over the
+    first evaluation's claim floor (the first answer must name one of them); the
+    record's stored ``size_ratio`` when it has no ``sizes``."""
+    sizes = record.get("sizes")
+    floor = record["rounds"][0].get("claim_floor") if record.get("rounds") else None
+    if sizes and floor:
+        return max(float(v) for v in sizes.values()) / float(floor)
+    return float(record.get("size_ratio") or 0.0)
+
+
 def size_bin(record: Mapping[str, Any]) -> str:
     """The record's size bin (``none`` for a draw without hidden effects)."""
     if not record["hidden"]:
         return "none"
-    r = float(record["size_ratio"])
+    r = size_ratio(record)
     for label, lo, hi in SIZE_BINS:
         if lo <= r < hi:
             return label

@@ -157,6 +157,10 @@ def test_coverage_checks_and_size_bins():
     assert sc.size_bin(rec) == "< 1x floor"
     assert sc.size_bin({**rec, "size_ratio": 3.0}) == "3-10x floor"
     assert sc.size_bin({**rec, "hidden": {}}) == "none"
+    # two hidden effects: the larger one's size over the first evaluation's floor
+    two = {**rec, "sizes": {"gyro_bias": 0.001, "com_offset": 1.79}}
+    assert sc.size_ratio(two) == pytest.approx(17.9)
+    assert sc.size_bin(two) == ">= 10x floor"
 
 
 def test_tables_rebuild_from_json_lines(tmp_path, capsys):
