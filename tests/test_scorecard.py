@@ -196,3 +196,69 @@ def test_draws_are_deterministic_and_split():
         params = hidden_parameters(name, 0.5, __import__("numpy").random.default_rng(0))
         values = [v for p in params.values() for v in (p if isinstance(p, list) else [p])]
         assert all(math.isfinite(v) and v != 0 for v in values)
+
+
+def _eval_output(missing, command, effects=()):
+    """``evaluate --json`` as the CLI prints it (the keys the scorecard reads)."""
+    axes = {"x": 0.2, "y": 0.3, "z": 0.1}
+    return {
+        "missing": list(missing),
+        "fit_command": command,
+        "rmse_nominal": axes,
+        "models": [
+            {"effects": list(effects), "rmse": axes, "rmse_effects": axes, "coverage_2sigma": axes}
+        ],
+        "flags": [],
+        "verdict": [{"key": "missing", "text": "Missing: " + ", ".join(missing)}],
+    }
+
+
+def test_the_loop_follows_the_printed_fit_command_for_two_rounds(tmp_path, monkeypatch):
+    """The loop runs fit, evaluate, then each printed fit command and evaluate again,
+    at most twice, and reads each evaluation's file beside its --json object."""
+    import benchmarks.scorecard_draws as draws
+
+    calls = []
+    replies = {
+        "m0.npz": _eval_output(
+            ["com_offset"], "omavctl fit fit.bag --effects com_offset --out 'm 1.npz'"
+        ),
+        "m 1.npz": _eval_output(
+            ["servo_lag"],
+            "omavctl fit fit.bag --effects com_offset,servo_lag --out m2.npz",
+            ["com_offset"],
+        ),
+        "m2.npz": _eval_output(
+            ["motor_lag"], "omavctl fit fit.bag --out m3.npz", ["com_offset", "servo_lag"]
+        ),
+    }
+
+    def fake(args, cwd, log):
+        calls.append(args)
+        if args[0] == "fit":
+            return {"effects": {"com_offset": {"values": {"r": [0.01, 0, 0]}}}}
+        model = args[args.index("--model") + 1]
+        doc = {
+            "diagnosis": {
+                "missing_effects": [
+                    {"name": n, "ambiguous_with": []} for n in replies[model]["missing"]
+                ],
+                "method": {"min_contribution_rms": 0.09, "measurement_noise_std": 0.03},
+            },
+            "envelope": {"coverage_inside": {"x": 0.95, "y": 0.95, "z": 0.95}},
+        }
+        (cwd / args[args.index("--out") + 1]).write_text(json.dumps(doc))
+        return replies[model]
+
+    monkeypatch.setattr(draws, "omavctl", fake)
+    spec = {"flights": [{"log": "fit.bag"}, {"log": "held.mcap"}]}
+    rounds, fits = draws.loop(spec, tmp_path, [])
+    assert [c[0] for c in calls] == ["fit", "evaluate"] * 3  # two rounds, not three
+    assert calls[2][-2:] == ["--out", "m 1.npz"]  # the shell-quoted path kept whole
+    assert [r["missing"] for r in rounds] == [["com_offset"], ["servo_lag"], ["motor_lag"]]
+    assert rounds[1]["model_effects"] == ["com_offset"] and rounds[0]["claim_floor"] == 0.09
+    assert fits[1]["command"].startswith("omavctl fit fit.bag --effects com_offset")
+    # a printed command that is not an omavctl fit ends the draw as a failed step
+    replies["m0.npz"] = _eval_output(["com_offset"], "echo fit --out x.npz")
+    with pytest.raises(draws.StepFailed, match="not an omavctl fit"):
+        draws.loop(spec, tmp_path, [])
