@@ -262,3 +262,22 @@ def test_the_loop_follows_the_printed_fit_command_for_two_rounds(tmp_path, monke
     replies["m0.npz"] = _eval_output(["com_offset"], "echo fit --out x.npz")
     with pytest.raises(draws.StepFailed, match="not an omavctl fit"):
         draws.loop(spec, tmp_path, [])
+
+
+def test_the_documented_baseline_rebuilds_from_its_records():
+    """docs/scorecard.md's tables and failure list are what the committed records
+    give: the baseline can be re-analysed, and a scoring change shows in the doc."""
+    from pathlib import Path
+
+    from benchmarks.scorecard import by_effect, failures
+
+    root = Path(__file__).resolve().parent.parent
+    records = read_records(sorted((root / "benchmarks" / "scorecard-baseline").glob("*.jsonl")))
+    assert len(records) == 42
+    doc = (root / "docs" / "scorecard.md").read_text()
+    for split in ("tune", "report"):
+        recs = [r for r in records if r["split"] == split]
+        for line in [*table(recs), *by_effect(recs)]:
+            assert line in doc, line
+    for line in failures(records):
+        assert line in doc, line
