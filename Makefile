@@ -10,6 +10,7 @@
 #   make bench-intervals coverage of the effect parameters' 95 % intervals
 #                      (docs/intervals-results.md)
 #   make bench-horizons open-loop prediction over horizons: speed, draws, real log (docs/horizons.md)
+#   make scorecard     the randomised scorecard of the whole loop (docs/scorecard.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
@@ -17,7 +18,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise real clean
+.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise real scorecard clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -86,6 +87,19 @@ bench-intervals: $(STAMP)
 bench-horizons: $(STAMP)
 	$(BIN)/python benchmarks/bench_horizons.py
 	$(BIN)/python benchmarks/horizons_study.py --workdir build/horizons --markdown build/horizons/study.md
+# the randomised scorecard of the whole loop: tune draws, then report draws, then
+# the tables (docs/scorecard.md: the split, the cost; re-running resumes)
+SCORECARD_DIR ?= build/scorecard
+SCORECARD_JOBS ?= 2
+SCORECARD_TUNE ?= 12
+SCORECARD_REPORT ?= 18
+scorecard: $(STAMP)
+	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split tune --draws $(SCORECARD_TUNE) \
+		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD_DIR)
+	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split report --draws $(SCORECARD_REPORT) \
+		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD_DIR)
+	$(BIN)/python benchmarks/scorecard.py analyse $(SCORECARD_DIR)/tune.jsonl \
+		$(SCORECARD_DIR)/report.jsonl --markdown $(SCORECARD_DIR)/tables.md
 
 test-numpy1: $(VENV1)/.installed
 	$(VENV1)/bin/pytest -q tests/test_kmedoids.py

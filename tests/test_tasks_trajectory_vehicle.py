@@ -7,7 +7,7 @@ import pytest
 
 from omavctl.base.errors import ConfigError, TrajectoryError
 from omavctl.physics.rigid_body import euler_rates
-from omavctl.sim.tasks import TASKS, circle, fig8, heave, pitch, yaw
+from omavctl.sim.tasks import TASKS, chirp, circle, fig8, heave, pitch, steps, yaw
 from omavctl.sim.trajectory import (
     COLUMNS,
     Trajectory,
@@ -53,6 +53,49 @@ def test_yaw_and_heave_identification_tasks():
     np.testing.assert_allclose(hv.euler, 0.0)
     with pytest.raises(ConfigError, match="must be > 0"):
         heave(amplitude=0.0)
+
+
+def test_chirp_sweeps_its_band_on_every_axis():
+    tr = chirp(amplitude_deg=10, f_start=0.2, f_end=1.0, duration=30, ramp=2, rate=200.0)
+    inner = (tr.t > 2.5) & (tr.t < 27.5)
+    assert np.rad2deg(np.abs(tr.euler[inner, :2]).max()) == pytest.approx(10, abs=0.05)
+    assert np.rad2deg(np.abs(tr.euler[inner, 2]).max()) == pytest.approx(5, abs=0.05)
+    # the instantaneous frequency (zero crossings of roll) rises from 0.2 to 1.0 Hz
+    roll = tr.euler[:, 0]
+    cross = tr.t[1:][(roll[:-1] < 0) & (roll[1:] >= 0)]
+    freq = 1.0 / np.diff(cross)
+    mid = 0.5 * (cross[1:] + cross[:-1])
+    np.testing.assert_allclose(freq, 0.2 + 0.8 * mid / 30, rtol=0.03)
+    # pitch lags roll by a quarter period: they are not the same signal
+    assert abs(np.corrcoef(tr.euler[inner, 0], tr.euler[inner, 1])[0, 1]) < 0.2
+    with pytest.raises(ConfigError, match="0 < start < end"):
+        chirp(f_start=1.0, f_end=0.5)
+
+
+def test_steps_hold_random_levels_and_are_seeded():
+    tr = steps(amplitude_deg=20, hold=3.0, transition=1.0, duration=20, ramp=2, seed=4)
+    again = steps(amplitude_deg=20, hold=3.0, transition=1.0, duration=20, ramp=2, seed=4)
+    np.testing.assert_array_equal(tr.data, again.data)
+    other = steps(amplitude_deg=20, hold=3.0, transition=1.0, duration=20, ramp=2, seed=5)
+    assert not np.allclose(tr.euler, other.euler)
+    # between transitions the attitude holds still at a level within the amplitude
+    held = ((tr.t - 2.0) % 3.0 > 1.05) & (tr.t > 2.0) & (tr.t < 17.0)
+    np.testing.assert_allclose(tr.body_rate[held], 0.0, atol=1e-12)
+    assert np.rad2deg(np.abs(tr.euler[:, :2]).max()) <= 20.0
+    assert np.rad2deg(np.abs(tr.euler[:, 2]).max()) <= 10.0
+    levels = np.unique(np.round(tr.euler[held, 0], 9))
+    assert levels.size >= 4  # a new roll level after each step
+    # flyable: a quintic step's peak acceleration is 10/sqrt(3) x jump / transition^2
+    roll_acc = np.gradient(np.gradient(tr.euler[:, 0], tr.dt), tr.dt)
+    settled = np.interp(2.0 + 3.0 * np.arange(6) - 0.5, tr.t, tr.euler[:, 0])  # in time order
+    jump = np.abs(np.diff(settled)).max()
+    assert np.abs(roll_acc).max() == pytest.approx(10 / np.sqrt(3) * jump, rel=0.05)
+    with pytest.raises(ConfigError, match="--hold must be > 0 and below --duration"):
+        steps(hold=0.0)
+    with pytest.raises(ConfigError, match="at most --hold"):
+        steps(hold=1.0, transition=1.5)
+    with pytest.raises(ConfigError, match="no room for two steps"):
+        steps(duration=6, ramp=2)
 
 
 def test_fig8_amplitudes_and_shape():

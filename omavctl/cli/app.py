@@ -53,7 +53,7 @@ task_app = typer.Typer(
 app.add_typer(
     task_app,
     name="task",
-    short_help="Write a task trajectory (fig8, circle, pitch, yaw, heave, wobble).",
+    short_help="Task CSV (fig8, circle, pitch, yaw, heave, wobble, chirp, steps).",
 )
 
 

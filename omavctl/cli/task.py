@@ -178,3 +178,61 @@ def task_wobble(
         as_json,
         "wobble",
     )
+
+
+@task_app.command(
+    "chirp", short_help="Roll/pitch/yaw frequency sweep (lags and delays show as growing phase)."
+)
+@reports_errors
+def task_chirp(
+    out: Out,
+    amplitude: Annotated[
+        float, typer.Option(help="Roll and pitch amplitude, deg (yaw half).")
+    ] = 12.0,
+    f_start: Annotated[float, typer.Option(help="Sweep start frequency, Hz.")] = 0.1,
+    f_end: Annotated[float, typer.Option(help="Sweep end frequency, Hz.")] = 0.8,
+    duration: Duration = 24.0,
+    ramp: Ramp = 2.0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Linear frequency sweep on roll, pitch (a quarter period apart) and yaw (half
+    amplitude): every axis sees every frequency from --f-start to --f-end once."""
+    from omavctl.sim.tasks import chirp
+
+    _write_task(
+        chirp(amplitude, f_start, f_end, duration, rate, ramp, height), out, quiet, as_json, "chirp"
+    )
+
+
+@task_app.command("steps", short_help="Random smoothed roll/pitch/yaw steps (seeded).")
+@reports_errors
+def task_steps(
+    out: Out,
+    amplitude: Annotated[
+        float, typer.Option(help="Largest level per axis, deg (yaw half).")
+    ] = 15.0,
+    hold: Annotated[float, typer.Option(help="Time between steps, s.")] = 2.0,
+    transition: Annotated[float, typer.Option(help="Duration of one smoothed step, s.")] = 1.0,
+    duration: Duration = 20.0,
+    ramp: Annotated[float, typer.Option(help="Rest at level at start and end, s.")] = 2.0,
+    seed: Annotated[int, typer.Option(help="Draws the levels.")] = 0,
+    rate: Rate = 100.0,
+    height: Height = 1.0,
+    quiet: Quiet = False,
+    as_json: Json = False,
+) -> None:
+    """Random attitude steps: every --hold seconds roll, pitch and yaw move to new
+    levels drawn within +-amplitude, each move a quintic smoothstep of --transition
+    seconds (continuous rates and accelerations); level at both ends."""
+    from omavctl.sim.tasks import steps
+
+    _write_task(
+        steps(amplitude, hold, transition, duration, rate, ramp, height, seed),
+        out,
+        quiet,
+        as_json,
+        "steps",
+    )

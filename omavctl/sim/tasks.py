@@ -1,4 +1,5 @@
-"""Task trajectories: attitude figure-8, position circle, pitching manoeuvre.
+"""Task trajectories: attitude figure-8, position circle, pitching manoeuvre,
+multi-sine wobble, frequency sweep (chirp), random attitude steps.
 
 Every task starts and ends at rest: its motion is multiplied by a smooth
 envelope (quintic smoothstep ramps of ``ramp`` seconds), and all derivatives
@@ -22,7 +23,18 @@ from omavctl.sim.trajectory import COLUMNS, LIMITS, Trajectory
 
 _LIMITS = np.array([LIMITS[c] for c in COLUMNS])
 
-__all__ = ["TASKS", "Envelope", "circle", "fig8", "heave", "pitch", "wobble", "yaw"]
+__all__ = [
+    "TASKS",
+    "Envelope",
+    "chirp",
+    "circle",
+    "fig8",
+    "heave",
+    "pitch",
+    "steps",
+    "wobble",
+    "yaw",
+]
 
 
 @dataclass(frozen=True)
@@ -318,6 +330,109 @@ def wobble(
     return _attitude_task(t, axes[0], axes[1], height, yaw=axes[2])
 
 
+@_plausible
+def chirp(
+    amplitude_deg: float = 12.0,
+    f_start: float = 0.1,
+    f_end: float = 0.8,
+    duration: float = 24.0,
+    rate: float = 100.0,
+    ramp: float = 2.0,
+    height: float = 1.0,
+) -> Trajectory:
+    """Roll/pitch/yaw frequency sweep: a linear chirp from ``f_start`` to ``f_end`` Hz.
+
+    Phase ``phi(t) = 2 pi (f_start t + (f_end - f_start) t^2 / (2 duration))``;
+    ``roll = A e(t) sin(phi)``, ``pitch = A e(t) sin(phi + pi/2)`` and
+    ``yaw = A/2 e(t) sin(phi + pi/4)``: every axis sees every frequency of the
+    band once, so a lag or a delay shows as a phase that grows with frequency.
+    """
+    _check(duration, ramp, rate)
+    if amplitude_deg <= 0:
+        raise ConfigError(f"--amplitude must be > 0, got {amplitude_deg:g}")
+    if not 0 < f_start < f_end:
+        raise ConfigError(
+            f"--f-start and --f-end must be 0 < start < end, got {f_start:g}, {f_end:g}"
+        )
+    t = _grid(duration, rate)
+    e, de, dde, _ = Envelope(duration, ramp)(t)
+    sweep = (f_end - f_start) / duration
+    phi = 2 * np.pi * (f_start * t + 0.5 * sweep * t**2)
+    dphi = 2 * np.pi * (f_start + sweep * t)
+    ddphi = 2 * np.pi * sweep
+    amp = np.deg2rad(amplitude_deg)
+    axes = []
+    for scale, offset in ((1.0, 0.0), (1.0, np.pi / 2), (0.5, np.pi / 4)):
+        s, c = np.sin(phi + offset), np.cos(phi + offset)
+        a = amp * scale
+        v = a * e * s
+        d1 = a * (de * s + e * dphi * c)
+        d2 = a * (dde * s + 2 * de * dphi * c + e * (ddphi * c - dphi**2 * s))
+        axes.append((v, d1, d2))
+    return _attitude_task(t, axes[0], axes[1], height, yaw=axes[2])
+
+
+def _smoothstep(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quintic 0 -> 1 on ``u`` in [0, 1] (clipped outside) and its first two
+    derivatives with respect to ``u``, each shaped like ``u``."""
+    x = np.clip(u, 0.0, 1.0)
+    inside = (u > 0) & (u < 1)
+    v = 10 * x**3 - 15 * x**4 + 6 * x**5
+    d1 = np.where(inside, 30 * x**2 - 60 * x**3 + 30 * x**4, 0.0)
+    d2 = np.where(inside, 60 * x - 180 * x**2 + 120 * x**3, 0.0)
+    return v, d1, d2
+
+
+@_plausible
+def steps(
+    amplitude_deg: float = 15.0,
+    hold: float = 2.0,
+    transition: float = 1.0,
+    duration: float = 20.0,
+    rate: float = 100.0,
+    ramp: float = 2.0,
+    height: float = 1.0,
+    seed: int = 0,
+) -> Trajectory:
+    """Random attitude steps: roll, pitch and yaw jump to new levels every ``hold`` s.
+
+    Levels are drawn (``seed``) uniformly within +-``amplitude_deg`` (yaw half of
+    it); each change is a quintic smoothstep of ``transition`` s (continuous rate
+    and acceleration, peak acceleration 5.8 x step / transition^2, so flyable).
+    The flight rests for ``ramp`` s at both ends and its last step returns to level.
+    """
+    _check(duration, ramp, rate)
+    if amplitude_deg <= 0:
+        raise ConfigError(f"--amplitude must be > 0, got {amplitude_deg:g}")
+    if not 0 < hold < duration:
+        raise ConfigError(f"--hold must be > 0 and below --duration, got {hold:g}")
+    if not 0 < transition <= hold:
+        raise ConfigError(
+            f"--transition must be > 0 and at most --hold ({hold:g} s), got {transition:g}"
+        )
+    room = (duration - 2 * ramp - transition) / hold
+    if not room >= 1:  # also a NaN option
+        raise ConfigError(
+            f"--duration ({duration:g} s) leaves no room for two steps of --hold {hold:g} s "
+            f"between the --ramp ({ramp:g} s) rests"
+        )
+    n_steps = int(np.floor(room)) + 1
+    t = _grid(duration, rate)
+    rng = np.random.default_rng([seed, 0x57E9])
+    amp = np.deg2rad(amplitude_deg)
+    levels = rng.uniform(-amp, amp, (n_steps - 1, 3)) * np.array([1.0, 1.0, 0.5])
+    levels = np.vstack([np.zeros(3), levels, np.zeros(3)])
+    jumps = np.diff(levels, axis=0)  # (n_steps, 3)
+    starts = ramp + hold * np.arange(n_steps)
+    u = (t[:, None] - starts[None, :]) / transition  # (N, n_steps)
+    s, ds, dds = _smoothstep(u)
+    axes = [
+        (s @ jumps[:, k], ds @ jumps[:, k] / transition, dds @ jumps[:, k] / transition**2)
+        for k in range(3)
+    ]
+    return _attitude_task(t, axes[0], axes[1], height, yaw=axes[2])
+
+
 #: Task generators by name (CLI subcommands are derived from this).
 TASKS = {
     "fig8": fig8,
@@ -326,4 +441,6 @@ TASKS = {
     "yaw": yaw,
     "heave": heave,
     "wobble": wobble,
+    "chirp": chirp,
+    "steps": steps,
 }

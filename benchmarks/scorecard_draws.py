@@ -1,0 +1,345 @@
+"""The scorecard's draws (benchmarks/scorecard.py): what is hidden, what is flown, and
+the user's loop through the real CLI.
+
+A draw is fully determined by its split and index: the split's seed base plus
+the index seeds one generator that draws the hidden effects and their sizes,
+the two trajectory families and their options, the controller timing, the log
+formats, the sensor-noise level and every seed. The loop runs ``omavctl`` in a
+subprocess with ``--json`` exactly as a user would: ``simulate`` both flights,
+``fit`` with defaults, ``evaluate`` the held-out flight, the ``fit_command`` the
+verdict prints, ``evaluate`` again; two rounds.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: The split: draws tuned on and draws only reported. Report draws use other
+#: seeds and always fly the held-back family (``steps``) as one of their flights.
+SPLITS: dict[str, dict[str, Any]] = {
+    "tune": {"seed_base": 0, "families": ("fig8", "wobble", "chirp"), "held_back": None},
+    "report": {
+        "seed_base": 1_000_000,
+        "families": ("fig8", "wobble", "chirp"),
+        "held_back": "steps",
+    },
+}
+#: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
+FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
+TIMINGS = {"100Hz": None, "1kHz": 1000.0}
+ROUNDS = 2
+DURATION = 20.0
+_NOISE = {"gyro": 0.003, "attitude": 0.002, "position": 0.001, "velocity": 0.01}
+
+
+def _signs(rng: np.random.Generator, n: int) -> np.ndarray:
+    return rng.choice([-1.0, 1.0], n) * rng.uniform(0.5, 1.0, n)
+
+
+#: The simulator's default actuator values of the effects it always has (docs/physics.md):
+#: a hidden lag or interference is the default plus the drawn part, and its size is
+#: the drawn part's.
+DEFAULTS: dict[str, dict[str, float]] = {
+    "servo_lag": {"T_s": 0.005},
+    "motor_lag": {"T_m": 0.005},
+    "rotor_interference": {"rotor_rotor": 0.25, "rotor_arm": 0.04},
+}
+
+
+def _vec(x: np.ndarray) -> list[float]:
+    return [round(float(v), 5) for v in x]
+
+
+def hidden_parameters(name: str, scale: float, rng: np.random.Generator) -> dict[str, Any]:
+    """Truth parameters of one hidden effect at ``scale`` x a typical size.
+
+    1x is chosen so that on a 20 s figure-8, wobble or chirp at the default noise the
+    effect's RMS contribution is a few times the claim floor (3x the noise,
+    about 0.085 rad/s^2), measured with :func:`effect_size`; every component is
+    non-zero. ``gyro_bias`` acts only through the gyroscopic term and stays
+    far below the floor at any plausible size.
+    """
+    d = DEFAULTS.get(name, {})
+    if name == "rotational_drag":
+        return {"D": _vec(scale * np.array([0.1, 0.1, 0.06]) * rng.uniform(0.7, 1.3, 3))}
+    if name == "com_offset":
+        return {"r": _vec(scale * np.array([0.002, 0.002, 0.001]) * _signs(rng, 3))}
+    if name == "inertia_error":
+        return {"scale": [round(float(x), 4) for x in 1.0 + scale * 0.2 * _signs(rng, 3)]}
+    if name == "servo_lag":
+        return {"T_s": round(d["T_s"] + scale * 0.04, 4)}
+    if name == "motor_lag":
+        return {"T_m": round(d["T_m"] + scale * 0.06, 4)}
+    if name == "command_delay":
+        return {"tau_d": round(max(0.003, scale * 0.04), 4)}
+    if name == "gyro_bias":
+        return {"b": _vec(scale * 0.02 * _signs(rng, 3))}
+    if name == "rotor_interference":
+        return {
+            "rotor_rotor": round(d["rotor_rotor"] + 0.15 * scale, 4),
+            "rotor_arm": round(d["rotor_arm"] + 0.03 * scale, 4),
+        }
+    raise ValueError(f"no typical size for effect {name!r}")
+
+
+def _task_options(family: str, rng: np.random.Generator) -> list[str]:
+    """``omavctl task`` options of one flight (random within flyable ranges)."""
+    seed = str(int(rng.integers(0, 10_000)))
+    if family == "fig8":
+        a = f"{rng.uniform(15, 26):.1f}"
+        return ["--roll", a, "--pitch", a, "--period", f"{rng.uniform(5, 8):.2f}"]
+    if family == "wobble":
+        return [
+            "--amplitude",
+            f"{rng.uniform(15, 25):.1f}",
+            "--bandwidth",
+            f"{rng.uniform(0.6, 0.8):.2f}",
+            "--seed",
+            seed,
+        ]
+    if family == "chirp":
+        return [
+            "--amplitude",
+            f"{rng.uniform(10, 15):.1f}",
+            "--f-end",
+            f"{rng.uniform(0.6, 1.0):.2f}",
+        ]
+    if family == "steps":
+        return ["--amplitude", f"{rng.uniform(12, 20):.1f}", "--seed", seed]
+    raise ValueError(f"unknown family {family!r}")
+
+
+def _families(split: dict[str, Any], rng: np.random.Generator) -> list[str]:
+    pool = list(split["families"])
+    if split["held_back"] is None:
+        return [str(x) for x in rng.choice(pool, 2, replace=False)]
+    pair = [split["held_back"], str(rng.choice(pool))]
+    return pair if rng.random() < 0.5 else pair[::-1]
+
+
+def draw_spec(split_name: str, index: int, effects: list[str]) -> dict[str, Any]:
+    """Everything one draw hides and flies (JSON-ready), from its split and index.
+
+    ``effects``: the registry's names (every one can be drawn).
+    """
+    split = SPLITS[split_name]
+    seed = split["seed_base"] + index
+    rng = np.random.default_rng([seed, 0x5C0])
+    n_hidden = int(rng.choice([0, 1, 2], p=[0.2, 0.5, 0.3]))
+    names = sorted(str(x) for x in rng.choice(sorted(effects), n_hidden, replace=False))
+    scales = {n: float(np.exp(rng.uniform(np.log(0.2), np.log(2.5)))) for n in names}
+    hidden = {n: hidden_parameters(n, scales[n], rng) for n in names}
+    fams = _families(split, rng)
+    timing = str(rng.choice(sorted(TIMINGS)))
+    noise = float(rng.uniform(0.5, 2.0))
+    fmts = [str(x) for x in rng.choice(sorted(FORMATS), 2)]
+    truth: dict[str, Any] = {
+        "seed": int(rng.integers(0, 2**31)),
+        "effects": hidden,
+        "noise": {k: round(v * noise, 6) for k, v in _NOISE.items()},
+    }
+    if TIMINGS[timing] is not None:
+        truth["timing"] = {"controller_rate_hz": TIMINGS[timing]}
+    flights = []
+    for role, fam, fmt in zip(("fit", "held"), fams, fmts, strict=True):
+        flights.append(
+            {
+                "role": role,
+                "family": fam,
+                "options": _task_options(fam, rng),
+                "format": FORMATS[fmt],
+                "log": f"{role}{fmt}",
+                "seed": int(rng.integers(0, 2**31)),
+            }
+        )
+    return {
+        "split": split_name,
+        "index": index,
+        "seed": seed,
+        "hidden": hidden,
+        "scales": scales,
+        "timing": timing,
+        "noise_scale": round(noise, 4),
+        "truth": truth,
+        "flights": flights,
+    }
+
+
+class StepFailed(RuntimeError):
+    """A CLI step of the loop exited non-zero (its command and last stderr line)."""
+
+
+def omavctl(args: list[str], cwd: Path, log: list[dict[str, Any]]) -> dict[str, Any]:
+    """Run ``omavctl ARGS --json -q`` in ``cwd``; its JSON object. Appends the
+    command and its wall time to ``log``; raises StepFailed on a non-zero exit."""
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(ROOT),
+        "OMP_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+    }
+    argv = [sys.executable, "-m", "omavctl", *args, "--json", "-q"]
+    start = time.perf_counter()
+    proc = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, check=False)
+    seconds = time.perf_counter() - start
+    log.append({"command": shlex.join(["omavctl", *args]), "seconds": round(seconds, 2)})
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
+        raise StepFailed(f"{shlex.join(['omavctl', *args])}: exit {proc.returncode}: {last}")
+    out: dict[str, Any] = json.loads(proc.stdout)
+    return out
+
+
+def fly(spec: dict[str, Any], d: Path, log: list[dict[str, Any]]) -> None:
+    """Write the truth file and both references, and simulate both flights in ``d``."""
+    (d / "truth.yaml").write_text(yaml.safe_dump(spec["truth"], sort_keys=True))
+    for f in spec["flights"]:
+        ref = f"{f['role']}-ref.csv"
+        omavctl(
+            ["task", f["family"], *f["options"], "--duration", f"{DURATION:g}", "--out", ref],
+            d,
+            log,
+        )
+        omavctl(
+            [
+                "simulate",
+                "--reference",
+                ref,
+                "--truth",
+                "truth.yaml",
+                "--seed",
+                str(f["seed"]),
+                "--out",
+                f["log"],
+            ],
+            d,
+            log,
+        )
+
+
+def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
+    """What the scoring needs from one evaluation: its ``--json`` object and its file."""
+    doc = json.loads(eval_path.read_text())
+    diag = doc.get("diagnosis", {})
+    model = out["models"][0]
+    keep = (
+        "name",
+        "missing",
+        "ambiguous_with",
+        "contribution_rms",
+        "explained_variance",
+        "parameters",
+    )
+    return {
+        "missing": list(out.get("missing") or []),
+        "candidates": [{k: e.get(k) for k in keep} for e in diag.get("missing_effects", [])],
+        "learned": [e["name"] for e in diag.get("learned", []) if e.get("missing")],
+        "model_effects": list(model.get("effects") or []),
+        "rmse_nominal": out["rmse_nominal"],
+        "rmse_physics": model["rmse_effects"],
+        "rmse_model": model["rmse"],
+        "coverage": model["coverage_2sigma"],
+        "coverage_inside": doc.get("envelope", {}).get("coverage_inside"),
+        "claim_floor": diag.get("method", {}).get("min_contribution_rms"),
+        "noise": diag.get("method", {}).get("measurement_noise_std"),
+        "fit_command": out.get("fit_command"),
+        "flags": out.get("flags", []),
+        "verdict": [v.get("text", "")[:400] for v in out.get("verdict", [])],
+    }
+
+
+def _evaluate(model: str, d: Path, log: list[dict[str, Any]], held: str) -> dict[str, Any]:
+    ev = Path(model).stem + ".eval.json"
+    out = omavctl(["evaluate", held, "--model", model, "--out", ev], d, log)
+    return round_record(out, d / ev)
+
+
+def loop(spec: dict[str, Any], d: Path, log: list[dict[str, Any]]) -> tuple[list[Any], list[Any]]:
+    """The user's loop: fit with defaults, evaluate, run the printed fit command,
+    evaluate again, ROUNDS times. Returns (rounds, fits)."""
+    fit_log, held = (f["log"] for f in spec["flights"])
+    fits = [
+        {
+            "command": "fit (defaults)",
+            **_fit_summary(omavctl(["fit", fit_log, "--out", "m0.npz"], d, log)),
+        }
+    ]
+    rounds = [_evaluate("m0.npz", d, log, held)]
+    for _ in range(ROUNDS):
+        cmd = rounds[-1]["fit_command"]
+        if not cmd:
+            break
+        argv = shlex.split(cmd)
+        if argv[:1] != ["omavctl"] or "--out" not in argv:
+            raise StepFailed(f"fit_command is not an omavctl fit with --out: {cmd}")
+        model = argv[argv.index("--out") + 1]
+        fits.append({"command": cmd, **_fit_summary(omavctl(argv[1:], d, log))})
+        rounds.append(_evaluate(model, d, log, held))
+    return rounds, fits
+
+
+def _fit_summary(out: dict[str, Any]) -> dict[str, Any]:
+    return {"effects": out.get("effects") or {}}
+
+
+def effect_size(log_path: Path, hidden: dict[str, Any]) -> dict[str, float]:
+    """RMS contribution (rad/s^2, over samples and axes, as the diagnosis measures a
+    candidate's) of each hidden effect on a flight: its regressor times the true
+    parameters beyond the simulator's defaults (first order in them)."""
+    from omavctl.learn.flights import log_samples
+    from omavctl.learn.signal import DEFAULT_SG_ORDER, DEFAULT_SG_WINDOW, SavitzkyGolay
+    from omavctl.physics.effects import get_effect
+    from omavctl.vehicle import default_vehicle
+
+    vehicle = default_vehicle()
+    sg = SavitzkyGolay(DEFAULT_SG_WINDOW, DEFAULT_SG_ORDER, 1.0 / vehicle.gains.rate_hz)
+    s, _ = log_samples(log_path, vehicle, sg)
+    sizes = {}
+    for name, params in hidden.items():
+        eff = get_effect(name)
+
+        def theta(p: dict[str, Any], eff: Any = eff) -> np.ndarray:
+            return np.asarray(
+                eff.to_theta({k: np.atleast_1d(np.asarray(v, float)) for k, v in p.items()}), float
+            )
+
+        drawn = theta(params) - (theta(DEFAULTS[name]) if name in DEFAULTS else 0.0)
+        contrib = s.regressors[name] @ drawn
+        sizes[name] = float(np.sqrt(np.mean(contrib**2)))
+    return sizes
+
+
+def run_draw(spec: dict[str, Any], workdir: Path) -> dict[str, Any]:
+    """One draw end to end; the record (``error`` set when a step failed)."""
+    d = workdir / f"{spec['split']}-{spec['index']:04d}"
+    d.mkdir(parents=True, exist_ok=True)
+    log: list[dict[str, Any]] = []
+    record: dict[str, Any] = {**spec, "rounds": [], "fits": [], "error": None, "commands": log}
+    start = time.perf_counter()
+    try:
+        fly(spec, d, log)
+        record["rounds"], record["fits"] = loop(spec, d, log)
+        held = d / spec["flights"][1]["log"]
+        record["sizes"] = effect_size(held, spec["hidden"])
+        floor = record["rounds"][0]["claim_floor"]
+        ratios = [v / floor for v in record["sizes"].values()] if floor else []
+        record["size_ratio"] = min(ratios) if ratios else None
+    except StepFailed as exc:
+        record["error"] = str(exc)
+    record["seconds"] = round(time.perf_counter() - start, 1)
+    if record.get("size_ratio") is not None and not math.isfinite(record["size_ratio"]):
+        record["size_ratio"] = None
+    return record

@@ -1,0 +1,283 @@
+"""Scoring of the scorecard's draws (benchmarks/scorecard.py): pure functions on records.
+
+A record is one draw as written to the JSON lines file: what was hidden
+(``hidden``: effect name -> truth parameters; ``size_ratio``: the hidden
+effects' RMS contribution on the held-out flight over the tool's claim floor)
+and what the loop produced (``rounds``: per evaluation the claims, the model's
+effects, per-axis errors and coverages; ``fits``: per fit the fitted effect
+parameters with their standard errors or 95 % intervals). Every judgement is
+made here, so the tables can be rebuilt from the records without re-running.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+#: The simulator's documented default imperfections (docs/physics.md: rotor
+#: interference, 3 % thrust spread, 5 ms servo and motor lags) and the registry
+#: effects that describe them: naming one of these is right, not invented.
+#: ``com_offset`` is the thrust spread's look-alike (a spread shifts where the
+#: thrust acts; omavctl/physics/effects.py says so in its look-alikes).
+DEFAULT_IMPERFECTIONS = frozenset({"rotor_interference", "com_offset", "servo_lag", "motor_lag"})
+
+#: Size bins: the hidden effect's RMS contribution over the claim floor (3x noise).
+SIZE_BINS: tuple[tuple[str, float, float], ...] = (
+    ("< 1x floor", 0.0, 1.0),
+    ("1-3x floor", 1.0, 3.0),
+    ("3-10x floor", 3.0, 10.0),
+    (">= 10x floor", 10.0, math.inf),
+)
+FALL = 0.5  # the physics-only error must fall by at least this fraction
+WORSE = 1.05  # the model may not exceed physics-only by more than this on an axis
+PARAM_TOL = 0.15  # fitted parameter within 15 % of the truth
+COVER_MIN, COVER_MAX_INSIDE = 0.85, 0.99
+Z95 = 1.959963984540054
+
+
+def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
+    """Wilson score interval (lo, hi) of a binomial rate k/n; (0, 1) when n is 0."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    den = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def claimed_sets(evaluation: Mapping[str, Any]) -> list[set[str]]:
+    """What one evaluation claims is missing: one set per named effect, the name with
+    the look-alikes it is ambiguous with (an ambiguous answer names the set)."""
+    ambiguous = {e.get("name"): e.get("ambiguous_with") or [] for e in evaluation["candidates"]}
+    return [{name, *ambiguous.get(name, [])} for name in evaluation["missing"]]
+
+
+def _allowed(hidden: Iterable[str]) -> set[str]:
+    return set(hidden) | DEFAULT_IMPERFECTIONS
+
+
+def invented(names: Iterable[str], hidden: Iterable[str]) -> list[str]:
+    """Names the vehicle does not have: neither hidden nor a default imperfection."""
+    allowed = _allowed(hidden)
+    return sorted(n for n in set(names) if n not in allowed)
+
+
+def first_answer_right(record: Mapping[str, Any]) -> bool:
+    """The first evaluation names a hidden effect (alone or in an ambiguous set that
+    holds it) and invents nothing; with nothing hidden, it claims nothing the
+    vehicle lacks (a default imperfection may be named)."""
+    hidden = set(record["hidden"])
+    sets = claimed_sets(record["rounds"][0])
+    allowed = _allowed(hidden)
+    # a claimed set is fine if it holds something the vehicle has
+    if any(not (s & allowed) for s in sets):
+        return False
+    if not hidden:
+        return True
+    return any(s & hidden for s in sets)
+
+
+def final_names(record: Mapping[str, Any]) -> set[str]:
+    """Effects the loop ends with: the last model's effects and the last evaluation's claims."""
+    last = record["rounds"][-1]
+    return set(last["model_effects"]) | set(last["missing"])
+
+
+def ends_invented(record: Mapping[str, Any]) -> bool:
+    """The loop ends with an effect the vehicle does not have."""
+    return bool(invented(final_names(record), record["hidden"]))
+
+
+def rss(errors: Mapping[str, float]) -> float:
+    """Root-sum-square over axes."""
+    return math.sqrt(sum(float(v) ** 2 for v in errors.values()))
+
+
+def physics_fall(record: Mapping[str, Any]) -> float:
+    """Fraction by which the physics-only held-out error (RSS over axes) fell from the
+    first model's to the last's (negative: it grew)."""
+    first = rss(record["rounds"][0]["rmse_physics"])
+    last = rss(record["rounds"][-1]["rmse_physics"])
+    return 1.0 - last / first if first > 0 else 0.0
+
+
+def worse_axes(evaluation: Mapping[str, Any]) -> list[str]:
+    """Axes where the model's held-out error exceeds physics-only by more than 5 %."""
+    phys, model = evaluation["rmse_physics"], evaluation["rmse_model"]
+    return [a for a in sorted(model) if model[a] > WORSE * phys[a]]
+
+
+def flat_parameters(entry: Mapping[str, Any]) -> dict[str, Any]:
+    """A fitted effect's entry as one flat mapping ``{P, P_stderr, P_ci95, ...}``,
+    whichever layout it came in: flat (the model file's), ``{"values": {P},
+    "stderr": {P}, "ci95": {P}}`` (``fit --json``'s) or ``{"parameters": {...}}``."""
+    if "parameters" in entry:
+        return flat_parameters(entry["parameters"])
+    if "values" not in entry:
+        return dict(entry)
+    flat: dict[str, Any] = dict(entry["values"])
+    for kind in ("stderr", "ci95"):
+        for name, v in (entry.get(kind) or {}).items():
+            flat[f"{name}_{kind}"] = v
+    return flat
+
+
+def interval(entry: Mapping[str, Any], name: str, i: int) -> tuple[float, float] | None:
+    """The 95 % interval of component ``i`` of parameter ``name`` in a fitted effect's
+    entry: a real interval if given (``ci95`` as ``{name: [[lo, hi], ...]}``, or
+    ``name_ci95`` as ``[[lo, hi], ...]`` or ``[lo, hi]`` for a scalar), otherwise the
+    estimate +- 1.96 standard errors (``name_stderr``); None when neither exists."""
+    ci = entry.get(f"{name}_ci95")
+    if ci is None and isinstance(entry.get("ci95"), Mapping):
+        ci = entry["ci95"].get(name)
+    if ci is not None:
+        rows = ci if isinstance(ci[0], (list, tuple)) else [ci]
+        lo, hi = rows[i]
+        return float(lo), float(hi)
+    se = entry.get(f"{name}_stderr")
+    s = None if se is None else _component(se, i)
+    if s is None or not math.isfinite(s):
+        return None  # no standard error: the data could not determine it
+    est = _component(entry[name], i)
+    return est - Z95 * s, est + Z95 * s
+
+
+def _component(value: Any, i: int) -> float:
+    x = value[i] if isinstance(value, (list, tuple)) else value
+    return math.nan if x is None else float(x)
+
+
+@dataclass(frozen=True)
+class ParamCheck:
+    """One hidden parameter component against the last fit that estimated it."""
+
+    effect: str
+    name: str
+    truth: float
+    estimate: float
+    interval: tuple[float, float] | None
+
+    @property
+    def within_tol(self) -> bool:
+        return abs(self.estimate - self.truth) <= PARAM_TOL * abs(self.truth)
+
+    @property
+    def covered(self) -> bool:
+        return self.interval is not None and self.interval[0] <= self.truth <= self.interval[1]
+
+    @property
+    def narrow(self) -> bool:
+        """The interval's half-width is under 15 % of the estimate."""
+        if self.interval is None:
+            return False
+        return (self.interval[1] - self.interval[0]) / 2 < PARAM_TOL * abs(self.estimate)
+
+
+def param_checks(record: Mapping[str, Any]) -> list[ParamCheck]:
+    """Every component of every hidden parameter that the loop's last fit estimated."""
+    fitted: dict[str, Any] = {}
+    for fit in record["fits"]:
+        fitted.update(fit.get("effects") or {})
+    out = []
+    for effect, params in record["hidden"].items():
+        entry = fitted.get(effect)
+        if entry is None:
+            continue
+        for name, truth in params.items():
+            values = truth if isinstance(truth, list) else [truth]
+            for i, t in enumerate(values):
+                label = f"{name}[{i}]" if isinstance(truth, list) else name
+                params_of = flat_parameters(entry)
+                est = _component(params_of[name], i)
+                ci = interval(params_of, name, i)
+                out.append(ParamCheck(effect, label, float(t), est, ci))
+    return out
+
+
+def size_ratio(record: Mapping[str, Any]) -> float:
+    """The largest hidden effect's RMS contribution on the held-out flight over the
+    first evaluation's claim floor (the first answer must name one of them); the
+    record's stored ``size_ratio`` when it has no ``sizes``."""
+    sizes = record.get("sizes")
+    floor = record["rounds"][0].get("claim_floor") if record.get("rounds") else None
+    if sizes and floor:
+        return max(float(v) for v in sizes.values()) / float(floor)
+    return float(record.get("size_ratio") or 0.0)
+
+
+def size_bin(record: Mapping[str, Any]) -> str:
+    """The record's size bin (``none`` for a draw without hidden effects)."""
+    if not record["hidden"]:
+        return "none"
+    r = size_ratio(record)
+    for label, lo, hi in SIZE_BINS:
+        if lo <= r < hi:
+            return label
+    return SIZE_BINS[-1][0]
+
+
+def coverage_checks(record: Mapping[str, Any]) -> tuple[list[bool], list[bool]]:
+    """Per axis of the held-out flight, last model: 2-sigma coverage >= 0.85 (all
+    samples), and <= 0.99 on the samples inside the fit flight's inputs."""
+    last = record["rounds"][-1]
+    low = [float(c) >= COVER_MIN for c in last["coverage"].values()]
+    inside = [float(c) <= COVER_MAX_INSIDE for c in (last.get("coverage_inside") or {}).values()]
+    return low, inside
+
+
+def judge(record: Mapping[str, Any]) -> dict[str, Any]:
+    """Every per-draw judgement of one record (counts for the tables)."""
+    checks = param_checks(record)
+    low, inside = coverage_checks(record)
+    hidden = bool(record["hidden"])
+    return {
+        "first_right": first_answer_right(record),
+        "none_silent": None if hidden else not record["rounds"][0]["missing"],
+        "fall": (physics_fall(record) >= FALL) if hidden else None,
+        "invented": ends_invented(record),
+        "worse": bool(worse_axes(record["rounds"][-1])),
+        "param_within": [c.within_tol for c in checks],
+        "param_covered": [c.covered for c in checks],
+        "narrow_within": [c.within_tol for c in checks if c.narrow],
+        "coverage_low_ok": low,
+        "coverage_inside_ok": inside,
+    }
+
+
+#: (row label, judgement key, goal) of the table
+METRICS: tuple[tuple[str, str, str], ...] = (
+    (
+        "first answer right (hidden effect or a set holding it; none: no claim)",
+        "first_right",
+        ">= 90 %",
+    ),
+    ("none draws: no claim at all (strict: a default imperfection counts too)", "none_silent", "-"),
+    ("physics-only held-out error falls >= 50 % (hidden effects only)", "fall", ">= 90 %"),
+    ("ends with an effect the vehicle does not have", "invented", "0"),
+    ("model > 1.05x physics-only on an axis (held-out)", "worse", "0"),
+    ("fitted parameter within 15 % of the truth", "param_within", "-"),
+    ("truth inside the reported 95 % interval", "param_covered", ">= 85 %"),
+    ("within 15 % where the interval's half-width < 15 %", "narrow_within", ">= 90 %"),
+    ("2-sigma coverage >= 0.85 (axis-flights)", "coverage_low_ok", "all"),
+    (
+        "2-sigma coverage <= 0.99 inside the fit inputs (axis-flights)",
+        "coverage_inside_ok",
+        ">= 90 %",
+    ),
+)
+
+
+def tally(judgements: Sequence[Mapping[str, Any]], key: str) -> tuple[int, int]:
+    """(successes, trials) of one judgement over draws (lists count per element)."""
+    k = n = 0
+    for j in judgements:
+        v = j[key]
+        if v is None:
+            continue
+        items = v if isinstance(v, list) else [v]
+        k += sum(bool(x) for x in items)
+        n += len(items)
+    return k, n
