@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from benchmarks.never_hurts import attitude_steps
 from omavctl.cli import app
 from omavctl.learn.control_loss import (
     PERSIST_SECONDS,
@@ -26,35 +27,11 @@ from omavctl.learn.model_file import save_model
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import align, write_log
 from omavctl.sim.plant import simulate
-from omavctl.sim.tasks import _attitude_task, fig8, wobble
-from omavctl.sim.trajectory import Trajectory
+from omavctl.sim.tasks import fig8, wobble
 from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 DRAG = {"effects": {"rotational_drag": {"D": [0.05, 0.05, 0.03]}}}
-
-
-def attitude_steps(
-    amplitude_deg: float, move: float, hold: float, duration: float, seed: int
-) -> Trajectory:
-    """Random attitude steps: every ``hold`` s a new roll, pitch (and half-size yaw)
-    target within +-amplitude, reached in ``move`` s along a quintic (rates and
-    accelerations consistent with the angles); level at both ends."""
-    t = np.arange(round(duration * 100) + 1) / 100.0
-    rng = np.random.default_rng(seed)
-    n = int(duration / hold)
-    targets = rng.uniform(-1, 1, (n + 1, 3)) * np.deg2rad(amplitude_deg) * [1, 1, 0.5]
-    targets[0] = targets[-1] = 0.0
-    value, rate, acc = (np.zeros((t.size, 3)) for _ in range(3))
-    for k in range(1, n + 1):
-        s = np.clip((t - (k * hold - move)) / move, 0.0, 1.0)
-        inside = ((s > 0) & (s < 1))[:, None]
-        step = targets[k] - targets[k - 1]
-        value += (10 * s**3 - 15 * s**4 + 6 * s**5)[:, None] * step
-        rate += inside * ((30 * s**2 - 60 * s**3 + 30 * s**4) / move)[:, None] * step
-        acc += inside * ((60 * s - 180 * s**2 + 120 * s**3) / move**2)[:, None] * step
-    axes = [(value[:, i], rate[:, i], acc[:, i]) for i in range(3)]
-    return _attitude_task(t, axes[0], axes[1], 1.0, yaw=axes[2])
 
 
 def _loss(vehicle, log):
