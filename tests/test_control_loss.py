@@ -75,15 +75,26 @@ def test_a_tracking_error_must_persist_to_be_a_loss(vehicle):
     assert end == pytest.approx(t[-1])
 
 
-def test_wrench_saturation_physical_and_normalised(vehicle):
+def test_saturation_is_judged_on_commands_in_newtons_only(vehicle, short_fig8):
+    """A normalised command's scale is unknown (a PX4 torque in +-1, or tau / 0.002):
+    no limit is judged on it; the same numbers in N m are far beyond the rotors."""
+    log = align(simulate(short_fig8, vehicle, truth_from_tree({}, vehicle), seed=0).log)
+    signals = dict(log.signals)
+    signals["torque_command"] = signals["torque_command"] / 0.002
+    scaled = replace(log, signals=signals)
+    s = residual_samples(log, vehicle, SavitzkyGolay(11, 2, 0.01))
+    args = (s.index, s.omega, s.omega_dot)
+    normalised = replace(vehicle, command_units={"torque": "normalised", "force": "N"})
+    assert not flight_control_loss(scaled, *args, normalised).any
+    (span,) = flight_control_loss(scaled, *args, vehicle).spans
+    assert "actuators' limits" in span[2]
+
+
+def test_wrench_saturation_is_the_allocations_thrust_limit(vehicle):
     hover = np.array([[0.0, 0.0, vehicle.mass * 9.81]])
     assert not wrench_saturated(hover, np.zeros((1, 3)), vehicle).any()
     torque = 2 * vehicle.n_arms * vehicle.max_thrust * vehicle.arm_length
     assert wrench_saturated(hover, np.array([[torque, 0.0, 0.0]]), vehicle).all()
-    normalised = replace(vehicle, command_units={"torque": "normalised", "force": "normalised"})
-    force = np.array([[0, 0, 0.5], [0, 0, 0.5], [0, 0, 1.0]])
-    torque_n = np.array([[0.3, -0.2, 0.1], [0.0, -1.0, 0.0], [0.0, 0.0, 0.0]])
-    assert wrench_saturated(force, torque_n, normalised).tolist() == [False, True, True]
     # saturation flags a loss only when it lasts
     t = np.arange(200) / 100.0
     zeros = np.zeros((200, 3))

@@ -21,9 +21,9 @@ needs. A sample is out of control when
   :data:`PERSIST_SECONDS` in a row (the error persists or grows instead of
   decaying as a controlled loop's does), or
 - **the actuators saturate**: the commanded wrench is beyond what the rotors
-  can give (physical commands: a rotor of the allocation beyond ``max_thrust``;
-  normalised commands: a torque at +-1 or a thrust at 1) for at least
-  :data:`SATURATION_SECONDS` in a row, or
+  can give (a rotor of the allocation beyond ``max_thrust``) for at least
+  :data:`SATURATION_SECONDS` in a row (commands in N and N m only: a normalised
+  command's scale, and so its limit, is unknown), or
 - its body rate exceeds :data:`MAX_BODY_RATE` on any axis (an omav flies well
   below 3 rad/s; a tumbling multirotor spins at tens to hundreds), or
 - its measured angular acceleration exceeds :data:`ACCELERATION_MARGIN` times
@@ -83,8 +83,6 @@ TRACKING_FLOOR = float(np.deg2rad(30.0))
 PERSIST_SECONDS = 0.2
 #: s, a wrench command beyond the actuators' limits for this long in a row is a loss.
 SATURATION_SECONDS = 0.3
-#: Normalised commands at or beyond this magnitude are at their limit.
-NORMALISED_LIMIT = 0.999
 #: s, flagged spans start this much earlier.
 ONSET_SECONDS = 0.5
 #: s, flagged samples closer than this form one span.
@@ -169,20 +167,11 @@ def tracking_allowance(reference: np.ndarray, dt: float, vehicle: Vehicle) -> np
 def wrench_saturated(force: np.ndarray, torque: np.ndarray, vehicle: Vehicle) -> np.ndarray:
     """Whether each commanded wrench is beyond the actuators' limits (n,) bool.
 
-    force, torque (n, 3) as logged. Physical commands: a rotor thrust of the
-    allocation above ``max_thrust``; normalised ones: a torque axis at
-    :data:`NORMALISED_LIMIT` or beyond, or a thrust there.
+    force (n, 3) N, torque (n, 3) N m as logged: a rotor thrust of the
+    allocation above ``max_thrust``.
     """
-    out = np.zeros(force.shape[0], dtype=bool)
-    with np.errstate(invalid="ignore"):
-        if vehicle.torque_normalised:
-            out |= (np.abs(torque) >= NORMALISED_LIMIT).any(axis=1)
-        if vehicle.force_normalised:
-            out |= np.linalg.norm(force, axis=1) >= NORMALISED_LIMIT
-        if not (vehicle.torque_normalised or vehicle.force_normalised):
-            wrench = np.nan_to_num(np.concatenate([force, torque], axis=1))
-            out |= Allocation(vehicle).allocate(wrench).thrust_high.any(axis=1)
-    return out
+    wrench = np.nan_to_num(np.concatenate([force, torque], axis=1))
+    return np.asarray(Allocation(vehicle).allocate(wrench).thrust_high.any(axis=1))
 
 
 def _persistent(t: np.ndarray, flags: np.ndarray, seconds: float) -> np.ndarray:
@@ -279,7 +268,8 @@ def flight_control_loss(
 ) -> ControlLoss:
     """:func:`out_of_control` for the samples at grid indices ``index`` (n,) of an
     aligned ``flight``: tracking from its ``attitude`` and ``reference_attitude``
-    when it has both, saturation from its wrench command; omega, omega_dot (n, 3)."""
+    when it has both, saturation from its wrench command when in N and N m; omega,
+    omega_dot (n, 3)."""
     t = flight.t[index]
     tracking = None
     if flight.has("attitude") and flight.has("reference_attitude"):
@@ -287,7 +277,8 @@ def flight_control_loss(
         error = tracking_error(flight.signals["attitude"], reference)
         tracking = (error[index], tracking_allowance(reference, flight.dt, vehicle)[index])
     saturated = None
-    if flight.has("force_command") and flight.has("torque_command"):
+    physical = not (vehicle.torque_normalised or vehicle.force_normalised)
+    if physical and flight.has("force_command") and flight.has("torque_command"):
         force, torque = flight.signals["force_command"], flight.signals["torque_command"]
         saturated = wrench_saturated(force[index], torque[index], vehicle)
     return out_of_control(t, omega, omega_dot, vehicle, tracking, saturated)
