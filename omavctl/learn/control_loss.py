@@ -34,10 +34,10 @@ needs. A sample is out of control when
 
 **Logs without a reference** (an IMU and the commands only, as most real logs
 are): tracking cannot be judged, so only the actuator and physical limits
-apply (saturation, body rate, angular acceleration, finiteness). A motor that
-fails there is caught once the remaining rotors saturate or the vehicle spins
-up; a loss that stays within all limits is not flagged, and its samples stay
-in (the evaluation's metrics then show it).
+apply (saturation when the commands are in N and N m, body rate, angular
+acceleration, finiteness). A motor that fails there is caught once the remaining
+rotors saturate or the vehicle spins up; a loss that stays within all limits is
+not flagged, and its samples stay in (the evaluation's metrics then show it).
 
 Each span is widened by :data:`ONSET_SECONDS` before (the loss starts before
 the limits are crossed) and runs to the end of the valid data after the last
