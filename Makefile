@@ -58,7 +58,8 @@ fuzz: $(STAMP)
 
 # fit on one flight, evaluate on another: every hidden effect, two controller
 # timings, both directions, two trajectory pairs, without and with the diagnosed
-# effects, and the shared real log (about 5 minutes on 2 cores)
+# effects, the shared real log, and flights of other kinds (chirp, attitude steps:
+# benchmarks/never_hurts.py) (about 6 minutes on 2 cores)
 GENERALISE_LOGS ?= build/generalise
 generalise: $(STAMP)
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS)
@@ -67,6 +68,7 @@ generalise: $(STAMP)
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair check --with-effects
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair two-flights
 	$(BIN)/python benchmarks/generalise.py --workdir $(GENERALISE_LOGS) --pair two-flights --with-effects
+	$(BIN)/python benchmarks/never_hurts.py --workdir $(GENERALISE_LOGS)/never_hurts
 
 # fit and evaluate the Crazyflie and Betaflight logs of ../shared/data/real from
 # their motor outputs (docs/real-motors.md; about 10 minutes on 2 cores)

@@ -160,10 +160,10 @@ def test_clean_flights_lose_no_samples(vehicle):
         log = align(
             simulate(ref, vehicle, truth_from_tree({"timing": timing}, vehicle), seed=0).log
         )
-        from omavctl.learn.control_loss import out_of_control
+        from omavctl.learn.control_loss import flight_control_loss
 
         s = residual_samples(log, vehicle, SavitzkyGolay(11, 2, 0.01))
-        assert not out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual).any
+        assert not flight_control_loss(log, s.index, s.omega, s.omega_dot, vehicle).any
 
 
 def test_a_hidden_command_delay_is_named_and_its_fit_command_halves_the_error(

@@ -46,7 +46,7 @@ from omavctl.diagnose.metrics import (
     training_envelope,
     worst_segments,
 )
-from omavctl.learn.control_loss import out_of_control
+from omavctl.learn.control_loss import flight_control_loss
 from omavctl.learn.flights import REQUIRED_ROLES, body_rate_rate, sha256_of
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
@@ -142,7 +142,7 @@ def _read_log(
     _check_rate(flight, vehicle, rate)
     extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
     s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
-    loss = out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual)
+    loss = flight_control_loss(flight, s.index, s.omega, s.omega_dot, vehicle)
     p = Path(path)
     spans = [{"log": p.name, "start": a, "end": b, "reason": why} for a, b, why in loss.spans]
     if loss.any:

@@ -255,7 +255,7 @@ def _residual_fn(
             f + m.gp_predict(s.inputs(m.features), variance=False)[0]
             for f, s in zip(fixed, samples, strict=True)
         ]
-    gp_rolled = FusedMean(m) if with_gp and "rate" in m.features.split("+") else None
+    gp_rolled = _rolled_mean(m) if with_gp and "rate" in m.features.split("+") else None
     base = _per_sample(win, samples, fixed)
 
     def residual(k: int, omega: np.ndarray) -> np.ndarray:
@@ -267,6 +267,17 @@ def _residual_fn(
         return out
 
     return residual
+
+
+def _rolled_mean(m: ResidualGP) -> Any:
+    """The GP mean (B, 3) at GP inputs (B, d) as a rollout calls it: the fused float32
+    product, or ``gp_predict`` when the model weighs its mean by its band
+    (``mean_shrink``: the weight needs the latent variance, which the fused product
+    does not compute; the rollout then predicts what ``evaluate``'s one-step
+    metrics predict)."""
+    if np.any(m.mean_shrink > 0):
+        return lambda z: m.gp_predict(z, variance=False)[0]
+    return FusedMean(m)
 
 
 def _geodesic(eta_a: np.ndarray, eta_b: np.ndarray) -> np.ndarray:

@@ -61,6 +61,7 @@ from omavctl.learn.fit_steps import (
 )
 from omavctl.learn.flights import LogSummary, read_samples
 from omavctl.learn.hyperparameters import DEFAULT_RESTARTS, AxisFit
+from omavctl.learn.mean_shrink import MEAN_SHRINK
 from omavctl.learn.model import EffectEstimate, ResidualGP
 from omavctl.learn.provenance import fit_provenance
 from omavctl.learn.signal import (
@@ -274,6 +275,7 @@ def _model(
         noise_variance=gp.nv,
         latent_scale=gp.latent,
         beyond_scale=gp.beyond,
+        mean_shrink=MEAN_SHRINK * (gp.sv > 0),
         effects=_effects(opts, res, eff),
         provenance=provenance,
         train_regressors=train.regressors,

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.base.errors import LogError
-from omavctl.learn.control_loss import out_of_control
+from omavctl.learn.control_loss import flight_control_loss
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, residual_samples
 from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import EFFECTS
@@ -211,7 +211,7 @@ def log_samples(
     """
     flight = read_flights([item], vehicle, time_window)[0]
     s = residual_samples(flight, vehicle, sg, tuple(EFFECTS))
-    loss = out_of_control(s.t, s.omega, s.omega_dot, vehicle, s.residual)
+    loss = flight_control_loss(flight, s.index, s.omega, s.omega_dot, vehicle)
     if loss.any:
         s = s.select(~loss.mask)
         flight = replace(

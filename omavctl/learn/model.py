@@ -29,16 +29,13 @@ import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
 from omavctl.learn.estimate import EffectEstimate
+from omavctl.learn.mean_shrink import shrink_mean
 from omavctl.learn.validation import beyond_envelope_variance
 from omavctl.physics.effects import EffectContext
 from omavctl.physics.rigid_body import cross
 from omavctl.vehicle import Vehicle
 
-__all__ = [
-    "SCHEMA",
-    "EffectEstimate",
-    "ResidualGP",
-]
+__all__ = ["SCHEMA", "EffectEstimate", "ResidualGP"]
 
 SCHEMA_NAME = "omavctl.model"
 SCHEMA_VERSION = 2
@@ -51,14 +48,12 @@ _CHUNK = 4096
 class ResidualGP:
     """Effects plus an independent GP per body axis (see module docstring).
 
-    Built by :func:`omavctl.learn.fit.fit_model` or
-    :func:`omavctl.learn.model_file.load_model`; the Cholesky factors and weights
-    are computed once, at construction. Attributes (read-only by
-    convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
-    (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,),
-    ``target_mean`` (3,), ``signal_variance`` (3,), ``length_scales`` (3, d),
-    ``noise_variance`` (3,), ``effects`` (name -> :class:`EffectEstimate`),
-    ``provenance`` (dict).
+    Built by :func:`omavctl.learn.fit.fit_model` or :func:`~.model_file.load_model`; the
+    Cholesky factors and weights are computed once, at construction. Attributes
+    (read-only by convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
+    (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,), ``target_mean``,
+    ``signal_variance``, ``noise_variance`` (3,), ``length_scales`` (3, d), ``effects``
+    (name -> :class:`EffectEstimate`), ``provenance`` (dict).
     """
 
     def __init__(
@@ -77,6 +72,7 @@ class ResidualGP:
         noise_variance: np.ndarray,
         latent_scale: np.ndarray | None = None,
         beyond_scale: np.ndarray | None = None,
+        mean_shrink: np.ndarray | None = None,
         effects: Mapping[str, EffectEstimate] | None = None,
         provenance: Mapping[str, Any] | None = None,
         train_regressors: Mapping[str, np.ndarray] | None = None,
@@ -94,16 +90,13 @@ class ResidualGP:
         self.noise_variance = np.asarray(noise_variance, dtype=float)
         #: factor (3,) on the latent (posterior) variance in predictions: fit's
         #: calibration for extrapolation (1 = as the kernel says)
-        self.latent_scale = (
-            np.ones(3) if latent_scale is None else np.asarray(latent_scale, dtype=float)
-        )
+        self.latent_scale = np.ones(3) if latent_scale is None else np.asarray(latent_scale, float)
         #: weight (3,) on the variance the residual may gain beyond the training
-        #: inputs' box (:func:`~omavctl.learn.validation.beyond_envelope_variance`):
-        #: fit's calibration on held-out ends of the inputs (0 = none, as in files
-        #: written before it)
-        self.beyond_scale = (
-            np.zeros(3) if beyond_scale is None else np.asarray(beyond_scale, dtype=float)
-        )
+        #: inputs' box (:func:`~omavctl.learn.validation.beyond_envelope_variance`),
+        #: fit's calibration on held-out ends of the inputs (0 = none: older files)
+        self.beyond_scale = np.zeros(3) if beyond_scale is None else np.asarray(beyond_scale, float)
+        #: (3,) weight of the latent variance against the squared GP mean (mean_shrink; 0: none)
+        self.mean_shrink = np.zeros(3) if mean_shrink is None else np.asarray(mean_shrink, float)
         self.effects: dict[str, EffectEstimate] = dict(effects or {})
         self.provenance: dict[str, Any] = dict(provenance or {})
         #: effect name -> regressor (n, 3, p) at the training points (may be empty)
@@ -202,13 +195,14 @@ class ResidualGP:
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """GP mean (B, 3) and variance (B, 3) (rad/s^2, (rad/s^2)^2) at inputs z (B, d).
 
-        ``noise`` adds the noise variance sigma^2 (variance of a new measurement
-        instead of the latent function); ``variance=False`` skips it (None).
+        ``noise`` adds sigma^2 (a new measurement, not the latent function);
+        ``variance=False`` skips it (None). The mean is weighed by its band
+        (``mean_shrink``, :mod:`omavctl.learn.mean_shrink`).
         """
         z = np.atleast_2d(np.asarray(z, dtype=float))
         zn = self.normalise(z)
-        mean = np.empty((z.shape[0], 3))
-        var = np.empty((z.shape[0], 3)) if variance else None
+        mean, var = np.empty((z.shape[0], 3)), np.zeros((z.shape[0], 3))
+        shrink = bool(np.any(self.mean_shrink > 0))
         lo, hi = self._box
         # rows in chunks: the (B, n) kernel matrix of a long log would not fit otherwise
         for start in range(0, max(z.shape[0], 1), _CHUNK):
@@ -217,16 +211,17 @@ class ResidualGP:
                 zq = zn[rows] / self.length_scales[a]
                 k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
                 mean[rows, a] = self.target_mean[a] + k @ self._alpha[a]
-                if var is not None:
+                if variance or shrink:
                     v = solve_triangular(self._chol[a], k.T, lower=True, check_finite=False)
                     var[rows, a] = self.latent_scale[a] * np.maximum(
                         self.signal_variance[a] - np.einsum("nb,nb->b", v, v), 0.0
                     ) + self.beyond_scale[a] * beyond_envelope_variance(
                         zn[rows], lo, hi, self.signal_variance[a], self.length_scales[a]
                     )
-                    if noise:
-                        var[rows, a] += self.noise_variance[a]
-        return mean, var
+        if shrink:
+            mean, added = shrink_mean(mean, var, self.mean_shrink)
+            var += added
+        return mean, (var + self.noise_variance * noise) if variance else None
 
     def smooth(self, z: np.ndarray, values: np.ndarray) -> np.ndarray:
         """What the GP mean would predict at z (B, d) from training targets ``values``.
@@ -427,6 +422,7 @@ class ResidualGP:
             "noise_variance": self.noise_variance,
             "latent_scale": self.latent_scale,
             "beyond_scale": self.beyond_scale,
+            "mean_shrink": self.mean_shrink,
             "effects": np.array(json.dumps(effects, sort_keys=True)),
             "vehicle": np.array(self.vehicle.to_json()),
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),

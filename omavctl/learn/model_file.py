@@ -29,6 +29,9 @@ latent_scale       (3,)        optional: factor on the posterior (latent) varian
 beyond_scale       (3,)        optional: weight on the variance the residual may
                                gain beyond the training inputs' box, fit's
                                calibration on held-out input ends (absent: 0)
+mean_shrink        (3,)        optional: weight kappa of the latent variance
+                               against the squared GP mean, which is weighed by
+                               m^2 / (m^2 + kappa v) (absent: 0, the mean as is)
 effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..],
                                "P_ci95": [[low, high], ..], "P_pinned": [..],
                                "stderr_method": "hac"}}``: values, standard
@@ -362,6 +365,10 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
     beyond = _float(arrays, "beyond_scale", (3,), p) if "beyond_scale" in arrays else None
     if beyond is not None and np.any(beyond < 0):
         raise ModelError("key 'beyond_scale' must not be negative", p)
+    shrink = _float(arrays, "mean_shrink", (3,), p) if "mean_shrink" in arrays else None
+    if shrink is not None and np.any(shrink < 0):
+        raise ModelError("key 'mean_shrink' must not be negative", p)
+
     return {
         "inputs": inputs,
         "targets": targets,
@@ -371,6 +378,7 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         "noise_variance": nv,
         "latent_scale": latent,
         "beyond_scale": beyond,
+        "mean_shrink": shrink,
     }
 
 

@@ -346,9 +346,10 @@ class _Flight:
             if i % r.ctrl_every == 0:
                 self.control(i // r.ctrl_every)
             if i >= r.steps or not self._airborne(i):
-                if i % r.log_every == 0 and self.n_log < self.rec_t.size:
+                finite = bool(np.all(np.isfinite(self.x)))  # a state that blew up is not logged
+                if finite and i % r.log_every == 0 and self.n_log < self.rec_t.size:
                     self.record_log(i * r.dt)
-                if i % r.imu_every == 0 and self.n_imu < self.imu_t.size:
+                if finite and i % r.imu_every == 0 and self.n_imu < self.imu_t.size:
                     self.record_imu(i * r.dt)
                 return
             failure = self.truth.failure
