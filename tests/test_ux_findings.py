@@ -294,3 +294,36 @@ def test_evaluate_says_the_vehicle_comes_from_the_model() -> None:
     res = CliRunner().invoke(app, ["evaluate", "--help"], env={"COLUMNS": "2000"})
     text = " ".join(res.stdout.split())
     assert "There is no --vehicle: the vehicle (and its column map, which reads the logs)" in text
+
+
+def test_the_plan_report_carries_the_terminals_warnings(vehicle: Any) -> None:
+    """No candidate beats the task (its cost set below theirs): the warning the
+    terminal prints, and every envelope warning, is in plan.html too."""
+    from dataclasses import replace
+
+    from omavctl.learn.fit import fit_model
+    from omavctl.logs import align
+    from omavctl.planning import PlanSettings, plan
+    from omavctl.planning.envelope import envelope_warnings
+    from omavctl.planning.report import task_warning
+    from omavctl.report.plan import plan_document
+    from omavctl.sim.plant import simulate
+    from omavctl.sim.tasks import fig8
+    from omavctl.sim.truth import truth_from_tree
+
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=6.0, ramp=1.5)
+    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
+    model = fit_model([flight], vehicle, points=30, restarts=0).model
+    settings = PlanSettings(candidates=3, sims=1, test_points=60, points=15, seed=0)
+    result = plan(model, task, settings)
+    result = replace(result, task_cost=0.5 * float(result.cost[result.feasible].min()))
+    warning = task_warning(result)
+    assert warning is not None and warning.startswith(
+        "no candidate is more informative than flying the task again"
+    )
+    html = plan_document(task, result)
+    import html as htmllib
+
+    text = htmllib.unescape(html)
+    for said in [warning, *envelope_warnings(result)]:
+        assert f"warning: {said}" in text, said
