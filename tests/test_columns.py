@@ -141,15 +141,17 @@ def test_time_window_on_px4tools_log() -> None:
     assert not (first.valid & rest.valid).any()
     with pytest.raises(LogError) as err:
         read_vehicle_log(PX4_CSV, vehicle, time_window=(1.0, 3.0))
+    # where the window is counted from: the log's first sample, 579.46 s on its clock
+    span = (
+        "the log spans 0.00-21.44 s from its first sample, at 579.46 s on the log's own "
+        "clock; windows count from that first sample; its valid samples span 5.34-21.44 s"
+    )
     assert str(err.value) == (
-        f"{PX4_CSV}: time window 1:3 s has no valid samples (all in gaps or on the ground)"
+        f"{PX4_CSV}: time window 1:3 s has no valid samples (all in gaps or on the ground): " + span
     )
     with pytest.raises(LogError) as err:
         read_vehicle_log(PX4_CSV, vehicle, time_window=(30.0, 40.0))
-    assert (
-        str(err.value)
-        == f"{PX4_CSV}: time window 30:40 s has no samples: the log spans 0.00-21.44 s"
-    )
+    assert str(err.value) == f"{PX4_CSV}: time window 30:40 s has no samples: {span}"
     with pytest.raises(LogError) as err:
         read_vehicle_log(PX4_CSV, vehicle, time_window=(12.0, 12.0))
     assert str(err.value) == f"{PX4_CSV}: empty time window 12:12 s: START must be below END"

@@ -112,6 +112,7 @@ def test_getting_started_quotes_the_demo_numbers_the_tool_generated():
     )
     walk = doc[doc.index("## 3.") : doc.index("## 5.")]
     left = tool.MARKER.sub("", walk)
-    # the thresholds the verdict applies are rules, not demo output
-    stray = [p for p in re.findall(r"[−+-]?\d+(?:\.\d+)? ?%", left) if p not in ("80 %", "90 %")]
+    # the thresholds the verdict applies and the intervals' level are rules, not demo output
+    rules = ("80 %", "90 %", "95 %")
+    stray = [p for p in re.findall(r"[−+-]?\d+(?:\.\d+)? ?%", left) if p not in rules]
     assert stray == [], f"demo figures outside the generated spans: {stray}"

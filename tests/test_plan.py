@@ -216,7 +216,7 @@ def test_the_rejections_are_counted_per_reason():
 def test_no_candidate_better_than_the_task_is_a_warning_in_the_terminal_and_json():
     from types import SimpleNamespace
 
-    from omavctl.cli.plan import _task_warning
+    from omavctl.planning.report import task_warning as _task_warning
 
     def result(costs, task_cost, generations):
         cost = np.array(costs)

@@ -26,6 +26,13 @@ __all__ = [
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+#: Every log format the readers take (omavctl.logs.read.detect_format), as the help
+#: of fit, evaluate and inspect lists them.
+LOG_FORMATS = (
+    "ROS 1 .bag, ROS 2 bag directory, .mcap, .csv or .csv.gz, PX4 .ulg, "
+    "Crazyflie SD-card log or Betaflight blackbox CSV"
+)
+
 
 def reports_errors(func: F) -> F:
     """Bad input: one line and exit status 2; see :mod:`omavctl.guard`."""

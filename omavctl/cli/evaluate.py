@@ -8,14 +8,14 @@ from typing import Annotated
 import typer
 
 from omavctl.cli.app import app
-from omavctl.cli.common import Json, Quiet, console, emit, reports_errors
+from omavctl.cli.common import LOG_FORMATS, Json, Quiet, console, emit, reports_errors
 
 Logs = Annotated[
     list[Path],
     typer.Argument(
         metavar="LOG...",
-        help="Flight logs to compare the models with (ROS 1 .bag, ROS 2 bag directory, "
-        ".mcap, .csv or PX4 .ulg); best not the ones the model was fitted on.",
+        help=f"Flight logs to compare the models with, each a {LOG_FORMATS}; best not the "
+        "ones the model was fitted on.",
     ),
 ]
 Models = Annotated[
@@ -24,8 +24,9 @@ Models = Annotated[
         "--model",
         "-m",
         metavar="MODEL.npz",
-        help="Model written by fit (repeat to compare several models side by side; the "
-        "first one is diagnosed).",
+        help="Model written by fit; its vehicle and column map read the logs (repeat to "
+        "compare several models side by side; the first one is diagnosed, and no fit "
+        "command is suggested for an effect a later one already has).",
     ),
 ]
 EvalOut = Annotated[
@@ -66,6 +67,14 @@ Horizons = Annotated[
         "physics only, physics + effects and each model.",
     ),
 ]
+NoVehicle = Annotated[
+    Path | None,
+    typer.Option(
+        "--vehicle",
+        hidden=True,
+        help="Not an option of evaluate: the vehicle and its column map come from the model.",
+    ),
+]
 HorizonStride = Annotated[
     int,
     typer.Option(metavar="N", help="Samples between the starts of the horizon windows."),
@@ -82,6 +91,7 @@ def evaluate(
     time_window: TimeWindow = None,
     horizons: Horizons = None,
     horizon_stride: HorizonStride = 1,
+    vehicle: NoVehicle = None,
     quiet: Quiet = False,
     as_json: Json = False,
 ) -> None:
@@ -93,7 +103,18 @@ def evaluate(
     then the RMSE (rad/s^2) of the nominal model, nominal + effects and each model side
     by side, then the open-loop body-rate and attitude errors over the horizons. Writes
     the evaluation JSON, its .series.npz and an MCAP of the series.
+
+    There is no --vehicle: the vehicle (and its column map, which reads the logs)
+    comes from the first model file, as fit recorded it.
     """
+    if vehicle is not None:
+        from omavctl.base.errors import OmavctlError
+
+        raise OmavctlError(
+            "evaluate takes no --vehicle: the vehicle and its column map come from the "
+            "model file (the --vehicle given to fit); to read the logs with another one, "
+            "fit a model with it"
+        )
     from omavctl.report.run import run_evaluation
     from omavctl.report.summary import evaluation_json, render_evaluation
 

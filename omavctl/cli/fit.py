@@ -12,6 +12,7 @@ import typer
 
 from omavctl.cli.app import app
 from omavctl.cli.common import (
+    LOG_FORMATS,
     Json,
     Quiet,
     VehicleOpt,
@@ -25,7 +26,7 @@ Logs = Annotated[
     list[Path],
     typer.Argument(
         metavar="LOG...",
-        help="Flight logs: ROS 1 .bag, ROS 2 bag directories, .mcap, .csv or PX4 .ulg.",
+        help=f"Flight logs, each a {LOG_FORMATS}.",
     ),
 ]
 ModelOut = Annotated[

@@ -8,14 +8,13 @@ from typing import Annotated
 import typer
 
 from omavctl.cli.app import app
-from omavctl.cli.common import Json, VehicleOpt, emit, reports_errors
+from omavctl.cli.common import LOG_FORMATS, Json, VehicleOpt, emit, reports_errors
 
 Log = Annotated[
     Path,
     typer.Argument(
         metavar="LOG",
-        help="Flight log: ROS 1 .bag, ROS 2 bag directory, .mcap, .csv (.csv.gz), PX4 .ulg, "
-        "Crazyflie SD-card log or Betaflight blackbox CSV.",
+        help=f"Flight log: {LOG_FORMATS}.",
     ),
 ]
 

@@ -252,6 +252,8 @@ def _render_plan(
 
     for line in envelope_lines(result):
         con.print(line, markup=False)
+    from omavctl.planning.report import task_warning as _task_warning
+
     task_warning = _task_warning(result)
     if task_warning:
         con.print(f"warning: {task_warning}", markup=False)
@@ -266,19 +268,6 @@ def _render_plan(
         con.print(f"wrote {report_out} (plan report)")
     con.print(f"wrote {out} (candidate {result.best})")
     return files
-
-
-def _task_warning(result: Any) -> str | None:
-    """The warning when no candidate beats flying the task again, else None."""
-    best_cost = float(result.cost[result.best])
-    if best_cost < result.task_cost:
-        return None
-    searched = result.generation.size and result.generation.max() > 0
-    return (
-        f"no candidate is more informative than flying the task again (best "
-        f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, or try more "
-        f"--candidates{'' if searched else ' or --search cem'}"
-    )
 
 
 def _candidates_table(result: Any) -> Any:
@@ -330,6 +319,8 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
     from omavctl.planning.envelope import envelope, envelope_warnings
 
     summary = effects_summary(result)
+    from omavctl.planning.report import task_warning as _task_warning
+
     task_warning = _task_warning(result)
     return {
         "command": "plan",

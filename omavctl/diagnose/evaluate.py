@@ -35,6 +35,7 @@ import numpy as np
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
 from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command
+from omavctl.diagnose.given import withhold_given
 from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
 from omavctl.diagnose.metrics import (
@@ -47,7 +48,7 @@ from omavctl.diagnose.metrics import (
     worst_segments,
 )
 from omavctl.learn.control_loss import flight_control_loss
-from omavctl.learn.flights import REQUIRED_ROLES, body_rate_rate, sha256_of
+from omavctl.learn.flights import body_rate_rate, sha256_of
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
@@ -126,17 +127,16 @@ def _read_log(
     """One log's residual samples (every registry regressor, out-of-control samples
     removed), its unfiltered signals at them (attitude zero when not logged), its
     ``logs`` entry and its excluded spans."""
-    from omavctl.logs import DEFAULT_REQUIRED, read_vehicle_log
-    from omavctl.physics.mixer import wrench_hook
+    from omavctl.logs import read_vehicle_log
+    from omavctl.physics.mixer import required_roles, wrench_hook
 
-    # a vehicle described by its rotors flies IMU-only logs too (no attitude)
-    required = REQUIRED_ROLES if vehicle.motors is not None else DEFAULT_REQUIRED
+    # the roles fit needed: a vehicle with a rotor list flies IMU-only logs too
     flight = read_vehicle_log(
         path,
         vehicle,
         rate=rate,
         time_window=time_window,
-        required=required,
+        required=required_roles(vehicle),
         wrench=wrench_hook(vehicle),
     )
     _check_rate(flight, vehicle, rate)
@@ -426,6 +426,7 @@ def evaluate(
     features = _features(series)
     tracking = _tracking(samples, series)
     diagnosis = _diagnosis(samples, model, mpaths[0], series, features, sg)
+    withhold_given(diagnosis, models, mpaths)  # no fit that a given model makes moot
     torque_units_known = not model.vehicle.torque_normalised  # command_units.torque
     envelope = _envelope(model, samples, series)
     tree = {

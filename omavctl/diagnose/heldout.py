@@ -10,7 +10,7 @@ from typing import Any
 from omavctl.learn.flights import training_logs
 from omavctl.learn.model import ResidualGP
 
-__all__ = ["overlap", "training_data_flags"]
+__all__ = ["on_what", "overlap", "training_data_flags"]
 
 
 def overlap(fitted: Any, window: tuple[float | None, float | None] | None) -> bool:
@@ -49,3 +49,12 @@ def training_data_flags(
             }
         )
     return out
+
+
+def on_what(tree: Mapping[str, Any]) -> str:
+    """Where the diagnosis measured the model's error: held-out data, or (the
+    ``training_data`` flag) held-out blocks of a log the model was fitted on."""
+    flags = [f for f in tree.get("flags") or [] if isinstance(f, Mapping)]
+    if any(f.get("code") == "training_data" for f in flags):
+        return "on this log, which it was fitted on (training data, not held out)"
+    return "on held-out data"

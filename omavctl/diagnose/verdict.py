@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from omavctl.diagnose.estimate_text import estimate_sentence
+from omavctl.diagnose.given import given_sentence
+from omavctl.diagnose.heldout import on_what
 
 __all__ = [
     "COVERAGE_MIN",
@@ -102,11 +104,12 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         threshold = _num(get_path(diag, "method", "min_explained_variance"))
         text = "Nothing missing: no registered effect explains"
         text += f" {_pct(threshold)} or more" if threshold is not None else " a material share"
-        text += " of the model's remaining error on held-out data."
+        text += f" of the model's remaining error {on_what(tree)}."
         near = _below_noise(diag)
         test = diag.get("test_command") if near else None
         if near:
             text = f"Nothing claimed as missing: {near}"
+            text += given_sentence(diag, str(diag.get("below_noise")))
         elif held := _refit_rejected(diag):
             text, test = f"Nothing claimed as missing: {held[0]}", held[1]
         structure = _structure(diag.get("unexplained"))
@@ -121,7 +124,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     )
     text = f"Missing: {missing[0]}"
     if ev is not None:
-        text += f" — it explains {_pct(ev)} of the model's remaining error on held-out data"
+        text += f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"
         text += f" ({axes})" if axes else ""
     text += "."
     learned = {str(e.get("name")): e for e in diag.get("learned", []) or []}
@@ -135,6 +138,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     if alike:
         text += f" A residual of its shape is also left by {alike}."
     cmd = diag.get("fit_command")
+    text += given_sentence(diag, missing[0])
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
 
 

@@ -40,7 +40,8 @@ __all__ = [
     "upsampling_note",
 ]
 
-#: Roles fit needs from every log.
+#: Roles fit needs from every log of a vehicle with a rotor list (the others need
+#: the attitude too: :func:`omavctl.physics.mixer.required_roles`).
 REQUIRED_ROLES = ("body_rate", "force_command", "torque_command")
 #: A body rate logged below this fraction of the grid rate is noted as upsampled
 #: (the tolerance absorbs jitter in the median step).
@@ -78,7 +79,7 @@ def read_flights(
     lacking the body rate or the wrench command, or an empty window.
     """
     from omavctl.logs import read_vehicle_log, restrict_window
-    from omavctl.physics.mixer import wrench_hook
+    from omavctl.physics.mixer import required_roles, wrench_hook
 
     out = []
     for item in logs:
@@ -89,7 +90,7 @@ def read_flights(
                 item,
                 vehicle,
                 rate=vehicle.gains.rate_hz,
-                required=REQUIRED_ROLES,
+                required=required_roles(vehicle),
                 time_window=time_window,
                 wrench=wrench_hook(vehicle),
             )

@@ -299,6 +299,28 @@ def betaflight_table(path: Path) -> ColumnTable:
     return ColumnTable(path, "betaflight", "time", 1.0, [group], unit_of, meta, notes)
 
 
+def sidecar_error(path: Path, head: bytes) -> LogError | None:
+    """The error for a Betaflight header sidecar (``<name>.headers.txt``, its first
+    bytes ``head`` an ``H name:value`` line) given as a log: it names the CSV
+    beside it to give instead; None for any other file."""
+    if not (head.startswith(b"H ") and b":" in head.split(b"\n", 1)[0]):
+        return None
+    name = path.name
+    stem = name[: -len(".headers.txt")] if name.lower().endswith(".headers.txt") else path.stem
+    beside = [path.with_name(stem + s) for s in (".csv", ".csv.gz")]
+    found = next((str(b) for b in beside if b.is_file()), None)
+    give = (
+        f"give the CSV beside it: {found}"
+        if found
+        else (f"give the CSV blackbox_decode wrote beside it ({stem}.csv)")
+    )
+    return LogError(
+        "a Betaflight blackbox header sidecar ('H name:value' lines), not a log: its "
+        f"values are read with the CSV they describe; {give}",
+        path,
+    )
+
+
 def sniff_betaflight(path: Path) -> bool:
     """Whether the file at ``path`` (plain or gzip) is a Betaflight blackbox CSV."""
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from omavctl.base.errors import LogError
-from omavctl.logs.betaflight import betaflight_table, sniff_betaflight
+from omavctl.logs.betaflight import betaflight_table, sidecar_error, sniff_betaflight
 from omavctl.logs.cfusdlog import cfusdlog_table, looks_like_cfusdlog
 from omavctl.logs.tables import ColumnTable
 
@@ -31,14 +31,21 @@ def load_table(path: Path, kind: str) -> ColumnTable:
 
 def content_kind(path: Path) -> str | None:
     """The kind of a file whose name says none, from its first bytes: ``"cfusdlog"``
-    (the cfusdlog header), ``"betaflight"`` (a blackbox CSV, plain or gzip), else None."""
+    (the cfusdlog header), ``"betaflight"`` (a blackbox CSV, plain or gzip), else None.
+
+    Raises:
+        LogError: a Betaflight header sidecar (:func:`~.betaflight.sidecar_error`).
+    """
     if not path.is_file():
         return None
     try:
         with path.open("rb") as fh:
-            head = fh.read(8)
+            head = fh.read(256)
     except OSError as err:
         raise LogError(f"cannot read: {err.strerror or err}", path) from None
-    if looks_like_cfusdlog(head):
+    if looks_like_cfusdlog(head[:8]):
         return "cfusdlog"
+    sidecar = sidecar_error(path, head)
+    if sidecar is not None:
+        raise sidecar
     return "betaflight" if sniff_betaflight(path) else None

@@ -191,6 +191,13 @@ def _is_foreign_csv(path: Path) -> bool:
     return "t" not in header or not header & contract
 
 
+def _needed(guess: Suggestion) -> tuple[str, ...]:
+    """What fit and evaluate need from a log read through the suggested map: the
+    body rate and the motor outputs when it maps those (its preset's rotor list mixes
+    them; no attitude needed), else the contract's roles."""
+    return ("body_rate", "motor_command") if guess.motors else DEFAULT_REQUIRED
+
+
 def _inspect_foreign_csv(path: Path) -> Inspection:
     """Inspection of a CSV of another layout: column ranges and a suggested column map."""
     from omavctl.logs.suggest import scan_csv, suggest_column_map, suggestion_yaml
@@ -198,7 +205,7 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
     scan = scan_csv(path)
     guess = suggest_column_map(scan)
     # motor outputs: a rotor list (preset) mixes them, no torque command is needed
-    required = ("body_rate", "motor_command") if guess.motors else DEFAULT_REQUIRED
+    required = _needed(guess)
     notes = [
         f"not a wide contract CSV: {len(scan.header)} columns, {len(scan.values)} numeric "
         "with values; a column map (vehicle 'columns:') is needed to read it"
@@ -262,7 +269,8 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
         t0=guess.t0,
         topics=topics,
         roles_found={},
-        roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
+        roles_missing={role: "needs a column map" for role in _needed(guess)},
+        required=_needed(guess),
         notes=notes,
         column_ranges={k: v for k, v in scan.ranges().items() if k != "timestamp"},
         suggested_columns=guess.columns,
@@ -310,7 +318,8 @@ def _inspect_table(path: Path) -> Inspection:
         t0=guess.t0,
         topics=topics,
         roles_found={},
-        roles_missing={role: "needs a column map" for role in DEFAULT_REQUIRED},
+        roles_missing={role: "needs a column map" for role in _needed(guess)},
+        required=_needed(guess),
         notes=notes,
         column_ranges={c.name: (c.lo, c.hi) for c in inv.columns if c.count},
         suggested_columns=guess.columns,

@@ -166,6 +166,20 @@ def segment_flight(
     return replace(log, valid=valid, segments=segments_of(valid), notes=[*log.notes, note])
 
 
+def _span(log: FlightLog) -> str:
+    """Where a time window is counted from, for its errors: the log's span from its
+    first sample, that sample's time on the log's own clock when it is not 0, and the
+    span of the valid (in-flight, not in gaps) samples."""
+    text = f"the log spans 0.00-{log.t[-1]:.2f} s"
+    if abs(log.t0) > 1e-6:
+        text += f" from its first sample, at {log.t0:.2f} s on the log's own clock"
+    text += "; windows count from that first sample"
+    if log.valid.any():
+        t = log.t[log.valid]
+        text += f"; its valid samples span {t[0]:.2f}-{t[-1]:.2f} s"
+    return text
+
+
 def restrict_window(log: FlightLog, window: tuple[float | None, float | None]) -> FlightLog:
     """``log`` with samples outside ``window`` invalid and segments recomputed.
 
@@ -184,14 +198,12 @@ def restrict_window(log: FlightLog, window: tuple[float | None, float | None]) -
         raise LogError(f"empty time window {shown} s: START must be below END", log.path)
     inside = (log.t >= lo - 1e-9) & (log.t < hi - 1e-9)
     if not inside.any():
-        raise LogError(
-            f"time window {shown} s has no samples: the log spans 0.00-{log.t[-1]:.2f} s",
-            log.path,
-        )
+        raise LogError(f"time window {shown} s has no samples: {_span(log)}", log.path)
     valid = log.valid & inside
     if not valid.any():
         raise LogError(
-            f"time window {shown} s has no valid samples (all in gaps or on the ground)",
+            f"time window {shown} s has no valid samples (all in gaps or on the ground): "
+            f"{_span(log)}",
             log.path,
         )
     outside = int((~inside).sum())

@@ -24,7 +24,14 @@ from omavctl.logs.inspection import Inspection
 from omavctl.logs.types import FlightLog
 from omavctl.vehicle import Vehicle
 
-__all__ = ["REQUIRED_MIXED", "mixed_inspection", "motor_source", "motor_wrench", "wrench_hook"]
+__all__ = [
+    "REQUIRED_MIXED",
+    "mixed_inspection",
+    "motor_source",
+    "motor_wrench",
+    "required_roles",
+    "wrench_hook",
+]
 
 #: Roles ``fit`` and ``evaluate`` need of a log whose motor outputs are mixed.
 REQUIRED_MIXED = ("body_rate", "motor_command")
@@ -98,12 +105,24 @@ def mixed_inspection(ins: Inspection, vehicle: Vehicle) -> Inspection:
     """``ins`` as ``fit``/``evaluate`` of ``vehicle`` see the log: when the vehicle's
     rotor list mixes the log's motor outputs, the force and torque commands count as
     found (computed) and the roles needed are the body rate and those outputs."""
+    if ins.suggestion:  # not read with the vehicle: its suggested map says the needs
+        return ins
     source = motor_source(vehicle, ins.roles_found)
     if source is None or vehicle.motors is None:
-        return ins
+        return replace(ins, required=required_roles(vehicle))
     where = f"computed from {source} by the vehicle's {vehicle.motors.n_rotors} rotors"
     found = {**ins.roles_found, "force_command": where, "torque_command": where}
     missing = {
         r: w for r, w in ins.roles_missing.items() if r not in ("force_command", "torque_command")
     }
     return replace(ins, roles_found=found, roles_missing=missing, required=REQUIRED_MIXED)
+
+
+def required_roles(vehicle: Vehicle) -> tuple[str, ...]:
+    """The roles ``fit`` and ``evaluate`` (and ``inspect --vehicle``) need from a log
+    of ``vehicle`` that holds a wrench command: the body rate and that command for a
+    vehicle with a rotor list (IMU-only logs: the tilt is then unknown), and the
+    attitude too for any other vehicle (the log contract's pose)."""
+    imu = ("body_rate", "force_command", "torque_command")
+    # the attitude last: a missing wrench (or unmixable motor outputs) is said first
+    return imu if vehicle.motors is not None else (*imu, "attitude")

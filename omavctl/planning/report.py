@@ -16,7 +16,7 @@ from omavctl.planning.candidates import coefficient_names
 from omavctl.planning.planner import PlanResult
 from omavctl.sim.trajectory import Trajectory, format_trajectory
 
-__all__ = ["METRIC_COLUMNS", "format_scores", "write_plan"]
+__all__ = ["METRIC_COLUMNS", "format_scores", "task_warning", "write_plan"]
 
 #: Columns after ``cost``: every objective's number for every candidate (empty when
 #: not computed for this model, or infeasible), whichever objective ranks.
@@ -63,6 +63,20 @@ def format_scores(result: PlanResult, reference_sha256: str | None = None) -> st
             row.append(reference_sha256)
         buf.write(",".join(row) + "\n")
     return buf.getvalue()
+
+
+def task_warning(result: PlanResult) -> str | None:
+    """The warning when no candidate beats flying the task again, else None (said by
+    the terminal, the --json ``warnings`` and the plan report alike)."""
+    best_cost = float(result.cost[result.best])
+    if best_cost < result.task_cost:
+        return None
+    searched = result.generation.size and result.generation.max() > 0
+    return (
+        f"no candidate is more informative than flying the task again (best "
+        f"{result.versus_task(best_cost):+.1f}% vs the task): fly the task, or try more "
+        f"--candidates{'' if searched else ' or --search cem'}"
+    )
 
 
 def rejection_tally(result: PlanResult) -> str:

@@ -98,6 +98,7 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     """The plan report as an HTML string."""
     from omavctl.planning.effects_objective import effects_summary
     from omavctl.planning.envelope import envelope_lines
+    from omavctl.planning.report import task_warning
 
     best = result.best_trajectory()
     gain = result.versus_task(float(result.cost[result.best]))
@@ -119,6 +120,9 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
             "lower means the flight teaches the model more."
         )
     )
+    warning = task_warning(result)  # as the terminal says it (envelope warnings below)
+    if warning:
+        doc.add(Para(f"warning: {warning}"))
     summary = effects_summary(result)
     for line in summary["lines"] if summary else []:
         doc.add(Para(line.strip()))
