@@ -5,6 +5,7 @@
 #                      agreement tests (the same training points as under NumPy 2)
 #   make generalise    the generalisation benchmark (docs/generalisation.md)
 #   make bench-effects the effects-plan benchmark (docs/plan-effects-results.md)
+#   make informative   planned vs task-again vs random second flights (docs/informative.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
@@ -12,7 +13,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo test test-numpy1 lint bench bench-effects fuzz generalise clean
+.PHONY: install demo test test-numpy1 lint bench bench-effects fuzz generalise informative clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -63,6 +64,16 @@ generalise: $(STAMP)
 # hidden drag and command delay (docs/plan-effects.md; about 1 minute per seed)
 bench-effects: $(STAMP)
 	$(BIN)/python benchmarks/bench_effects_plan.py --out docs/plan-effects-results.md
+
+# the planned second flight against the task flown again, one random candidate of
+# the same pool and the best flown candidate (oracle): refit, held-out error and
+# closed-loop tracking (docs/informative.md; 6 effect sets x 2 seeds, about 5
+# CPU-minutes per draw; INFORMATIVE_ARGS narrows it, e.g. --seeds 1 --pool-extra 2)
+INFORMATIVE_LOGS ?= build/informative
+INFORMATIVE_ARGS ?=
+informative: $(STAMP)
+	nice -n 10 $(BIN)/python benchmarks/informative.py --workdir $(INFORMATIVE_LOGS) \
+		$(INFORMATIVE_ARGS) --out docs/informative.md
 
 test-numpy1: $(VENV1)/.installed
 	$(VENV1)/bin/pytest -q tests/test_kmedoids.py

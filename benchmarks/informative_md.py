@@ -1,0 +1,136 @@
+"""docs/informative.md from the draws of benchmarks/informative.py."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from benchmarks.informative_stats import MeanInterval, gain, mean_interval, spearman
+
+#: (label, result key) of the error measures, each lower = better
+MEASURES = (
+    ("closed-loop tracking of the task", "tracking"),
+    ("model RMSE, region's held-out flights", "region"),
+    ("model RMSE, the task's held-out flight", "task"),
+)
+
+
+def planned(r: dict) -> dict:
+    """The refit with the planned flight (the pool's lowest-cost candidate)."""
+    return r["pool"][str(r["best"])]
+
+
+def random_one(r: dict) -> dict:
+    """The refit with the seeded random candidate of the same pool."""
+    return r["pool"][str(r["random"])]
+
+
+def oracle(r: dict) -> dict:
+    """The refit with the flown pool candidate of lowest realised region error."""
+    return min(r["pool"].values(), key=lambda c: c["region"])
+
+
+def comparisons(results: Sequence[dict]) -> list[tuple[str, str, list[float]]]:
+    """(comparison, measure label, per-draw gains in %) for every row of the main table."""
+    pairs = [
+        ("planned vs the task flown again", planned, lambda r: r["task_again"]),
+        ("planned vs one random candidate", planned, random_one),
+        ("oracle vs one random candidate (room)", oracle, random_one),
+        ("oracle vs planned", oracle, planned),
+    ]
+    if all("effects_plan" in r for r in results):
+        pairs.append(("effects plan vs the task flown again", lambda r: r["effects_plan"],
+                      lambda r: r["task_again"]))  # fmt: skip
+    return [
+        (name, label, [gain(base(r)[key], new(r)[key]) for r in results])
+        for name, new, base in pairs
+        for label, key in MEASURES
+    ]
+
+
+def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
+    """Spearman of the planner's cost with the region error the refit removes.
+
+    Per draw over its flown candidates, and pooled over all draws with the cost
+    relative to the draw's median and the removed error relative to the first
+    model's: (per-draw values, pooled value, pooled count).
+    """
+    per, cost_all, removed_all = [], [], []
+    for r in results:
+        cands = list(r["pool"].values())
+        cost = [c["cost"] for c in cands]
+        removed = [r["first"]["region"] - c["region"] for c in cands]
+        per.append(spearman(cost, removed))
+        cost_all += list(np.asarray(cost) / np.median(cost))
+        removed_all += list(np.asarray(removed) / r["first"]["region"])
+    return per, spearman(cost_all, removed_all), len(cost_all)
+
+
+def _row(name: str, label: str, iv: MeanInterval, target: float = 10.0) -> str:
+    ok = "yes" if iv.holds(target) else "no"
+    return f"| {name} | {label} | {iv.text()} | {ok} |"
+
+
+def _draw_table(results: Sequence[dict]) -> list[str]:
+    lines = [
+        "| effects | seed | first model: tracking / region / task | task again | random "
+        "| planned | oracle | planned cost / task cost | GP on (planned, x y z) | s |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        f = r["first"]
+        cells = [
+            f"{c['tracking']:.3f} / {c['region']:.3f} / {c['task']:.3f}"
+            for c in (r["task_again"], random_one(r), planned(r), oracle(r))
+        ]
+        gp = " ".join("on" if g else "off" for g in planned(r)["gp_on"])
+        lines.append(
+            f"| {r['effects']} | {r['seed']} | {f['tracking']:.3f} / {f['region']:.3f} / "
+            f"{f['task']:.3f} | "
+            + " | ".join(cells)
+            + f" | {planned(r)['cost'] / r['task_cost']:.3f} | {gp} | {r['seconds']:.0f} |"
+        )
+    return lines
+
+
+def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[str]) -> str:
+    """The whole results page."""
+    cmd = "python benchmarks/informative.py " + " ".join(argv)
+    lines = [
+        "# Informative flights: what the planned flight teaches the refitted model",
+        "",
+        f"Measured with `nice -n 10 {cmd.strip()}` ({len(results)} draws: effect sets "
+        f"{' '.join(cfg['effects'])} x seeds {' '.join(map(str, cfg['seeds']))}; "
+        f"{cfg['duration']:g} s flights, `plan --candidates {cfg['candidates']} --sims "
+        f"{cfg['sims']}`, {cfg['pool_extra']} further pool candidates flown; "
+        f"{seconds / 60:.0f} min on 2 shared cores). Protocol: the docstring of "
+        "benchmarks/informative.py.",
+        "",
+        "Gain = per cent by which the first flight's refit lowers the second's error; "
+        "mean over draws with its 95 % t-interval. Target (issue 29): mean ≥ 10 % with "
+        "the interval's lower end above 0.",
+        "",
+        "| comparison | measure | mean gain [95 % interval] | target holds |",
+        "|---|---|---|---|",
+    ]
+    for name, label, gains in comparisons(results):
+        lines.append(_row(name, label, mean_interval(gains)))
+    per, pooled, n = correlation(results)
+    finite = [v for v in per if np.isfinite(v)]
+    lines += [
+        "",
+        "## Where the gain goes",
+        "",
+        f"- Spearman of the planner's cost with the region error the refit removes "
+        f"(lower cost should remove more: a useful ranking is negative): pooled over "
+        f"{n} flown candidates {pooled:+.2f}; per draw "
+        + ", ".join(f"{v:+.2f}" for v in per)
+        + (f" (mean {np.mean(finite):+.2f})." if finite else "."),
+        "",
+        "Per draw, errors in rad/s² as closed-loop tracking / region RMSE / task RMSE:",
+        "",
+        *_draw_table(results),
+        "",
+    ]
+    return "\n".join(lines)
