@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.informative_kept import add_kept
 from benchmarks.informative_md import markdown
 from omavctl.planning.candidates import deviated_references
 from omavctl.sim.trajectory import Trajectory, read_trajectory, write_trajectory
@@ -221,6 +222,9 @@ def main(argv: list[str] | None = None) -> int:
     with ThreadPoolExecutor(cfg.jobs) as ex:
         futures = [ex.submit(run_draw, cfg.workdir / f"{n}-s{s}", n, s, cfg) for n, s in draws]
         results = [f.result() for f in futures]
+    results = [
+        add_kept(cfg.workdir / f"{n}-s{s}", r) for (n, s), r in zip(draws, results, strict=True)
+    ]
     text = markdown(results, vars(cfg), time.perf_counter() - start, argv or sys.argv[1:])
     print(text)
     if cfg.out is not None:

@@ -67,6 +67,26 @@ def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
     return per, spearman(cost_all, removed_all), len(cost_all)
 
 
+def _kept_lines(results: Sequence[dict]) -> list[str]:
+    """The share of the refit's training points taken from the second flight."""
+    if not all("kept" in planned(r) for r in results):
+        return []
+    share = {
+        "the task flown again": [r["task_again"]["kept"] for r in results],
+        "the planned flight": [planned(r)["kept"] for r in results],
+        "the random candidate": [random_one(r)["kept"] for r in results],
+        "the oracle's flight": [oracle(r)["kept"] for r in results],
+    }
+    off = sum(not g for r in results for g in planned(r)["gp_on"])
+    return [
+        "- Share of the refit's training points that are samples of the second flight "
+        "(mean over draws): "
+        + "; ".join(f"{k} {100 * np.mean(v):.0f} %" for k, v in share.items())
+        + f". GP switched off by validation in {off} of {3 * len(results)} axes of the "
+        "planned refits.",
+    ]
+
+
 def _row(name: str, label: str, iv: MeanInterval, target: float = 10.0) -> str:
     ok = "yes" if iv.holds(target) else "no"
     return f"| {name} | {label} | {iv.text()} | {ok} |"
@@ -127,6 +147,7 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         f"{n} flown candidates {pooled:+.2f}; per draw "
         + ", ".join(f"{v:+.2f}" for v in per)
         + (f" (mean {np.mean(finite):+.2f})." if finite else "."),
+        *_kept_lines(results),
         "",
         "Per draw, errors in rad/s² as closed-loop tracking / region RMSE / task RMSE:",
         "",

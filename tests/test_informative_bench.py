@@ -92,3 +92,27 @@ def test_comparisons_and_correlation_of_synthetic_draws() -> None:
     per, pooled, n = correlation(draws)
     assert per == [pytest.approx(-1.0), pytest.approx(-1.0)]
     assert pooled == pytest.approx(-1.0) and n == 6
+
+
+def test_kept_share_attributes_every_training_point_to_its_flight(tmp_path) -> None:
+    from benchmarks.informative_kept import kept_share
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.model_file import save_model
+    from omavctl.logs import write_log
+    from omavctl.sim.plant import simulate
+    from omavctl.sim.tasks import fig8, wobble
+    from omavctl.sim.truth import load_truth
+    from omavctl.vehicle import default_vehicle
+
+    vehicle = default_vehicle()
+    truth = load_truth(None, vehicle)
+    first, second = tmp_path / "first.csv", tmp_path / "second.csv"
+    write_log(first, simulate(fig8(duration=4.0), vehicle, truth, seed=1).log)
+    write_log(second, simulate(wobble(duration=4.0), vehicle, truth, seed=2).log)
+    shares = []
+    for name, logs in (("a", [first]), ("b", [second]), ("ab", [first, second])):
+        model = fit_model(logs, vehicle, points=30, seed=0, restarts=0).model
+        save_model(tmp_path / f"{name}.npz", model)
+        shares.append(kept_share(tmp_path / f"{name}.npz", first, second))
+    assert shares[0] == 0.0 and shares[1] == 1.0
+    assert 0.0 < shares[2] < 1.0
