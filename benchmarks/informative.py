@@ -24,6 +24,10 @@ Per draw (a hidden effect set of :data:`EFFECT_SETS` x a seed s), every step the
    controller (noise seed 300 + s); the mean |a* - omega_dot| over the axes
    (``tracking`` of ``evaluate``, the measure of docs/results.md).
 
+The pool candidates are rebuilt from the ``--scores`` coefficients (9 significant
+digits: within 1e-6 of the planned reference). A draw whose ``result.json`` exists
+in the workdir is read, not rerun, so an interrupted run resumes.
+
 Gains are per cent of the baseline's error, mean over draws with a 95 % t-interval
 (:mod:`benchmarks.informative_stats`).
 """
