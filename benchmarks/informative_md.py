@@ -67,6 +67,24 @@ def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
     return per, spearman(cost_all, removed_all), len(cost_all)
 
 
+def _spread_lines(results: Sequence[dict]) -> list[str]:
+    """How much the flown candidates differ, in realised error and in planner cost."""
+    spread = [
+        100 * (max(e) - min(e)) / np.mean(e)
+        for e in ([c["region"] for c in r["pool"].values()] for r in results)
+    ]
+    cost = [100 * (1 - planned(r)["cost"] / r["task_cost"]) for r in results]
+    return [
+        "- Do the candidates differ enough to matter? The flown candidates' region errors "
+        f"span {np.mean(spread):.0f} % of their mean (per draw "
+        + ", ".join(f"{v:.0f}" for v in spread)
+        + " %); the planned flight's cost is "
+        f"{np.mean(cost):.0f} % below the task's own (per draw "
+        + ", ".join(f"{v:.0f}" for v in cost)
+        + " %).",
+    ]
+
+
 def _kept_lines(results: Sequence[dict]) -> list[str]:
     """The share of the refit's training points taken from the second flight."""
     if not all("kept" in planned(r) for r in results):
@@ -185,6 +203,7 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         f"{n} flown candidates {pooled:+.2f}; per draw "
         + ", ".join(f"{v:+.2f}" if np.isfinite(v) else "n/a" for v in per)
         + (f" (mean {np.mean(finite):+.2f})." if finite else "."),
+        *_spread_lines(results),
         *_kept_lines(results),
         "",
         "Per draw, errors in rad/s² as closed-loop tracking / region RMSE / task RMSE:",

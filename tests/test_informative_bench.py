@@ -139,3 +139,6 @@ def test_markdown_says_which_target_holds() -> None:
         in text
     )
     assert "pooled over 6 flown candidates -1.00; per draw n/a, n/a, n/a." in text
+    # region errors 0.9 and 0.5 (x scale): span 0.4 / 0.7 of the mean; cost 1 vs task's 4
+    assert "span 57 % of their mean (per draw 57, 57, 57 %)" in text
+    assert "cost is 75 % below the task's own" in text
