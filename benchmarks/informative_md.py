@@ -120,7 +120,7 @@ def targets(results: Sequence[dict]) -> list[str]:
         say(f"{again}, region's held-out flights ≥ 10 %", rows[(again, "region")],
             rows[(again, "region")].holds(10.0)),
         say(f"{again}, not worse on the task's held-out flight (upper end ≥ 0)",
-            rows[(again, "task")], rows[(again, "task")].high >= 0),
+            rows[(again, "task")], rows[(again, "task")].n > 1 and rows[(again, "task")].high >= 0),
         say(f"{rand}, region's held-out flights ≥ 10 %", rows[(rand, "region")],
             rows[(rand, "region")].holds(10.0)),
     ]  # fmt: skip
