@@ -186,6 +186,13 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         "mean over draws with its 95 % t-interval. Target (issue 29): mean ≥ 10 % with "
         "the interval's lower end above 0.",
         "",
+        "Read with care: every second flight of a draw has the same sensor-noise seed "
+        "(paired comparison); the oracle is the best of only the flown candidates (the "
+        "planned one, the random one and the further draws), picked by the region error "
+        "it is then judged on, so its room is a lower bound for the pool and an optimistic "
+        "one for that measure; the effects objective is in the table only when the run "
+        "had `--with-effects`.",
+        "",
         "| comparison | measure | mean gain [95 % interval] | target holds |",
         "|---|---|---|---|",
     ]
