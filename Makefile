@@ -67,8 +67,11 @@ bench-effects: $(STAMP)
 
 # the planned second flight against the task flown again, one random candidate of
 # the same pool and the best flown candidate (oracle): refit, held-out error and
-# closed-loop tracking (docs/informative.md; 6 effect sets x 2 seeds, about 5
-# CPU-minutes per draw; INFORMATIVE_ARGS narrows it, e.g. --seeds 1 --pool-extra 2)
+# closed-loop tracking (docs/informative.md). Defaults: 6 effect sets x 2 seeds, 50
+# candidates, 3 further pool candidates flown: 12 draws of about 12 min wall-clock
+# each, two at a time (measured with three at a time on 2 busy cores). Draws are
+# cached in the workdir. docs/informative.md was made with --seeds 1 --pool-extra 2
+# (set INFORMATIVE_ARGS).
 INFORMATIVE_LOGS ?= build/informative
 INFORMATIVE_ARGS ?=
 informative: $(STAMP)
