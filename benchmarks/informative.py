@@ -220,8 +220,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--with-effects", action="store_true", help="also plan --objective effects")
     ap.add_argument("--jobs", type=int, default=2, help="draws run at once")
     ap.add_argument("--out", type=Path, default=None, help="Markdown results (docs/informative.md)")
+    ap.add_argument("--also", nargs="*", default=[], metavar="EFFECTS:SEED",
+                    help="further draws beyond --effects x --seeds, e.g. drag:2")  # fmt: skip
     cfg = ap.parse_args(argv)
     draws = [(name, s) for s in cfg.seeds for name in cfg.effects]
+    for item in cfg.also:
+        name, _, seed = item.partition(":")
+        if name not in EFFECT_SETS or not seed.isdigit():
+            ap.error(
+                f"--also {item}: expected EFFECTS:SEED with EFFECTS one of {list(EFFECT_SETS)}"
+            )
+        draws.append((name, int(seed)))
     start = time.perf_counter()
     with ThreadPoolExecutor(cfg.jobs) as ex:
         futures = [ex.submit(run_draw, cfg.workdir / f"{n}-s{s}", n, s, cfg) for n, s in draws]

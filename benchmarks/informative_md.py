@@ -173,7 +173,9 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         "# Informative flights: what the planned flight teaches the refitted model",
         "",
         f"Measured with `nice -n 10 {cmd.strip()}` ({len(results)} draws: effect sets "
-        f"{' '.join(cfg['effects'])} x seeds {' '.join(map(str, cfg['seeds']))}; "
+        f"{' '.join(cfg['effects'])} x seeds {' '.join(map(str, cfg['seeds']))}"
+        + (f", and {' '.join(cfg['also'])}" if cfg.get("also") else "")
+        + "; "
         f"{cfg['duration']:g} s flights, `plan --candidates {cfg['candidates']} --sims "
         f"{cfg['sims']}`, {cfg['pool_extra']} further pool candidates flown; "
         f"each draw {min(r['seconds'] for r in results) / 60:.0f}–"
