@@ -35,7 +35,6 @@ Gains are per cent of the baseline's error, mean over draws with a 95 % t-interv
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import subprocess
@@ -46,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.informative_kept import add_kept
+from benchmarks.informative_kept import add_kept, read_scores
 from benchmarks.informative_md import markdown
 from omavctl.planning.candidates import deviated_references
 from omavctl.sim.trajectory import Trajectory, read_trajectory, write_trajectory
@@ -84,16 +83,6 @@ def omavctl(*args: str) -> dict:
 def _rmse(evaluation: dict) -> float:
     """Mean over the axes of the (first) model's RMSE in ``evaluate --json``, rad/s^2."""
     return float(np.mean(list(evaluation["models"][0]["rmse"].values())))
-
-
-def _scores(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients (K, 3, P, 2) and cost (K,; inf when infeasible) of ``plan --scores``."""
-    with path.open() as f:
-        rows = list(csv.DictReader(f))
-    names = [k for k in rows[0] if k[:2] in ("f_", "A_")]
-    coeffs = np.array([[float(r[k]) for k in names] for r in rows])
-    cost = np.array([float(r["cost"]) if r["feasible"] == "true" else np.inf for r in rows])
-    return coeffs.reshape(len(rows), 3, len(names) // 6, 2), cost
 
 
 def _setup(w: Path, effects: dict[str, str], seed: int, duration: float) -> dict[str, Path]:
@@ -152,7 +141,7 @@ def _second(reference: Path, paths: dict[str, Path], seed: int, w: Path, tag: st
 
 def _pool(w: Path, task: Path, chosen: list[int], scores: Path) -> dict[int, Path]:
     """Write the chosen candidates of ``plan --scores`` as references; index -> path."""
-    coeffs, _ = _scores(scores)
+    coeffs, _ = read_scores(scores)
     refs = deviated_references(read_trajectory(task), coeffs[chosen])
     out = {}
     for k, ref in zip(chosen, refs, strict=True):
@@ -188,7 +177,7 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
         "first": _judge(paths["model"], paths, seed, w, "first"),
     }
     planned = _plan(paths, w, seed, cfg, "variance")
-    _, cost = _scores(w / "scores-variance.csv")
+    _, cost = read_scores(w / "scores-variance.csv")
     feasible = np.flatnonzero(np.isfinite(cost))
     rng = np.random.default_rng(1000 + seed)
     drawn = [int(k) for k in rng.permutation(feasible)[: 1 + cfg.pool_extra]]

@@ -69,12 +69,20 @@ def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
 
 def _spread_lines(results: Sequence[dict]) -> list[str]:
     """How much the flown candidates differ, in realised error and in planner cost."""
+    if not all("ranking" in r for r in results):
+        return []
     spread = [
         100 * (max(e) - min(e)) / np.mean(e)
         for e in ([c["region"] for c in r["pool"].values()] for r in results)
     ]
     cost = [100 * (1 - planned(r)["cost"] / r["task_cost"]) for r in results]
     return [
+        "- What the cost rewards, over all feasible candidates of each pool: Spearman of "
+        "the cost with the deviation's RMS amplitude "
+        + ", ".join(f"{r['ranking']['amplitude']:+.2f}" for r in results)
+        + "; with its mean frequency "
+        + ", ".join(f"{r['ranking']['frequency']:+.2f}" for r in results)
+        + " (positive: the planner prefers smaller, slower deviations).",
         "- Do the candidates differ enough to matter? The flown candidates' region errors "
         f"span {np.mean(spread):.0f} % of their mean (per draw "
         + ", ".join(f"{v:.0f}" for v in spread)

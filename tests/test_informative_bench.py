@@ -124,7 +124,9 @@ def test_markdown_says_which_target_holds() -> None:
     draws = []
     for i, scale in enumerate((1.0, 2.0, 0.5)):  # exact in binary: no rank ties broken
         d = _draw(2.0 * scale, 1.0 * scale, {0: (3.0, 0.9 * scale), 1: (1.0, 0.5 * scale)})
+        ranking = {"amplitude": 0.5, "frequency": -0.25}
         draws.append({**d, "effects": "drag", "seed": i, "seconds": 1.0, "task_cost": 4.0})
+        draws[-1]["ranking"] = ranking
     cfg = {"effects": ["drag"], "seeds": [0, 1, 2], "duration": 20.0, "candidates": 2}
     text = markdown(draws, {**cfg, "sims": 4, "pool_extra": 1}, 60.0, ["--seeds", "0", "1", "2"])
     # planned halves the task-again error in every draw (interval of zero width) and
@@ -142,3 +144,28 @@ def test_markdown_says_which_target_holds() -> None:
     # region errors 0.9 and 0.5 (x scale): span 0.4 / 0.7 of the mean; cost 1 vs task's 4
     assert "span 57 % of their mean (per draw 57, 57, 57 %)" in text
     assert "cost is 75 % below the task's own" in text
+    assert "RMS amplitude +0.50, +0.50, +0.50; with its mean frequency -0.25," in text
+
+
+def test_pool_ranking_finds_what_the_cost_rewards(tmp_path) -> None:
+    from benchmarks.informative_kept import pool_ranking, read_scores
+
+    rng = np.random.default_rng(0)
+    coeffs = np.stack([rng.uniform(0.1, 2, (8, 3, 2)), rng.uniform(-1, 1, (8, 3, 2))], -1)
+    amplitude = np.sqrt((coeffs[..., 1] ** 2).mean(axis=(1, 2)))
+    cost = 1.0 + amplitude  # the cost grows with the deviation only
+    cost[3] = np.inf  # infeasible: left out
+    ranking = pool_ranking(coeffs, cost)
+    assert ranking["amplitude"] == pytest.approx(1.0)
+    assert -1.0 < ranking["frequency"] < 1.0
+    # the --scores CSV round trip: coefficient columns f_x1, A_x1, ... and empty infeasible cost
+    names = [f"{k}_{a}{p}" for a in "xyz" for p in (1, 2) for k in ("f", "A")]
+    rows = ["candidate," + ",".join(names) + ",cost,feasible"]
+    for k in range(8):
+        ok = np.isfinite(cost[k])
+        vals = ",".join(repr(float(v)) for v in coeffs[k].reshape(-1))
+        rows.append(f"{k},{vals},{float(cost[k]) if ok else ''},{'true' if ok else 'false'}")
+    (tmp_path / "scores.csv").write_text("\n".join(rows) + "\n")
+    back, back_cost = read_scores(tmp_path / "scores.csv")
+    np.testing.assert_array_equal(back, coeffs)
+    np.testing.assert_array_equal(back_cost, cost)
