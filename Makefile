@@ -69,9 +69,9 @@ bench-effects: $(STAMP)
 # the same pool and the best flown candidate (oracle): refit, held-out error and
 # closed-loop tracking (docs/informative.md). Defaults: 6 effect sets x 2 seeds, 50
 # candidates, 3 further pool candidates flown: 12 draws of about 12 min wall-clock
-# each, two at a time (measured with three at a time on 2 busy cores). Draws are
-# cached in the workdir. docs/informative.md was made with --seeds 1 --pool-extra 2
-# (set INFORMATIVE_ARGS).
+# each, two at a time (measured: 6-12 min with three at a time on 2 busy cores).
+# Draws are cached in the workdir. docs/informative.md was made with
+# INFORMATIVE_ARGS='--seeds 1 --also drag:2 inertia:2 delay:2 --pool-extra 2'.
 INFORMATIVE_LOGS ?= build/informative
 INFORMATIVE_ARGS ?=
 informative: $(STAMP)

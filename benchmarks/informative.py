@@ -67,6 +67,8 @@ REGION = {
     "fast": ["fig8", "--roll", "20", "--pitch", "30", "--period", "6"],
     "wobble": ["wobble", "--amplitude", "15", "--seed", "3"],
 }
+#: what follows this line in --out was written by hand and is kept on regeneration
+MARKER = "<!-- reading of the numbers above, by hand: kept when the page is regenerated -->"
 TASK = ["fig8", "--roll", "26", "--pitch", "26", "--period", "8"]
 
 
@@ -230,6 +232,9 @@ def main(argv: list[str] | None = None) -> int:
     text = markdown(results, vars(cfg), time.perf_counter() - start, argv or sys.argv[1:])
     print(text)
     if cfg.out is not None:
+        old = cfg.out.read_text() if cfg.out.is_file() else ""
+        if MARKER in old:  # the reading written by hand below the numbers stays
+            text += "\n" + MARKER + old.split(MARKER, 1)[1]
         cfg.out.write_text(text)
     return 0
 
