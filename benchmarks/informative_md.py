@@ -188,8 +188,8 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         f"{cfg['sims']}`, {cfg['pool_extra']} further pool candidates flown; "
         f"each draw {min(r['seconds'] for r in results) / 60:.0f}–"
         f"{max(r['seconds'] for r in results) / 60:.0f} min wall-clock, two or three at a "
-        f"time on 2 cores shared with other work; this page {seconds:.0f} s after the draws "
-        "were cached in the workdir). Protocol: the docstring of "
+        f"time on 2 cores shared with other work; this page rendered in {seconds:.0f} s from "
+        "the draws cached in the workdir). Protocol: the docstring of "
         "benchmarks/informative.py.",
         "",
         "Gain = per cent by which the first flight's refit lowers the second's error; "
