@@ -11,6 +11,7 @@
 #                      (docs/intervals-results.md)
 #   make bench-horizons open-loop prediction over horizons: speed, draws, real log (docs/horizons.md)
 #   make scorecard     the randomised scorecard of the whole loop (docs/scorecard.md)
+#   make informative   planned vs task-again vs random second flights (docs/informative.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
 VENV   ?= .venv
@@ -18,7 +19,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise real scorecard clean
+.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise real scorecard informative clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -102,6 +103,18 @@ scorecard: $(STAMP)
 		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD_DIR)
 	$(BIN)/python benchmarks/scorecard.py analyse $(SCORECARD_DIR)/tune.jsonl \
 		$(SCORECARD_DIR)/report.jsonl --markdown $(SCORECARD_DIR)/tables.md
+# the planned second flight against the task flown again, one random candidate of
+# the same pool and the best flown candidate (oracle): refit, held-out error and
+# closed-loop tracking (docs/informative.md). Defaults: 6 effect sets x 2 seeds, 50
+# candidates, 3 further pool candidates flown: 12 draws of about 12 min wall-clock
+# each, two at a time (measured: 6-12 min with three at a time on 2 busy cores).
+# Draws are cached in the workdir. docs/informative.md was made with
+# INFORMATIVE_ARGS='--seeds 1 --also drag:2 inertia:2 delay:2 --pool-extra 2'.
+INFORMATIVE_LOGS ?= build/informative
+INFORMATIVE_ARGS ?=
+informative: $(STAMP)
+	nice -n 10 $(BIN)/python benchmarks/informative.py --workdir $(INFORMATIVE_LOGS) \
+		$(INFORMATIVE_ARGS) --out docs/informative.md
 
 test-numpy1: $(VENV1)/.installed
 	$(VENV1)/bin/pytest -q tests/test_kmedoids.py

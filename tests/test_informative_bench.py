@@ -1,0 +1,171 @@
+"""The statistics of benchmarks/informative.py on synthetic inputs (milliseconds)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from benchmarks.informative_md import comparisons, correlation, oracle
+from benchmarks.informative_stats import gain, mean_interval, spearman
+
+
+def test_gain_is_the_share_of_the_baseline_error_removed() -> None:
+    assert gain(2.0, 1.5) == pytest.approx(25.0)
+    assert gain(2.0, 3.0) == pytest.approx(-50.0)
+    with pytest.raises(ValueError, match="baseline error must be positive"):
+        gain(0.0, 1.0)
+
+
+def test_mean_interval_is_the_student_t_interval() -> None:
+    iv = mean_interval([10.0, 12.0, 14.0, 16.0])
+    # mean 13, s = sqrt(20/3), t(0.975, 3) = 3.182446
+    half = 3.182446305284263 * math.sqrt(20 / 3) / 2
+    assert (iv.mean, iv.n) == (13.0, 4)
+    assert iv.low == pytest.approx(13 - half) and iv.high == pytest.approx(13 + half)
+    assert iv.text() == f"+13.0 % [{13 - half:+.1f}, {13 + half:+.1f}]"
+
+
+def test_mean_interval_covers_the_true_mean_about_95_percent_of_the_time() -> None:
+    rng = np.random.default_rng(0)
+    hits = sum(
+        (iv := mean_interval(rng.normal(5.0, 3.0, 6))).low < 5.0 < iv.high for _ in range(2000)
+    )
+    assert 0.93 < hits / 2000 < 0.97
+
+
+def test_target_needs_the_mean_and_the_lower_end() -> None:
+    assert mean_interval([11.0, 12.0, 13.0]).holds(10.0)
+    assert not mean_interval([-30.0, 20.0, 50.0]).holds(10.0)  # mean 13.3, interval spans 0
+    assert not mean_interval([5.0, 6.0, 7.0]).holds(10.0)  # sure, but small
+    one = mean_interval([40.0])
+    assert not one.holds(10.0) and one.text() == "+40.0 % (one draw, no interval)"
+    with pytest.raises(ValueError, match="finite"):
+        mean_interval([1.0, math.nan])
+
+
+def test_spearman_on_synthetic_ranks() -> None:
+    x = [1.0, 2.0, 3.0, 4.0, 5.0]
+    assert spearman(x, [10.0, 20.0, 30.0, 40.0, 50.0]) == pytest.approx(1.0)
+    assert spearman(x, [5.0, 4.0, 3.0, 2.0, 1.0]) == pytest.approx(-1.0)
+    y = [2.0, 1.0, 4.0, 3.0, 5.0]  # 1 - 6 * 4 / (5 * 24) = 0.8
+    assert spearman(x, y) == pytest.approx(0.8)
+    assert spearman(x, y) == pytest.approx(stats.spearmanr(x, y).statistic)
+    assert math.isnan(spearman([1.0, 2.0], [2.0, 1.0]))
+    assert math.isnan(spearman(x, [1.0] * 5))
+    with pytest.raises(ValueError, match="lengths differ"):
+        spearman(x, x[:3])
+
+
+def _draw(first: float, task: float, pool: dict[int, tuple[float, float]]) -> dict:
+    """A synthetic draw: pool index -> (cost, region error); best = lowest cost, random = 0."""
+
+    def errors(region: float) -> dict:
+        return {"tracking": region, "region": region, "task": region, "gp_on": [True] * 3}
+
+    return {
+        "first": errors(first),
+        "task_again": errors(task),
+        "pool": {str(k): {**errors(e), "cost": c} for k, (c, e) in pool.items()},
+        "best": min(pool, key=lambda k: pool[k][0]),
+        "random": 0,
+    }
+
+
+def test_comparisons_and_correlation_of_synthetic_draws() -> None:
+    # cost ranks the candidates exactly as the error they leave: Spearman of cost with
+    # the removed error is -1 per draw and pooled
+    draws = [
+        _draw(2.0, 1.0, {0: (3.0, 0.9), 1: (1.0, 0.5), 2: (2.0, 0.7)}),
+        _draw(4.0, 2.0, {0: (6.0, 1.8), 1: (2.0, 1.0), 2: (4.0, 1.4)}),
+    ]
+    assert oracle(draws[0])["region"] == 0.5
+    rows = {(name, label): g for name, label, g in comparisons(draws)}
+    assert rows[("planned vs the task flown again", "closed-loop tracking of the task")] == [
+        pytest.approx(50.0),
+        pytest.approx(50.0),
+    ]
+    room = rows[("oracle vs one random candidate (room)", "model RMSE, region's held-out flights")]
+    assert room == [pytest.approx(100 * 0.4 / 0.9), pytest.approx(100 * 0.8 / 1.8)]
+    per, pooled, n = correlation(draws)
+    assert per == [pytest.approx(-1.0), pytest.approx(-1.0)]
+    assert pooled == pytest.approx(-1.0) and n == 6
+
+
+def test_kept_share_attributes_every_training_point_to_its_flight(tmp_path) -> None:
+    from benchmarks.informative_kept import kept_share
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.model_file import save_model
+    from omavctl.logs import write_log
+    from omavctl.sim.plant import simulate
+    from omavctl.sim.tasks import fig8, wobble
+    from omavctl.sim.truth import load_truth
+    from omavctl.vehicle import default_vehicle
+
+    vehicle = default_vehicle()
+    truth = load_truth(None, vehicle)
+    first, second = tmp_path / "first.csv", tmp_path / "second.csv"
+    write_log(first, simulate(fig8(duration=4.0), vehicle, truth, seed=1).log)
+    write_log(second, simulate(wobble(duration=4.0), vehicle, truth, seed=2).log)
+    shares = []
+    for name, logs in (("a", [first]), ("b", [second]), ("ab", [first, second])):
+        model = fit_model(logs, vehicle, points=30, seed=0, restarts=0).model
+        save_model(tmp_path / f"{name}.npz", model)
+        shares.append(kept_share(tmp_path / f"{name}.npz", first, second))
+    assert shares[0] == 0.0 and shares[1] == 1.0
+    assert 0.0 < shares[2] < 1.0
+
+
+def test_markdown_says_which_target_holds() -> None:
+    from benchmarks.informative_md import markdown
+
+    draws = []
+    for i, scale in enumerate((1.0, 2.0, 0.5)):  # exact in binary: no rank ties broken
+        d = _draw(2.0 * scale, 1.0 * scale, {0: (3.0, 0.9 * scale), 1: (1.0, 0.5 * scale)})
+        ranking = {"amplitude": 0.5, "frequency": -0.25}
+        draws.append({**d, "effects": "drag", "seed": i, "seconds": 1.0, "task_cost": 4.0})
+        draws[-1]["ranking"] = ranking
+    cfg = {"effects": ["drag"], "seeds": [0, 1, 2], "duration": 20.0, "candidates": 2}
+    text = markdown(draws, {**cfg, "sims": 4, "pool_extra": 1}, 60.0, ["--seeds", "0", "1", "2"])
+    # planned halves the task-again error in every draw (interval of zero width) and
+    # beats the random candidate by 44 %; the oracle is the planned flight itself
+    assert (
+        "planned vs the task flown again, closed-loop tracking ≥ 10 %: +50.0 % [+50.0, +50.0]"
+        in text
+    )
+    assert "region's held-out flights ≥ 10 %: +44.4 % [+44.4, +44.4] — **holds**" in text
+    assert (
+        "| oracle vs planned | closed-loop tracking of the task | +0.0 % [+0.0, +0.0] | no |"
+        in text
+    )
+    assert "pooled over 6 flown candidates -1.00; per draw n/a, n/a, n/a." in text
+    # region errors 0.9 and 0.5 (x scale): span 0.4 / 0.7 of the mean; cost 1 vs task's 4
+    assert "span 57 % of their mean (per draw 57, 57, 57 %)" in text
+    assert "cost is 75 % below the task's own" in text
+    assert "RMS amplitude +0.50, +0.50, +0.50; with its mean frequency -0.25," in text
+
+
+def test_pool_ranking_finds_what_the_cost_rewards(tmp_path) -> None:
+    from benchmarks.informative_kept import pool_ranking, read_scores
+
+    rng = np.random.default_rng(0)
+    coeffs = np.stack([rng.uniform(0.1, 2, (8, 3, 2)), rng.uniform(-1, 1, (8, 3, 2))], -1)
+    amplitude = np.sqrt((coeffs[..., 1] ** 2).mean(axis=(1, 2)))
+    cost = 1.0 + amplitude  # the cost grows with the deviation only
+    cost[3] = np.inf  # infeasible: left out
+    ranking = pool_ranking(coeffs, cost)
+    assert ranking["amplitude"] == pytest.approx(1.0)
+    assert -1.0 < ranking["frequency"] < 1.0
+    # the --scores CSV round trip: coefficient columns f_x1, A_x1, ... and empty infeasible cost
+    names = [f"{k}_{a}{p}" for a in "xyz" for p in (1, 2) for k in ("f", "A")]
+    rows = ["candidate," + ",".join(names) + ",cost,feasible"]
+    for k in range(8):
+        ok = np.isfinite(cost[k])
+        vals = ",".join(repr(float(v)) for v in coeffs[k].reshape(-1))
+        rows.append(f"{k},{vals},{float(cost[k]) if ok else ''},{'true' if ok else 'false'}")
+    (tmp_path / "scores.csv").write_text("\n".join(rows) + "\n")
+    back, back_cost = read_scores(tmp_path / "scores.csv")
+    np.testing.assert_array_equal(back, coeffs)
+    np.testing.assert_array_equal(back_cost, cost)
