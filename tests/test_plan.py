@@ -118,7 +118,9 @@ def test_cli_plan_refuses_bad_inputs(setup, tmp_path):
     other = tmp_path / "other.npz"
     with np.load(model_path, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
-    arrays["schema"] = np.array(SCHEMA.replace("/1", "/2"))
+    name, version = SCHEMA.rsplit("/", 1)
+    newer = f"{name}/{int(version) + 1}"
+    arrays["schema"] = np.array(newer)
     np.savez(other, **arrays)
     out = tmp_path / "out.csv"
     base = ["plan", "--out", str(out), "--candidates", "1", "--sims", "1"]
@@ -128,7 +130,7 @@ def test_cli_plan_refuses_bad_inputs(setup, tmp_path):
     assert _one_error_line(r).startswith(f"error: {nonuniform}: non-uniform time grid")
     r = runner.invoke(app, [*base, "--task", str(task_path), "--model", str(other)])
     assert _one_error_line(r) == (
-        f"error: {other}: schema 'omavctl.model/2' is newer than this omavctl supports ({SCHEMA})"
+        f"error: {other}: schema '{newer}' is newer than this omavctl supports ({SCHEMA})"
     )
     assert not out.exists()
 
