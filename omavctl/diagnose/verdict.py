@@ -128,7 +128,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" ({axes})" if axes else ""
     text += "."
     learned = {str(e.get("name")): e for e in diag.get("learned", []) or []}
-    text += estimate_sentence(learned.get(missing[0], {}))
+    claimed = {a for a in AXES if (v := _num(per_axis.get(a))) is not None and v > 0.005}
+    text += estimate_sentence(learned.get(missing[0], {}), claimed)
     if len(missing) > 1:
         text += f" Then: {', '.join(missing[1:])}."
     amb = top.get("ambiguous_with") or []
