@@ -50,8 +50,9 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check omavctl tests benchmarks tools
 	$(BIN)/mypy omavctl
 
+# both cores, one test file per worker (about 7 minutes on 2 cores; one worker: 11)
 test: lint
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q -n 2 --dist loadfile
 
 fuzz: $(STAMP)
 	nice -n 10 $(BIN)/python tools/fuzz_campaign.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED) \
