@@ -37,6 +37,17 @@ __all__ = [
 ]
 
 
+def _smoothstep(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quintic 0 -> 1 on ``u`` in [0, 1] (clipped outside) and its first two
+    derivatives with respect to ``u``, each shaped like ``u``."""
+    x = np.clip(u, 0.0, 1.0)
+    inside = (u > 0) & (u < 1)
+    v = 10 * x**3 - 15 * x**4 + 6 * x**5
+    d1 = np.where(inside, 30 * x**2 - 60 * x**3 + 30 * x**4, 0.0)
+    d2 = np.where(inside, 60 * x - 180 * x**2 + 120 * x**3, 0.0)
+    return v, d1, d2
+
+
 @dataclass(frozen=True)
 class Envelope:
     """Smooth 0 -> 1 -> 0 window: quintic ramps of ``ramp`` s at both ends of ``duration``."""
@@ -47,10 +58,8 @@ class Envelope:
     def _up(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
         r = self.ramp
         x = np.clip(t / r, 0.0, 1.0)
-        inside = (t > 0) & (t < r)
-        v = 10 * x**3 - 15 * x**4 + 6 * x**5
-        d1 = np.where(inside, (30 * x**2 - 60 * x**3 + 30 * x**4) / r, 0.0)
-        d2 = np.where(inside, (60 * x - 180 * x**2 + 120 * x**3) / r**2, 0.0)
+        v, d1, d2 = _smoothstep(t / r)
+        d1, d2 = d1 / r, d2 / r**2
         integ = np.where(t < r, r * (2.5 * x**4 - 3 * x**5 + x**6), r / 2 + (t - r))
         return v, d1, d2, integ
 
@@ -370,17 +379,6 @@ def chirp(
         d2 = a * (dde * s + 2 * de * dphi * c + e * (ddphi * c - dphi**2 * s))
         axes.append((v, d1, d2))
     return _attitude_task(t, axes[0], axes[1], height, yaw=axes[2])
-
-
-def _smoothstep(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Quintic 0 -> 1 on ``u`` in [0, 1] (clipped outside) and its first two
-    derivatives with respect to ``u``, each shaped like ``u``."""
-    x = np.clip(u, 0.0, 1.0)
-    inside = (u > 0) & (u < 1)
-    v = 10 * x**3 - 15 * x**4 + 6 * x**5
-    d1 = np.where(inside, 30 * x**2 - 60 * x**3 + 30 * x**4, 0.0)
-    d2 = np.where(inside, 60 * x - 180 * x**2 + 120 * x**3, 0.0)
-    return v, d1, d2
 
 
 @_plausible
