@@ -236,7 +236,7 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
     """Inspection of a ULog read without a column map: its topics, column ranges and a
     suggested column map."""
     from omavctl.logs.stats import topic_info
-    from omavctl.logs.suggest import suggest_column_map, suggestion_yaml
+    from omavctl.logs.suggest import suggest_column_map
     from omavctl.logs.ulog import PX4_COLUMNS, scan_ulog, ulog_unit
 
     scan = scan_ulog(u)
@@ -262,19 +262,13 @@ def _inspect_ulog(path: Path, u: UlogTopics) -> Inspection:
         f"{len(topics)} topics, {len(scan.values) - 1} numeric columns named topic.field; "
         "a column map (vehicle 'columns:') is needed to read it",
     ]
-    return Inspection(
-        path=path,
-        format="ulog",
-        duration=guess.duration,
-        t0=guess.t0,
-        topics=topics,
-        roles_found={},
-        roles_missing={role: "needs a column map" for role in _needed(guess)},
-        required=_needed(guess),
-        notes=notes,
+    return _mapped_inspection(
+        path,
+        "ulog",
+        guess,
+        topics,
+        notes,
         column_ranges={k: v for k, v in scan.ranges().items() if k != "timestamp"},
-        suggested_columns=guess.columns,
-        suggestion=suggestion_yaml(guess, path.name),
         column_units={k: ulog_unit(k) for k in scan.values if k != "timestamp"},
         column_rates={k: t.rate for t in topics for k in u.topics[t.name][1]},
     )
@@ -288,7 +282,7 @@ def _inspect_table(path: Path) -> Inspection:
     from omavctl.logs.inventory import table_inventory
     from omavctl.logs.read import FORMAT_LABELS
     from omavctl.logs.stats import topic_info
-    from omavctl.logs.suggest import suggest_column_map, suggestion_yaml
+    from omavctl.logs.suggest import suggest_column_map
     from omavctl.logs.tables import scan_table
 
     table = load_table(path, detect_format(path))
@@ -311,9 +305,35 @@ def _inspect_table(path: Path) -> Inspection:
                          - guess.t0) for g in table.groups]  # fmt: skip
     notes = [*inv.notes, f"{len(inv.columns)} numeric columns; a column map (vehicle "
              "'columns:') is needed to read it"]  # fmt: skip
+    return _mapped_inspection(
+        path,
+        inv.format,
+        guess,
+        topics,
+        notes,
+        column_ranges={c.name: (c.lo, c.hi) for c in inv.columns if c.count},
+        column_units=inv.units(),
+        column_rates={c.name: c.rate for c in inv.columns},
+        header_values={k: v for k, v in inv.meta.items() if k != "header"},
+    )
+
+
+def _mapped_inspection(
+    path: Path,
+    fmt: str,
+    guess: Suggestion,
+    topics: list[TopicInfo],
+    notes: list[str],
+    **columns: Any,
+) -> Inspection:
+    """The inspection of a log that only a column map can read (ULog, Crazyflie,
+    Betaflight): no role found until mapped, the suggested map, and ``columns``
+    (``column_ranges``, ``column_units``, ``column_rates``, ``header_values``)."""
+    from omavctl.logs.suggest import suggestion_yaml
+
     return Inspection(
         path=path,
-        format=inv.format,
+        format=fmt,
         duration=guess.duration,
         t0=guess.t0,
         topics=topics,
@@ -321,12 +341,9 @@ def _inspect_table(path: Path) -> Inspection:
         roles_missing={role: "needs a column map" for role in _needed(guess)},
         required=_needed(guess),
         notes=notes,
-        column_ranges={c.name: (c.lo, c.hi) for c in inv.columns if c.count},
         suggested_columns=guess.columns,
         suggestion=suggestion_yaml(guess, path.name),
-        column_units=inv.units(),
-        column_rates={c.name: c.rate for c in inv.columns},
-        header_values={k: v for k, v in inv.meta.items() if k != "header"},
+        **columns,
     )
 
 
