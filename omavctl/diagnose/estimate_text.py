@@ -10,14 +10,20 @@ __all__ = ["estimate_sentence"]
 
 
 def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = None) -> str:
-    """' Estimated as fit would: T_m = 0.027 s (95 %: -0.10 to 0.16, cannot be pinned
+    """' Estimated on this flight as fit would: T_m = 0.027 s (95 %: -0.10 to 0.16, cannot be pinned
     down from this flight).' for a diagnosis ``learned`` entry with an ``estimate``
     ('' without one).
 
     ``axes``: the axes the claim is made on; a per-axis component (D_z) on another
     axis is not quoted as an estimate ("D_z not claimed: ..."): where the effect
     explains none of an axis's error, its component there is whatever else that
-    axis's residual holds, and its interval would not hold the truth."""
+    axis's residual holds, and its interval would not hold the truth.
+
+    The interval is this flight's: another flight that excites a look-alike
+    differently (the thrust spread beside a centre-of-mass offset) may move the
+    estimate by more than it, which ``fit`` on both flights then shows. Its ends are
+    printed with as many digits as it takes to tell them apart (3 to 6): "0.0123 to
+    0.0123" read as an interval of zero width."""
     est = entry.get("estimate")
     if not isinstance(est, Mapping):
         return ""
@@ -36,11 +42,12 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
                 unclaimed.append(labels[i])
                 continue
             u = "" if unit == "1" else f" {unit}"
-            text = f"{labels[i]} = {v:.3g}{u} (95 %: {ci[0]:.3g} to {ci[1]:.3g}"
+            lo, hi, digits = _distinct(ci[0], ci[1])
+            text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {lo} to {hi}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:
                 text += ", cannot be pinned down from this flight"
             parts.append(text + ")")
-    text = f" Estimated as fit would: {'; '.join(parts)}." if parts else ""
+    text = f" Estimated on this flight as fit would: {'; '.join(parts)}." if parts else ""
     if unclaimed:
         which = ", ".join(label[-1] for label in unclaimed)
         text += (
@@ -48,3 +55,13 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             f"{which} error{'s' if len(unclaimed) > 1 else ''} here."
         )
     return text
+
+
+def _distinct(lo: float, hi: float) -> tuple[str, str, int]:
+    """Both ends of an interval with the fewest significant digits (3 to 6) that print
+    them apart, and that number of digits (for the estimate beside them)."""
+    for digits in range(3, 7):
+        a, b = f"{lo:.{digits}g}", f"{hi:.{digits}g}"
+        if a != b:
+            return a, b, digits
+    return f"{lo:.6g}", f"{hi:.6g}", 6
