@@ -328,3 +328,27 @@ def test_three_files_show_every_step_not_only_first_to_last():
     assert not any(w == "e1.json → e3.json" and t.startswith("Axis z") for w, t in changes)
     # each file but the last says first what it lacked (why the next one was fitted)
     assert [ln.who for ln in lines if ln.key == "missing"] == ["e1.json", "e2.json", "e3.json"]
+
+
+def test_report_verdict_keeps_what_a_file_lacked_behind_a_leading_warning():
+    """A file whose verdict leads with a warning (the model no better than predicting
+    none) still says what it lacked: that is why the next model was fitted (a new
+    user's Crazyflie report showed the warning and dropped 'Missing: motor_lag')."""
+    before = copy.deepcopy(BEFORE)
+    before["flags"] = [
+        {
+            "code": "no_better_than_zero",
+            "axis": "y",
+            "message": "axis y: the model's error (45.8 rad/s² RMS) is not below the angular "
+            "acceleration itself (43.8): predicting none would do as well",
+        }
+    ]
+    lines = report_verdict([(before, "a.json"), (AFTER, "b.json")])
+    mine = [ln for ln in lines if ln.who == "a.json"]
+    assert "predicting none would do as well" in mine[0].text
+    assert [ln.key for ln in mine].count("missing") == 1
+    (missing,) = [ln for ln in mine if ln.key == "missing"]
+    assert missing.text.startswith("Missing: rotational_drag")
+    # a file whose first line already is the missing one is not repeated
+    plain = [ln for ln in report_verdict([(BEFORE, "a.json"), (AFTER, "b.json")])]
+    assert [ln.key for ln in plain if ln.who == "a.json"] == ["missing"]

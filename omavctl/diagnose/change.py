@@ -268,8 +268,11 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
     # with three or more each step's change: a step that made an axis worse must not
     # hide behind an overall gain; then first to last and the last file's verdict
     for i, (tree, label) in enumerate(evals[:-1]):
-        head = reconciled_head(verdict(tree)[0], scores[i], scores[i + 1])
+        own = verdict(tree)
+        head = reconciled_head(own[0], scores[i], scores[i + 1])
         lines.append(Line(head.key, head.text, label, head.command))
+        # a warning may lead the file's verdict; what it lacked must still be said
+        lines += [Line(ln.key, ln.text, label, ln.command) for ln in own[1:] if ln.key == "missing"]
         if len(evals) > 2:
             lines += step(i, i + 1)
     lines += step(0, len(evals) - 1)
