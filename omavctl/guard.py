@@ -11,7 +11,11 @@
   the status of usage errors); an operating-system error while writing becomes
   one line and exit status 1; any other exception is an internal error: one
   line, exit status 1 (``OMAVCTL_DEBUG=1`` shows the traceback);
-- SIGINT exits 130 and SIGTERM 143, after temporary files are removed.
+- SIGINT exits 130 and SIGTERM 143, after temporary files are removed;
+- with ``--json`` the failure is also one JSON object on stdout,
+  ``{"command": ..., "error": "<file>: <problem>", "exit_code": N}``, so a
+  pipeline that parses stdout reads why instead of nothing (usage errors, found
+  before the command runs, stay on stderr only).
 
 :func:`run_app` is the console-script entry: SIGTERM cleanup and one-line
 usage errors.
@@ -34,8 +38,14 @@ from omavctl.base.errors import EXIT_BAD_INPUT, EXIT_FAILURE, OmavctlError
 __all__ = ["check_finite_options", "guarded", "run_app"]
 
 
-def _fail(line: str, code: int) -> typer.Exit:
+def _fail(line: str, code: int, json_of: str | None = None) -> typer.Exit:
+    """Print ``line`` on stderr (and, for a ``--json`` run of command ``json_of``, the
+    failure as one JSON object on stdout); the exit with ``code``."""
     typer.echo(line, err=True)
+    if json_of is not None:
+        from omavctl.cliout import emit_json
+
+        emit_json({"command": json_of, "error": line.removeprefix("error: "), "exit_code": code})
     return typer.Exit(code)
 
 
@@ -56,24 +66,26 @@ def _first_line(err: BaseException) -> str:
 
 def guarded(func: Callable[..., Any], args: Any, kwargs: dict[str, Any]) -> Any:
     """Run a command body with the failure rules of the module docstring."""
+    as_json = func.__name__.replace("_", " ") if kwargs.get("as_json") else None
     try:
         check_finite_options(kwargs)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             return func(*args, **kwargs)
     except OmavctlError as err:
-        raise _fail(f"error: {err}", EXIT_BAD_INPUT) from None
+        raise _fail(f"error: {err}", EXIT_BAD_INPUT, as_json) from None
     except KeyboardInterrupt:
-        raise _fail("error: interrupted", 130) from None
+        raise _fail("error: interrupted", 130, as_json) from None
     except Terminated:
-        raise _fail("error: terminated", 143) from None
+        raise _fail("error: terminated", 143, as_json) from None
     except (typer.Exit, typer.Abort):
         raise
     except OSError as err:
         where = f"{err.filename}: " if err.filename else ""
-        raise _fail(f"error: {where}{err.strerror or _first_line(err)}", EXIT_FAILURE) from None
+        line = f"error: {where}{err.strerror or _first_line(err)}"
+        raise _fail(line, EXIT_FAILURE, as_json) from None
     except MemoryError:
-        raise _fail("error: out of memory", EXIT_FAILURE) from None
+        raise _fail("error: out of memory", EXIT_FAILURE, as_json) from None
     except Exception as err:
         if os.environ.get("OMAVCTL_DEBUG"):
             raise
@@ -82,6 +94,7 @@ def guarded(func: Callable[..., Any], args: Any, kwargs: dict[str, Any]) -> Any:
             f"error: internal error ({name}); please report it with the command line "
             "(OMAVCTL_DEBUG=1 shows the traceback)",
             EXIT_FAILURE,
+            as_json,
         ) from None
 
 

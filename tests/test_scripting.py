@@ -264,3 +264,39 @@ def test_command_lists_are_not_cut():
         text = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "80"}).output
         commands = text[text.index("Commands:") :].splitlines()[1:]
         assert commands and all(not line.rstrip().endswith("...") for line in commands), text
+
+
+def test_a_failing_json_run_says_why_on_stdout(tmp_path):
+    """With --json a failure is one JSON object on stdout too (a new user's
+    `omavctl fit nosuch.bag --json | python -m json.tool` read nothing and failed with
+    'Expecting value'); stderr keeps its one line and the exit status is unchanged."""
+    missing = tmp_path / "nosuch.bag"
+    result = runner.invoke(app, ["fit", str(missing), "--out", str(tmp_path / "m.npz"), "--json"])
+    assert result.exit_code == 2
+    assert result.stderr.strip() == f"error: {missing}: file not found"
+    assert _one_json(result.stdout) == {
+        "command": "fit",
+        "error": f"{missing}: file not found",
+        "exit_code": 2,
+    }
+    assert not (tmp_path / "m.npz").exists()
+    out = tmp_path / "no" / "t.csv"
+    result = runner.invoke(app, ["task", "steps", "--out", str(out), "--json"])
+    assert result.exit_code == 2
+    assert _one_json(result.stdout)["command"] == "task steps"
+    # without --json stdout stays empty
+    result = runner.invoke(app, ["fit", str(missing), "--out", str(tmp_path / "m.npz")])
+    assert result.exit_code == 2 and result.stdout == ""
+
+
+def test_inspect_takes_quiet_like_every_command(tmp_path):
+    """`inspect -q` was refused ('No such option: -q') while every other command took
+    it; with --json it drops the listing on stderr, without it the listing is kept."""
+    path = tmp_path / "t.csv"
+    runner.invoke(app, ["task", "fig8", "--duration", "6", "--ramp", "1", "--out", str(path)])
+    result = runner.invoke(app, ["inspect", str(path), "-q", "--json"])
+    assert result.exit_code == 0, result.output
+    assert result.stderr == ""
+    assert _one_json(result.stdout)["command"] == "inspect"
+    result = runner.invoke(app, ["inspect", str(path), "-q"])
+    assert result.exit_code == 0 and str(path.name) in result.stdout

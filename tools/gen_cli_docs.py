@@ -32,8 +32,10 @@ value, an output that is one of the inputs, a directory or unwritable) and on a
 usage error, 1 on any other failure; `--seed` makes sampling commands
 reproducible byte for byte; `-q` silences progress bars and the summary; `--json`
 prints one JSON object on stdout (the files written and the key figures) while the
-human text stays on stderr. See [getting-started.md](getting-started.md) for a
-walk-through and [design.md](design.md) §5 for the conventions.
+human text stays on stderr; a failed `--json` run prints
+`{"command": ..., "error": "<file>: <problem>", "exit_code": N}` there as well.
+See [getting-started.md](getting-started.md) for a walk-through and
+[design.md](design.md) §5 for the conventions.
 """
 
 

@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from omavctl.cli.app import app
-from omavctl.cli.common import LOG_FORMATS, Json, VehicleOpt, emit, reports_errors
+from omavctl.cli.common import LOG_FORMATS, Json, Quiet, VehicleOpt, emit, reports_errors
 
 Log = Annotated[
     Path,
@@ -21,12 +21,15 @@ Log = Annotated[
 
 @app.command(short_help="List a log's topics, rates, gaps and contract roles.")
 @reports_errors
-def inspect(log: Log, vehicle: VehicleOpt = None, as_json: Json = False) -> None:
+def inspect(
+    log: Log, vehicle: VehicleOpt = None, quiet: Quiet = False, as_json: Json = False
+) -> None:
     """List topics, types, counts, rates, duration, gaps and contract roles of a log.
 
     The listing goes to stdout (one row per topic, never wrapped in a pipe, so
     `omavctl inspect LOG | grep TOPIC` works); with --json it goes to stderr and stdout
-    holds one JSON object.
+    holds one JSON object. -q is accepted as by every command: with --json it drops
+    the listing on stderr; without, the listing is the output and is printed.
 
     A CSV of another layout, a ULog, a Crazyflie SD-card log or a Betaflight blackbox
     CSV without a column map in --vehicle: list its columns with ranges (and, where the
@@ -46,5 +49,6 @@ def inspect(log: Log, vehicle: VehicleOpt = None, as_json: Json = False) -> None
             f"column ranges in the log's {veh.frame} frame (scaled, not yet converted: fit "
             "and evaluate work in FLU, where y and z change sign)"
         )
-    render_inspect(ins, console(stdout=not as_json))
+    if not (quiet and as_json):
+        render_inspect(ins, console(stdout=not as_json))
     emit(as_json, inspect_json(ins))
