@@ -4,6 +4,7 @@ time windows, irregular sampling, and the column map ``inspect`` suggests."""
 from __future__ import annotations
 
 import csv
+import json
 import re
 from pathlib import Path
 from typing import Any
@@ -798,6 +799,10 @@ def test_a_csv_cut_in_its_last_row_is_named_truncated_and_the_row_dropped(tmp_pa
         "That row is dropped"
     ]
     assert whole.raw.notes == []
+    # inspect of the same file, before any column map, says so too (it said nothing)
+    result = runner.invoke(app, ["inspect", str(cut), "--json"])
+    assert result.exit_code == 0, result.output
+    assert part.raw.notes[0] in json.loads(result.stdout)["notes"]
 
 
 @pytest.mark.parametrize(("acc_z", "frame"), [(9.78, "FLU"), (-9.81, "FRD"), (0.3, None)])

@@ -30,7 +30,8 @@ __all__ = [
 @dataclass
 class ColumnScan:
     """The columns of a CSV file: ``values`` of the numeric ones (shape (rows,),
-    NaN where empty), names of the all-empty and non-numeric ones, in file order."""
+    NaN where empty), names of the all-empty and non-numeric ones, in file order;
+    ``notes`` what the reading found (a last row the file ends in the middle of)."""
 
     path: Path
     header: list[str]
@@ -38,6 +39,7 @@ class ColumnScan:
     values: dict[str, np.ndarray] = field(default_factory=dict)
     empty: list[str] = field(default_factory=list)
     non_numeric: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
     def ranges(self) -> dict[str, tuple[float, float]]:
         """(min, max) of every numeric column, in file order."""

@@ -208,7 +208,8 @@ def _inspect_foreign_csv(path: Path) -> Inspection:
     required = _needed(guess)
     notes = [
         f"not a wide contract CSV: {len(scan.header)} columns, {len(scan.values)} numeric "
-        "with values; a column map (vehicle 'columns:') is needed to read it"
+        "with values; a column map (vehicle 'columns:') is needed to read it",
+        *scan.notes,
     ]
     if scan.empty:
         shown = ", ".join(scan.empty[:12]) + (", ..." if len(scan.empty) > 12 else "")

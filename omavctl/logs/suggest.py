@@ -46,7 +46,7 @@ from omavctl.logs.colnames import (
     name_words,
     word_base,
 )
-from omavctl.logs.csvlog import MISSING_CELLS, read_table
+from omavctl.logs.csvlog import MISSING_CELLS, cut_row_notes, read_table
 from omavctl.logs.motorcols import MotorGuess, guess_motor_outputs
 
 __all__ = ["ColumnScan", "Suggestion", "scan_csv", "suggest_column_map", "suggestion_yaml"]
@@ -59,7 +59,9 @@ def scan_csv(path: Path) -> ColumnScan:
         LogError: unreadable file, no header or no data rows.
     """
     table = read_table(path)
-    scan = ColumnScan(path=path, header=table.header, rows=len(table.rows))
+    scan = ColumnScan(
+        path=path, header=table.header, rows=len(table.rows), notes=cut_row_notes(table)
+    )
     seen: set[str] = set()
     for j, name in enumerate(table.header):
         if not name or name in seen:
