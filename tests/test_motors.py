@@ -276,6 +276,8 @@ def test_inspect_suggests_motor_outputs_and_the_preset(
     assert preset in preset_names()
     text = res.stderr
     assert f"preset: {preset}" in text and f"motor commands look like {unit}" in text
+    # the preset already declares the unit: the user is told there is nothing to add
+    assert f"preset {preset} declares that" in text and "nothing to add" in text
     # the suggestion, pasted into a vehicle file, reads the log and mixes its outputs
     suggestion = text[text.index("# Column map GUESSED") :]
     vfile = tmp_path / "v.yaml"

@@ -328,11 +328,7 @@ def suggestion_yaml(s: Suggestion, source: str) -> str:
             lines.append(f"preset: {m.preset}  # {m.why}")
         else:
             lines.append(f"# {m.why}")
-        lo, hi = (_fmt(v) for v in m.range)
-        lines.append(
-            f"# motor commands look like {m.unit}: the rotor list must say so "
-            f"(motors: {{unit: {m.unit}, range: [{lo}, {hi}]}}; docs/logs.md)"
-        )
+        lines.append(_motor_unit_line(m.unit, m.range, m.preset))
     lines.append("columns:")
     for role, value in s.columns.items():
         lines.append(f"  {role}: {_flow(value)}  # {s.comments[role]}")
@@ -353,3 +349,36 @@ def suggestion_yaml(s: Suggestion, source: str) -> str:
             "normalised} (fit then estimates their gain)"
         )
     return "\n".join(lines) + "\n"
+
+
+def _preset_motors(name: str) -> tuple[str, list[float]] | None:
+    """(unit, range) of the rotor list of preset ``name`` (a data file of the package),
+    None when there is no such preset or it has no unit."""
+    import yaml
+
+    path = Path(__file__).resolve().parents[1] / "data" / "presets" / f"{name}.yaml"
+    try:
+        motors = (yaml.safe_load(path.read_text()) or {}).get("motors") or {}
+    except (OSError, yaml.YAMLError, AttributeError):
+        return None
+    unit, span = motors.get("unit"), motors.get("range")
+    return (str(unit), list(span)) if unit and isinstance(span, list) else None
+
+
+def _motor_unit_line(unit: str, span: tuple[float, float], preset: str) -> str:
+    """The comment on the motor commands' unit: whether the suggested preset already
+    declares it (then nothing is to be added) or a rotor list must."""
+    lo, hi = (_fmt(v) for v in span)
+    why = " (DShot: 48 is zero throttle, 2047 full)" if unit == "dshot" else ""
+    own = _preset_motors(preset) if preset else None
+    if own is not None and own[0] == unit:
+        plo, phi = (_fmt(float(v)) for v in own[1])
+        return (
+            f"# motor commands look like {unit}{why}: preset {preset} declares that "
+            f"(range [{plo}, {phi}]), nothing to add; a rotor list of your own must say "
+            "so (motors: {unit: ..., range: [...]}; docs/logs.md)"
+        )
+    return (
+        f"# motor commands look like {unit}{why}: the rotor list must say so "
+        f"(motors: {{unit: {unit}, range: [{lo}, {hi}]}}; docs/logs.md)"
+    )
