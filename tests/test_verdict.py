@@ -352,3 +352,26 @@ def test_report_verdict_keeps_what_a_file_lacked_behind_a_leading_warning():
     # a file whose first line already is the missing one is not repeated
     plain = [ln for ln in report_verdict([(BEFORE, "a.json"), (AFTER, "b.json")])]
     assert [ln.key for ln in plain if ln.who == "a.json"] == ["missing"]
+
+
+def test_the_summary_table_gives_r2_against_the_measured_signal_too():
+    """R² against the nominal model can read 0.81 on an axis where the model does no
+    better than predicting no acceleration (the nominal model far worse than that): the
+    table adds R² against the measured acceleration, 1 - (RMSE / RMS)²."""
+    from omavctl.report.overview import _metrics_table
+
+    rmse = {"x": 19.5, "y": 45.8, "z": 1.9}
+    tree = {
+        "metrics": {
+            "zero": {"rmse": {"x": 37.1, "y": 43.8, "z": 1.46}},
+            "nominal": {"rmse": {"x": 97.1, "y": 86.1, "z": 2.72}, "r2": {a: 0.0 for a in "xyz"}},
+            "model": {"rmse": rmse, "r2": {"x": 0.96, "y": 0.81, "z": 0.51}},
+        }
+    }
+    table = _metrics_table(tree)
+    (row,) = [r for r in table.rows if str(r[0]).startswith("R² (share of the measured")]
+    model = row[-3:]
+    assert [float(str(v)) for v in model] == pytest.approx(
+        [1 - (19.5 / 37.1) ** 2, 1 - (45.8 / 43.8) ** 2, 1 - (1.9 / 1.46) ** 2], rel=1e-3
+    )
+    assert float(str(model[1])) < 0  # no better than predicting none: below zero

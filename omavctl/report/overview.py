@@ -107,11 +107,30 @@ def _metrics_table(tree: Mapping[str, Any]) -> Table:
             else:
                 row += [num(v) for v in axes_of(_get(m, key))]
         rows.append(row)
+        if key == "r2" and isinstance(zero, Mapping):
+            rows.append(_signal_r2_row(cols, zero))
     return Table(
         columns=["metric", *(a for _ in cols for a in AXES)],
         groups=[("", 1), *((title, 3) for title, _ in cols)],
         rows=rows,
     )
+
+
+def _signal_r2_row(
+    cols: Sequence[tuple[str, Mapping[str, Any]]], zero: Mapping[str, Any]
+) -> list[Cell]:
+    """R² against the measured signal, 1 - (RMSE / RMS of the angular acceleration)²,
+    per prediction and axis: the share of the measurement explained. The R² above is
+    against the nominal model, which can look good where the nominal model is far
+    worse than predicting no acceleration (a new user read 0.81 on an axis the
+    verdict called no better than predicting none)."""
+    row: list[Cell] = ["R² (share of the measured acceleration explained)"]
+    for _, m in cols:
+        for a, z in zip(AXES, axes_of(_get(zero, "rmse")), strict=True):
+            r = _get(m, "rmse", a)
+            ok = isinstance(r, int | float) and isinstance(z, int | float) and z > 0
+            row.append(num(1.0 - (float(r) / float(z)) ** 2) if ok else "–")
+    return row
 
 
 def summary_of(
