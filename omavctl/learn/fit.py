@@ -205,7 +205,7 @@ def fit_model(
         gp = gp_hyperparameters(opts, original, res, train)
     eff, notes = joint_step(opts, res, train, gp)
     validation_step(res, train, gp, eff)
-    gain, notes = _gain(vehicle, opts.added, eff, notes)
+    gain, notes = _gain(vehicle, opts.added, eff, notes, opts.names)
     model = _model(opts, res, train, gp, eff, gain, sum(s.n for s in original))
     with _timed(timings, "evaluate"):
         _training_fit(model, original, gp.axes)
@@ -233,13 +233,17 @@ def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
 
 
 def _gain(
-    vehicle: Vehicle, added: Sequence[str], eff: EffectFit, notes: list[str]
+    vehicle: Vehicle,
+    added: Sequence[str],
+    eff: EffectFit,
+    notes: list[str],
+    names: Sequence[str] = (),
 ) -> tuple[tuple[np.ndarray, np.ndarray] | None, list[str]]:
     """The torque-command gain and its standard error (3,) each for a normalised torque
     command (else None), and the notes with what they say about the command units first."""
     if vehicle.torque_normalised and GAIN_EFFECT in eff.estimates:
         gain, gain_se = torque_gain(eff.estimates[GAIN_EFFECT])
-        return (gain, gain_se), [*unit_notes(vehicle, added, gain, gain_se), *notes]
+        return (gain, gain_se), [*unit_notes(vehicle, added, gain, gain_se, names), *notes]
     if vehicle.force_normalised:
         return None, [*unit_notes(vehicle, added, None, None), *notes]
     return None, notes

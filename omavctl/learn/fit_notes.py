@@ -48,8 +48,10 @@ def unit_notes(
     added: Sequence[str],
     gain: np.ndarray | None,
     gain_se: np.ndarray | None,
+    names: Sequence[str] = (),
 ) -> list[str]:
-    """What the summary says about normalised commands and the fitted gain."""
+    """What the summary says about normalised commands and the fitted gain (``names``:
+    the effects the fit estimates)."""
     notes = []
     if added:
         notes.append(
@@ -71,6 +73,13 @@ def unit_notes(
             notes.append(
                 f"torque command gain not positive on axis {', '.join(bad)}: check the sign "
                 "of the torque columns and the frame (FLU/FRD) in the vehicle YAML"
+                + (
+                    "; with motor outputs also a motor lag the fit does not model "
+                    "(--effects motor_lag): a torque that lags its command by more than "
+                    "a quarter of the motion's period correlates negatively with it"
+                    if vehicle.motors is not None and "motor_lag" not in names
+                    else ""
+                )
             )
         notes.append(
             "torque units are unknown: parameters in N m are shown in [torque unit] "
