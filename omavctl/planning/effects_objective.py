@@ -338,10 +338,12 @@ def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
     """The summary's first line: what the flight is expected to do for ``names``.
 
     "separate" only when the largest cross-effect correlation falls; a flight that
-    pins the parameters down while correlating them more says so.
+    narrows the parameters while correlating them more says "narrow" and why.
     """
     separates = len(names) > 1 and corr["after"] < corr["before"]
-    kind = "separate and pin down" if separates else "pin down"
+    # "pin down" beside "it does not tell them apart" read as a contradiction: with
+    # more than one effect and a correlation that grows, the flight only narrows them
+    kind = "separate and pin down" if separates else "narrow" if len(names) > 1 else "pin down"
     line = (
         f"effects: the flight (candidate {result.best}, ranked by --objective "
         f"{result.objective}) is expected to {kind} {', '.join(names)}: relative standard "
@@ -398,23 +400,29 @@ def effects_summary(result) -> dict | None:
     labels = parameter_labels(prior.names)
     owner = np.concatenate([np.full(get_effect(n).n_theta, n) for n in prior.names])
     fit_se = prior.fit_stderr if prior.fit_stderr is not None else np.full(before.size, np.nan)
+    # fit's standard errors allow for autocorrelated residuals (and a lag's come from its
+    # 1-D search over every sample); the planner's are white GLS at the training points,
+    # several-fold smaller. "Now" is fit's; the forecasts carry the same factor, which
+    # assumes the next flight's residuals are as correlated as the fit flight's.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        allowance = np.where(np.isfinite(fit_se) & (before > 0), fit_se / before, 1.0)
+    allowance = np.maximum(np.nan_to_num(allowance, nan=1.0, posinf=1.0), 1.0)
     for i, label in enumerate(labels):
-        # a lag or delay: the planner linearises it at the training points, fit's own
-        # standard error comes from its 1-D search over every sample; both are shown
-        # (for a linear effect the two are the same generalised least squares)
-        searched = get_effect(str(owner[i])).search is not None and np.isfinite(fit_se[i])
-        fit = (
-            f" (linearised at the training points; fit's 1-D search: ± {fit_se[i]:.3g})"
-            if searched
+        times = (
+            f"; x{allowance[i]:.2g} for autocorrelation as fit measured it"
+            if allowance[i] > 1.05
             else ""
         )
         now = (
-            f"{prior.values[i]:.4g} ± {before[i]:.3g} now{fit}"
+            f"{prior.values[i]:.4g} ± {fit_se[i]:.3g} now (fit's)"
+            if owner[i] in prior.fitted and np.isfinite(fit_se[i])
+            else f"{prior.values[i]:.4g} ± {before[i]:.3g} now"
             if owner[i] in prior.fitted
             else f"not in the model (prior ± {before[i]:.3g})"
         )
         lines.append(
-            f"  {label}: {now}, ± {after[i]:.3g} after the flight, ± {task[i]:.3g} after the task"
+            f"  {label}: {now}, ± {after[i] * allowance[i]:.3g} after the flight, "
+            f"± {task[i] * allowance[i]:.3g} after the task (planner's linearisation{times})"
         )
     return {
         "names": list(prior.names),
@@ -424,6 +432,8 @@ def effects_summary(result) -> dict | None:
         "stderr_fit": _finite(fit_se),
         "stderr_after": _finite(after),
         "stderr_task": _finite(task),
+        # what the lines show: the planner's standard errors x fit's autocorrelation factor
+        "autocorrelation_factor": _finite(allowance),
         "relative_stderr": {key: v if math.isfinite(v) else None for key, v in rel.items()},
         "max_correlation": {key: v if math.isfinite(v) else None for key, v in corr.items()},
         "lines": lines,
