@@ -37,8 +37,9 @@ if __package__ in (None, ""):
 
 from benchmarks import scorecard_score as sc
 from benchmarks.scorecard_draws import SPLITS, draw_spec, run_draw
+from benchmarks.scorecard_v2 import simulator_argv
 
-DEFAULT_DRAWS = {"tune": 12, "report": 18}
+DEFAULT_DRAWS = {"tune": 12, "report": 18, "tune2": 12, "report2": 48}
 
 
 def _done(out: Path) -> set[tuple[str, int]]:
@@ -58,8 +59,17 @@ def read_records(paths: Sequence[Path]) -> list[dict[str, Any]]:
     return list(by_key.values())
 
 
-def run(split: str, draws: int, start: int, jobs: int, workdir: Path, out: Path) -> None:
-    """Run draws ``start .. start+draws-1`` of ``split``, appending records to ``out``."""
+def run(
+    split: str,
+    draws: int,
+    start: int,
+    jobs: int,
+    workdir: Path,
+    out: Path,
+    simulator: str | None = None,
+) -> None:
+    """Run draws ``start .. start+draws-1`` of ``split``, appending records to ``out``;
+    ``simulator``: a command template that flies the flights (docs/scorecard.md)."""
     from omavctl.physics.effects import EFFECTS
 
     done = _done(out)
@@ -68,7 +78,7 @@ def run(split: str, draws: int, start: int, jobs: int, workdir: Path, out: Path)
     lock = threading.Lock()
 
     def one(i: int) -> None:
-        rec = run_draw(draw_spec(split, i, sorted(EFFECTS)), workdir)
+        rec = run_draw(draw_spec(split, i, sorted(EFFECTS)), workdir, simulator)
         with lock, out.open("a") as f:
             f.write(json.dumps(rec, allow_nan=False) + "\n")
         what = rec["error"] or ", ".join(rec["rounds"][0]["missing"]) or "nothing missing"
@@ -244,6 +254,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     r.add_argument(
         "--out", type=Path, default=None, help="JSON lines (default WORKDIR/SPLIT.jsonl)"
     )
+    r.add_argument(
+        "--simulator",
+        default=None,
+        metavar="'CMD {reference} {truth} {out} {seed}'",
+        help="fly the flights with this command instead of omavctl simulate (run in the "
+        "draw's directory; it must write a log omavctl reads at {out})",
+    )
     a = sub.add_parser("analyse", help="rebuild the tables from JSON lines")
     a.add_argument("records", type=Path, nargs="+")
     a.add_argument("--markdown", type=Path, default=None)
@@ -251,7 +268,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.mode == "run":
         draws = DEFAULT_DRAWS[args.split] if args.draws is None else args.draws
         out = args.out or args.workdir / f"{args.split}.jsonl"
-        run(args.split, draws, args.start, args.jobs, args.workdir.resolve(), out)
+        if args.simulator is not None:
+            try:
+                simulator_argv(args.simulator, "ref.csv", "truth.yaml", "log", 0)
+            except ValueError as exc:
+                ap.error(str(exc))
+        workdir = args.workdir.resolve()
+        run(args.split, draws, args.start, args.jobs, workdir, out, args.simulator)
     else:
         analyse(args.records, args.markdown)
 
