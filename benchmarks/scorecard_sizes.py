@@ -64,15 +64,16 @@ FLOORS_PER_UNIT: dict[str, dict[str, float]] = {
     "rotor_interference": {"fig8": 3.29, "wobble": 0.571, "chirp": 0.452, "steps": 1.49},
 }
 #: plausible bounds of the drawn parameters (inside the fits' THETA_RANGE; the lags
-#: and the delay at most what version 1 flew: a 138 ms delay on a figure-8 lost
-#: control in the first check)
+#: and the delay at most what version 1 flew). In the first check a 138 ms delay
+#: lost control on a figure-8, and so did 60 ms with 0.65x the roll and pitch
+#: inertia (50 ms with 0.74x flies, at 100 Hz and 1 kHz)
 _CLIP = {
     "rotational_drag": 0.8,
     "com_offset": 0.12,
-    "inertia_theta": (-0.35, 0.6),
+    "inertia_theta": (-0.3, 0.35),
     "servo_lag": 0.1,
     "motor_lag": 0.12,
-    "command_delay": 0.06,
+    "command_delay": 0.05,
     "rotor_interference": 0.95,
 }
 
