@@ -481,3 +481,17 @@ def test_external_simulator_command(tmp_path):
                       tmp_path, "x", [])  # fmt: skip
     with pytest.raises(StepFailed, match=r"wrote no log at none\.bag"):
         run_simulator([sys.executable, "-c", "pass"], tmp_path, "none.bag", [])
+
+
+def test_worker_runs_commands_like_the_cli(tmp_path):
+    """A draw's worker process gives what a fresh ``omavctl`` process gives: the
+    ``--json`` object on stdout, and for bad input exit 2 with one error line."""
+    from benchmarks.scorecard_worker import Worker
+
+    with Worker() as w:
+        code, out, err = w.call(["task", "fig8", "--out", "ref.csv", "--json", "-q"], tmp_path)
+        assert code == 0 and json.loads(out)["files"] == {"trajectory": "ref.csv"}
+        assert (tmp_path / "ref.csv").read_text().startswith("t,x,y,z")
+        code, out, err = w.call(["fit", "missing.bag", "-o", "m.npz", "--json", "-q"], tmp_path)
+        assert code == 2 and out == "" and err.strip().startswith("error:")
+        assert "missing.bag" in err and len(err.strip().splitlines()) == 1
