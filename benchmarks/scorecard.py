@@ -9,15 +9,18 @@ again, two rounds. One JSON line per draw; the tables (every rate with its
 Wilson 95 % interval, overall and by the hidden effect's size over the claim
 floor) are rebuilt from those lines.
 
-    python benchmarks/scorecard.py run --split tune|report [--draws N] [--start I]
-        [--jobs J] [--workdir DIR] [--out FILE.jsonl]
+    python benchmarks/scorecard.py run --split tune|report|tune2|report2 [--draws N]
+        [--start I] [--jobs J] [--workdir DIR] [--out FILE.jsonl]
+        [--simulator 'CMD {reference} {truth} {out} {seed}']
     python benchmarks/scorecard.py analyse FILE.jsonl... [--markdown OUT.md]
 
 The split (benchmarks/scorecard_draws.py, SPLITS): ``tune`` draws (seeds from 0,
 families figure-8, multi-sine wobble, chirp) may be looked at to change the
 tool; ``report`` draws (seeds from 1 000 000, every one flying the held-back
-random-steps family) are only reported. ``run`` skips draws already in the
-output file, so an interrupted run resumes.
+random-steps family) are only reported. ``tune2`` and ``report2`` are version 2
+(benchmarks/scorecard_v2.py: sizes as multiples of the claim floor, planned
+flights). ``run`` skips draws already in the output file, so an interrupted run
+resumes.
 """
 
 from __future__ import annotations
@@ -272,7 +275,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             try:
                 simulator_argv(args.simulator, "ref.csv", "truth.yaml", "log", 0)
             except ValueError as exc:
-                ap.error(str(exc))
+                print(f"error: {exc}", file=sys.stderr)
+                sys.exit(2)
         workdir = args.workdir.resolve()
         run(args.split, draws, args.start, args.jobs, workdir, out, args.simulator)
     else:

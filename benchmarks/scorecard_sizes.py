@@ -67,10 +67,10 @@ FLOORS_PER_UNIT: dict[str, dict[str, float]] = {
 #: and the delay at most what version 1 flew). In the first check a 138 ms delay
 #: lost control on a figure-8, and so did 60 ms with 0.65x the roll and pitch
 #: inertia (50 ms with 0.74x flies, at 100 Hz and 1 kHz)
-_CLIP = {
+_INERTIA_THETA = (-0.3, 0.35)  # 1/scale - 1: scale 0.74-1.43
+_CLIP: dict[str, float] = {
     "rotational_drag": 0.8,
     "com_offset": 0.12,
-    "inertia_theta": (-0.3, 0.35),
     "servo_lag": 0.1,
     "motor_lag": 0.12,
     "command_delay": 0.05,
@@ -100,7 +100,7 @@ def unit_parameters(name: str, units: float, rng: np.random.Generator) -> dict[s
         raw = units * np.array([0.002, 0.002, 0.001]) * _signs(rng, 3)
         return {"r": _vec(np.clip(raw, -_CLIP[name], _CLIP[name]))}
     if name == "inertia_error":
-        lo, hi = _CLIP["inertia_theta"]
+        lo, hi = _INERTIA_THETA
         theta = np.clip(units * 0.2 * _signs(rng, 3), lo, hi)
         return {"scale": [round(float(x), 4) for x in 1.0 / (1.0 + theta)]}
     if name == "servo_lag":

@@ -495,3 +495,24 @@ def test_worker_runs_commands_like_the_cli(tmp_path):
         code, out, err = w.call(["fit", "missing.bag", "-o", "m.npz", "--json", "-q"], tmp_path)
         assert code == 2 and out == "" and err.strip().startswith("error:")
         assert "missing.bag" in err and len(err.strip().splitlines()) == 1
+
+
+def test_run_refuses_a_simulator_without_its_output(tmp_path, capsys):
+    from benchmarks.scorecard import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(
+            [
+                "run",
+                "--split",
+                "tune2",
+                "--workdir",
+                str(tmp_path),
+                "--simulator",
+                "sim {reference}",
+            ]
+        )
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: --simulator 'sim {reference}' has no {out}"]
+    assert not list(tmp_path.iterdir())  # nothing run
