@@ -106,16 +106,18 @@ scorecard: $(STAMP)
 	$(BIN)/python benchmarks/scorecard.py analyse $(SCORECARD_DIR)/tune.jsonl \
 		$(SCORECARD_DIR)/report.jsonl --markdown $(SCORECARD_DIR)/tables.md
 # scorecard version 2 (docs/scorecard.md): sizes as multiples of the claim floor,
-# planned flights among the families, one worker process per draw; the report
-# draws' default aims at >= 40 hidden-effect draws at or above the claim floor
+# planned flights among the families, one worker process per draw; report2 draws
+# run until SCORECARD2_ABOVE of them hide an effect at or above the claim floor
+# (at most SCORECARD2_REPORT draws)
 SCORECARD2_DIR ?= build/scorecard2
 SCORECARD2_TUNE ?= 12
-SCORECARD2_REPORT ?= 64
+SCORECARD2_ABOVE ?= 40
+SCORECARD2_REPORT ?= 100
 scorecard2: $(STAMP)
 	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split tune2 --draws $(SCORECARD2_TUNE) \
 		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD2_DIR)
 	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split report2 --draws $(SCORECARD2_REPORT) \
-		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD2_DIR)
+		--until-above $(SCORECARD2_ABOVE) --jobs $(SCORECARD_JOBS) --workdir $(SCORECARD2_DIR)
 	$(BIN)/python benchmarks/scorecard.py analyse $(SCORECARD2_DIR)/tune2.jsonl \
 		$(SCORECARD2_DIR)/report2.jsonl --markdown $(SCORECARD2_DIR)/tables.md
 # the planned second flight against the task flown again, one random candidate of

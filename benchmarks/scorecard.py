@@ -96,6 +96,37 @@ def run(
         list(pool.map(one, todo))
 
 
+def above_floor(records: Sequence[dict[str, Any]]) -> int:
+    """Draws that ran, hide an effect and have it at or above 1x the claim floor on the
+    held-out flight (the population issue 26's goals are stated for)."""
+    return sum(1 for r in records if not r["error"] and r["hidden"] and sc.size_ratio(r) >= 1.0)
+
+
+def run_until(
+    split: str,
+    until: int,
+    most: int,
+    start: int,
+    jobs: int,
+    workdir: Path,
+    out: Path,
+    simulator: str | None = None,
+) -> int:
+    """Run draws from ``start`` in index order, ``jobs`` at a time, until ``out`` holds
+    ``until`` draws of ``split`` at or above the floor or ``most`` draws were run; the
+    index after the last draw run. The stopping rule reads only the hidden effects'
+    sizes, never an outcome, so it does not bias the rates."""
+    i = start
+    while i < start + most:
+        done = [r for r in read_records([out]) if r["split"] == split] if out.exists() else []
+        if above_floor(done) >= until:
+            break
+        n = min(max(1, jobs), start + most - i)
+        run(split, n, i, jobs, workdir, out, simulator)
+        i += n
+    return i
+
+
 def _rate(k: int, n: int) -> str:
     if n == 0:
         return "–"
@@ -264,6 +295,14 @@ def main(argv: Sequence[str] | None = None) -> None:
         help="fly the flights with this command instead of omavctl simulate (run in the "
         "draw's directory; it must write a log omavctl reads at {out})",
     )
+    r.add_argument(
+        "--until-above",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run draws in index order until the output holds N hidden-effect draws at or "
+        "above 1x the claim floor (--draws is then the most to run)",
+    )
     a = sub.add_parser("analyse", help="rebuild the tables from JSON lines")
     a.add_argument("records", type=Path, nargs="+")
     a.add_argument("--markdown", type=Path, default=None)
@@ -278,7 +317,14 @@ def main(argv: Sequence[str] | None = None) -> None:
                 print(f"error: {exc}", file=sys.stderr)
                 sys.exit(2)
         workdir = args.workdir.resolve()
-        run(args.split, draws, args.start, args.jobs, workdir, out, args.simulator)
+        if args.until_above is None:
+            run(args.split, draws, args.start, args.jobs, workdir, out, args.simulator)
+            return
+        end = run_until(
+            args.split, args.until_above, draws, args.start, args.jobs, workdir, out, args.simulator
+        )
+        count = above_floor([r for r in read_records([out]) if r["split"] == args.split])
+        print(f"{args.split}: {count} draws at or above the floor after index {end - 1}")
     else:
         analyse(args.records, args.markdown)
 

@@ -516,3 +516,30 @@ def test_run_refuses_a_simulator_without_its_output(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["error: --simulator 'sim {reference}' has no {out}"]
     assert not list(tmp_path.iterdir())  # nothing run
+
+
+def test_run_until_stops_at_the_count_above_the_floor(tmp_path, monkeypatch):
+    """--until-above runs draws in index order, jobs at a time, and stops once the
+    output holds N hidden-effect draws at or above 1x the floor (failed draws, none
+    draws and draws under the floor do not count); --draws caps it."""
+    import benchmarks.scorecard as card
+
+    sizes = {0: 2.0, 1: None, 2: 0.5, 3: 3.0, 4: 1.0, 5: 9.0, 6: 9.0}  # None: nothing hidden
+    ran = []
+
+    def fake_run(split, n, start, jobs, workdir, out, simulator=None):
+        with out.open("a") as f:
+            for i in range(start, start + n):
+                ran.append(i)
+                hidden = {} if sizes[i] is None else DRAG
+                rec = {**_record(hidden, [_round()], size_ratio=sizes[i] or 0.0), "index": i}
+                rec["error"] = "exit 1" if i == 3 else None
+                f.write(json.dumps(rec) + "\n")
+
+    monkeypatch.setattr(card, "run", fake_run)
+    out = tmp_path / "tune.jsonl"
+    end = card.run_until("tune", 2, 100, 0, 2, tmp_path, out)
+    assert ran == [0, 1, 2, 3, 4, 5] and end == 6  # 0 and 4 reach 2; 3 failed
+    assert card.above_floor(read_records([out])) == 3  # 0, 4 and 5: the batch ran whole
+    ran.clear()
+    assert card.run_until("tune", 5, 1, 6, 2, tmp_path, out) == 7 and ran == [6]  # the cap
