@@ -178,8 +178,11 @@ def _fly_one(spec: dict[str, Any], flight: dict[str, Any], d: Path) -> Path:
 
     d.mkdir(parents=True, exist_ok=True)
     (d / "truth.yaml").write_text(yaml.safe_dump(spec["truth"], sort_keys=True))
-    family = flight.get("base", flight["family"])
-    cmd = ["task", family, *flight["options"], "--duration", f"{DURATION:g}", "--out", "r.csv"]
+    family, options = flight["family"], flight["options"]
+    if family == "planned":  # the task it is planned around: the other flight's
+        other = next(f for f in spec["flights"] if f is not flight)
+        family, options = other["family"], other["options"]
+    cmd = ["task", family, *options, "--duration", f"{DURATION:g}", "--out", "r.csv"]
     log: list[dict[str, Any]] = []
     omavctl(cmd, d, log)
     out = "h.csv"

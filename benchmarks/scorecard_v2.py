@@ -66,10 +66,11 @@ def draw_spec_v2(split_name: str, split: dict[str, Any], index: int, effects: li
         truth["timing"] = {"controller_rate_hz": TIMINGS[timing]}
     flights = []
     for role, fam, base, fmt in zip(("fit", "held"), fams, bases, fmts, strict=True):
+        options = _task_options(base, rng)  # drawn for a planned flight too (the stream)
         f = {
             "role": role,
             "family": fam,
-            "options": _task_options(base, rng),
+            "options": [] if fam == "planned" else options,  # it flies the other's task
             "format": FORMATS[fmt],
             "log": f"{role}{fmt}",
             "seed": int(rng.integers(0, 2**31)),

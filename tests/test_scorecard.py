@@ -379,7 +379,7 @@ def test_v2_split_is_deterministic_and_keeps_version_1_intact():
         for f in spec["flights"] + report["flights"]:
             if f["family"] == "planned":
                 planned += 1
-                assert f["base"] != "planned" and "--seed" in f["plan"]
+                assert f["base"] != "planned" and "--seed" in f["plan"] and f["options"] == []
         assert set(spec["multiples"]) == set(spec["hidden"])
     assert planned >= 10
 
