@@ -11,6 +11,7 @@
 #                      (docs/intervals-results.md)
 #   make bench-horizons open-loop prediction over horizons: speed, draws, real log (docs/horizons.md)
 #   make scorecard     the randomised scorecard of the whole loop (docs/scorecard.md)
+#   make scorecard2    its version 2: sizes from the claim floor, planned flights
 #   make informative   planned vs task-again vs random second flights (docs/informative.md)
 #   make fuzz          install, then a fuzz campaign of FUZZ_CASES mutated inputs
 PYTHON ?= python3
@@ -19,7 +20,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VENV1  ?= .venv-numpy1
 
-.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise real scorecard informative clean
+.PHONY: install demo demo-numbers test test-numpy1 lint bench bench-effects bench-intervals bench-horizons fuzz generalise real scorecard scorecard2 informative clean
 
 FUZZ_CASES ?= 3000
 FUZZ_SEED ?= 1
@@ -104,6 +105,21 @@ scorecard: $(STAMP)
 		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD_DIR)
 	$(BIN)/python benchmarks/scorecard.py analyse $(SCORECARD_DIR)/tune.jsonl \
 		$(SCORECARD_DIR)/report.jsonl --markdown $(SCORECARD_DIR)/tables.md
+# scorecard version 2 (docs/scorecard.md): sizes as multiples of the claim floor,
+# planned flights among the families, one worker process per draw; report2 draws
+# run until SCORECARD2_ABOVE of them hide an effect at or above the claim floor
+# (at most SCORECARD2_REPORT draws)
+SCORECARD2_DIR ?= build/scorecard2
+SCORECARD2_TUNE ?= 12
+SCORECARD2_ABOVE ?= 40
+SCORECARD2_REPORT ?= 100
+scorecard2: $(STAMP)
+	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split tune2 --draws $(SCORECARD2_TUNE) \
+		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD2_DIR)
+	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split report2 --draws $(SCORECARD2_REPORT) \
+		--until-above $(SCORECARD2_ABOVE) --jobs $(SCORECARD_JOBS) --workdir $(SCORECARD2_DIR)
+	$(BIN)/python benchmarks/scorecard.py analyse $(SCORECARD2_DIR)/tune2.jsonl \
+		$(SCORECARD2_DIR)/report2.jsonl --markdown $(SCORECARD2_DIR)/tables.md
 # the planned second flight against the task flown again, one random candidate of
 # the same pool and the best flown candidate (oracle): refit, held-out error and
 # closed-loop tracking (docs/informative.md). Defaults: 6 effect sets x 2 seeds, 50

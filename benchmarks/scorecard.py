@@ -9,15 +9,18 @@ again, two rounds. One JSON line per draw; the tables (every rate with its
 Wilson 95 % interval, overall and by the hidden effect's size over the claim
 floor) are rebuilt from those lines.
 
-    python benchmarks/scorecard.py run --split tune|report [--draws N] [--start I]
-        [--jobs J] [--workdir DIR] [--out FILE.jsonl]
+    python benchmarks/scorecard.py run --split tune|report|tune2|report2 [--draws N]
+        [--start I] [--jobs J] [--workdir DIR] [--out FILE.jsonl]
+        [--simulator 'CMD {reference} {truth} {out} {seed}']
     python benchmarks/scorecard.py analyse FILE.jsonl... [--markdown OUT.md]
 
 The split (benchmarks/scorecard_draws.py, SPLITS): ``tune`` draws (seeds from 0,
 families figure-8, multi-sine wobble, chirp) may be looked at to change the
 tool; ``report`` draws (seeds from 1 000 000, every one flying the held-back
-random-steps family) are only reported. ``run`` skips draws already in the
-output file, so an interrupted run resumes.
+random-steps family) are only reported. ``tune2`` and ``report2`` are version 2
+(benchmarks/scorecard_v2.py: sizes as multiples of the claim floor, planned
+flights). ``run`` skips draws already in the output file, so an interrupted run
+resumes.
 """
 
 from __future__ import annotations
@@ -37,8 +40,9 @@ if __package__ in (None, ""):
 
 from benchmarks import scorecard_score as sc
 from benchmarks.scorecard_draws import SPLITS, draw_spec, run_draw
+from benchmarks.scorecard_v2 import simulator_argv
 
-DEFAULT_DRAWS = {"tune": 12, "report": 18}
+DEFAULT_DRAWS = {"tune": 12, "report": 18, "tune2": 12, "report2": 48}
 
 
 def _done(out: Path) -> set[tuple[str, int]]:
@@ -58,8 +62,17 @@ def read_records(paths: Sequence[Path]) -> list[dict[str, Any]]:
     return list(by_key.values())
 
 
-def run(split: str, draws: int, start: int, jobs: int, workdir: Path, out: Path) -> None:
-    """Run draws ``start .. start+draws-1`` of ``split``, appending records to ``out``."""
+def run(
+    split: str,
+    draws: int,
+    start: int,
+    jobs: int,
+    workdir: Path,
+    out: Path,
+    simulator: str | None = None,
+) -> None:
+    """Run draws ``start .. start+draws-1`` of ``split``, appending records to ``out``;
+    ``simulator``: a command template that flies the flights (docs/scorecard.md)."""
     from omavctl.physics.effects import EFFECTS
 
     done = _done(out)
@@ -68,7 +81,7 @@ def run(split: str, draws: int, start: int, jobs: int, workdir: Path, out: Path)
     lock = threading.Lock()
 
     def one(i: int) -> None:
-        rec = run_draw(draw_spec(split, i, sorted(EFFECTS)), workdir)
+        rec = run_draw(draw_spec(split, i, sorted(EFFECTS)), workdir, simulator)
         with lock, out.open("a") as f:
             f.write(json.dumps(rec, allow_nan=False) + "\n")
         what = rec["error"] or ", ".join(rec["rounds"][0]["missing"]) or "nothing missing"
@@ -81,6 +94,37 @@ def run(split: str, draws: int, start: int, jobs: int, workdir: Path, out: Path)
 
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         list(pool.map(one, todo))
+
+
+def above_floor(records: Sequence[dict[str, Any]]) -> int:
+    """Draws that ran, hide an effect and have it at or above 1x the claim floor on the
+    held-out flight (the population issue 26's goals are stated for)."""
+    return sum(1 for r in records if not r["error"] and r["hidden"] and sc.size_ratio(r) >= 1.0)
+
+
+def run_until(
+    split: str,
+    until: int,
+    most: int,
+    start: int,
+    jobs: int,
+    workdir: Path,
+    out: Path,
+    simulator: str | None = None,
+) -> int:
+    """Run draws from ``start`` in index order, ``jobs`` at a time, until ``out`` holds
+    ``until`` draws of ``split`` at or above the floor or ``most`` draws were run; the
+    index after the last draw run. The stopping rule reads only the hidden effects'
+    sizes, never an outcome, so it does not bias the rates."""
+    i = start
+    while i < start + most:
+        done = [r for r in read_records([out]) if r["split"] == split] if out.exists() else []
+        if above_floor(done) >= until:
+            break
+        n = min(max(1, jobs), start + most - i)
+        run(split, n, i, jobs, workdir, out, simulator)
+        i += n
+    return i
 
 
 def _rate(k: int, n: int) -> str:
@@ -244,6 +288,21 @@ def main(argv: Sequence[str] | None = None) -> None:
     r.add_argument(
         "--out", type=Path, default=None, help="JSON lines (default WORKDIR/SPLIT.jsonl)"
     )
+    r.add_argument(
+        "--simulator",
+        default=None,
+        metavar="'CMD {reference} {truth} {out} {seed}'",
+        help="fly the flights with this command instead of omavctl simulate (run in the "
+        "draw's directory; it must write a log omavctl reads at {out})",
+    )
+    r.add_argument(
+        "--until-above",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run draws in index order until the output holds N hidden-effect draws at or "
+        "above 1x the claim floor (--draws is then the most to run)",
+    )
     a = sub.add_parser("analyse", help="rebuild the tables from JSON lines")
     a.add_argument("records", type=Path, nargs="+")
     a.add_argument("--markdown", type=Path, default=None)
@@ -251,7 +310,21 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.mode == "run":
         draws = DEFAULT_DRAWS[args.split] if args.draws is None else args.draws
         out = args.out or args.workdir / f"{args.split}.jsonl"
-        run(args.split, draws, args.start, args.jobs, args.workdir.resolve(), out)
+        if args.simulator is not None:
+            try:
+                simulator_argv(args.simulator, "ref.csv", "truth.yaml", "log", 0)
+            except ValueError as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                sys.exit(2)
+        workdir = args.workdir.resolve()
+        if args.until_above is None:
+            run(args.split, draws, args.start, args.jobs, workdir, out, args.simulator)
+            return
+        end = run_until(
+            args.split, args.until_above, draws, args.start, args.jobs, workdir, out, args.simulator
+        )
+        count = above_floor([r for r in read_records([out]) if r["split"] == args.split])
+        print(f"{args.split}: {count} draws at or above the floor after index {end - 1}")
     else:
         analyse(args.records, args.markdown)
 

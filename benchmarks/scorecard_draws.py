@@ -18,6 +18,7 @@ import os
 import shlex
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,20 @@ SPLITS: dict[str, dict[str, Any]] = {
         "seed_base": 1_000_000,
         "families": ("fig8", "wobble", "chirp"),
         "held_back": "steps",
+    },
+    # version 2 (benchmarks/scorecard_v2.py): sizes as multiples of the claim floor,
+    # planned flights among the families; another generator stream than version 1's
+    "tune2": {
+        "seed_base": 0,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": None,
+        "version": 2,
+    },
+    "report2": {
+        "seed_base": 1_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
     },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
@@ -136,6 +151,11 @@ def draw_spec(split_name: str, index: int, effects: list[str]) -> dict[str, Any]
     ``effects``: the registry's names (every one can be drawn).
     """
     split = SPLITS[split_name]
+    if split.get("version", 1) == 2:
+        from benchmarks.scorecard_v2 import draw_spec_v2
+
+        out: dict[str, Any] = draw_spec_v2(split_name, split, index, effects)
+        return out
     seed = split["seed_base"] + index
     rng = np.random.default_rng([seed, 0x5C0])
     n_hidden = int(rng.choice([0, 1, 2], p=[0.2, 0.5, 0.3]))
@@ -178,6 +198,10 @@ def draw_spec(split_name: str, index: int, effects: list[str]) -> dict[str, Any]
     }
 
 
+#: the draw's worker process (benchmarks/scorecard_worker.py), per thread, if any
+_LOCAL = threading.local()
+
+
 class StepFailed(RuntimeError):
     """A CLI step of the loop exited non-zero (its command and last stderr line)."""
 
@@ -192,42 +216,46 @@ def omavctl(args: list[str], cwd: Path, log: list[dict[str, Any]]) -> dict[str, 
         "OPENBLAS_NUM_THREADS": "1",
     }
     argv = [sys.executable, "-m", "omavctl", *args, "--json", "-q"]
+    worker = getattr(_LOCAL, "worker", None)
     start = time.perf_counter()
-    proc = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, check=False)
+    if worker is None:
+        proc = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, check=False)
+        code, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
+    else:
+        code, stdout, stderr = worker.call(argv[3:], cwd)
     seconds = time.perf_counter() - start
     log.append({"command": shlex.join(["omavctl", *args]), "seconds": round(seconds, 2)})
-    if proc.returncode != 0:
-        last = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
-        raise StepFailed(f"{shlex.join(['omavctl', *args])}: exit {proc.returncode}: {last}")
-    out: dict[str, Any] = json.loads(proc.stdout)
+    if code != 0:
+        last = (stderr.strip().splitlines() or ["(no output)"])[-1]
+        raise StepFailed(f"{shlex.join(['omavctl', *args])}: exit {code}: {last}")
+    out: dict[str, Any] = json.loads(stdout)
     return out
 
 
-def fly(spec: dict[str, Any], d: Path, log: list[dict[str, Any]]) -> None:
-    """Write the truth file and both references, and simulate both flights in ``d``."""
+def fly(
+    spec: dict[str, Any], d: Path, log: list[dict[str, Any]], simulator: str | None = None
+) -> dict[str, Any] | None:
+    """Write the truth file and both references, and fly both flights in ``d``
+    (``omavctl simulate``, or the ``simulator`` command template of
+    :func:`benchmarks.scorecard_v2.simulator_argv`). A planned flight is planned and
+    flown last (:func:`benchmarks.scorecard_v2.fly_planned`); returns the first
+    fit's ``--json`` object when that made it, else None."""
+    from benchmarks.scorecard_v2 import fly_planned, simulate
+
     (d / "truth.yaml").write_text(yaml.safe_dump(spec["truth"], sort_keys=True))
     for f in spec["flights"]:
+        if f["family"] == "planned":
+            continue
         ref = f"{f['role']}-ref.csv"
         omavctl(
             ["task", f["family"], *f["options"], "--duration", f"{DURATION:g}", "--out", ref],
             d,
             log,
         )
-        omavctl(
-            [
-                "simulate",
-                "--reference",
-                ref,
-                "--truth",
-                "truth.yaml",
-                "--seed",
-                str(f["seed"]),
-                "--out",
-                f["log"],
-            ],
-            d,
-            log,
-        )
+        simulate(f, ref, d, log, simulator)
+    if any(f["family"] == "planned" for f in spec["flights"]):
+        return fly_planned(spec, d, log, simulator)
+    return None
 
 
 def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
@@ -261,23 +289,31 @@ def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
     }
 
 
-def _evaluate(model: str, d: Path, log: list[dict[str, Any]], held: str) -> dict[str, Any]:
+def _evaluate(
+    model: str, d: Path, log: list[dict[str, Any]], held: str, extra: tuple[str, ...] = ()
+) -> dict[str, Any]:
     ev = Path(model).stem + ".eval.json"
-    out = omavctl(["evaluate", held, "--model", model, "--out", ev], d, log)
+    out = omavctl(["evaluate", held, "--model", model, "--out", ev, *extra], d, log)
     return round_record(out, d / ev)
 
 
-def loop(spec: dict[str, Any], d: Path, log: list[dict[str, Any]]) -> tuple[list[Any], list[Any]]:
+def loop(
+    spec: dict[str, Any],
+    d: Path,
+    log: list[dict[str, Any]],
+    first: dict[str, Any] | None = None,
+) -> tuple[list[Any], list[Any]]:
     """The user's loop: fit with defaults, evaluate, run the printed fit command,
-    evaluate again, ROUNDS times. Returns (rounds, fits)."""
+    evaluate again, ROUNDS times. Returns (rounds, fits). ``first``: the first
+    fit's ``--json`` object when it was made already (written to m0.npz)."""
+    from benchmarks.scorecard_v2 import EVALUATE_OPTIONS
+
+    extra = EVALUATE_OPTIONS if spec.get("version", 1) == 2 else ()
     fit_log, held = (f["log"] for f in spec["flights"])
-    fits = [
-        {
-            "command": "fit (defaults)",
-            **_fit_summary(omavctl(["fit", fit_log, "--out", "m0.npz"], d, log)),
-        }
-    ]
-    rounds = [_evaluate("m0.npz", d, log, held)]
+    if first is None:
+        first = omavctl(["fit", fit_log, "--out", "m0.npz"], d, log)
+    fits = [{"command": "fit (defaults)", **_fit_summary(first)}]
+    rounds = [_evaluate("m0.npz", d, log, held, extra)]
     for _ in range(ROUNDS):
         cmd = rounds[-1]["fit_command"]
         if not cmd:
@@ -287,7 +323,7 @@ def loop(spec: dict[str, Any], d: Path, log: list[dict[str, Any]]) -> tuple[list
             raise StepFailed(f"fit_command is not an omavctl fit with --out: {cmd}")
         model = argv[argv.index("--out") + 1]
         fits.append({"command": cmd, **_fit_summary(omavctl(argv[1:], d, log))})
-        rounds.append(_evaluate(model, d, log, held))
+        rounds.append(_evaluate(model, d, log, held, extra))
     return rounds, fits
 
 
@@ -299,39 +335,47 @@ def effect_size(log_path: Path, hidden: dict[str, Any]) -> dict[str, float]:
     """RMS contribution (rad/s^2, over samples and axes, as the diagnosis measures a
     candidate's) of each hidden effect on a flight: its regressor times the true
     parameters beyond the simulator's defaults (first order in them)."""
-    from omavctl.learn.flights import log_samples
-    from omavctl.learn.signal import DEFAULT_SG_ORDER, DEFAULT_SG_WINDOW, SavitzkyGolay
-    from omavctl.physics.effects import get_effect
-    from omavctl.vehicle import default_vehicle
+    from benchmarks.scorecard_sizes import contributions, flight_samples
 
-    vehicle = default_vehicle()
-    sg = SavitzkyGolay(DEFAULT_SG_WINDOW, DEFAULT_SG_ORDER, 1.0 / vehicle.gains.rate_hz)
-    s, _ = log_samples(log_path, vehicle, sg)
-    sizes = {}
-    for name, params in hidden.items():
-        eff = get_effect(name)
-
-        def theta(p: dict[str, Any], eff: Any = eff) -> np.ndarray:
-            return np.asarray(
-                eff.to_theta({k: np.atleast_1d(np.asarray(v, float)) for k, v in p.items()}), float
-            )
-
-        drawn = theta(params) - (theta(DEFAULTS[name]) if name in DEFAULTS else 0.0)
-        contrib = s.regressors[name] @ drawn
-        sizes[name] = float(np.sqrt(np.mean(contrib**2)))
-    return sizes
+    return contributions(flight_samples(log_path)[0], hidden)
 
 
-def run_draw(spec: dict[str, Any], workdir: Path) -> dict[str, Any]:
-    """One draw end to end; the record (``error`` set when a step failed)."""
+def run_draw(
+    spec: dict[str, Any],
+    workdir: Path,
+    simulator: str | None = None,
+    in_process: bool | None = None,
+) -> dict[str, Any]:
+    """One draw end to end; the record (``error`` set when a step failed).
+    ``simulator``: a command template that flies the flights instead of ``omavctl
+    simulate`` (:func:`benchmarks.scorecard_v2.simulator_argv`). ``in_process``: run
+    the CLI calls in one worker process (benchmarks/scorecard_worker.py; default:
+    version 2 draws do, version 1 draws start a process per call as they did)."""
+    from benchmarks.scorecard_worker import Worker
+
+    if in_process is None:
+        in_process = spec.get("version", 1) == 2
+    if not in_process:
+        return _run_draw(spec, workdir, simulator)
+    with Worker() as worker:
+        _LOCAL.worker = worker
+        try:
+            return _run_draw(spec, workdir, simulator)
+        finally:
+            _LOCAL.worker = None
+
+
+def _run_draw(spec: dict[str, Any], workdir: Path, simulator: str | None) -> dict[str, Any]:
     d = workdir / f"{spec['split']}-{spec['index']:04d}"
     d.mkdir(parents=True, exist_ok=True)
     log: list[dict[str, Any]] = []
     record: dict[str, Any] = {**spec, "rounds": [], "fits": [], "error": None, "commands": log}
+    if simulator:
+        record["simulator"] = simulator
     start = time.perf_counter()
     try:
-        fly(spec, d, log)
-        record["rounds"], record["fits"] = loop(spec, d, log)
+        first = fly(spec, d, log, simulator)
+        record["rounds"], record["fits"] = loop(spec, d, log, first)
         held = d / spec["flights"][1]["log"]
         record["sizes"] = effect_size(held, spec["hidden"])
         floor = record["rounds"][0]["claim_floor"]
