@@ -109,10 +109,18 @@ def test_the_full_model_no_longer_loses_at_half_a_second(vehicle):
     verdict = rollout_verdict(model, [fit_log], np.empty(0, int), n_prior=model.n_train)
     checked = rebuilt(model, rollout_gp=verdict.weights)
 
-    def table(m: ResidualGP) -> dict:
-        return horizon_table([m], [held], [grid], 1.0 / DT, (0.01, 0.5))["table"]
+    def horizons(m: ResidualGP) -> dict:
+        return horizon_table([m], [held], [grid], 1.0 / DT, (0.01, 0.5))
 
-    old, new = table(model), table(checked)
+    before, after = horizons(model), horizons(checked)
+    old, new = before["table"], after["table"]
+    # the findings say so: the old table finds the GP winning early and losing late on z,
+    # the new one that its rollouts leave the GP mean out on z
+    found_before = {(f["code"], f["axis"]) for f in before["findings"]}
+    found_after = {(f["code"], f["axis"]) for f in after["findings"]}
+    assert {("gp_hurts_long", "z"), ("gp_worse_long", "z")} <= found_before
+    assert ("gp_left_out", "z") in found_after and ("gp_left_out", "x") not in found_after
+    assert not {("gp_hurts_long", "z"), ("gp_worse_long", "z")} & found_after
     # the old behaviour: the GP lowers z's one-step error and raises its 0.5 s error
     assert old["model"][0]["rate_error"]["z"] < 0.7 * old["effects"][0]["rate_error"]["z"]
     assert old["model"][1]["rate_error"]["z"] > 1.5 * old["effects"][1]["rate_error"]["z"]

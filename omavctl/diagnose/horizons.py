@@ -238,7 +238,10 @@ def _predictors(
         full = _rolled(win, v.inertia, v.inertia_inv, dt, residual_function(m, win, samples, True))
         full.std = _band(m, win, samples, dt)
         out.append(({"key": f"effects{suffix}", "kind": "effects", "model": j}, eff))
-        out.append(({"key": f"model{suffix}", "kind": "model", "model": j}, full))
+        weights = {a: float(w) for a, w in zip(AXES, m.rollout_gp, strict=True)}
+        out.append(
+            ({"key": f"model{suffix}", "kind": "model", "model": j, "rollout_gp": weights}, full)
+        )
     return out
 
 
