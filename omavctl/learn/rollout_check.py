@@ -46,7 +46,7 @@ __all__ = ["HORIZON_SECONDS", "RolloutVerdict", "rollout_verdict"]
 #: the rollout horizon judged (s): the longest of evaluate's default horizons
 HORIZON_SECONDS = 0.5
 #: samples between the starts of the held-out windows
-STRIDE = 5
+STRIDE = 10
 #: start times are averaged per chunk of this length (s) before the standard error
 CHUNK_SECONDS = 0.5
 #: fewest chunks for a verdict (fewer: the GP mean is kept)
@@ -138,7 +138,11 @@ def rollout_verdict(
     verdict = RolloutVerdict(weights=np.ones(3))
     if not np.any(m.gp_enabled) or not samples:
         return verdict
-    e_eff, e_gp, chunk = _held_out_errors(m, samples, np.asarray(train_idx, int), n_prior)
+    from threadpoolctl import threadpool_limits
+
+    # small products per step: threaded BLAS spends more than it saves (as in evaluate)
+    with threadpool_limits(limits=1, user_api="blas"):
+        e_eff, e_gp, chunk = _held_out_errors(m, samples, np.asarray(train_idx, int), n_prior)
     ids, inverse = np.unique(chunk, return_inverse=True)
     verdict.chunks = int(ids.size)
     if ids.size < MIN_CHUNKS:
