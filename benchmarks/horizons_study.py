@@ -173,6 +173,10 @@ def checks(result: dict[str, Any]) -> list[str]:
                 f"{one[0][a]:.3g} -> {one[1][a]:.3g} rad/s², 0.5 s error {long[0][a]:.3g} -> "
                 f"{long[1][a]:.3g} rad/s" + ("" if agree else " (DISAGREE)")
             )
+    left = [f["message"] for f in h["findings"] if f["code"] == "gp_left_out"]
+    lines += [f"rollouts leave the GP mean out: {m}" for m in left] or [
+        "the rollouts keep the GP mean on every axis (fit's check on held-out rollouts)"
+    ]
     hurts = [f["message"] for f in h["findings"] if f["code"] == "gp_hurts_long"]
     lines += [f"GP helps at one step, hurts at 0.5 s: {m}" for m in hurts] or [
         "the GP does not help at one step and hurt at 0.5 s on any axis"
