@@ -94,8 +94,9 @@ def run_real(work: Path) -> dict[str, Any]:
     model = work / "px4tools-gp.npz"
     if not model.exists():
         save_model(model, fit_model([REAL], vehicle, time_window=(6.5, 15.0)).model)
-    tree = evaluate([model], [REAL], time_window=(15.0, None)).tree
-    return {"draw": "px4tools octocopter (real)", "named": None, "tree": tree}
+    result = evaluate([model], [REAL], time_window=(15.0, None))
+    write_evaluation(work / "px4tools.eval.json", result)
+    return {"draw": "px4tools octocopter (real)", "named": None, "tree": result.tree}
 
 
 def _fmt(v: float | None) -> str:
@@ -202,11 +203,14 @@ def main() -> None:
             out += [f"evaluate named `{r['named']}` missing; the second model adds it.", ""]
         out += table_lines(r) + [""] + [f"- {line}" for line in checks(r)] + [""]
     evals = [work / f"{d}.eval.json" for d in args.draws.split(",") if d]
+    if not args.no_real and REAL.exists():
+        evals.append(work / "px4tools.eval.json")
     if len(evals) > 1:  # the report sets the draws side by side and names where the GP hurts
         write_report(evals, work / "draws-report.md")
         report = (work / "draws-report.md").read_text()
         part = report[report.index("The files side by side") :]
-        out += ["### The report over the draws (section 6, end)", "", part.split("## 7.")[0]]
+        out += ["### The report over the draws and the real log (section 6, end)", ""]
+        out.append(part.split("## 7.")[0])
     text = "\n".join(out)
     print(text)
     if args.markdown:
