@@ -6,7 +6,8 @@ on 15 s to the end), with the GP mean in rollouts on every axis (``rollout_gp``
 residual after the effects per 2 s block of the whole flight, the yaw command
 and the GP's yaw mean after the fit span, the one-step and 0.5 s errors with
 and without the GP, the 0.5 s ratio with the GP's prior mean replaced by the fit
-span's mean residual, and what fit's check found (docs/horizons.md).
+span's mean residual, and what fit's check found; then the gyro noise estimated at
+the log's own samples against the 100 Hz grid's estimate (docs/horizons.md).
 
     python benchmarks/horizons_yaw.py [--workdir DIR]
 """
@@ -99,6 +100,30 @@ def main() -> None:
         f"  GP prior mean {m.target_mean[2]:+.4f} -> the fit span's mean residual "
         f"{fit_mean[2]:+.4f}: 0.5 s ratio x{ratio:.3f} -> x{alt:.3f}"
     )
+    print(f"gyro noise after the fit span at the log's rows: {native_noise().round(5)} rad/s,")
+    print(f"  on the 100 Hz grid: {np.asarray(s.rate_noise).round(5)} rad/s")
+
+
+def native_noise(start: float = 15.0) -> np.ndarray:
+    """Gyro white-noise std (3,) rad/s at the log's own rows (about 83 Hz) from ``start``
+    s, by the grid's estimator (:func:`omavctl.learn.signal.rate_noise`)."""
+    import csv
+
+    from omavctl.learn.signal import rate_noise
+
+    with REAL.open() as fh:
+        rows = list(csv.reader(fh))
+    cols = [rows[0].index(c) for c in ("TIME_StartTime", "IMU_GyroX", "IMU_GyroY", "IMU_GyroZ")]
+    data = []
+    for r in rows[1:]:
+        try:
+            data.append([float(r[i]) for i in cols])
+        except (ValueError, IndexError):
+            continue
+    a = np.array(data)
+    a = a[np.all(np.isfinite(a), axis=1)]
+    t = (a[:, 0] - a[0, 0]) * 1e-6
+    return rate_noise(np.diff(a[t > start, 1:], 2, axis=0))
 
 
 if __name__ == "__main__":
