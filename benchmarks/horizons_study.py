@@ -94,8 +94,9 @@ def run_real(work: Path) -> dict[str, Any]:
     model = work / "px4tools-gp.npz"
     if not model.exists():
         save_model(model, fit_model([REAL], vehicle, time_window=(6.5, 15.0)).model)
-    tree = evaluate([model], [REAL], time_window=(15.0, None)).tree
-    return {"draw": "px4tools octocopter (real)", "named": None, "tree": tree}
+    result = evaluate([model], [REAL], time_window=(15.0, None))
+    write_evaluation(work / "px4tools.eval.json", result)
+    return {"draw": "px4tools octocopter (real)", "named": None, "tree": result.tree}
 
 
 def _fmt(v: float | None) -> str:
@@ -173,6 +174,10 @@ def checks(result: dict[str, Any]) -> list[str]:
                 f"{one[0][a]:.3g} -> {one[1][a]:.3g} rad/s², 0.5 s error {long[0][a]:.3g} -> "
                 f"{long[1][a]:.3g} rad/s" + ("" if agree else " (DISAGREE)")
             )
+    left = [f["message"] for f in h["findings"] if f["code"] == "gp_left_out"]
+    lines += [f"rollouts leave the GP mean out: {m}" for m in left] or [
+        "the rollouts keep the GP mean on every axis (fit's check on held-out rollouts)"
+    ]
     hurts = [f["message"] for f in h["findings"] if f["code"] == "gp_hurts_long"]
     lines += [f"GP helps at one step, hurts at 0.5 s: {m}" for m in hurts] or [
         "the GP does not help at one step and hurt at 0.5 s on any axis"
@@ -198,11 +203,14 @@ def main() -> None:
             out += [f"evaluate named `{r['named']}` missing; the second model adds it.", ""]
         out += table_lines(r) + [""] + [f"- {line}" for line in checks(r)] + [""]
     evals = [work / f"{d}.eval.json" for d in args.draws.split(",") if d]
+    if not args.no_real and REAL.exists():
+        evals.append(work / "px4tools.eval.json")
     if len(evals) > 1:  # the report sets the draws side by side and names where the GP hurts
         write_report(evals, work / "draws-report.md")
         report = (work / "draws-report.md").read_text()
         part = report[report.index("The files side by side") :]
-        out += ["### The report over the draws (section 6, end)", "", part.split("## 7.")[0]]
+        out += ["### The report over the draws and the real log (section 6, end)", ""]
+        out.append(part.split("## 7.")[0])
     text = "\n".join(out)
     print(text)
     if args.markdown:

@@ -11,6 +11,9 @@ docs/schemas.md) and lists findings ``{code, model, axis, value, message}``:
   raise it at the longest (against physics only);
 - ``band_narrow``: the full model's band covers less than 85 % at a horizon
   (``value`` the coverage, ``axis`` null);
+- ``gp_left_out``: the full model's rollouts leave the GP mean out on ``axis``
+  (``fit``'s check on held-out rollouts, :mod:`omavctl.learn.rollout_check`;
+  one-step predictions keep it);
 - ``ranking_changes``: the order of the predictors by the error norm differs
   between the shortest and the longest horizon.
 
@@ -77,6 +80,24 @@ def _crossings(
     return out
 
 
+def _left_out(tree: Mapping[str, Any], key: str) -> list[dict[str, Any]]:
+    """A ``gp_left_out`` finding per axis whose GP mean the rollouts of ``key`` leave out."""
+    pred: Mapping[str, Any] = next((p for p in tree["predictors"] if p["key"] == key), {})
+    weights = pred.get("rollout_gp") or {}
+    return [
+        {
+            "code": "gp_left_out",
+            "axis": axis,
+            "value": float(weights[axis]),
+            "message": f"{axis}: the rollouts leave the GP mean out (on held-out rollouts of "
+            "the fit flight it did not lower the 0.5 s error significantly); one-step "
+            "predictions keep it",
+        }
+        for axis in AXES
+        if axis in weights and float(weights[axis]) == 0.0
+    ]
+
+
 def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, Any]]:
     """Findings of one model (its effects and full-model rows)."""
     sfx = "" if not j else f"_{j}"
@@ -100,6 +121,7 @@ def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, An
                     f"({b:.3g} rad/s) is above {TOLERANCE:g}x physics + effects' ({a:.3g})",
                 }
             )
+    out += _left_out(tree, full)
     for row in table[full]:
         cov = row.get("coverage")
         if cov is not None and cov["all"] < MIN_COVERAGE:

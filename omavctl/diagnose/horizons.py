@@ -34,7 +34,6 @@ is the fraction of windows whose error is within 2 std.
 
 from __future__ import annotations
 
-import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -44,8 +43,16 @@ import numpy as np
 
 from omavctl.base.errors import ConfigError, OmavctlError
 from omavctl.diagnose.horizon_findings import findings
-from omavctl.learn.gp_mean import FusedMean
 from omavctl.learn.model import ResidualGP
+from omavctl.learn.rollout_residual import (
+    GridSignals,
+    Windows,
+    function_std,
+    gather,
+    per_sample,
+    residual_function,
+    window_starts,
+)
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.open_loop import rollout
 from omavctl.physics.rigid_body import rotation_matrix
@@ -68,39 +75,6 @@ BAND_SIGMA = 2.0
 #: at 100 Hz with 0.5 s windows (about 400 MB); longer logs get a larger stride
 MAX_WINDOW_SAMPLES = 1_200_000
 AXES = ("x", "y", "z")
-
-
-@dataclass(frozen=True)
-class GridSignals:
-    """Unfiltered grid signals of one log at its kept samples (n of them): body rate
-    (n, 3) rad/s, torque command (n, 3), attitude (n, 3) ZYX Euler rad or None."""
-
-    body_rate: np.ndarray
-    torque: np.ndarray
-    attitude: np.ndarray | None
-
-
-@dataclass
-class Windows:
-    """The windows of all logs, concatenated (W of them, K + 1 samples each).
-
-    log (W,) index of the log; pos (W, K + 1) sample positions in their log;
-    omega, torque, u, du, attitude gathered at them ((W, K + 1, c)); noise (W, 3)
-    the body-rate noise std of their log (rad/s).
-    """
-
-    log: np.ndarray
-    pos: np.ndarray
-    omega: np.ndarray
-    torque: np.ndarray
-    u: np.ndarray
-    du: np.ndarray
-    attitude: np.ndarray | None
-    noise: np.ndarray
-
-    @property
-    def count(self) -> int:
-        return int(self.log.size)
 
 
 def parse_horizons(text: str) -> tuple[float, ...]:
@@ -138,146 +112,6 @@ def horizon_steps(horizons: Sequence[float], rate: float) -> list[int]:
             raise OmavctlError(f"--horizons: {h:g} s is the same number of grid steps ({k}) twice")
         steps.append(k)
     return sorted(steps)
-
-
-def window_starts(index: np.ndarray, k: int, stride: int) -> np.ndarray:
-    """Positions p (every ``stride``-th) whose samples p .. p + k are consecutive grid
-    indices: index (n,) the kept grid indices of a log, increasing."""
-    n = index.size
-    if n <= k:
-        return np.empty(0, dtype=int)
-    p = np.arange(0, n - k, stride)
-    return p[index[p + k] - index[p] == k]
-
-
-def _gather(
-    samples: Sequence[ResidualSamples], signals: Sequence[GridSignals], k: int, stride: int
-) -> Windows:
-    """Every log's windows of k steps (:func:`window_starts`), gathered."""
-    parts: dict[str, list[np.ndarray]] = {
-        key: [] for key in ("log", "pos", "omega", "torque", "u", "du", "attitude", "noise")
-    }
-    has_attitude = all(g.attitude is not None for g in signals)
-    for i, (s, g) in enumerate(zip(samples, signals, strict=True)):
-        pos = window_starts(s.index, k, stride)[:, None] + np.arange(k + 1)
-        parts["log"].append(np.full(pos.shape[0], i))
-        parts["pos"].append(pos)
-        parts["omega"].append(g.body_rate[pos])
-        parts["torque"].append(g.torque[pos])
-        parts["u"].append(s.u[pos])
-        parts["du"].append(s.du[pos] if s.du.shape[0] == s.n else np.zeros((*pos.shape, 6)))
-        if has_attitude:
-            assert g.attitude is not None
-            parts["attitude"].append(g.attitude[pos])
-        noise = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
-        parts["noise"].append(np.broadcast_to(noise, (pos.shape[0], 3)))
-    cat = {key: np.concatenate(v) if v else np.empty(0) for key, v in parts.items()}
-    return Windows(
-        log=cat["log"].astype(int),
-        pos=cat["pos"].reshape(-1, k + 1).astype(int),
-        omega=cat["omega"].reshape(-1, k + 1, 3),
-        torque=cat["torque"].reshape(-1, k + 1, 3),
-        u=cat["u"].reshape(-1, k + 1, 6),
-        du=cat["du"].reshape(-1, k + 1, 6),
-        attitude=cat["attitude"].reshape(-1, k + 1, 3) if has_attitude else None,
-        noise=cat["noise"].reshape(-1, 3),
-    )
-
-
-def _per_sample(
-    win: Windows, samples: Sequence[ResidualSamples], values: Sequence[np.ndarray]
-) -> np.ndarray:
-    """Per-log sample series ``values[i]`` (n_i, c) gathered at the windows (W, K + 1, c)."""
-    if win.count == 0:
-        return np.empty((0, win.pos.shape[1], values[0].shape[1] if values else 0))
-    out = np.empty((win.count, win.pos.shape[1], values[0].shape[1]))
-    for i in range(len(samples)):
-        sel = win.log == i
-        out[sel] = values[i][win.pos[sel]]
-    return out
-
-
-def _history_effects(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
-    """Residual (n, 3) of the model's effects that act through the command history
-    (lags, delay: estimated by a 1-D search), in their exact held form on the log."""
-    out = np.zeros((s.n, 3))
-    for est in m.effects.values():
-        effect = est.effect
-        if effect.search is not None:
-            out += s.exact(est.name, float(est.values[effect.parameters[0].name][0]))
-    return out
-
-
-def _function_std(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
-    """Std (n, 3) of the model's residual function at the log's inputs: GP latent
-    variance plus the effects' parameter variance (no measurement noise)."""
-    _, var = m.gp_predict(s.inputs(m.features), noise=False)
-    assert var is not None
-    if m.effects:
-        var = var + m.effects_variance(s)
-    return np.sqrt(np.maximum(var, 0.0))
-
-
-def _with_effects(m: ResidualGP, names: Sequence[str]) -> ResidualGP | None:
-    """The model with only the named effects (a shallow copy; None for none)."""
-    if not names:
-        return None
-    sub = copy.copy(m)
-    sub.effects = {n: m.effects[n] for n in names}
-    return sub
-
-
-def _split_effects(m: ResidualGP, win: Windows) -> tuple[ResidualGP | None, ResidualGP | None]:
-    """The model's effects that do not depend on the body rate (evaluated once per
-    sample: the rotor interference's allocation is costly) and those that do (per
-    step), found by moving the body rate of a few windows' starts."""
-    u, omega = win.u[:8, 0], win.omega[:8, 0]
-    static: list[str] = []
-    moving: list[str] = []
-    for name in m.effects:
-        sub = _with_effects(m, [name])
-        assert sub is not None
-        same = np.array_equal(sub.effects_mean(u, omega), sub.effects_mean(u, omega + 0.37))
-        (static if same else moving).append(name)
-    return _with_effects(m, static), _with_effects(m, moving)
-
-
-def _residual_fn(
-    m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], with_gp: bool
-) -> Any:
-    """The residual ``f(k, omega)`` (W, 3) of the effects (and the GP mean) at step k."""
-    static, moving = _split_effects(m, win)
-    fixed = [_history_effects(m, s) for s in samples]  # what the body rate does not change
-    if static is not None:
-        fixed = [f + static.effects_mean(s.u, s.omega) for f, s in zip(fixed, samples, strict=True)]
-    if with_gp and "rate" not in m.features.split("+"):  # the GP mean needs no rollout
-        fixed = [
-            f + m.gp_predict(s.inputs(m.features), variance=False)[0]
-            for f, s in zip(fixed, samples, strict=True)
-        ]
-    gp_rolled = _rolled_mean(m) if with_gp and "rate" in m.features.split("+") else None
-    base = _per_sample(win, samples, fixed)
-
-    def residual(k: int, omega: np.ndarray) -> np.ndarray:
-        out = base[:, k]
-        if moving is not None:
-            out = out + moving.effects_mean(win.u[:, k], omega)
-        if gp_rolled is not None:
-            out = out + gp_rolled(m.gp_inputs(win.u[:, k], omega, win.du[:, k]))
-        return out
-
-    return residual
-
-
-def _rolled_mean(m: ResidualGP) -> Any:
-    """The GP mean (B, 3) at GP inputs (B, d) as a rollout calls it: the fused float32
-    product, or ``gp_predict`` when the model weighs its mean by its band
-    (``mean_shrink``: the weight needs the latent variance, which the fused product
-    does not compute; the rollout then predicts what ``evaluate``'s one-step
-    metrics predict)."""
-    if np.any(m.mean_shrink > 0):
-        return lambda z: m.gp_predict(z, variance=False)[0]
-    return FusedMean(m)
 
 
 def _geodesic(eta_a: np.ndarray, eta_b: np.ndarray) -> np.ndarray:
@@ -321,7 +155,7 @@ def _naive(win: Windows) -> _Run:
 
 def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: float) -> np.ndarray:
     """Std (W, K + 1, 3) of the full model's body-rate error (module docstring)."""
-    s_fun = _per_sample(win, samples, [_function_std(m, s) for s in samples])
+    s_fun = per_sample(win, samples, [function_std(m, s) for s in samples])
     drift = np.zeros_like(s_fun)
     drift[:, 1:] = dt * np.cumsum(s_fun[:, :-1], axis=1)
     process = np.stack([_process_variance(m, s) for s in samples])[win.log]  # (W, 3)
@@ -400,11 +234,14 @@ def _predictors(
     ]  # fmt: skip
     for j, m in enumerate(models):
         suffix = "" if j == 0 else f"_{j}"
-        eff = _rolled(win, v.inertia, v.inertia_inv, dt, _residual_fn(m, win, samples, False))
-        full = _rolled(win, v.inertia, v.inertia_inv, dt, _residual_fn(m, win, samples, True))
+        eff = _rolled(win, v.inertia, v.inertia_inv, dt, residual_function(m, win, samples, False))
+        full = _rolled(win, v.inertia, v.inertia_inv, dt, residual_function(m, win, samples, True))
         full.std = _band(m, win, samples, dt)
         out.append(({"key": f"effects{suffix}", "kind": "effects", "model": j}, eff))
-        out.append(({"key": f"model{suffix}", "kind": "model", "model": j}, full))
+        weights = {a: float(w) for a, w in zip(AXES, m.rollout_gp, strict=True)}
+        out.append(
+            ({"key": f"model{suffix}", "kind": "model", "model": j, "rollout_gp": weights}, full)
+        )
     return out
 
 
@@ -450,7 +287,7 @@ def horizon_table(
     requested = stride
     n_total = sum(s.n for s in samples)
     stride = max(stride, math.ceil(n_total * (steps[-1] + 1) / MAX_WINDOW_SAMPLES))
-    win = _gather(samples, signals, steps[-1], stride)
+    win = gather(samples, signals, steps[-1], stride)
     if win.count == 0:
         return _no_windows(steps, dt, stride, len(samples))
     from threadpoolctl import threadpool_limits

@@ -64,6 +64,7 @@ from omavctl.learn.hyperparameters import DEFAULT_RESTARTS, AxisFit
 from omavctl.learn.mean_shrink import MEAN_SHRINK
 from omavctl.learn.model import EffectEstimate, ResidualGP
 from omavctl.learn.provenance import fit_provenance
+from omavctl.learn.rollout_check import rollout_verdict
 from omavctl.learn.signal import (
     DEFAULT_FEATURES,
     DEFAULT_SG_ORDER,
@@ -207,6 +208,8 @@ def fit_model(
     validation_step(res, train, gp, eff)
     gain, notes = _gain(vehicle, opts.added, eff, notes, opts.names)
     model = _model(opts, res, train, gp, eff, gain, sum(s.n for s in original))
+    with _timed(timings, "rollouts"):  # the GP mean on held-out rollouts
+        _rollout_check(model, original, train, notes)
     with _timed(timings, "evaluate"):
         _training_fit(model, original, gp.axes)
     timings["total"] = time.perf_counter() - t_start
@@ -284,6 +287,28 @@ def _model(
         provenance=provenance,
         train_regressors=train.regressors,
     )
+
+
+def _rollout_check(
+    model: ResidualGP, original: Sequence[ResidualSamples], train: TrainingSet, notes: list[str]
+) -> None:
+    """The GP mean's weight in open-loop rollouts (:mod:`omavctl.learn.rollout_check`),
+    recorded in the model, its provenance (``rollout_check``) and the notes."""
+    verdict = rollout_verdict(model, original, train.idx, train.n_prior)
+    model.rollout_gp = verdict.weights
+
+    def axes(v: np.ndarray) -> dict[str, float | None]:
+        return {a: float(x) if np.isfinite(x) else None for a, x in zip("xyz", v, strict=True)}
+
+    model.provenance["rollout_check"] = {
+        "weights": axes(verdict.weights),
+        "error_gp": axes(verdict.error_gp),
+        "error_effects": axes(verdict.error_effects),
+        "change": axes(verdict.change),
+        "stderr": axes(verdict.stderr),
+        "chunks": verdict.chunks,
+    }
+    notes += verdict.notes
 
 
 def _training_fit(

@@ -73,6 +73,7 @@ class ResidualGP:
         latent_scale: np.ndarray | None = None,
         beyond_scale: np.ndarray | None = None,
         mean_shrink: np.ndarray | None = None,
+        rollout_gp: np.ndarray | None = None,
         effects: Mapping[str, EffectEstimate] | None = None,
         provenance: Mapping[str, Any] | None = None,
         train_regressors: Mapping[str, np.ndarray] | None = None,
@@ -97,6 +98,9 @@ class ResidualGP:
         self.beyond_scale = np.zeros(3) if beyond_scale is None else np.asarray(beyond_scale, float)
         #: (3,) weight of the latent variance against the squared GP mean (mean_shrink; 0: none)
         self.mean_shrink = np.zeros(3) if mean_shrink is None else np.asarray(mean_shrink, float)
+        #: (3,) weight of the GP mean in open-loop rollouts (fit's verdict on held-out
+        #: rollouts, :mod:`omavctl.learn.rollout_check`; 1: as in one-step predictions)
+        self.rollout_gp = np.ones(3) if rollout_gp is None else np.asarray(rollout_gp, float)
         self.effects: dict[str, EffectEstimate] = dict(effects or {})
         self.provenance: dict[str, Any] = dict(provenance or {})
         #: effect name -> regressor (n, 3, p) at the training points (may be empty)
@@ -423,6 +427,7 @@ class ResidualGP:
             "latent_scale": self.latent_scale,
             "beyond_scale": self.beyond_scale,
             "mean_shrink": self.mean_shrink,
+            "rollout_gp": self.rollout_gp,
             "effects": np.array(json.dumps(effects, sort_keys=True)),
             "vehicle": np.array(self.vehicle.to_json()),
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),

@@ -32,6 +32,9 @@ beyond_scale       (3,)        optional: weight on the variance the residual may
 mean_shrink        (3,)        optional: weight kappa of the latent variance
                                against the squared GP mean, which is weighed by
                                m^2 / (m^2 + kappa v) (absent: 0, the mean as is)
+rollout_gp         (3,)        optional: weight (0 or 1) of the GP mean in open-loop
+                               rollouts, fit's verdict on held-out rollouts
+                               (absent: 1, the mean as in one-step predictions)
 effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..],
                                "P_ci95": [[low, high], ..], "P_pinned": [..],
                                "stderr_method": "hac"}}``: values, standard
@@ -368,6 +371,9 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
     shrink = _float(arrays, "mean_shrink", (3,), p) if "mean_shrink" in arrays else None
     if shrink is not None and np.any(shrink < 0):
         raise ModelError("key 'mean_shrink' must not be negative", p)
+    rollout = _float(arrays, "rollout_gp", (3,), p) if "rollout_gp" in arrays else None
+    if rollout is not None and np.any((rollout < 0) | (rollout > 1)):
+        raise ModelError("key 'rollout_gp' must be between 0 and 1", p)
 
     return {
         "inputs": inputs,
@@ -379,6 +385,7 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         "latent_scale": latent,
         "beyond_scale": beyond,
         "mean_shrink": shrink,
+        "rollout_gp": rollout,
     }
 
 

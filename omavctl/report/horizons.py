@@ -217,7 +217,7 @@ def _side_by_side(evals: Sequence[Evaluation]) -> list[Block]:
         notes += [
             f"{lab}: {f['message']}"
             for f in h.get("findings") or []
-            if f["code"] == "gp_hurts_long"
+            if f["code"] in ("gp_hurts_long", "gp_left_out")
         ]
     notes = _crossing_notes(full, secs) + notes
     blocks: list[Block] = [
