@@ -380,3 +380,37 @@ def test_measured_rotor_speeds_and_tilts_drive_the_rollout(tmp_path):
     # measured 0.017 rad/s at 0.5 s against 0.19 from the commanded wrench (lag unmodelled)
     assert err["measured"][-1] < 0.15 * err["commanded"][-1]
     assert err["commanded"][-1] > 0.1
+
+
+def test_the_ranking_puts_predictors_with_the_same_error_in_one_place():
+    """Without effects, physics only and physics + effects are the same predictor: the
+    ranking read 'hold the state, physics only, physics + effects' as if they differed
+    (a new user's Crazyflie report). They now share a place."""
+    tree = _tree({"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "effects": [0.03, 0.9],
+                  "model": [0.01, 0.95]})  # fmt: skip
+    (rank,) = [f for f in tree["horizons"]["findings"] if f["code"] == "ranking_changes"]
+    assert rank["message"] == (
+        "best to worst at 0.01 s: full model, hold the state, physics only = physics + "
+        "effects; at 0.5 s: hold the state, physics only = physics + effects, full model"
+    )
+
+
+def test_a_log_without_attitude_gets_no_attitude_column():
+    """The Crazyflie log has no attitude: its table had an 'attitude' column of empty
+    cells and a terminal title naming 'attitude rad'."""
+    import io
+
+    from rich.console import Console
+
+    from omavctl.report.horizons import _table, render_horizons
+
+    tree = _tree({"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "model": [0.01, 0.4]})
+    tree["horizons"]["windows"] = 10
+    table = _table(tree["horizons"])
+    assert "attitude" not in table.columns and len(table.rows[0]) == 1 + 3 * 2
+    out = io.StringIO()
+    render_horizons(Console(file=out, width=200), tree)
+    text = " ".join(out.getvalue().split())  # the title wraps to the table's width
+    assert "(no attitude in the log)" in text and "attitude rad" not in text
+    tree["horizons"]["attitude"] = True
+    assert "attitude" in _table(tree["horizons"]).columns

@@ -146,8 +146,17 @@ def _ranking(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
     n_models = 1 + max((p["model"] or 0) for p in preds)
 
     def order(i: int) -> list[str]:
+        """Labels best first; predictors with the same error (physics only and physics
+        + effects of a model without effects) are one place, joined by ' = '."""
         keyed = sorted(preds, key=lambda p: table[p["key"]][i]["rate_error"]["norm"])
-        return [label(p, n_models) for p in keyed]
+        places: list[tuple[float, list[str]]] = []
+        for p in keyed:
+            norm = float(table[p["key"]][i]["rate_error"]["norm"])
+            if places and abs(norm - places[-1][0]) <= 1e-9 * max(abs(norm), 1e-300):
+                places[-1][1].append(label(p, n_models))
+            else:
+                places.append((norm, [label(p, n_models)]))
+        return [" = ".join(names) for _, names in places]
 
     first, last = order(0), order(-1)
     if first == last:

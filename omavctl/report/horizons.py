@@ -125,6 +125,14 @@ def _table(h: Mapping[str, Any]) -> Table:
             ]
         rows.append(row)
     secs = [float(s) for s in h["seconds"]]
+    if not h.get("attitude"):  # no attitude in the log: no column of empty cells
+        rows = [[r[0], *(c for i, c in enumerate(r[1:]) if i % 4 != 2)] for r in rows]
+        return Table(
+            columns=["predictor", *(c for _ in secs for c in ("rate", "x/y/z", "2σ"))],
+            groups=[("", 1), *((f"{s:g} s ahead", 3) for s in secs)],
+            rows=rows,
+            align="l" + "rlr" * len(secs),
+        )
     return Table(
         columns=["predictor", *(c for _ in secs for c in ("rate", "x/y/z", "attitude", "2σ"))],
         groups=[("", 1), *((f"{s:g} s ahead", 4) for s in secs)],
@@ -256,9 +264,11 @@ def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
     h = horizons_of(tree)
     if h is None:
         return
+    # a log without attitude has no attitude column: its title does not name one
+    attitude = " / attitude rad" if h.get("attitude") else " (no attitude in the log)"
     table = RichTable(
         title=f"open-loop error over horizons ({h['windows']} windows): body rate norm "
-        "rad/s, attitude rad, 2σ coverage",
+        f"rad/s{attitude}, 2σ coverage",
         title_justify="left",
     )
     table.add_column("predictor")
