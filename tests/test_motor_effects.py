@@ -174,6 +174,13 @@ def test_a_weak_motor_is_recovered_with_the_truth_in_its_interval(tmp_path: Path
     assert _inside(value[:4], se[:4], truth), (value, se)
     assert int(np.argmax(value[:4])) == 1 and se[1] < 0.03, (value, se)
     np.testing.assert_array_equal(value[4:], 0.0)  # a quad has 4 rotors of 8
+    fit = ["fit", str(log), "--vehicle", str(tmp_path / "v.yaml"), "--effects", "motor_loss"]
+    out = ["--points", "60", "--restarts", "0", "--out", str(tmp_path / "m.npz")]
+    res = CliRunner().invoke(app, [*fit, *out])
+    assert res.exit_code == 0, res.output
+    rows = [line for line in res.output.splitlines() if "motor_loss" in line and "│ l_" in line]
+    assert len(rows) == 8 and all("not excited" in r for r in rows[4:]), rows
+    assert not any("not excited" in r for r in rows[:4]), rows
 
 
 def test_a_weak_motor_of_a_quad_is_named_with_its_look_alikes(tmp_path: Path) -> None:
@@ -226,8 +233,8 @@ def test_battery_sag_without_a_voltage_is_refused_in_one_line(tmp_path: Path) ->
         f"{log}: battery_sag needs the battery voltage: map the log's voltage column "
         "(e.g. Betaflight's vbatLatest) to battery_voltage in the vehicle's columns:"
     )
-    fit = ["fit", str(log), "--vehicle", str(vfile), "--effects", "battery_sag", "--out", "m.npz"]
-    res = CliRunner().invoke(app, fit)
+    fit = ["fit", str(log), "--vehicle", str(vfile), "--effects", "battery_sag", "--out"]
+    res = CliRunner().invoke(app, [*fit, str(tmp_path / "m.npz")])
     assert res.exit_code == 2
     assert res.output.strip().splitlines()[-1].startswith(f"error: {log}: battery_sag needs")
 
