@@ -7,8 +7,13 @@ mixer, ground and idle time cut, the controller-rate grid). Per lag ``T`` the
 mixed torque goes through the exact first-order lag, then through ``I^-1`` and
 ``fit``'s hold kernel, and one least-squares gain per axis is fitted to the
 Savitzky-Golay derivative of the body rate. Printed per axis: the gain and the
-share of the acceleration's variance it explains (R^2, about zero). The table
-in docs/real-motors.md is its output on the Crazyflie logs.
+share of the acceleration's variance it explains (R^2, about zero). Last, the
+yaw with the rotors' inertia reaction: the yaw torque as
+``g (lag(tau_z) + beta (tau_z - lag(tau_z)))``, ``g`` and ``beta`` by least squares
+(``beta = rho / T``: the reaction ``J_r omega_r_dot`` is ``rho`` times the lagged
+drag torque's rate, and ``T d/dt lag = tau - lag`` for a first-order lag;
+``beta = 1`` cancels the lag exactly). The tables in docs/real-motors.md are its
+output on the Crazyflie logs.
 """
 
 from __future__ import annotations
@@ -47,6 +52,15 @@ def scan(vehicle_path: str, log: str, window: str | None, lags: list[float]) -> 
             gain = float(x @ y / (x @ x))
             r2 = 1.0 - float(np.sum((y - gain * x) ** 2) / np.sum(y**2))
             cells.append(f"{axis}: gain {gain:6.3f} R2 {r2:5.3f}")
+        raw = np.concatenate(
+            [sg.hold(flight.signals["torque_command"][a:b] @ vehicle.inertia_inv.T)[m:-m]
+             for a, b in segments]
+        )  # fmt: skip
+        both = np.c_[model[:, 2], raw[:, 2] - model[:, 2]]
+        coef, *_ = np.linalg.lstsq(both, measured[:, 2], rcond=None)
+        r2 = 1.0 - float(np.sum((measured[:, 2] - both @ coef) ** 2) / np.sum(measured[:, 2] ** 2))
+        beta = coef[1] / coef[0] if coef[0] != 0 else 0.0
+        cells.append(f"z + reaction: beta {beta:5.2f} R2 {r2:5.3f}")
         print(f"T = {lag * 1e3:5.1f} ms | " + " | ".join(cells))
 
 

@@ -87,6 +87,9 @@ EFFECT_NAMES = (
     "command_delay",
     "gyro_bias",
     "rotor_interference",
+    "thrust_curve",
+    "motor_loss",
+    "battery_sag",
 )
 
 #: Top-level keys whose value replaces the default's instead of being merged.

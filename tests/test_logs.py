@@ -52,7 +52,7 @@ def make_raw(duration: float = DURATION, t0: float = T0) -> RawLog:
     t100 = np.arange(round(duration * 100) + 1) * 10_000_000 / 1e9
     series = {}
     for i, (role, cols) in enumerate(ROLE_COLUMNS.items()):
-        if role == "motor_command":  # no bag topic carries it (CSV round trip: test_motors)
+        if role in ("motor_command", "battery_voltage"):  # no bag topic carries them
             continue
         t = t200 if role == "body_rate" else t100
         values = _wave(t, len(cols), seed=i)

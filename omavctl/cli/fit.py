@@ -190,13 +190,14 @@ def _effects_table(summary: Any) -> Any:
             for i, (v, e) in enumerate(zip(est.values[p.name], est.stderr[p.name], strict=True)):
                 label = p.name if p.size == 1 else f"{p.name}_{labels[i]}"
                 unit = effect_unit(name, p.unit, units)
-                eff.add_row(
-                    name,
-                    label,
-                    f"{v:.4g} ± {e:.2g}",
-                    _interval_text(intervals[p.name][i], bool(pinned[p.name][i])),
-                    Text(unit),
+                # exactly 0: its regressor is zero on these logs (motor_loss beyond the
+                # vehicle's rotors, com_offset r_z of a thrust along z): never excited
+                interval = (
+                    "not excited by these logs"
+                    if v == 0.0
+                    else _interval_text(intervals[p.name][i], bool(pinned[p.name][i]))
                 )
+                eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", interval, Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         for axis, g, e in gains:

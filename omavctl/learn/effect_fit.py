@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from omavctl.base.errors import LogError
 from omavctl.learn.effect_search import SearchResult, search_effects
 from omavctl.learn.intervals import hac_covariance, segment_ids
 from omavctl.learn.model import EffectEstimate
@@ -33,6 +34,7 @@ __all__ = [
     "GAIN_PRIOR_FACTOR",
     "PRIOR_STD",
     "EffectFit",
+    "check_available",
     "effect_prior",
     "estimate_effects",
     "honest_covariance",
@@ -75,6 +77,21 @@ class EffectFit:
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(white > 0, np.diag(self.cov) / white, 1.0)
         return np.maximum(np.nan_to_num(ratio, nan=1.0, posinf=1.0), 1.0)
+
+
+def check_available(samples: Sequence[ResidualSamples], effects: Sequence[str]) -> None:
+    """Refuse effects a log lacks the signals for (a motor-level effect on a log whose
+    wrench was not mixed from motor outputs, ``battery_sag`` without a voltage).
+
+    Raises:
+        LogError: one line naming the log, the effect and what it needs.
+    """
+    for s in samples:
+        for ctx, _ in s.contexts[:1]:
+            for name in effects:
+                why = get_effect(name).unavailable(ctx)
+                if why is not None:
+                    raise LogError(why, s.path)
 
 
 def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str]) -> EffectFit:

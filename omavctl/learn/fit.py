@@ -45,7 +45,13 @@ from pathlib import Path
 
 import numpy as np
 
-from omavctl.learn.effect_fit import GAIN_EFFECT, EffectFit, merged_estimates, torque_gain
+from omavctl.learn.effect_fit import (
+    GAIN_EFFECT,
+    EffectFit,
+    check_available,
+    merged_estimates,
+    torque_gain,
+)
 from omavctl.learn.fit_notes import search_notes, unit_notes
 from omavctl.learn.fit_steps import (
     FitOptions,
@@ -195,6 +201,7 @@ def fit_model(
     report("reading logs", 0.0)
     with _timed(timings, "read"):
         original, summaries = read_samples(logs, vehicle, opts.sg, time_window, points, report)
+    check_available(original, opts.names)
     with _timed(timings, "effects"):
         report("estimating effects", 0.0)
         res = first_pass(original, opts.names)

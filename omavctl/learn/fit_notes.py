@@ -118,7 +118,9 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
             )
             continue
         for p in effect.parameters:
-            weak = np.flatnonzero(np.abs(est.values[p.name]) < 2.0 * est.stderr[p.name])
+            value = np.asarray(est.values[p.name])
+            # a component exactly 0 was never excited (motor_loss beyond the rotors)
+            weak = np.flatnonzero((np.abs(value) < 2.0 * est.stderr[p.name]) & (value != 0.0))
             if weak.size:
                 # a scalar parameter by its name; a vector's components as the reports
                 # write them (D_x)

@@ -38,6 +38,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.signal import savgol_coeffs, savgol_filter
@@ -46,6 +47,7 @@ from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
 from omavctl.physics.effects import Effect, EffectContext, get_effect
+from omavctl.physics.mixer import motor_signals
 from omavctl.physics.rigid_body import angular_acceleration
 from omavctl.vehicle import Vehicle
 
@@ -402,12 +404,24 @@ def _add_segment(
             derivative=sg.derivative,
             torque_normalised=vehicle.torque_normalised,
             fixed_rotors=vehicle.motors is not None and not vehicle.motors.tilting,
+            motor=motor_signals(flight, vehicle, slice(a, b)),
+            **_battery(flight, slice(a, b)),
         )
         for e in eff:
             parts.regressors[e.name].append(sg.hold(e.regressor(ctx))[keep])
         parts.contexts.append((ctx, keep))
     for name, role in extra.items():
         parts.held[name].append(sg.hold(flight.signals[role][a:b])[keep])
+
+
+def _battery(flight: FlightLog, rows: slice) -> dict[str, Any]:
+    """The battery voltage (n,) V over ``rows`` and its median over the flight's valid
+    samples, as :class:`EffectContext` keywords (none when the log has no voltage)."""
+    if not flight.has("battery_voltage"):
+        return {}
+    v = flight.signals["battery_voltage"][:, 0]
+    ref = float(np.median(v[flight.valid])) if flight.valid.any() else float(np.median(v))
+    return {"battery_voltage": v[rows], "battery_reference": ref}
 
 
 def _cat(chunks: list[np.ndarray], tail: tuple[int, ...]) -> np.ndarray:

@@ -21,6 +21,8 @@ Only ``force_command``, ``torque_command`` and ``motor_command`` may leave axes
 out (they are 0). ``motor_command`` (raw per-output motor commands in the
 vehicle's output order, :mod:`omavctl.rotors`) is also given as a list:
 ``motor_command: [motor.m1, motor.m2, motor.m3, motor.m4]`` maps outputs 0..3.
+A role of one column (``battery_voltage``, V) is given as the time is:
+``battery_voltage: vbatLatest`` or ``{column: vbat, scale: 0.01}``.
 
 Flat (one key per wide-CSV column, converted from the role-based form by
 :func:`flatten_column_map`)::
@@ -144,6 +146,11 @@ def _expand_role(role: str, entry: Any) -> dict[str, tuple[Any, str]]:
     if role == TIME_ROLE:
         return {"t": (_axis_entry(entry, name, 1.0, 0.0), TIME_ROLE)}
     axes = ROLE_COLUMNS[role]
+    if len(axes) == 1 and (
+        isinstance(entry, str)
+        or (isinstance(entry, Mapping) and ("column" in entry or "value" in entry))
+    ):  # one column: as the time's
+        return {csv_columns(role)[0]: (_axis_entry(entry, name, 1.0, 0.0), role)}
     if role == "motor_command" and isinstance(entry, list):  # outputs in order
         entry = dict(enumerate(entry))
     if not isinstance(entry, Mapping):

@@ -72,6 +72,8 @@ ROLE_COLUMNS: dict[str, tuple[str, ...]] = {
     # raw per-output commands in the vehicle's output order and in the unit its
     # ``motors:`` section declares (PWM us, DShot, 0-65535, normalised, rad/s, rpm)
     "motor_command": tuple(str(i) for i in range(MOTOR_OUTPUTS)),
+    # the battery's voltage, V (the ``battery_sag`` effect); one column
+    "battery_voltage": ("v",),
 }
 
 #: Which topic role (vehicle ``topics:`` key) carries each signal role.
@@ -89,6 +91,7 @@ ROLE_TOPIC: dict[str, str] = {
     "tilt": "actuators",
     "rotor": "actuators",
     "motor_command": "motor_outputs",  # CSV and ULog column maps only (no bag topic)
+    "battery_voltage": "battery",  # CSV and ULog column maps only (no bag topic)
 }
 
 #: Angle roles: unwrapped before interpolation, wrapped to (-pi, pi] after.

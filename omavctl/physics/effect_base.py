@@ -19,7 +19,7 @@ from omavctl.base.errors import ConfigError
 if TYPE_CHECKING:
     from omavctl.physics.allocation import Allocation
 
-__all__ = ["Effect", "EffectContext", "Parameter", "TruthConstants"]
+__all__ = ["Effect", "EffectContext", "MotorSignals", "Parameter", "TruthConstants"]
 
 
 class TruthConstants(Protocol):
@@ -47,6 +47,27 @@ class Parameter:
     description: str
 
 
+@dataclass(frozen=True)
+class MotorSignals:
+    """Per-rotor signals of a log whose wrench the vehicle's rotor list mixed from its
+    motor outputs (:mod:`omavctl.physics.mixer`), for the motor-level effects.
+
+    ``motors`` the rotor list (:class:`omavctl.rotors.Motors`); ``values`` (N, R)
+    the command values its thrust curves take (clipped at 0); ``thrust`` (N, R) N
+    (in the torque command's unit when it is normalised); ``tilt`` (N, 6) rad of
+    rotors on tilt servos, or None.
+    """
+
+    motors: Any
+    values: np.ndarray
+    thrust: np.ndarray
+    tilt: np.ndarray | None = None
+
+    def torque(self, thrust_delta: np.ndarray) -> np.ndarray:
+        """Body torque (N, 3) of per-rotor thrust changes (N, R)."""
+        return np.asarray(self.motors.wrench(thrust_delta, self.tilt)[1])
+
+
 @dataclass
 class EffectContext:
     """The signals an effect's regressor may use, on a uniform grid.
@@ -62,6 +83,10 @@ class EffectContext:
     ``fixed_rotors``: the vehicle is a rotor list without tilt servos
     (``motors:``, :mod:`omavctl.rotors`): its wrench is linear in the rotor
     thrusts, and the omav's allocation (tilts, arm thrusts) does not apply.
+    ``motor``: the per-rotor signals when the wrench was mixed from motor outputs
+    (:class:`MotorSignals`), else None (the motor-level effects are then not
+    excited). ``battery_voltage`` (N,) V and ``battery_reference`` V (the log's
+    median voltage) when the log maps ``battery_voltage``, else None.
     """
 
     omega: np.ndarray
@@ -74,6 +99,9 @@ class EffectContext:
     derivative: Any
     torque_normalised: bool = False
     fixed_rotors: bool = False
+    motor: MotorSignals | None = None
+    battery_voltage: np.ndarray | None = None
+    battery_reference: float = 0.0
 
     @property
     def inertia_inv(self) -> np.ndarray:
@@ -117,6 +145,9 @@ class Effect(ABC):
     #: What else leaves a residual of this effect's shape (for the verdict to say
     #: when it names the effect); empty when nothing common does.
     look_alikes: ClassVar[str] = ""
+    #: Whether the simulator (the omav's truth plant) can hide it: False for effects
+    #: on the motor outputs of a rotor list, which the omav simulator does not fly.
+    simulated: ClassVar[bool] = True
 
     # --- estimation --------------------------------------------------------
     @property
@@ -126,6 +157,12 @@ class Effect(ABC):
     @abstractmethod
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         """Regressor X, shape (N, 3, n_theta): residual ~= X @ theta."""
+
+    def unavailable(self, ctx: EffectContext) -> str | None:
+        """Why ``fit`` cannot estimate this effect from a log with these signals (one
+        phrase naming what is missing), or None when it can. The diagnosis needs no
+        such check: a regressor of zeros is never excited."""
+        return None
 
     def exact(self, ctx: EffectContext, value: float) -> np.ndarray:
         """Residual (N, 3) rad/s^2 of the exact nonlinear form at parameter ``value``.

@@ -26,10 +26,12 @@ from omavctl.physics.actuator_effects import (
     shift_held,
 )
 from omavctl.physics.effect_base import Effect, EffectContext, Parameter, TruthConstants
+from omavctl.physics.motor_effects import BatterySag, MotorLoss, ThrustCurve
 from omavctl.vehicle import EFFECT_NAMES
 
 __all__ = [
     "EFFECTS",
+    "SIMULATED_EFFECTS",
     "Effect",
     "EffectContext",
     "Parameter",
@@ -174,10 +176,18 @@ EFFECTS: dict[str, Effect] = {
         CommandDelay(),
         GyroBias(),
         RotorInterference(),
+        ThrustCurve(),
+        MotorLoss(),
+        BatterySag(),
     )
 }
 if tuple(EFFECTS) != EFFECT_NAMES:  # the description's names and the registry agree
     raise ImportError(f"effect registry {tuple(EFFECTS)} != vehicle.EFFECT_NAMES {EFFECT_NAMES}")
+
+#: The effects the simulator can hide in its truth plant (``simulated``), in registry
+#: order: what a benchmark may draw as hidden (the motor-level effects act on a rotor
+#: list's motor outputs, which the omav simulator does not fly).
+SIMULATED_EFFECTS: tuple[str, ...] = tuple(n for n, e in EFFECTS.items() if e.simulated)
 
 
 def get_effect(name: str) -> Effect:

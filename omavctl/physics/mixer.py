@@ -19,14 +19,20 @@ from __future__ import annotations
 from collections.abc import Callable, Collection
 from dataclasses import replace
 
+import numpy as np
+
 from omavctl.base.errors import LogError
 from omavctl.logs.inspection import Inspection
 from omavctl.logs.types import FlightLog
+from omavctl.physics.effect_base import MotorSignals
 from omavctl.vehicle import Vehicle
 
 __all__ = [
+    "MIXED_NOTE",
     "REQUIRED_MIXED",
     "mixed_inspection",
+    "mixed_source",
+    "motor_signals",
     "motor_source",
     "motor_wrench",
     "required_roles",
@@ -35,6 +41,8 @@ __all__ = [
 
 #: Roles ``fit`` and ``evaluate`` need of a log whose motor outputs are mixed.
 REQUIRED_MIXED = ("body_rate", "motor_command")
+#: The start of the note :func:`motor_wrench` adds to a flight it mixes.
+MIXED_NOTE = "force and torque commands computed from "
 
 
 def motor_source(vehicle: Vehicle, roles: Collection[str]) -> str | None:
@@ -79,10 +87,33 @@ def motor_wrench(flight: FlightLog, vehicle: Vehicle, source: str = "motor_comma
     force, torque = motors.wrench(thrust, tilt)
     signals = {**flight.signals, "force_command": force, "torque_command": torque}
     note = (
-        f"force and torque commands computed from {source} through the vehicle's "
+        f"{MIXED_NOTE}{source} through the vehicle's "
         f"{motors.n_rotors} rotors (motors: thrust curves, positions, spins)"
     )
     return replace(flight, signals=signals, notes=[*flight.notes, note])
+
+
+def mixed_source(flight: FlightLog) -> str | None:
+    """The role :func:`motor_wrench` mixed ``flight``'s wrench from, or None when the
+    log's wrench is its own."""
+    for note in flight.notes:
+        if note.startswith(MIXED_NOTE):
+            source = note[len(MIXED_NOTE) :].split(" ", 1)[0]
+            return source if flight.has(source) else None
+    return None
+
+
+def motor_signals(flight: FlightLog, vehicle: Vehicle, rows: slice) -> MotorSignals | None:
+    """Per-rotor command values and thrusts over ``rows`` of a flight whose wrench was
+    mixed from its motor outputs (for the motor-level effects), else None."""
+    source = mixed_source(flight)
+    motors = vehicle.motors
+    if source is None or motors is None:
+        return None
+    commands = flight.signals[source][rows]
+    tilt = flight.signals["tilt"][rows] if motors.tilting and flight.has("tilt") else None
+    values = np.clip(motors.values(commands), 0.0, None)
+    return MotorSignals(motors, values, motors.thrust(commands), tilt)
 
 
 Mix = tuple[str, Callable[[FlightLog], FlightLog]]

@@ -1,0 +1,182 @@
+"""Motor-level effects: the thrust curve's curvature, one weak motor, battery sag.
+
+They act on each rotor's thrust before the rotor list mixes it
+(:mod:`omavctl.physics.mixer`), so they need a log whose wrench was computed from
+its motor outputs (:class:`~omavctl.physics.effect_base.MotorSignals`) or, for
+``battery_sag``, its battery voltage. Without those signals their regressor is
+zero (the diagnosis never names them) and ``fit --effects`` refuses them in one
+line (:meth:`Effect.unavailable`). Part of the registry
+:data:`omavctl.physics.effects.EFFECTS` (formulas in the class docstrings and
+``docs/effects.md``). The simulator flies the omav from its arm thrusts, not from
+motor outputs: a truth file that names them is refused.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from omavctl.base.errors import ConfigError
+from omavctl.physics.effect_base import Effect, EffectContext, MotorSignals, Parameter
+
+__all__ = ["MAX_LOSS_ROTORS", "BatterySag", "MotorLoss", "ThrustCurve"]
+
+#: Rotors ``motor_loss`` has a parameter for (an octo-X's, a coaxial X8's).
+MAX_LOSS_ROTORS = 8
+
+_NEED_MOTORS = (
+    "needs a log of motor outputs mixed by the vehicle's rotor list "
+    "(motors: in the vehicle, motor_command in the log)"
+)
+
+
+def _not_simulated(name: str) -> ConfigError:
+    return ConfigError(
+        f"'effects.{name}' acts on motor outputs through a rotor list; the simulator "
+        "flies the omav from its arm thrusts and cannot hide it"
+    )
+
+
+def _full_thrust(motor: MotorSignals) -> np.ndarray:
+    """Thrust span (R,) of each rotor's curve from command value 0 to 1; 0 for rotors
+    whose command has no range (speed units)."""
+    out = np.zeros(len(motor.motors.rotors))
+    for j, r in enumerate(motor.motors.rotors):
+        if r.span is not None:
+            poly = np.polynomial.polynomial.polyval
+            out[j] = poly(1.0, r.curve) - poly(0.0, r.curve)
+    return out
+
+
+class ThrustCurve(Effect):
+    """Curvature of the command-to-thrust map beyond the rotor list's polynomial.
+
+    Each rotor's thrust is ``T_i(x_i) + c T_i^full (x_i^2 - x_i)``, with ``x_i`` the
+    command value (0..1 over the rotor's ``range``), ``T_i`` its curve and
+    ``T_i^full = T_i(1) - T_i(0)``: the thrust at zero and full command is kept,
+    ``c`` bends the curve between (shared by the rotors; PX4's ``THR_MDL_FAC``
+    form: a curve ``k x^2`` becomes ``k ((1 + c) x^2 - c x)``, ``c = -1`` linear).
+    Residual ``c I^-1 tau(T^full (x^2 - x))`` with ``tau(.)`` the rotor list's torque of
+    per-rotor thrusts. Dimensionless. Identifiable when the collective thrust
+    varies: at one operating point the bend is a gain change (``inertia_error``'s).
+    Rotors whose command has no range (rad/s, rpm) are not bent.
+    """
+
+    name = "thrust_curve"
+    summary = "curvature c of the command-to-thrust map (shared by the rotors)"
+    parameters = (Parameter("c", 1, "1", "curvature beyond the curve: c (x^2 - x) T_full"),)
+    prior_std = 0.5
+    theta_range = (-1.0, 1.0)
+    simulated = False
+    look_alikes = (
+        "a per-axis torque gain (inertia_error) where the collective thrust barely changes"
+    )
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        motor = ctx.motor
+        if motor is None:
+            return np.zeros((ctx.torque.shape[0], 3, 1))
+        x = motor.values
+        shape = _full_thrust(motor)[None, :] * (x * x - x)
+        return (motor.torque(shape) @ ctx.inertia_inv.T)[:, :, None]
+
+    def unavailable(self, ctx: EffectContext) -> str | None:
+        if ctx.motor is None:
+            return f"{self.name} {_NEED_MOTORS}"
+        if not np.any(_full_thrust(ctx.motor) != 0):
+            return (
+                f"{self.name} needs rotors whose command has a range (pwm_us, dshot, pwm16, "
+                "normalised); these rotors run on speeds"
+            )
+        return None
+
+    def configure_truth(self, params, truth):
+        raise _not_simulated(self.name)
+
+
+class MotorLoss(Effect):
+    """Per-motor thrust loss: rotor i delivers ``(1 - l_i)`` of its curve's thrust.
+
+    Residual ``-sum_i l_i I^-1 tau(e_i T_i)`` (``T_i`` the rotor's thrust from its
+    command, ``tau(.)`` the rotor list's torque): column i of the regressor is
+    ``-I^-1 tau(e_i T_i)``. ``l`` has :data:`MAX_LOSS_ROTORS` entries in the rotor
+    list's order; entries beyond the vehicle's rotors are never excited (0).
+    Dimensionless. A loss common to all rotors is a gain change
+    (``inertia_error``); on a quadrotor near hover one weak motor is a constant
+    torque, which a centre-of-mass offset (``com_offset``) also leaves on roll and
+    pitch: they are told apart only where the thrusts vary independently.
+    """
+
+    name = "motor_loss"
+    summary = "per-motor thrust loss l_i (one weak motor)"
+    parameters = (
+        Parameter("l", MAX_LOSS_ROTORS, "1", "thrust lost by each rotor (rotor-list order)"),
+    )
+    prior_std = 0.2
+    theta_range = (-0.5, 0.5)
+    simulated = False
+    look_alikes = (
+        "a centre-of-mass offset (com_offset: a constant roll/pitch torque near hover) and "
+        "a torque gain (inertia_error: a loss shared by the rotors)"
+    )
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        n = ctx.torque.shape[0]
+        out = np.zeros((n, 3, MAX_LOSS_ROTORS))
+        motor = ctx.motor
+        if motor is None or motor.thrust.shape[1] > MAX_LOSS_ROTORS:
+            return out
+        for i in range(motor.thrust.shape[1]):
+            delta = np.zeros_like(motor.thrust)
+            delta[:, i] = motor.thrust[:, i]
+            out[:, :, i] = -(motor.torque(delta) @ ctx.inertia_inv.T)
+        return out
+
+    def unavailable(self, ctx: EffectContext) -> str | None:
+        if ctx.motor is None:
+            return f"{self.name} {_NEED_MOTORS}"
+        rotors = ctx.motor.thrust.shape[1]
+        if rotors > MAX_LOSS_ROTORS:
+            return f"{self.name} covers at most {MAX_LOSS_ROTORS} rotors; the vehicle has {rotors}"
+        return None
+
+    def configure_truth(self, params, truth):
+        raise _not_simulated(self.name)
+
+
+class BatterySag(Effect):
+    """Thrust that follows the battery voltage: ``T_true = T (1 + k (V - V_ref))``.
+
+    ``V`` the logged battery voltage (role ``battery_voltage``, V), ``V_ref`` its
+    median over the log: a constant thrust change is the torque gain's
+    (``inertia_error``), what ``k`` adds is the change along the flight as the
+    battery sags. The mixer is linear in the thrusts, so the residual is
+    ``k (V - V_ref) I^-1 tau_cmd``. ``k`` in 1/V (about ``2 / V`` for a motor
+    whose thrust goes with the voltage squared; near 0 when the flight controller
+    compensates, Betaflight's ``vbat_pid_compensation``). Identifiable when the
+    voltage changes while the torque command does: a flight long enough to sag.
+    """
+
+    name = "battery_sag"
+    summary = "thrust scaling k with the battery voltage (about its median)"
+    parameters = (Parameter("k", 1, "1/V", "relative thrust change per volt"),)
+    prior_std = 0.5  # 1/V
+    theta_range = (-1.0, 2.0)
+    simulated = False
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        v = ctx.battery_voltage
+        if v is None:
+            return np.zeros((ctx.torque.shape[0], 3, 1))
+        dv = np.asarray(v, float).reshape(-1) - ctx.battery_reference
+        return (dv[:, None] * (ctx.torque @ ctx.inertia_inv.T))[:, :, None]
+
+    def unavailable(self, ctx: EffectContext) -> str | None:
+        if ctx.battery_voltage is None:
+            return (
+                f"{self.name} needs the battery voltage: map the log's voltage column "
+                "(e.g. Betaflight's vbatLatest) to battery_voltage in the vehicle's columns:"
+            )
+        return None
+
+    def configure_truth(self, params, truth):
+        raise _not_simulated(self.name)
