@@ -73,7 +73,7 @@ def run(
 ) -> None:
     """Run draws ``start .. start+draws-1`` of ``split``, appending records to ``out``;
     ``simulator``: a command template that flies the flights (docs/scorecard.md)."""
-    from omavctl.physics.effects import EFFECTS
+    from omavctl.physics.effects import SIMULATED_EFFECTS as EFFECTS
 
     done = _done(out)
     todo = [i for i in range(start, start + draws) if (split, i) not in done]

@@ -199,7 +199,7 @@ def calibrate(flights: int, workdir: Path, signs: int = 8) -> dict[str, dict[str
     """Claim floors per unit of every effect on ``flights`` nominal flights of each
     family (random options and timing, default noise): {effect: {family: [...]}}."""
     from benchmarks.scorecard_draws import _NOISE, _task_options
-    from omavctl.physics.effects import EFFECTS
+    from omavctl.physics.effects import SIMULATED_EFFECTS as EFFECTS
 
     rng = np.random.default_rng(0xCA1)
     out: dict[str, dict[str, list[float]]] = {n: {} for n in EFFECTS if n not in NEAR_INVISIBLE}
@@ -223,7 +223,7 @@ def check(split: str, draws: int, start: int, workdir: Path) -> list[dict[str, A
     around)."""
     from benchmarks.scorecard_draws import draw_spec
     from omavctl.base.errors import OmavctlError
-    from omavctl.physics.effects import EFFECTS
+    from omavctl.physics.effects import SIMULATED_EFFECTS as EFFECTS
 
     rows = []
     for i in range(start, start + draws):

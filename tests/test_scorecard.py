@@ -13,7 +13,7 @@ from scipy.stats import binomtest
 from benchmarks import scorecard_score as sc
 from benchmarks.scorecard import analyse, read_records, table
 from benchmarks.scorecard_draws import SPLITS, draw_spec, hidden_parameters
-from omavctl.physics.effects import EFFECTS
+from omavctl.physics.effects import SIMULATED_EFFECTS as EFFECTS
 
 
 def _round(missing=(), ambiguous=None, effects=(), physics=None, model=None, cover=None):
@@ -493,7 +493,8 @@ def test_worker_runs_commands_like_the_cli(tmp_path):
         assert code == 0 and json.loads(out)["files"] == {"trajectory": "ref.csv"}
         assert (tmp_path / "ref.csv").read_text().startswith("t,x,y,z")
         code, out, err = w.call(["fit", "missing.bag", "-o", "m.npz", "--json", "-q"], tmp_path)
-        assert code == 2 and out == "" and err.strip().startswith("error:")
+        assert code == 2 and err.strip().startswith("error:")
+        assert json.loads(out) == {"command": "fit", "error": err.strip()[7:], "exit_code": 2}
         assert "missing.bag" in err and len(err.strip().splitlines()) == 1
 
 

@@ -186,17 +186,9 @@ def fit_model(
     timings: dict[str, float] = {}
     report = _reporter(progress)
     vehicle = vehicle if vehicle is not None else default_vehicle()
+    sg = (sg_window, sg_order)
     opts = fit_options(
-        logs,
-        vehicle,
-        effects,
-        points,
-        prior,
-        (sg_window, sg_order),
-        features,
-        seed,
-        restarts,
-        time_window,
+        logs, vehicle, effects, points, prior, sg, features, seed, restarts, time_window
     )
     report("reading logs", 0.0)
     with _timed(timings, "read"):
