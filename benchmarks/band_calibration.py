@@ -10,13 +10,17 @@ family (without effects, and with the effects the diagnosis names:
 ``rotor_interference`` and the hidden one) and evaluates it on the other two.
 
     python benchmarks/band_calibration.py [--cases none,motor_lag] [--families fig8,wobble,chirp]
-        [--workdir DIR] [--out FILE.jsonl] [--effects both|plain|with] [--points 100]
+        [--held steps] [--workdir DIR] [--out FILE.jsonl] [--effects both|plain|with]
+        [--points 100]
 
 Printed per fit -> held-out direction and axis: the ratio (model / physics-only
 RMSE), the coverage, the share of samples outside the fit inputs and the coverage
-inside them; then the counts the issue asks for. Attitude steps (the scorecard's
-``report`` family) are left out on purpose: they are what the setting is checked
-on, not chosen on (``benchmarks/never_hurts.py`` flies them).
+inside them; for a model with effects also both coverages with the parameter term
+of before (the effects' standard errors taken as independent, nothing absorbed by
+the GP: the model without its training regressors); then the counts the issue
+asks for. Attitude steps (the scorecard's ``report`` family) are left out of the
+families by default: they are what the setting is checked on, not chosen on
+(``--held steps`` evaluates every fit on them as well).
 """
 
 from __future__ import annotations
@@ -37,16 +41,17 @@ from omavctl.sim.tasks import fig8, wobble
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.generalise import EFFECT_CASES, known_effects
-from benchmarks.never_hurts import chirp
+from benchmarks.never_hurts import attitude_steps, chirp
 
 #: fit/held-out families (the scorecard's tune families) -> trajectory (16 s)
 FAMILIES: dict[str, Any] = {
     "fig8": lambda: fig8(roll_deg=20, pitch_deg=20, period=5.0, duration=16.0, ramp=2.0),
     "wobble": lambda: wobble(amplitude_deg=25, bandwidth=0.8, duration=16.0, ramp=2.0),
     "chirp": chirp,
+    "steps": attitude_steps,
 }
 #: the simulator seed of each family's flight
-SEEDS = {"fig8": 11, "wobble": 12, "chirp": 13}
+SEEDS = {"fig8": 11, "wobble": 12, "chirp": 13, "steps": 14}
 DEFAULT_CASES = ("none", "rotational_drag", "inertia_error", "motor_lag", "command_delay")
 #: coverage bounds of issue 26
 COVER_MIN, COVER_MAX_INSIDE = 0.85, 0.99
@@ -65,6 +70,28 @@ def fly(workdir: Path, case: str, family: str) -> Path:
         truth = truth_from_tree({"effects": EFFECT_CASES[case]}, vehicle)
         write_log(path, simulate(FAMILIES[family](), vehicle, truth, seed=SEEDS[family]).log)
     return path
+
+
+def independent_term(model: Any, log: Path) -> tuple[list[float], list[float | None]]:
+    """Coverage and coverage inside the fit inputs (3 each) of ``model`` on ``log`` with
+    the parameter term of before: the model without its training regressors."""
+    from omavctl.diagnose.evaluate import _grid, _read_log
+    from omavctl.diagnose.metrics import training_envelope
+
+    saved, model.train_regressors = model.train_regressors, {}
+    try:
+        rate, sg = _grid(model)
+        samples, *_ = _read_log(log, model.vehicle, rate, sg, None)
+        mean, var = model.predict_samples(samples, noise=True)
+    finally:
+        model.train_regressors = saved
+    assert var is not None
+    err = samples.residual - mean
+    env = training_envelope(
+        model.inputs, samples.inputs(model.features), list(model.input_names), err, np.sqrt(var)
+    )
+    cover = np.mean(np.abs(err) <= 2.0 * np.sqrt(var), axis=0)
+    return [float(c) for c in cover], [env["coverage_inside"][a] for a in "xyz"]
 
 
 def run_fit(
@@ -87,6 +114,7 @@ def run_fit(
         m = tree["metrics"]
         env = tree.get("envelope") or {}
         inside = env.get("coverage_inside") or {}
+        before = independent_term(result.model, fly(workdir, case, held)) if effects else None
         rows.append(
             {
                 "case": case,
@@ -98,6 +126,7 @@ def run_fit(
                 "outside": float(env.get("outside_fraction", 0.0)),
                 "coverage_inside": [inside.get(a) for a in "xyz"],
                 "coverage_outside": [(env.get("coverage_outside") or {}).get(a) for a in "xyz"],
+                "independent_term": before,
             }
         )
     return rows
@@ -130,7 +159,8 @@ def _fmt(v: list[Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", default=",".join(DEFAULT_CASES))
-    parser.add_argument("--families", default=",".join(FAMILIES))
+    parser.add_argument("--families", default="fig8,wobble,chirp")
+    parser.add_argument("--held", default="", help="families only evaluated on (steps)")
     parser.add_argument("--effects", choices=("both", "plain", "with"), default="both")
     parser.add_argument("--points", type=int, default=100)
     parser.add_argument("--workdir", type=Path, default=None)
@@ -147,16 +177,35 @@ def main(argv: list[str] | None = None) -> int:
                 effects = known_effects(case) if with_effects else []
                 for fit_on in families:
                     start = time.perf_counter()
-                    for r in run_fit(workdir, case, fit_on, families, effects, args.points):
+                    held = families + [h for h in args.held.split(",") if h]
+                    for r in run_fit(workdir, case, fit_on, held, effects, args.points):
                         rows.append(r)
+                        before = r["independent_term"]
                         print(
                             f"| {case}{' +eff' if with_effects else ''} | {fit_on} → {r['held']} "
                             f"| {_fmt(r['ratio'])} | {_fmt(r['coverage'])} | {r['outside']:.2f} "
-                            f"| {_fmt(r['coverage_inside'])} |",
+                            f"| {_fmt(r['coverage_inside'])} | "
+                            + (f"{_fmt(before[0])} | {_fmt(before[1])} |" if before else "| |"),
                             flush=True,
                         )
                     print(f"  ({time.perf_counter() - start:.0f} s)", file=sys.stderr, flush=True)
     s = summary(rows)
+    with_eff = [r for r in rows if r["independent_term"]]
+    if with_eff:
+        b = summary(
+            [
+                {**r, "coverage": r["independent_term"][0]}
+                | {"coverage_inside": r["independent_term"][1]}
+                for r in with_eff
+            ]
+        )
+        a = summary(with_eff)
+        print(
+            f"with effects, {a['axis_flights']} axis-flights: coverage >= 0.85 on "
+            f"{b['coverage_ge_085']} -> {a['coverage_ge_085']} (min {b['coverage_min']:.3f} -> "
+            f"{a['coverage_min']:.3f}); inside <= 0.99 on {b['inside_le_099']}/{b['inside_n']} -> "
+            f"{a['inside_le_099']}/{a['inside_n']} (independent term -> basis-function term)"
+        )
     print(
         f"axis-flights {s['axis_flights']}: coverage >= 0.85 on {s['coverage_ge_085']} "
         f"(min {s['coverage_min']:.3f}); inside the fit inputs <= 0.99 on "
