@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from omavctl.base.errors import ModelError
 from omavctl.cli import app
+from omavctl.learn.effects_band import beyond_weight
 from omavctl.learn.model import SCHEMA, EffectEstimate, ResidualGP
 from omavctl.learn.model_file import load_model, save_model
 from omavctl.learn.signal import SavitzkyGolay, feature_names, usable_segments
@@ -399,13 +400,17 @@ def test_the_band_adds_the_parameter_uncertainty_of_a_gp_with_basis_functions(dr
     sigma = np.linalg.inv(a_mat)
     x = samples.regressors["rotational_drag"]  # (n, 3, 3)
     expected = np.einsum("nap,pq,naq->na", x, sigma, x)
-    np.testing.assert_allclose(off.effects_variance(samples), expected, rtol=1e-9, atol=1e-15)
+    # inside the training points' box (beyond it the robust term takes over: below)
+    box = beyond_weight(model.inputs, samples.inputs(model.features)) == 0
+    assert box.mean() > 0.8
+    term = off.effects_variance(samples)
+    np.testing.assert_allclose(term[box], expected[box], rtol=1e-9, atol=1e-15)
     _, var = off.predict_samples(samples)
     _, gp_var = off.gp_predict(samples.inputs(off.features))
     assert var is not None and gp_var is not None
-    np.testing.assert_allclose(var, gp_var + expected, rtol=1e-12)
-    size = np.abs(x).sum(axis=(1, 2))
-    assert expected[size.argmax()].sum() > 100 * expected[size.argmin()].sum()
+    np.testing.assert_allclose(var, gp_var + term, rtol=1e-12)
+    size = np.where(box, np.abs(x).sum(axis=(1, 2)), np.nan)
+    assert expected[np.nanargmax(size)].sum() > 100 * expected[np.nanargmin(size)].sum()
 
 
 def test_the_gp_carries_back_most_of_a_parameter_error_inside_its_inputs(drag_fit):
@@ -417,13 +422,36 @@ def test_the_gp_carries_back_most_of_a_parameter_error_inside_its_inputs(drag_fi
     h = model.train_regressors["rotational_drag"]
     sigma = model.basis_covariance(h, np.full(3, get_effect("rotational_drag").prior_std))
     x = samples.regressors["rotational_drag"]
-    full = np.einsum("nap,pq,naq->na", x, sigma, x)
-    term = model.effects_variance(samples)
+    box = beyond_weight(model.inputs, samples.inputs(model.features)) == 0
+    full = np.einsum("nap,pq,naq->na", x, sigma, x)[box]
+    term = model.effects_variance(samples)[box]
     on = model.gp_enabled
     assert on.any()
     print("term / x Sigma x^T per axis:", term.mean(axis=0) / full.mean(axis=0), "GP on:", on)
     assert np.all(term[:, on].mean(axis=0) < 0.5 * full[:, on].mean(axis=0))  # 0.13-0.38
     np.testing.assert_allclose(term[:, ~on], full[:, ~on], rtol=1e-9, atol=1e-15)
+
+
+def test_beyond_the_training_inputs_the_term_is_at_least_the_robust_one(drag_fit):
+    """Beyond a quarter of a training range outside the training inputs' box (where
+    ``evaluate`` calls a sample outside) the parameter term ramps up to at least the
+    effects' robust standard errors taken as independent, fully at half a range."""
+    from dataclasses import replace
+
+    train = np.array([[0.0, 0.0], [1.0, 2.0]])
+    z = np.array([[0.5, 1.0], [1.2, 1.0], [1.0, 2.75], [1.0, 3.0], [-2.0, 0.0]])
+    np.testing.assert_allclose(beyond_weight(train, z), [0.0, 0.0, 0.5, 1.0, 1.0])
+    flat = np.array([[0.0, 3.0], [1.0, 3.0]])  # the second input never moved in training
+    np.testing.assert_allclose(beyond_weight(flat, np.array([[0.5, 3.0], [0.5, 3.1]])), [0, 1])
+    model, samples = drag_fit
+    far = replace(samples, omega=4.0 * samples.omega)  # body rates 4x the fit flight's
+    rho = beyond_weight(model.inputs, far.inputs(model.features))
+    assert (rho == 1.0).mean() > 0.3
+    old = _switched_off(model)
+    old.train_regressors = {}
+    robust = old.effects_variance(far)
+    term = model.effects_variance(far)
+    assert np.all(term[rho == 1.0] >= robust[rho == 1.0] * (1 - 1e-12))
 
 
 def test_a_file_without_training_regressors_takes_the_parameters_as_independent(drag_fit):

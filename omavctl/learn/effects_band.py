@@ -9,6 +9,13 @@ points, ``w`` the GP mean's weight (:mod:`omavctl.learn.mean_shrink`) and ``Sigm
 the parameters' posterior covariance with the model's calibrated GP as the model of
 what they leave (:meth:`omavctl.learn.model.ResidualGP.basis_covariance`).
 
+Beyond the training inputs neither the GP nor that posterior vouches for the
+parameters (an effect fitted on one flight may be off on another by more than the
+GP-based posterior allows); there the term rises to at least the robust one, the
+effects' HAC standard errors taken as independent, from :data:`BEYOND_MARGIN` of a
+training range beyond the box, fully at twice that (issue 26: a band wider than
+needed outside the fit flight's inputs is accepted, an overconfident one is not).
+
 Arrays: n samples, m training points, P parameters.
 """
 
@@ -21,7 +28,14 @@ import numpy as np
 from omavctl.learn.estimate import GAIN_EFFECT, GAIN_PRIOR_FACTOR, EffectEstimate
 from omavctl.learn.mean_shrink import shrink_weight
 
-__all__ = ["effect_residual", "parameter_variance"]
+__all__ = ["BEYOND_MARGIN", "beyond_weight", "effect_residual", "parameter_variance"]
+
+#: Beyond the training inputs' box by this fraction of a training range (the margin at
+#: which ``evaluate`` counts a sample outside the fit flight's inputs), the parameter
+#: term rises towards the robust one, fully at twice the margin: the effects'
+#: autocorrelation-robust standard errors taken as independent, nothing absorbed by the
+#: GP (:func:`parameter_variance`).
+BEYOND_MARGIN = 0.25
 
 
 def parameter_variance(model: Any, samples: Any) -> np.ndarray:
@@ -40,7 +54,25 @@ def parameter_variance(model: Any, samples: Any) -> np.ndarray:
         w = shrink_weight(mean, latent, model.mean_shrink)
     sigma = model.basis_covariance(at_train, prior_std)
     r = at_samples - w[:, :, None] * model.smooth(z, at_train)
-    return np.asarray(np.maximum(np.einsum("nap,pq,naq->na", r, sigma, r), 0.0))
+    inside = np.maximum(np.einsum("nap,pq,naq->na", r, sigma, r), 0.0)
+    rho = beyond_weight(model.inputs, z)
+    if not np.any(rho > 0):
+        return np.asarray(inside)
+    return np.asarray(np.maximum(inside, rho[:, None] * _independent(model, samples)))
+
+
+def beyond_weight(train: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Weight (n,) in [0, 1] of the robust term at inputs z (n, d): 0 up to
+    :data:`BEYOND_MARGIN` of a training range beyond the training inputs' box (m, d)
+    ``train`` (inside the fit flight's inputs as ``evaluate`` counts them), rising to 1
+    at twice that (an input constant in training that moves: 1)."""
+    lo, hi = train.min(axis=0), train.max(axis=0)
+    span = hi - lo
+    gap = np.maximum(lo - z, z - hi).clip(min=0.0)
+    varied = span > 1e-9 * np.maximum(np.maximum(np.abs(lo), np.abs(hi)), 1.0)
+    excess = np.where(varied, gap / np.where(varied, span, 1.0), np.where(gap > 0, np.inf, 0.0))
+    reach = excess.max(axis=1, initial=0.0)
+    return np.asarray(np.clip((reach - BEYOND_MARGIN) / BEYOND_MARGIN, 0.0, 1.0))
 
 
 def _basis(model: Any, samples: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:

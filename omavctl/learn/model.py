@@ -392,11 +392,14 @@ class ResidualGP:
         leave (``B`` the effects' prior). The intervals ``fit`` reports are wider (robust
         to autocorrelation, :mod:`omavctl.learn.intervals`): the band's GP part already
         carries that autocorrelation, and counting it twice made the band over-wide
-        inside the fit flight's inputs (docs/generalisation.md). Linear effects enter by
-        their regressors (exact); a searched effect (lag, delay) by its exact form's
-        difference one standard error away, and at the training points by its
-        linearised regressor scaled to that sensitivity. A file without training
-        regressors gets ``sum_j (se_j H*_j)^2`` (parameters independent, no GP).
+        inside the fit flight's inputs (docs/generalisation.md). Beyond the training
+        inputs, where neither vouches for the parameters, the term rises to at least
+        ``sum_j (se_j H*_j)^2`` with those robust errors (fully a quarter of a training
+        range beyond the box: :func:`omavctl.learn.effects_band.beyond_weight`). Linear
+        effects enter by their regressors (exact); a searched effect (lag, delay) by
+        its exact form's difference one standard error away, and at the training points
+        by its linearised regressor scaled to that sensitivity. A file without training
+        regressors gets ``sum_j (se_j H*_j)^2`` everywhere.
         """
         return parameter_variance(self, samples)
 
