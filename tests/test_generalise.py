@@ -153,20 +153,33 @@ def test_two_flights_with_the_named_effects_hold_on_two_other_trajectories(tmp_p
     wobble) with the effects the diagnosis names, then fly two trajectories neither
     of them is (a faster, larger figure-8 and another wobble). Motor lag, a 1 kHz
     controller logged at 100 Hz: the model beats physics on both and its band is
-    never overconfident (docs/generalisation.md: 77 of 84 axis-directions of this kind
-    in 0.85-0.99, 2 below, before the effects' standard errors became robust to
-    autocorrelation). Since then the band's parameter term X Sigma X^T uses those wider
-    errors and covers 0.997-0.999 on x and y of fig8fast (0.97 / 0.99 / 0.88 without
-    that term): wider than needed, which issue 26 accepts, not narrower. The upper
-    bound (0.995; measured 0.993 / 0.95 / 0.98) is held on wobble7."""
+    honest on both as issue 26 asks: 2-sigma coverage >= 0.85 on every axis, and <= 0.99
+    on the samples inside the fit flights' inputs (wider than needed beyond them is
+    accepted; docs/generalisation.md: 77 of 84 axis-directions of this kind in
+    0.85-0.99, 2 below). The robust (HAC) standard errors, counted in the band as
+    independent ``X se`` terms everywhere, had widened it to 0.997-0.999 on fig8fast
+    and the upper bound was relaxed to 0.995 on wobble7 alone; the parameter term is
+    now that of a GP with explicit basis functions inside the fit inputs
+    (docs/generalisation.md, "The band inside the fit flight's inputs"). Measured:
+    fig8fast 0.987 / 0.994 / 0.928, inside 0.981 / 0.989 / 0.972 (48 % of it outside);
+    wobble7 0.981 / 0.932 / 0.982 (all inside)."""
     from benchmarks.generalise import known_effects, run_two_flights
 
     for o in run_two_flights(
         tmp_path, "motor_lag", "1kHz-sampled", effects=known_effects("motor_lag")
     ):
-        print(o.held_out, "ratio", o.ratio.round(2), "coverage", o.coverage.round(2))
+        print(
+            o.held_out,
+            "ratio",
+            o.ratio.round(2),
+            "coverage",
+            o.coverage.round(3),
+            "inside",
+            o.coverage_inside.round(3),
+            "outside share",
+            round(o.outside, 2),
+        )
         assert np.all(o.ratio <= 0.8), o.ratio
         assert np.all(o.coverage >= 0.85), o.coverage
-        if o.held_out == "wobble7":
-            assert np.all(o.coverage <= 0.995), o.coverage
+        assert np.all(o.coverage_inside <= 0.99), o.coverage_inside
         assert o.missing == []

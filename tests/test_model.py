@@ -14,10 +14,12 @@ from typer.testing import CliRunner
 
 from omavctl.base.errors import ModelError
 from omavctl.cli import app
+from omavctl.learn.effects_band import beyond_weight
 from omavctl.learn.model import SCHEMA, EffectEstimate, ResidualGP
 from omavctl.learn.model_file import load_model, save_model
 from omavctl.learn.signal import SavitzkyGolay, feature_names, usable_segments
 from omavctl.physics.controller import Controller, ControllerState
+from omavctl.physics.effects import get_effect
 from tests.conftest import rebuilt
 
 runner = CliRunner()
@@ -354,35 +356,115 @@ def test_bad_filter_settings(window, order):
         SavitzkyGolay(window, order, 0.01)
 
 
-def test_the_band_includes_the_effects_parameter_uncertainty(vehicle, short_fig8):
-    """A GP with explicit basis functions predicts with variance ``X Sigma X^T`` on top
-    of the GP's: with drag (linear in D) and its standard errors, the added variance
-    is ``sum_j (X_j se_j)^2`` on every sample, and it grows with the regressor."""
+@pytest.fixture(scope="module")
+def drag_fit(vehicle, short_fig8):
+    """A drag model (the default plant's imperfections leave the GP something to learn;
+    40 points) and the residual samples of its own flight."""
     from omavctl.learn.fit import fit_model
     from omavctl.learn.signal import SavitzkyGolay, residual_samples
     from omavctl.logs import align
     from omavctl.sim.plant import simulate
     from omavctl.sim.truth import truth_from_tree
 
-    truth = truth_from_tree(
-        {"ideal": True, "effects": {"rotational_drag": {"D": [0.05] * 3}}}, vehicle
-    )
+    truth = truth_from_tree({"effects": {"rotational_drag": {"D": [0.05] * 3}}}, vehicle)
     flight = align(simulate(short_fig8, vehicle, truth, seed=0).log)
-    model = fit_model([flight], vehicle, effects=["rotational_drag"], points=20, restarts=0).model
+    model = fit_model([flight], vehicle, effects=["rotational_drag"], points=40, restarts=0).model
     samples = residual_samples(
         flight, vehicle, SavitzkyGolay(11, 2, 0.01), effects=["rotational_drag"]
     )
+    return model, samples
+
+
+def _switched_off(model):
+    """The same model with every axis' GP off (mean 0, constant variance)."""
+    return rebuilt(
+        model,
+        target_mean=np.zeros(3),
+        signal_variance=np.zeros(3),
+        mean_shrink=np.zeros(3),
+        train_regressors=model.train_regressors,
+    )
+
+
+def test_the_band_adds_the_parameter_uncertainty_of_a_gp_with_basis_functions(drag_fit):
+    """With the GP off, the parameters' posterior is that of weighted least squares with
+    the effect's prior, ``Sigma = (B^-1 + sum_a X_a^T X_a / sigma_a^2)^-1``, and the band
+    gains ``x Sigma x^T`` on every sample: it grows with the regressor."""
+    model, samples = drag_fit
+    off = _switched_off(model)
+    h = model.train_regressors["rotational_drag"]  # (m, 3, 3)
+    prior = get_effect("rotational_drag").prior_std
+    a_mat = np.eye(3) / prior**2 + sum(
+        h[:, a, :].T @ h[:, a, :] / model.noise_variance[a] for a in range(3)
+    )
+    sigma = np.linalg.inv(a_mat)
+    x = samples.regressors["rotational_drag"]  # (n, 3, 3)
+    expected = np.einsum("nap,pq,naq->na", x, sigma, x)
+    # inside the training points' box (beyond it the robust term takes over: below)
+    box = beyond_weight(model.inputs, samples.inputs(model.features)) == 0
+    assert box.mean() > 0.8
+    term = off.effects_variance(samples)
+    np.testing.assert_allclose(term[box], expected[box], rtol=1e-9, atol=1e-15)
+    _, var = off.predict_samples(samples)
+    _, gp_var = off.gp_predict(samples.inputs(off.features))
+    assert var is not None and gp_var is not None
+    np.testing.assert_allclose(var, gp_var + term, rtol=1e-12)
+    size = np.where(box, np.abs(x).sum(axis=(1, 2)), np.nan)
+    assert expected[np.nanargmax(size)].sum() > 100 * expected[np.nanargmin(size)].sum()
+
+
+def test_the_gp_carries_back_most_of_a_parameter_error_inside_its_inputs(drag_fit):
+    """A parameter error moves the GP's training targets too, and its mean carries that
+    back where it has data (Rasmussen & Williams eq. 2.42: ``R = H* - K*^T K^-1 H``):
+    on the fit flight itself the term is under half of ``x Sigma x^T``; on an axis
+    whose GP is off it is all of it."""
+    model, samples = drag_fit
+    h = model.train_regressors["rotational_drag"]
+    sigma = model.basis_covariance(h, np.full(3, get_effect("rotational_drag").prior_std))
+    x = samples.regressors["rotational_drag"]
+    box = beyond_weight(model.inputs, samples.inputs(model.features)) == 0
+    full = np.einsum("nap,pq,naq->na", x, sigma, x)[box]
+    term = model.effects_variance(samples)[box]
+    on = model.gp_enabled
+    assert on.any()
+    print("term / x Sigma x^T per axis:", term.mean(axis=0) / full.mean(axis=0), "GP on:", on)
+    assert np.all(term[:, on].mean(axis=0) < 0.5 * full[:, on].mean(axis=0))  # 0.13-0.38
+    np.testing.assert_allclose(term[:, ~on], full[:, ~on], rtol=1e-9, atol=1e-15)
+
+
+def test_beyond_the_training_inputs_the_term_is_at_least_the_robust_one(drag_fit):
+    """Beyond a quarter of a training range outside the training inputs' box (where
+    ``evaluate`` calls a sample outside) the parameter term ramps up to at least the
+    effects' robust standard errors taken as independent, fully at half a range."""
+    from dataclasses import replace
+
+    train = np.array([[0.0, 0.0], [1.0, 2.0]])
+    z = np.array([[0.5, 1.0], [1.2, 1.0], [1.0, 2.75], [1.0, 3.0], [-2.0, 0.0]])
+    np.testing.assert_allclose(beyond_weight(train, z), [0.0, 0.0, 0.5, 1.0, 1.0])
+    flat = np.array([[0.0, 3.0], [1.0, 3.0]])  # the second input never moved in training
+    np.testing.assert_allclose(beyond_weight(flat, np.array([[0.5, 3.0], [0.5, 3.1]])), [0, 1])
+    model, samples = drag_fit
+    far = replace(samples, omega=4.0 * samples.omega)  # body rates 4x the fit flight's
+    rho = beyond_weight(model.inputs, far.inputs(model.features))
+    assert (rho == 1.0).mean() > 0.3
+    old = _switched_off(model)
+    old.train_regressors = {}
+    robust = old.effects_variance(far)
+    term = model.effects_variance(far)
+    assert np.all(term[rho == 1.0] >= robust[rho == 1.0] * (1 - 1e-12))
+
+
+def test_a_file_without_training_regressors_takes_the_parameters_as_independent(drag_fit):
+    """Older files hold no regressors at the training points: the term is then
+    ``sum_j (x_j se_j)^2`` (the GP absorbs nothing, the parameters are independent)."""
+    model, samples = drag_fit
+    old = _switched_off(model)
+    old.train_regressors = {}
     se = model.effects["rotational_drag"].stderr["D"]
     assert np.all(se > 0)
-    x = samples.regressors["rotational_drag"]  # (n, 3, 3)
+    x = samples.regressors["rotational_drag"]
     expected = ((x * se[None, None, :]) ** 2).sum(axis=2)
-    np.testing.assert_allclose(model.effects_variance(samples), expected, rtol=1e-9, atol=1e-15)
-    _, var = model.predict_samples(samples)
-    _, gp_var = model.gp_predict(samples.inputs(model.features))
-    assert var is not None and gp_var is not None
-    np.testing.assert_allclose(var, gp_var + expected, rtol=1e-12)
-    size = np.abs(x).sum(axis=(1, 2))
-    assert expected[size.argmax()].sum() > 100 * expected[size.argmin()].sum()
+    np.testing.assert_allclose(old.effects_variance(samples), expected, rtol=1e-9, atol=1e-15)
 
 
 # ------------------------------------------------------- band beyond the training box

@@ -22,6 +22,7 @@ import numpy as np
 
 from omavctl.base.errors import LogError
 from omavctl.learn.effect_search import SearchResult, search_effects
+from omavctl.learn.estimate import GAIN_EFFECT, GAIN_PRIOR_FACTOR
 from omavctl.learn.intervals import hac_covariance, segment_ids
 from omavctl.learn.model import EffectEstimate
 from omavctl.learn.signal import ResidualSamples
@@ -45,9 +46,6 @@ __all__ = [
     "torque_gain",
     "without_searched",
 ]
-
-#: The effect that estimates the gain of a normalised torque command.
-GAIN_EFFECT = "inertia_error"
 
 
 @dataclass
@@ -147,8 +145,8 @@ PRIOR_STD = {name: effect.prior_std for name, effect in EFFECTS.items()}
 #: where the GP could explain the same linear trend the data do not decide
 #: between them, and the prior keeps the least-squares (physical) gain instead
 #: of an arbitrary split; where they do decide, a factor 3 lets the data move
-#: the gain freely.
-GAIN_PRIOR_FACTOR = 3.0
+#: the gain freely (``GAIN_PRIOR_FACTOR``, defined in :mod:`omavctl.learn.estimate`
+#: for the model's band too).
 _GAIN_PRIOR_FLOOR = 1e-9
 
 

@@ -16,7 +16,13 @@ import numpy as np
 from omavctl.learn.intervals import interval95, pinned_down
 from omavctl.physics.effects import Effect, get_effect
 
-__all__ = ["EffectEstimate"]
+__all__ = ["GAIN_EFFECT", "GAIN_PRIOR_FACTOR", "EffectEstimate"]
+
+#: The effect whose ``scale`` is the inverse command gain of a normalised torque command.
+GAIN_EFFECT = "inertia_error"
+#: Prior std of that gain's theta (= gain - 1) in the joint fit, as a multiple of the
+#: gain (:func:`omavctl.learn.effect_fit.effect_prior` says why).
+GAIN_PRIOR_FACTOR = 3.0
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MEAN_SHRINK", "shrink_mean"]
+__all__ = ["MEAN_SHRINK", "shrink_mean", "shrink_weight"]
 
 #: Weight ``kappa`` on the latent variance against the squared GP mean (4: the
 #: 2-sigma band). ``fit`` writes it per axis into the model (``mean_shrink``).
@@ -45,9 +45,15 @@ def shrink_mean(
     mean (B, 3) GP posterior mean (prior mean included), latent (B, 3) its
     calibrated latent variance, kappa (3,) per axis (0: the mean as it is).
     """
+    w = shrink_weight(mean, latent, kappa)
+    return w * mean, ((1.0 - w) * mean) ** 2
+
+
+def shrink_weight(mean: np.ndarray, latent: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+    """The weight w (B, 3) in [0, 1] on the GP mean (B, 3) (1: kept as it is), for
+    its calibrated latent variance (B, 3) and kappa (3,) (:func:`shrink_mean`)."""
     kappa = np.asarray(kappa, dtype=float)
     m2 = mean**2
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(kappa * latent > 0, m2 / (m2 + kappa * latent), 1.0)
-    w = np.nan_to_num(w, nan=1.0)
-    return w * mean, ((1.0 - w) * mean) ** 2
+    return np.asarray(np.nan_to_num(w, nan=1.0))

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
+from omavctl.learn.effects_band import effect_residual, parameter_variance
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.mean_shrink import shrink_mean
 from omavctl.learn.validation import beyond_envelope_variance
@@ -203,10 +204,20 @@ class ResidualGP:
         ``variance=False`` skips it (None). The mean is weighed by its band
         (``mean_shrink``, :mod:`omavctl.learn.mean_shrink`).
         """
+        shrink = bool(np.any(self.mean_shrink > 0))
+        mean, var = self.latent(z, variance or shrink)
+        if shrink:
+            mean, added = shrink_mean(mean, var, self.mean_shrink)
+            var += added
+        return mean, (var + self.noise_variance * noise) if variance else None
+
+    def latent(self, z: np.ndarray, variance: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """The GP mean before ``mean_shrink`` (B, 3) and its calibrated latent variance
+        (B, 3) (zero unless ``variance``): the posterior variance times ``latent_scale``
+        plus the growth beyond the training box, at inputs z (B, d)."""
         z = np.atleast_2d(np.asarray(z, dtype=float))
         zn = self.normalise(z)
         mean, var = np.empty((z.shape[0], 3)), np.zeros((z.shape[0], 3))
-        shrink = bool(np.any(self.mean_shrink > 0))
         lo, hi = self._box
         # rows in chunks: the (B, n) kernel matrix of a long log would not fit otherwise
         for start in range(0, max(z.shape[0], 1), _CHUNK):
@@ -215,17 +226,14 @@ class ResidualGP:
                 zq = zn[rows] / self.length_scales[a]
                 k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
                 mean[rows, a] = self.target_mean[a] + k @ self._alpha[a]
-                if variance or shrink:
+                if variance:
                     v = solve_triangular(self._chol[a], k.T, lower=True, check_finite=False)
                     var[rows, a] = self.latent_scale[a] * np.maximum(
                         self.signal_variance[a] - np.einsum("nb,nb->b", v, v), 0.0
                     ) + self.beyond_scale[a] * beyond_envelope_variance(
                         zn[rows], lo, hi, self.signal_variance[a], self.length_scales[a]
                     )
-        if shrink:
-            mean, added = shrink_mean(mean, var, self.mean_shrink)
-            var += added
-        return mean, (var + self.noise_variance * noise) if variance else None
+        return mean, var
 
     def smooth(self, z: np.ndarray, values: np.ndarray) -> np.ndarray:
         """What the GP mean would predict at z (B, d) from training targets ``values``.
@@ -375,27 +383,42 @@ class ResidualGP:
         return mean + self.effects_samples(samples), var
 
     def effects_variance(self, samples: Any) -> np.ndarray:
-        """Variance (n, 3) of the effects' residual on a log's samples from their
-        parameters' standard errors: ``sum_j (d r / d theta_j)^2 se_j^2``.
+        """Variance (n, 3) the effects' parameter uncertainty adds to the prediction on a
+        log's samples: ``diag(R Sigma R^T)`` per axis, the term of a GP with explicit
+        basis functions (Rasmussen & Williams §2.7, eq. 2.42).
 
-        The predictive variance of a GP with explicit basis functions includes
-        ``X Sigma_theta X^T``: an effect fitted on a flight that hardly excites it
-        extrapolates with a band that grows with its regressor. Parameters are
-        taken as independent (the file stores standard errors, not the
-        covariance); the sensitivity of each is a difference of the prediction
-        one standard error away (exact for linear effects).
+        ``R = H* - w k*(K + sigma^2 I)^-1 H``: a parameter error ``delta`` moves the
+        effects' prediction by ``H* delta`` (``H*`` (n, 3, P) the sensitivities at the
+        samples) and the GP's targets by ``H delta`` at the training points, of which its
+        mean (weighed by ``w``, :mod:`omavctl.learn.mean_shrink`) carries back the part it
+        can represent. ``Sigma = (B^-1 + sum_a H_a^T K_a^-1 H_a)^-1`` is the parameters'
+        posterior covariance with this model's calibrated GP as the model of what they
+        leave (``B`` the effects' prior). The intervals ``fit`` reports are wider (robust
+        to autocorrelation, :mod:`omavctl.learn.intervals`): the band's GP part already
+        carries that autocorrelation, and counting it twice made the band over-wide
+        inside the fit flight's inputs (docs/generalisation.md). Beyond the training
+        inputs, where neither vouches for the parameters, the term rises to at least
+        ``sum_j (se_j H*_j)^2`` with those robust errors (fully a quarter of a training
+        range beyond the box: :func:`omavctl.learn.effects_band.beyond_weight`). Linear
+        effects enter by their regressors (exact); a searched effect (lag, delay) by
+        its exact form's difference one standard error away, and at the training points
+        by its linearised regressor scaled to that sensitivity. A file without training
+        regressors gets ``sum_j (se_j H*_j)^2`` everywhere.
         """
-        out = np.zeros((samples.n, 3))
-        for est in self.effects.values():
-            base = _effect_residual(samples, est, est.values)
-            for pname, se in est.stderr.items():
-                for j in range(se.size):
-                    if not (np.isfinite(se[j]) and se[j] > 0):
-                        continue
-                    moved = {k: v.copy() for k, v in est.values.items()}
-                    moved[pname][j] += se[j]
-                    out += (_effect_residual(samples, est, moved) - base) ** 2
-        return out
+        return parameter_variance(self, samples)
+
+    def basis_covariance(self, at_train: np.ndarray, prior_std: np.ndarray) -> np.ndarray:
+        """Posterior covariance (P, P) of effect parameters with sensitivities at_train
+        (m, 3, P) at the training points and prior stds (P,), this model's GP the model
+        of what they leave: ``(B^-1 + sum_a H_a^T K_a^-1 H_a)^-1``, ``H_a`` centred on an
+        axis whose GP is on (its target mean carries a constant)."""
+        a_mat = np.diag(1.0 / np.asarray(prior_std, dtype=float) ** 2)
+        for a in range(3):
+            h = at_train[:, a, :]
+            if self.gp_enabled[a]:
+                h = h - h.mean(axis=0)
+            a_mat += h.T @ cho_solve((self._chol[a], True), h)
+        return np.asarray(np.linalg.inv(a_mat))
 
     def effects_samples(self, samples: Any) -> np.ndarray:
         """Residual (n, 3) the fitted effects cause on a log's samples (held).
@@ -405,7 +428,7 @@ class ResidualGP:
         """
         out = np.zeros((samples.n, 3))
         for est in self.effects.values():
-            out += _effect_residual(samples, est, est.values)
+            out += effect_residual(samples, est, est.values)
         return out
 
     # ----------------------------------------------------------- persistence
@@ -433,19 +456,3 @@ class ResidualGP:
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
             **{f"regressor_{k}": v for k, v in sorted(self.train_regressors.items())},
         }
-
-
-def _effect_residual(
-    samples: Any, est: EffectEstimate, values: dict[str, np.ndarray]
-) -> np.ndarray:
-    """Residual (n, 3) of one fitted effect at parameter ``values`` on a log's samples.
-
-    Linear effects through their held regressors; effects estimated by a 1-D
-    search (lags, delay: :attr:`Effect.search`) through their exact form.
-    """
-    effect = est.effect
-    if effect.search is not None:
-        return samples.exact(est.name, float(values[effect.parameters[0].name][0]))
-    if est.name not in samples.regressors:
-        raise ValueError(f"samples lack the regressor of effect '{est.name}'")
-    return samples.regressors[est.name] @ effect.to_theta(values)
