@@ -207,9 +207,17 @@ def judge(case: Case, work: Path, code: int | None, stdout: str, stderr: str) ->
     leftovers = [p.name for p in work.iterdir() if p.name.startswith(".") and p.name[1:2] != "."]
     if leftovers:
         return "temp-file-left", ", ".join(leftovers)
-    text = (stdout + stderr).strip()
+    text = stderr.strip() if "--json" in case.argv else (stdout + stderr).strip()
     if code != 0 and "--json" in case.argv and stdout.strip():
-        return "not-one-line", f"stdout on failure: {stdout[:200]}"
+        # a failed --json run prints its error as one JSON object, the same line
+        try:
+            obj = json.loads(stdout)
+        except ValueError:
+            return "not-one-line", f"stdout on failure is not JSON: {stdout[:200]}"
+        if stdout.strip().count("\n") or obj.get("exit_code") != code or (
+            f"error: {obj.get('error')}" != text
+        ):
+            return "not-one-line", f"stdout on failure: {stdout[:200]}"
     if code != 0:
         lines = text.splitlines()
         if code != 2:
