@@ -21,6 +21,11 @@ def planned(r: dict) -> dict:
     return r["pool"][str(r["best"])]
 
 
+def paper_planned(r: dict) -> dict:
+    """The refit with the ``--region task`` plan's choice (the objective before issue 29)."""
+    return r["pool"][str(r["best_task_region"])]
+
+
 def random_one(r: dict) -> dict:
     """The refit with the seeded random candidate of the same pool."""
     return r["pool"][str(r["random"])]
@@ -39,6 +44,13 @@ def comparisons(results: Sequence[dict]) -> list[tuple[str, str, list[float]]]:
         ("oracle vs one random candidate (room)", oracle, random_one),
         ("oracle vs planned", oracle, planned),
     ]
+    if all("best_task_region" in r for r in results):
+        pairs[2:2] = [
+            ("--region task plan vs one random candidate", paper_planned, random_one),
+            ("planned vs the --region task plan", planned, paper_planned),
+            ("--region task plan vs the task flown again", paper_planned,
+             lambda r: r["task_again"]),
+        ]  # fmt: skip
     if all("effects_plan" in r for r in results):
         pairs.append(("effects plan vs the task flown again", lambda r: r["effects_plan"],
                       lambda r: r["task_again"]))  # fmt: skip
@@ -49,8 +61,9 @@ def comparisons(results: Sequence[dict]) -> list[tuple[str, str, list[float]]]:
     ]
 
 
-def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
-    """Spearman of the planner's cost with the region error the refit removes.
+def correlation(results: Sequence[dict], key: str = "cost") -> tuple[list[float], float, int]:
+    """Spearman of the planner's cost (``key`` of every flown candidate: ``cost``, or
+    ``cost_task_region`` for ``--region task``) with the region error the refit removes.
 
     Per draw over its flown candidates, and pooled over all draws with the cost
     relative to the draw's median and the removed error relative to the first
@@ -59,12 +72,32 @@ def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
     per, cost_all, removed_all = [], [], []
     for r in results:
         cands = list(r["pool"].values())
-        cost = [c["cost"] for c in cands]
+        cost = [c[key] for c in cands]
         removed = [r["first"]["region"] - c["region"] for c in cands]
         per.append(spearman(cost, removed))
         cost_all += list(np.asarray(cost) / np.median(cost))
         removed_all += list(np.asarray(removed) / r["first"]["region"])
     return per, spearman(cost_all, removed_all), len(cost_all)
+
+
+def _correlation_lines(results: Sequence[dict]) -> list[str]:
+    """The Spearman of each objective's cost with the region error the refit removes."""
+    keys = [("cost", "the planner's cost")]
+    if all("cost_task_region" in c for r in results for c in r["pool"].values()):
+        keys = [("cost", "the planner's cost (`--region pool`)"),
+                ("cost_task_region", "the `--region task` cost")]  # fmt: skip
+    out = []
+    for key, name in keys:
+        per, pooled, n = correlation(results, key)
+        finite = [v for v in per if np.isfinite(v)]
+        out.append(
+            f"- Spearman of {name} with the region error the refit removes "
+            f"(lower cost should remove more: a useful ranking is negative): pooled over "
+            f"{n} flown candidates {pooled:+.2f}; per draw "
+            + ", ".join(f"{v:+.2f}" if np.isfinite(v) else "n/a" for v in per)
+            + (f" (mean {np.mean(finite):+.2f})." if finite else ".")
+        )
+    return out
 
 
 def _spread_lines(results: Sequence[dict]) -> list[str]:
@@ -82,7 +115,7 @@ def _spread_lines(results: Sequence[dict]) -> list[str]:
         + ", ".join(f"{r['ranking']['amplitude']:+.2f}" for r in results)
         + "; with its mean frequency "
         + ", ".join(f"{r['ranking']['frequency']:+.2f}" for r in results)
-        + " (positive: the planner prefers smaller, slower deviations).",
+        + " (positive: lower cost for smaller, slower deviations).",
         "- Do the candidates differ enough to matter? The flown candidates' region errors "
         f"span {np.mean(spread):.0f} % of their mean (per draw "
         + ", ".join(f"{v:.0f}" for v in spread)
@@ -153,16 +186,20 @@ def _row(name: str, label: str, iv: MeanInterval, target: float = 10.0) -> str:
 
 
 def _draw_table(results: Sequence[dict]) -> list[str]:
+    paper = all("best_task_region" in r for r in results)
+    extra = " --region task plan |" if paper else ""
     lines = [
         "| effects | seed | first model: tracking / region / task | task again | random "
-        "| planned | oracle | planned cost / task cost | GP on (planned, x y z) | s |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| planned |{extra} oracle | planned cost / task cost | GP on (planned, x y z) | s |",
+        "|---|---|---|---|---|---|---|---|---|---|" + ("---|" if paper else ""),
     ]
     for r in results:
         f = r["first"]
+        chains = [r["task_again"], random_one(r), planned(r)]
+        chains += [paper_planned(r)] if paper else []
         cells = [
             f"{c['tracking']:.3f} / {c['region']:.3f} / {c['task']:.3f}"
-            for c in (r["task_again"], random_one(r), planned(r), oracle(r))
+            for c in (*chains, oracle(r))
         ]
         gp = " ".join("on" if g else "off" for g in planned(r)["gp_on"])
         lines.append(
@@ -209,17 +246,8 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
     for name, label, gains in comparisons(results):
         lines.append(_row(name, label, mean_interval(gains)))
     lines += ["", "## Issue 29's targets on these draws", "", *targets(results)]
-    per, pooled, n = correlation(results)
-    finite = [v for v in per if np.isfinite(v)]
+    lines += ["", "## Where the gain goes", "", *_correlation_lines(results)]
     lines += [
-        "",
-        "## Where the gain goes",
-        "",
-        f"- Spearman of the planner's cost with the region error the refit removes "
-        f"(lower cost should remove more: a useful ranking is negative): pooled over "
-        f"{n} flown candidates {pooled:+.2f}; per draw "
-        + ", ".join(f"{v:+.2f}" if np.isfinite(v) else "n/a" for v in per)
-        + (f" (mean {np.mean(finite):+.2f})." if finite else "."),
         *_spread_lines(results),
         *_kept_lines(results),
         "",
