@@ -116,3 +116,70 @@ def test_cli_plan_refuses_an_unknown_region(fitted, tmp_path):
     assert r.exit_code == 2 and "Traceback" not in r.output
     assert r.output.strip() == "error: --region must be 'pool' or 'task', got 'everywhere'"
     assert not out.exists()
+
+
+def _result(cost, task_cost=4.0, prior=9.0, objective="variance"):
+    from types import SimpleNamespace
+
+    cost = np.asarray(cost, float)
+    feasible = np.isfinite(cost)
+    best = int(np.argmin(np.where(feasible, cost, np.inf)))
+    return SimpleNamespace(
+        cost=cost, feasible=feasible, best=best, task_cost=task_cost, prior_variance=prior,
+        objective=objective,
+    )  # fmt: skip
+
+
+def test_the_expected_error_fall_is_the_square_root_of_the_cost_ratios():
+    """Planned cost 1 against the task's 4: the RMS error the model expects halves
+    (+50 %); against the other candidates (costs 4, 4, 4, 4, 16, inf) the gains are
+    +50 % four times and +75 % once (the infeasible one is no random draw)."""
+    from omavctl.planning.expectation import expectation, expectation_lines
+
+    e = expectation(_result([4.0, 1.0, 4.0, 4.0, 4.0, 16.0, np.inf]))
+    assert e is not None
+    assert (e["error_now"], e["error_task_again"], e["error_planned"]) == (3.0, 2.0, 1.0)
+    assert e["vs_task_again"] == pytest.approx(50.0) and e["others"] == 5
+    assert e["vs_random"]["median"] == pytest.approx(50.0)
+    assert e["vs_random"]["low"] == pytest.approx(50.0)
+    assert e["vs_random"]["high"] == pytest.approx(65.0)  # 10-90 %: 50 + 0.6 * 25
+    (line,) = expectation_lines(_result([4.0, 1.0, 4.0, 4.0, 4.0, 16.0, np.inf]))
+    assert "+50 % against the task again" in line
+    assert (
+        "random candidate of the pool +50 % (median; 80 % of the 5 others between +50 and +65 %)"
+        in line
+    )
+
+
+def test_too_few_candidates_cannot_tell_against_a_random_one_and_effects_say_nothing():
+    from omavctl.planning.expectation import expectation, expectation_lines
+
+    few = _result([1.0, 4.0, 9.0])
+    assert expectation(few)["vs_random"] is None
+    assert "against a random candidate: cannot tell (2 other feasible)" in expectation_lines(few)[0]
+    assert expectation(_result([1.0, 4.0], objective="effects")) is None
+    assert expectation_lines(_result([1.0, 4.0], objective="effects")) == []
+
+
+def test_cli_plan_json_and_summary_state_the_expected_error_fall(fitted, tmp_path):
+    import json
+    import math
+
+    task, model = fitted
+    task_path, model_path = tmp_path / "task.csv", tmp_path / "model.npz"
+    write_trajectory(task_path, task)
+    save_model(model_path, model)
+    args = ["plan", "--task", str(task_path), "--model", str(model_path)]
+    args += ["--candidates", "3", "--sims", "1", "--test-points", "60", "--points", "10"]
+    r = runner.invoke(app, [*args, "--out", str(tmp_path / "a.csv"), "--json", "-q"])
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.stdout)
+    e = out["expected"]
+    assert e["vs_task_again"] == pytest.approx(
+        100 * (1 - math.sqrt(out["best_cost"] / out["task_cost"]))
+    )
+    assert e["error_planned"] == pytest.approx(math.sqrt(out["best_cost"]))
+    assert e["vs_random"] is None and e["others"] <= 2  # too few others: cannot tell
+    text = runner.invoke(app, [*args, "--out", str(tmp_path / "b.csv")]).output
+    assert "expected by the model: RMS error over the region" in " ".join(text.split())
+    assert "against a random candidate: cannot tell" in " ".join(text.split())

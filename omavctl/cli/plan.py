@@ -263,8 +263,9 @@ def _render_plan(
     for line in summary["lines"] if summary else []:
         con.print(line, markup=False)
     from omavctl.planning.envelope import envelope_lines
+    from omavctl.planning.expectation import expectation_lines
 
-    for line in envelope_lines(result):
+    for line in expectation_lines(result) + envelope_lines(result):
         con.print(line, markup=False)
     from omavctl.planning.report import task_warning as _task_warning
 
@@ -331,6 +332,7 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
     the objective and (for the effects objective) the effects' expected errors."""
     from omavctl.planning.effects_objective import effects_summary
     from omavctl.planning.envelope import envelope, envelope_warnings
+    from omavctl.planning.expectation import expectation
 
     summary = effects_summary(result)
     from omavctl.planning.report import task_warning as _task_warning
@@ -351,6 +353,7 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
         # what the terminal prints as "warning:": read before flying the reference
         "warnings": ([task_warning] if task_warning else []) + envelope_warnings(result),
         "objective": result.objective,
+        "expected": expectation(result),
         "envelope": envelope(result.best_trajectory()) if result.best >= 0 else None,
         "task_envelope": envelope(result.task),
         "effects": {k: v for k, v in summary.items() if k != "lines"} if summary else None,
