@@ -100,6 +100,36 @@ def _correlation_lines(results: Sequence[dict]) -> list[str]:
     return out
 
 
+def expected_vs_realised(results: Sequence[dict]) -> dict[str, tuple[list[float], list[float]]]:
+    """What ``plan`` expected (``1 - sqrt(cost_planned / cost_other)``, %, as its summary
+    states it: omavctl.planning.expectation) and the region gain realised, per draw:
+    against the task flown again and against the random candidate."""
+    out: dict[str, tuple[list[float], list[float]]] = {"task again": ([], []), "random": ([], [])}
+    for r in results:
+        cost = planned(r)["cost"]
+        for name, other_cost, other in (
+            ("task again", r["task_cost"], r["task_again"]),
+            ("random", random_one(r)["cost"], random_one(r)),
+        ):
+            out[name][0].append(100.0 * (1.0 - float(np.sqrt(cost / other_cost))))
+            out[name][1].append(gain(other["region"], planned(r)["region"]))
+    return out
+
+
+def _expectation_lines(results: Sequence[dict]) -> list[str]:
+    """The plan's expectation beside what the refit realised on the region."""
+    lines = []
+    for name, (expected, realised) in expected_vs_realised(results).items():
+        other = "the task flown again" if name == "task again" else "the random candidate"
+        lines.append(
+            f"- Against {other}, `plan` expected (its summary line) "
+            f"{mean_interval(expected).text()}, the refit realised "
+            f"{mean_interval(realised).text()} on the region's held-out flights "
+            f"(Spearman over draws {spearman(expected, realised):+.2f})."
+        )
+    return lines
+
+
 def _spread_lines(results: Sequence[dict]) -> list[str]:
     """How much the flown candidates differ, in realised error and in planner cost."""
     if not all("ranking" in r for r in results):
@@ -248,6 +278,7 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
     lines += ["", "## Issue 29's targets on these draws", "", *targets(results)]
     lines += ["", "## Where the gain goes", "", *_correlation_lines(results)]
     lines += [
+        *_expectation_lines(results),
         *_spread_lines(results),
         *_kept_lines(results),
         "",

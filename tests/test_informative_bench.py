@@ -196,3 +196,16 @@ def test_the_region_task_plan_is_compared_with_its_own_cost_ranking() -> None:
     assert "Spearman of the `--region task` cost with the region error" in text
     assert "(`--region pool`) with the region error the refit removes" in text
     assert "| planned | --region task plan | oracle |" in text
+
+
+def test_the_plans_expectation_is_set_beside_the_realised_gain() -> None:
+    from benchmarks.informative_md import expected_vs_realised
+
+    # planned cost 1 against the task's 4 and the random candidate's 9: the model
+    # expects its RMS error to fall by 50 % and 67 %; realised on the region: task again
+    # 1.0 -> planned 0.5 (50 %), random 0.9 -> 0.5 (44 %)
+    d = _draw(2.0, 1.0, {0: (9.0, 0.9), 1: (1.0, 0.5)})
+    d["task_cost"] = 4.0
+    out = expected_vs_realised([d])
+    assert out["task again"] == ([pytest.approx(50.0)], [pytest.approx(50.0)])
+    assert out["random"] == ([pytest.approx(100 * 2 / 3)], [pytest.approx(100 * 0.4 / 0.9)])
