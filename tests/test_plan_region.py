@@ -183,3 +183,18 @@ def test_cli_plan_json_and_summary_state_the_expected_error_fall(fitted, tmp_pat
     text = runner.invoke(app, [*args, "--out", str(tmp_path / "b.csv")]).output
     assert "expected by the model: RMS error over the region" in " ".join(text.split())
     assert "against a random candidate: cannot tell" in " ".join(text.split())
+
+
+def test_the_pool_subsample_is_the_one_of_the_concatenated_states():
+    """Drawn without building the pool's states as one array: the same rows, the same
+    order, as pool_test_points would draw from the concatenation with the same seed."""
+    from omavctl.planning.planner import POOL_STATES, pool_subsample
+
+    rng = np.random.default_rng(0)
+    task_states = rng.standard_normal((300, 4))
+    pool = rng.standard_normal((7, 3, 2000, 4)).astype(np.float32)
+    rows = np.array([0, 2, 3, 6])
+    whole = np.concatenate([task_states, pool[rows].reshape(-1, 4)])
+    expected = whole[np.random.default_rng(5).permutation(whole.shape[0])[:POOL_STATES]]
+    got = pool_subsample(task_states, pool, rows, np.random.default_rng(5))
+    np.testing.assert_array_equal(got, expected)

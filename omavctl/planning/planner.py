@@ -112,10 +112,30 @@ def pool_test_points(states: np.ndarray, count: int, rng: np.random.Generator) -
     the states' distribution, as a random sample would, but each stands for its
     neighbourhood: states lie closer to their nearest test point (by about 5-10 % on
     a two-cluster example, ``tests/test_plan_region.py``)."""
+    return _medoids(states[rng.permutation(states.shape[0])[:POOL_STATES]], count)
+
+
+def _medoids(sub: np.ndarray, count: int) -> np.ndarray:
     from omavctl.planning.scoring import batched_picks
 
-    sub = states[rng.permutation(states.shape[0])[:POOL_STATES]]
     return batched_picks(np.asarray(sub, float)[None], min(count, sub.shape[0]))[0]
+
+
+def pool_subsample(
+    task_states: np.ndarray, pool: np.ndarray, rows: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """The states :func:`pool_test_points` would draw from ``concatenate([task_states,
+    pool[rows].reshape(-1, d)])`` with the same rng, without building that array (1000
+    candidates x 8 simulations hold about 5 million states): task_states (n, d), pool
+    (K, M, Ts, d), rows (k,) candidate indices -> (min(n_all, POOL_STATES), d) float."""
+    n_task, (_, m, ts, d) = task_states.shape[0], pool.shape
+    pick = rng.permutation(n_task + rows.size * m * ts)[:POOL_STATES]
+    out = np.empty((pick.size, d))
+    first = pick < n_task
+    out[first] = task_states[pick[first]]
+    k, sim, t = np.unravel_index(pick[~first] - n_task, (rows.size, m, ts))
+    out[~first] = pool[rows[k], sim, t]
+    return out
 
 
 def _test_points(
@@ -277,9 +297,9 @@ def _task_region(
         raise OmavctlError("--epsilon must be > 0 (the model predicts no residual at all)")
     if settings.region == "task":
         return _test_points(visited, epsilon, settings.test_points, rng), float(epsilon)
-    feasible = (batch.code == 0).all(axis=1)
-    states = [visited[:: settings.stride], batch.inputs[feasible].reshape(-1, model_gp.d)]
-    return pool_test_points(np.concatenate(states), settings.test_points, rng), float(epsilon)
+    rows = np.flatnonzero((batch.code == 0).all(axis=1))
+    sub = pool_subsample(visited[:: settings.stride], batch.inputs, rows, rng)
+    return _medoids(sub, settings.test_points), float(epsilon)
 
 
 def _check(model, settings: PlanSettings) -> None:
