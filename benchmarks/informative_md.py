@@ -241,6 +241,18 @@ def _draw_table(results: Sequence[dict]) -> list[str]:
     return lines
 
 
+def _further(results: Sequence[dict], pool_extra: int) -> str:
+    """How many random pool candidates beyond the chosen and the random one were flown
+    (per draw when the draws differ: a draw is cached with the settings it ran with)."""
+    n = [
+        len(r["pool"]) - len({r["best"], r.get("best_task_region", r["best"]), r["random"]})
+        for r in results
+    ]
+    if len(set(n)) <= 1:
+        return f"{n[0] if n else pool_extra} further pool candidates flown"
+    return "further pool candidates flown per draw: " + ", ".join(map(str, n))
+
+
 def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[str]) -> str:
     """The whole results page."""
     cmd = "python benchmarks/informative.py " + " ".join(argv)
@@ -252,7 +264,7 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         + (f", and {' '.join(cfg['also'])}" if cfg.get("also") else "")
         + "; "
         f"{cfg['duration']:g} s flights, `plan --candidates {cfg['candidates']} --sims "
-        f"{cfg['sims']}`, {cfg['pool_extra']} further pool candidates flown; "
+        f"{cfg['sims']}`, {_further(results, cfg['pool_extra'])}; "
         f"each draw {min(r['seconds'] for r in results) / 60:.0f}–"
         f"{max(r['seconds'] for r in results) / 60:.0f} min wall-clock, two or three at a "
         f"time on 2 cores shared with other work; this page rendered in {seconds:.0f} s from "
