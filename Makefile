@@ -126,7 +126,8 @@ scorecard2: $(STAMP)
 # candidates, 3 further pool candidates flown: 12 draws of about 12 min wall-clock
 # each, two at a time (measured: 6-12 min with three at a time on 2 busy cores).
 # Draws are cached in the workdir. docs/informative.md was made with
-# INFORMATIVE_ARGS='--seeds 1 --also drag:2 inertia:2 delay:2 --pool-extra 2'.
+# INFORMATIVE_ARGS='--seeds 3 --also drag:4 inertia:4 delay:4 --pool-extra 2' (5 of
+# its 9 draws ran with --pool-extra 0: the page counts them).
 INFORMATIVE_LOGS ?= build/informative
 INFORMATIVE_ARGS ?=
 informative: $(STAMP)

@@ -10,10 +10,14 @@ Per draw (a hidden effect set of :data:`EFFECT_SETS` x a seed s), every step the
 1. truth: the default omav's actuator imperfections plus the hidden effect(s);
    task: the figure-8 (26 deg, 8 s period, ``--duration`` s);
 2. first flight of the task (noise seed s) -> ``fit`` -> the first model;
-3. ``plan --task --model --candidates K --scores`` (variance objective, plan seed s);
+3. ``plan --task --model --candidates K --scores`` (variance objective, plan seed s;
+   the default ``--region pool``), and the same with ``--region task`` (the paper's
+   test points around the task: the objective before issue 29, the same candidates
+   and simulations);
 4. second flights, all with noise seed 100 + s: the task again; the planned
-   reference; one random candidate of the same pool (a seeded draw from the same
-   deviation distribution); ``--pool-extra`` further random candidates of the pool,
+   reference (and the ``--region task`` plan's choice); one random candidate of the
+   same pool (a seeded draw from the same deviation distribution); ``--pool-extra``
+   further random candidates of the pool,
    so that the best of all flown candidates by realised error is the oracle (a lower
    bound of the room the selection has); with ``--with-effects`` also
    ``plan --objective effects``;
@@ -152,12 +156,16 @@ def _pool(w: Path, task: Path, chosen: list[int], scores: Path) -> dict[int, Pat
     return out
 
 
-def _plan(paths: dict[str, Path], w: Path, seed: int, cfg: argparse.Namespace, kind: str) -> dict:
-    """``plan`` the second flight (variance or effects objective); its JSON object."""
+def _plan(
+    paths: dict[str, Path], w: Path, seed: int, cfg: argparse.Namespace, kind: str, tag: str = ""
+) -> dict:
+    """``plan`` the second flight (variance or effects objective; ``tag`` "-task": with
+    ``--region task``); its JSON object."""
     args = ["--task", str(paths["task"]), "--model", str(paths["model"])]
     args += ["--candidates", str(cfg.candidates), "--sims", str(cfg.sims), "--seed", str(seed)]
-    args += ["--objective", kind, "--jobs", "1", "--scores", str(w / f"scores-{kind}.csv")]
-    return omavctl("plan", *args, "--out", str(w / f"plan-{kind}.csv"))
+    args += ["--objective", kind, "--jobs", "1", "--scores", str(w / f"scores-{kind}{tag}.csv")]
+    args += ["--region", "task"] if tag == "-task" else []
+    return omavctl("plan", *args, "--out", str(w / f"plan-{kind}{tag}.csv"))
 
 
 def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
@@ -179,18 +187,25 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
         "first": _judge(paths["model"], paths, seed, w, "first"),
     }
     planned = _plan(paths, w, seed, cfg, "variance")
+    paper = _plan(paths, w, seed, cfg, "variance", "-task")
     _, cost = read_scores(w / "scores-variance.csv")
+    _, cost_paper = read_scores(w / "scores-variance-task.csv")
     feasible = np.flatnonzero(np.isfinite(cost))
     rng = np.random.default_rng(1000 + seed)
     drawn = [int(k) for k in rng.permutation(feasible)[: 1 + cfg.pool_extra]]
-    best = int(planned["best"])
-    refs = _pool(w, paths["task"], sorted({best, *drawn}), w / "scores-variance.csv")
+    best, best_paper = int(planned["best"]), int(paper["best"])
+    refs = _pool(w, paths["task"], sorted({best, best_paper, *drawn}), w / "scores-variance.csv")
     res["task_again"] = _second(paths["task"], paths, seed, w, "task")
     res["pool"] = {
-        str(k): {**_second(ref, paths, seed, w, f"cand-{k}"), "cost": float(cost[k])}
+        str(k): {
+            **_second(ref, paths, seed, w, f"cand-{k}"),
+            "cost": float(cost[k]),
+            "cost_task_region": float(cost_paper[k]),
+        }
         for k, ref in refs.items()
     }
     res.update(best=best, random=drawn[0], task_cost=float(planned["task_cost"]))
+    res.update(best_task_region=best_paper, task_cost_task_region=float(paper["task_cost"]))
     if cfg.with_effects:
         _plan(paths, w, seed, cfg, "effects")
         res["effects_plan"] = _second(w / "plan-effects.csv", paths, seed, w, "effects")

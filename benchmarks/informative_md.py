@@ -21,6 +21,11 @@ def planned(r: dict) -> dict:
     return r["pool"][str(r["best"])]
 
 
+def paper_planned(r: dict) -> dict:
+    """The refit with the ``--region task`` plan's choice (the objective before issue 29)."""
+    return r["pool"][str(r["best_task_region"])]
+
+
 def random_one(r: dict) -> dict:
     """The refit with the seeded random candidate of the same pool."""
     return r["pool"][str(r["random"])]
@@ -39,6 +44,13 @@ def comparisons(results: Sequence[dict]) -> list[tuple[str, str, list[float]]]:
         ("oracle vs one random candidate (room)", oracle, random_one),
         ("oracle vs planned", oracle, planned),
     ]
+    if all("best_task_region" in r for r in results):
+        pairs[2:2] = [
+            ("--region task plan vs one random candidate", paper_planned, random_one),
+            ("planned vs the --region task plan", planned, paper_planned),
+            ("--region task plan vs the task flown again", paper_planned,
+             lambda r: r["task_again"]),
+        ]  # fmt: skip
     if all("effects_plan" in r for r in results):
         pairs.append(("effects plan vs the task flown again", lambda r: r["effects_plan"],
                       lambda r: r["task_again"]))  # fmt: skip
@@ -49,8 +61,9 @@ def comparisons(results: Sequence[dict]) -> list[tuple[str, str, list[float]]]:
     ]
 
 
-def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
-    """Spearman of the planner's cost with the region error the refit removes.
+def correlation(results: Sequence[dict], key: str = "cost") -> tuple[list[float], float, int]:
+    """Spearman of the planner's cost (``key`` of every flown candidate: ``cost``, or
+    ``cost_task_region`` for ``--region task``) with the region error the refit removes.
 
     Per draw over its flown candidates, and pooled over all draws with the cost
     relative to the draw's median and the removed error relative to the first
@@ -59,12 +72,62 @@ def correlation(results: Sequence[dict]) -> tuple[list[float], float, int]:
     per, cost_all, removed_all = [], [], []
     for r in results:
         cands = list(r["pool"].values())
-        cost = [c["cost"] for c in cands]
+        cost = [c[key] for c in cands]
         removed = [r["first"]["region"] - c["region"] for c in cands]
         per.append(spearman(cost, removed))
         cost_all += list(np.asarray(cost) / np.median(cost))
         removed_all += list(np.asarray(removed) / r["first"]["region"])
     return per, spearman(cost_all, removed_all), len(cost_all)
+
+
+def _correlation_lines(results: Sequence[dict]) -> list[str]:
+    """The Spearman of each objective's cost with the region error the refit removes."""
+    keys = [("cost", "the planner's cost")]
+    if all("cost_task_region" in c for r in results for c in r["pool"].values()):
+        keys = [("cost", "the planner's cost (`--region pool`)"),
+                ("cost_task_region", "the `--region task` cost")]  # fmt: skip
+    out = []
+    for key, name in keys:
+        per, pooled, n = correlation(results, key)
+        finite = [v for v in per if np.isfinite(v)]
+        out.append(
+            f"- Spearman of {name} with the region error the refit removes "
+            f"(lower cost should remove more: a useful ranking is negative): pooled over "
+            f"{n} flown candidates {pooled:+.2f}; per draw "
+            + ", ".join(f"{v:+.2f}" if np.isfinite(v) else "n/a" for v in per)
+            + (f" (mean {np.mean(finite):+.2f})." if finite else ".")
+        )
+    return out
+
+
+def expected_vs_realised(results: Sequence[dict]) -> dict[str, tuple[list[float], list[float]]]:
+    """What ``plan`` expected (``1 - sqrt(cost_planned / cost_other)``, %, as its summary
+    states it: omavctl.planning.expectation) and the region gain realised, per draw:
+    against the task flown again and against the random candidate."""
+    out: dict[str, tuple[list[float], list[float]]] = {"task again": ([], []), "random": ([], [])}
+    for r in results:
+        cost = planned(r)["cost"]
+        for name, other_cost, other in (
+            ("task again", r["task_cost"], r["task_again"]),
+            ("random", random_one(r)["cost"], random_one(r)),
+        ):
+            out[name][0].append(100.0 * (1.0 - float(np.sqrt(cost / other_cost))))
+            out[name][1].append(gain(other["region"], planned(r)["region"]))
+    return out
+
+
+def _expectation_lines(results: Sequence[dict]) -> list[str]:
+    """The plan's expectation beside what the refit realised on the region."""
+    lines = []
+    for name, (expected, realised) in expected_vs_realised(results).items():
+        other = "the task flown again" if name == "task again" else "the random candidate"
+        lines.append(
+            f"- Against {other}, `plan` expected (its summary line) "
+            f"{mean_interval(expected).text()}, the refit realised "
+            f"{mean_interval(realised).text()} on the region's held-out flights "
+            f"(Spearman over draws {spearman(expected, realised):+.2f})."
+        )
+    return lines
 
 
 def _spread_lines(results: Sequence[dict]) -> list[str]:
@@ -82,7 +145,7 @@ def _spread_lines(results: Sequence[dict]) -> list[str]:
         + ", ".join(f"{r['ranking']['amplitude']:+.2f}" for r in results)
         + "; with its mean frequency "
         + ", ".join(f"{r['ranking']['frequency']:+.2f}" for r in results)
-        + " (positive: the planner prefers smaller, slower deviations).",
+        + " (positive: lower cost for smaller, slower deviations).",
         "- Do the candidates differ enough to matter? The flown candidates' region errors "
         f"span {np.mean(spread):.0f} % of their mean (per draw "
         + ", ".join(f"{v:.0f}" for v in spread)
@@ -153,16 +216,20 @@ def _row(name: str, label: str, iv: MeanInterval, target: float = 10.0) -> str:
 
 
 def _draw_table(results: Sequence[dict]) -> list[str]:
+    paper = all("best_task_region" in r for r in results)
+    extra = " --region task plan |" if paper else ""
     lines = [
         "| effects | seed | first model: tracking / region / task | task again | random "
-        "| planned | oracle | planned cost / task cost | GP on (planned, x y z) | s |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| planned |{extra} oracle | planned cost / task cost | GP on (planned, x y z) | s |",
+        "|---|---|---|---|---|---|---|---|---|---|" + ("---|" if paper else ""),
     ]
     for r in results:
         f = r["first"]
+        chains = [r["task_again"], random_one(r), planned(r)]
+        chains += [paper_planned(r)] if paper else []
         cells = [
             f"{c['tracking']:.3f} / {c['region']:.3f} / {c['task']:.3f}"
-            for c in (r["task_again"], random_one(r), planned(r), oracle(r))
+            for c in (*chains, oracle(r))
         ]
         gp = " ".join("on" if g else "off" for g in planned(r)["gp_on"])
         lines.append(
@@ -172,6 +239,18 @@ def _draw_table(results: Sequence[dict]) -> list[str]:
             + f" | {planned(r)['cost'] / r['task_cost']:.3f} | {gp} | {r['seconds']:.0f} |"
         )
     return lines
+
+
+def _further(results: Sequence[dict], pool_extra: int) -> str:
+    """How many random pool candidates beyond the chosen and the random one were flown
+    (per draw when the draws differ: a draw is cached with the settings it ran with)."""
+    n = [
+        len(r["pool"]) - len({r["best"], r.get("best_task_region", r["best"]), r["random"]})
+        for r in results
+    ]
+    if len(set(n)) <= 1:
+        return f"{n[0] if n else pool_extra} further pool candidates flown"
+    return "further pool candidates flown per draw: " + ", ".join(map(str, n))
 
 
 def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[str]) -> str:
@@ -185,7 +264,7 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         + (f", and {' '.join(cfg['also'])}" if cfg.get("also") else "")
         + "; "
         f"{cfg['duration']:g} s flights, `plan --candidates {cfg['candidates']} --sims "
-        f"{cfg['sims']}`, {cfg['pool_extra']} further pool candidates flown; "
+        f"{cfg['sims']}`, {_further(results, cfg['pool_extra'])}; "
         f"each draw {min(r['seconds'] for r in results) / 60:.0f}–"
         f"{max(r['seconds'] for r in results) / 60:.0f} min wall-clock, two or three at a "
         f"time on 2 cores shared with other work; this page rendered in {seconds:.0f} s from "
@@ -209,17 +288,9 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
     for name, label, gains in comparisons(results):
         lines.append(_row(name, label, mean_interval(gains)))
     lines += ["", "## Issue 29's targets on these draws", "", *targets(results)]
-    per, pooled, n = correlation(results)
-    finite = [v for v in per if np.isfinite(v)]
+    lines += ["", "## Where the gain goes", "", *_correlation_lines(results)]
     lines += [
-        "",
-        "## Where the gain goes",
-        "",
-        f"- Spearman of the planner's cost with the region error the refit removes "
-        f"(lower cost should remove more: a useful ranking is negative): pooled over "
-        f"{n} flown candidates {pooled:+.2f}; per draw "
-        + ", ".join(f"{v:+.2f}" if np.isfinite(v) else "n/a" for v in per)
-        + (f" (mean {np.mean(finite):+.2f})." if finite else "."),
+        *_expectation_lines(results),
         *_spread_lines(results),
         *_kept_lines(results),
         "",

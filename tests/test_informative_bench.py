@@ -169,3 +169,43 @@ def test_pool_ranking_finds_what_the_cost_rewards(tmp_path) -> None:
     back, back_cost = read_scores(tmp_path / "scores.csv")
     np.testing.assert_array_equal(back, coeffs)
     np.testing.assert_array_equal(back_cost, cost)
+
+
+def test_the_region_task_plan_is_compared_with_its_own_cost_ranking() -> None:
+    """With the ``--region task`` plan's choice and cost in the draws: its rows in the
+    table, and the Spearman of each cost with the removed error, here +1 for the task
+    cost (ranks the wrong way) and -1 for the pool cost."""
+    from benchmarks.informative_md import markdown
+
+    draws = []
+    for i, scale in enumerate((1.0, 2.0, 0.5)):
+        d = _draw(2.0 * scale, 1.0 * scale, {0: (3.0, 0.9 * scale), 1: (1.0, 0.5 * scale)})
+        for c, paper_cost in zip(d["pool"].values(), (1.0, 3.0), strict=True):
+            c["cost_task_region"] = paper_cost
+        d.update(effects="drag", seed=i, seconds=1.0, task_cost=4.0, best_task_region=0)
+        draws.append(d)
+    rows = {(name, label): g for name, label, g in comparisons(draws)}
+    region = "model RMSE, region's held-out flights"
+    assert (
+        rows[("planned vs the --region task plan", region)] == [pytest.approx(100 * 0.4 / 0.9)] * 3
+    )
+    assert rows[("--region task plan vs one random candidate", region)] == [0.0] * 3
+    assert correlation(draws, "cost_task_region")[1] == pytest.approx(1.0)
+    cfg = {"effects": ["drag"], "seeds": [0, 1, 2], "duration": 20.0, "candidates": 2}
+    text = markdown(draws, {**cfg, "sims": 4, "pool_extra": 1}, 60.0, ["--seeds", "0"])
+    assert "Spearman of the `--region task` cost with the region error" in text
+    assert "(`--region pool`) with the region error the refit removes" in text
+    assert "| planned | --region task plan | oracle |" in text
+
+
+def test_the_plans_expectation_is_set_beside_the_realised_gain() -> None:
+    from benchmarks.informative_md import expected_vs_realised
+
+    # planned cost 1 against the task's 4 and the random candidate's 9: the model
+    # expects its RMS error to fall by 50 % and 67 %; realised on the region: task again
+    # 1.0 -> planned 0.5 (50 %), random 0.9 -> 0.5 (44 %)
+    d = _draw(2.0, 1.0, {0: (9.0, 0.9), 1: (1.0, 0.5)})
+    d["task_cost"] = 4.0
+    out = expected_vs_realised([d])
+    assert out["task again"] == ([pytest.approx(50.0)], [pytest.approx(50.0)])
+    assert out["random"] == ([pytest.approx(100 * 2 / 3)], [pytest.approx(100 * 0.4 / 0.9)])

@@ -56,7 +56,16 @@ Epsilon = Annotated[
         "(default: mean distance between commanded and achieved input, the paper's heuristic)."
     ),
 ]
-TestPoints = Annotated[int, typer.Option(help="Test points S in the task region.")]
+TestPoints = Annotated[int, typer.Option(help="Test points S the variance is integrated over.")]
+Region = Annotated[
+    str,
+    typer.Option(
+        help="Where the variance objective's test points are: 'pool' (medoids of the "
+        "states the task and the feasible candidates reach in simulation: the region "
+        "of the flights to come) or 'task' (within epsilon of the task's own states, the "
+        "paper; favours flights that hug the task, docs/informative.md)."
+    ),
+]
 Points = Annotated[
     int, typer.Option(help="Training points a flight would add (k-medoids per simulation).")
 ]
@@ -89,8 +98,8 @@ Jobs = Annotated[
 Objective = Annotated[
     str,
     typer.Option(
-        help="What ranks the candidates: 'variance' (the GP's posterior variance in the "
-        "task region, the paper) or 'effects' (D-optimal information about the named "
+        help="What ranks the candidates: 'variance' (the GP's posterior variance over "
+        "--region, the paper's objective) or 'effects' (D-optimal information about the named "
         "effects' parameters, docs/plan-effects.md)."
     ),
 ]
@@ -142,6 +151,7 @@ def plan(
     max_tilt: MaxTilt = 80.0,
     epsilon: Epsilon = None,
     test_points: TestPoints = 500,
+    region: Region = "pool",
     points: Points = 40,
     search: Search = "random",
     generations: Generations = 8,
@@ -160,7 +170,7 @@ def plan(
 
     Each of K candidates is flown M times in closed-loop simulation with GP posterior
     samples; its cost is the mean variance ((rad/s^2)^2) the model's band would have at
-    test points of the task region after adding its data (the GP's posterior variance,
+    test points of the region (--region) after adding its data (the GP's posterior variance,
     and the band's growth beyond the training inputs; lower = more informative).
     """
     from omavctl.planning import PlanSettings
@@ -175,6 +185,7 @@ def plan(
         max_tilt_deg=max_tilt,
         epsilon=epsilon,
         test_points=test_points,
+        region=region,
         points=points,
         seed=seed,
         search=search,
@@ -236,11 +247,14 @@ def _render_plan(
 
     # a candidate may break several limits: the reasons are counted, not the candidates
     why = f" (reasons: {rejection_tally(result)})" if rejected else ""
-    con.print(
-        f"{task}; task region: the inputs within {result.epsilon:.3g} input standard "
-        f"deviations (epsilon) of the task's; {rejected}/{len(result.cost)} candidates "
-        f"rejected{why}"
-    )
+    if result.region == "task":
+        region = (
+            f"task region: the inputs within {result.epsilon:.3g} input standard "
+            "deviations (epsilon) of the task's"
+        )
+    else:
+        region = "region: the states the task and the feasible candidates reach"
+    con.print(f"{task}; {region}; {rejected}/{len(result.cost)} candidates rejected{why}")
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
     from omavctl.planning.effects_objective import effects_summary
@@ -249,8 +263,9 @@ def _render_plan(
     for line in summary["lines"] if summary else []:
         con.print(line, markup=False)
     from omavctl.planning.envelope import envelope_lines
+    from omavctl.planning.expectation import expectation_lines
 
-    for line in envelope_lines(result):
+    for line in expectation_lines(result) + envelope_lines(result):
         con.print(line, markup=False)
     from omavctl.planning.report import task_warning as _task_warning
 
@@ -317,6 +332,7 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
     the objective and (for the effects objective) the effects' expected errors."""
     from omavctl.planning.effects_objective import effects_summary
     from omavctl.planning.envelope import envelope, envelope_warnings
+    from omavctl.planning.expectation import expectation
 
     summary = effects_summary(result)
     from omavctl.planning.report import task_warning as _task_warning
@@ -330,12 +346,14 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
         "task_cost": float(result.task_cost),
         "prior_variance": float(result.prior_variance),
         "epsilon": float(result.epsilon),
+        "region": result.region,
         "rejected": int((~result.feasible).sum()),
         "candidates": [_candidate_json(result, k) for k in range(len(result.cost))],
         "notes": list(result.notes),
         # what the terminal prints as "warning:": read before flying the reference
         "warnings": ([task_warning] if task_warning else []) + envelope_warnings(result),
         "objective": result.objective,
+        "expected": expectation(result),
         "envelope": envelope(result.best_trajectory()) if result.best >= 0 else None,
         "task_envelope": envelope(result.task),
         "effects": {k: v for k, v in summary.items() if k != "lines"} if summary else None,

@@ -3,16 +3,23 @@
 1. Fly the task M times in a batched closed-loop simulation: nominal rigid body,
    the model-based controller (PID + inversion of the model's mean), and as
    "truth" the nominal dynamics plus one consistent GP posterior function sample
-   per simulation (:class:`~omavctl.planning.gp.PathwiseSamples`). The visited
-   GP inputs estimate the task region; epsilon defaults to the mean distance
-   between commanded and achieved input (the paper's heuristic); S test points
-   are drawn uniformly in the epsilon-balls around visited inputs.
+   per simulation (:class:`~omavctl.planning.gp.PathwiseSamples`). epsilon defaults
+   to the mean distance between commanded and achieved input (the paper's heuristic).
 2. Propose K deviation coefficient sets (:mod:`~omavctl.planning.candidates`):
    all at once at random, or generation by generation with the cross-entropy
    method (:mod:`~omavctl.planning.search`).
 3. Simulate every candidate M times, all K*M simulations in one batch per time
    step (:mod:`~omavctl.planning.batched`; the task flies in the same batch);
    reject those that break allocation limits, attitude limits or diverge.
+   The S test points the variance is integrated over (``region``): ``"pool"``
+   (default) S medoids of the GP inputs of the task's and the first generation's
+   feasible candidates' simulations (:func:`pool_test_points`):
+   the region the task and its deviations reach, which the model must know for
+   the flights the user flies next; ``"task"`` (the paper) S points uniform in
+   the epsilon-balls around the task's own inputs. With ``"task"`` the cost
+   favours flights that hug the task: on the informative-flight benchmark it
+   ranked the flown candidates against the error their refit removed on held-out
+   flights of the region (docs/informative.md).
 4. Score the feasible ones with the objective (:mod:`~omavctl.planning.scoring`):
    for each simulation the points ``fit`` would add, and the posterior variance
    at the test points given prior data + those points by a rank update.
@@ -58,6 +65,7 @@ class PlanSettings:
     amplitude: float = 1.0  # rad/s^2
     epsilon: float | None = None  # normalised input units; None: paper's heuristic
     test_points: int = 500
+    region: str = "pool"  # test points over the pool's states; "task": the paper's balls
     points: int = 40
     seed: int = 0
     rff_features: int = 128  # per axis; ranks candidates as 256 do (docs/planning-performance.md)
@@ -89,6 +97,47 @@ def _effects_objective(model, gp: GPAxes, test: np.ndarray, settings: PlanSettin
 OBJECTIVES = {"variance": _variance_objective, "effects": _effects_objective}
 
 
+#: Pool states the medoids of :func:`pool_test_points` are picked among (a seeded
+#: subsample): many per test point (40 for 500), cheap beside the simulations
+POOL_STATES = 20000
+
+#: Where the variance objective's test points come from (``PlanSettings.region``)
+REGIONS = ("pool", "task")
+
+
+def pool_test_points(states: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+    """count test points (count, d) among states (n, d) (fewer if n is smaller): medoids
+    of a seeded subsample of POOL_STATES states after two alternating k-medoids steps
+    from a random start (:func:`~omavctl.planning.scoring.batched_picks`). They follow
+    the states' distribution, as a random sample would, but each stands for its
+    neighbourhood: states lie closer to their nearest test point (by about 5-10 % on
+    a two-cluster example, ``tests/test_plan_region.py``)."""
+    return _medoids(states[rng.permutation(states.shape[0])[:POOL_STATES]], count)
+
+
+def _medoids(sub: np.ndarray, count: int) -> np.ndarray:
+    from omavctl.planning.scoring import batched_picks
+
+    return batched_picks(np.asarray(sub, float)[None], min(count, sub.shape[0]))[0]
+
+
+def pool_subsample(
+    task_states: np.ndarray, pool: np.ndarray, rows: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """The states :func:`pool_test_points` would draw from ``concatenate([task_states,
+    pool[rows].reshape(-1, d)])`` with the same rng, without building that array (1000
+    candidates x 8 simulations hold about 5 million states): task_states (n, d), pool
+    (K, M, Ts, d), rows (k,) candidate indices -> (min(n_all, POOL_STATES), d) float."""
+    n_task, (_, m, ts, d) = task_states.shape[0], pool.shape
+    pick = rng.permutation(n_task + rows.size * m * ts)[:POOL_STATES]
+    out = np.empty((pick.size, d))
+    first = pick < n_task
+    out[first] = task_states[pick[first]]
+    k, sim, t = np.unravel_index(pick[~first] - n_task, (rows.size, m, ts))
+    out[~first] = pool[rows[k], sim, t]
+    return out
+
+
 def _test_points(
     visited: np.ndarray, epsilon: float, count: int, rng: np.random.Generator
 ) -> np.ndarray:
@@ -111,7 +160,8 @@ class PlanResult:
     candidate was proposed (0 for random search); best index (-1 if none is
     feasible); task_cost the cost of flying the task itself; epsilon used;
     prior_variance the mean variance of the model's band at the test points before
-    any flight (:meth:`GPAxes.band_variance`); task the task.
+    any flight (:meth:`GPAxes.band_variance`); task the task; region where the test
+    points are (``PlanSettings.region``).
     """
 
     coefficients: np.ndarray
@@ -133,6 +183,7 @@ class PlanResult:
     metrics: dict[str, np.ndarray] = field(default_factory=dict)
     task_metrics: dict[str, np.ndarray] = field(default_factory=dict)
     objective: str = "variance"
+    region: str = "pool"
     #: the effects objective's prior (names, values, scale, information), when computed
     effects: Any = None
 
@@ -237,18 +288,25 @@ def _concat(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
 def _task_region(
     model_gp: GPAxes, batch: Batch, settings: PlanSettings, rng: np.random.Generator
 ) -> tuple[np.ndarray, float]:
-    """Test points (S, d) and epsilon from the task's simulations."""
+    """Test points (S, d) and epsilon from the task's (and, for the ``pool`` region, the
+    feasible candidates') simulations."""
     assert batch.task_inputs is not None and batch.task_gap is not None
     visited = batch.task_inputs.reshape(-1, model_gp.d)
     epsilon = batch.task_gap if settings.epsilon is None else settings.epsilon
     if not epsilon > 0:
         raise OmavctlError("--epsilon must be > 0 (the model predicts no residual at all)")
-    return _test_points(visited, epsilon, settings.test_points, rng), float(epsilon)
+    if settings.region == "task":
+        return _test_points(visited, epsilon, settings.test_points, rng), float(epsilon)
+    rows = np.flatnonzero((batch.code == 0).all(axis=1))
+    sub = pool_subsample(visited[:: settings.stride], batch.inputs, rows, rng)
+    return _medoids(sub, settings.test_points), float(epsilon)
 
 
 def _check(model, settings: PlanSettings) -> None:
     if settings.search not in ("random", "cem"):
         raise OmavctlError(f"unknown --search '{settings.search}' (random or cem)")
+    if settings.region not in REGIONS:
+        raise OmavctlError(f"unknown --region '{settings.region}' (pool or task)")
     if settings.objective not in OBJECTIVES:
         known = ", ".join(OBJECTIVES)
         raise OmavctlError(f"unknown --objective '{settings.objective}' (known: {known})")
@@ -327,6 +385,7 @@ def plan(
         metrics=metrics,
         task_metrics=task_metrics,
         objective=settings.objective,
+        region=settings.region,
         effects=getattr(objectives.get("effects"), "prior", None),
     )
 

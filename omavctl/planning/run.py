@@ -44,6 +44,8 @@ def check_plan_settings(settings: PlanSettings) -> None:
         raise OmavctlError(f"--jobs must be 0 (one per core) or more, got {settings.jobs}")
     if settings.search not in ("random", "cem"):
         raise OmavctlError(f"--search must be 'random' or 'cem', got '{settings.search}'")
+    if settings.region not in ("pool", "task"):
+        raise OmavctlError(f"--region must be 'pool' or 'task', got '{settings.region}'")
     if settings.selection not in ("batched", "kmedoids"):
         raise OmavctlError(
             f"--selection must be 'batched' or 'kmedoids', got '{settings.selection}'"

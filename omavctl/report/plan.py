@@ -105,7 +105,7 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     doc = Document("omavctl plan")
     doc.add(Heading(1, "omavctl plan"))
     what = (
-        "the GP's mean posterior variance at test points of the task region after adding the "
+        "the GP's mean posterior variance at test points of the region after adding the "
         "flight's data, (rad/s²)²"
         if result.objective == "variance"
         else "-log det of the information about the effects' parameters after the flight "
@@ -126,7 +126,9 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
     summary = effects_summary(result)
     for line in summary["lines"] if summary else []:
         doc.add(Para(line.strip()))
-    for line in envelope_lines(result):
+    from omavctl.planning.expectation import expectation_lines
+
+    for line in expectation_lines(result) + envelope_lines(result):
         doc.add(Para(line))
     doc.add(
         FigureBlock(
