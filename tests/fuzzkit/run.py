@@ -214,8 +214,10 @@ def judge(case: Case, work: Path, code: int | None, stdout: str, stderr: str) ->
             obj = json.loads(stdout)
         except ValueError:
             return "not-one-line", f"stdout on failure is not JSON: {stdout[:200]}"
-        if stdout.strip().count("\n") or obj.get("exit_code") != code or (
-            f"error: {obj.get('error')}" != text
+        if (
+            stdout.strip().count("\n")
+            or obj.get("exit_code") != code
+            or (f"error: {obj.get('error')}" != text)
         ):
             return "not-one-line", f"stdout on failure: {stdout[:200]}"
     if code != 0:
