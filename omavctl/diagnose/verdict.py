@@ -18,6 +18,7 @@ from typing import Any
 from omavctl.diagnose.estimate_text import estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
+from omavctl.diagnose.joint_text import joint_text, physics_rejected
 
 __all__ = [
     "COVERAGE_MIN",
@@ -110,7 +111,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         if near:
             text = f"Nothing claimed as missing: {near}"
             text += given_sentence(diag, str(diag.get("below_noise")))
-        elif held := _refit_rejected(diag):
+        elif held := _refit_rejected(diag) or physics_rejected(diag):
             text, test = f"Nothing claimed as missing: {held[0]}", held[1]
         structure = _structure(diag.get("unexplained"))
         if structure:
@@ -131,10 +132,12 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     claimed = {a for a in AXES if (v := _num(per_axis.get(a))) is not None and v > 0.005}
     text += estimate_sentence(learned.get(missing[0], {}), claimed)
     if len(missing) > 1:
-        text += f" Then: {', '.join(missing[1:])}."
+        text += f" Also: {', '.join(missing[1:])}{joint_text(diag, missing)}."
     amb = top.get("ambiguous_with") or []
     if amb:
         text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
+        if isinstance(sep := diag.get("separate_command"), str) and sep:
+            text += f" A flight that tells them apart: {sep}"
     alike = _look_alikes(missing[0])
     if alike:
         text += f" A residual of its shape is also left by {alike}."
@@ -271,7 +274,8 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
             "a physical effect it is tested on every flight."
         )
         command = commands.get(name) if isinstance(commands, Mapping) else None
-        if name in (diag.get("below_noise"), diag.get("refit_rejected")):
+        rejected = (diag.get("physics_rejected") or {}).get("names") or []
+        if name in (diag.get("below_noise"), diag.get("refit_rejected"), *rejected):
             return Line("learned", text + " Its fit command is the one above.", subject=name)
         cmd = command if isinstance(command, str) else None
         return Line("learned", text, command=cmd, subject=name)
