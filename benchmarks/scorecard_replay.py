@@ -192,6 +192,32 @@ def compare(paths: Sequence[Path]) -> None:
         print("\n".join(failures(list(s.values()))))
 
 
+def draw_large(draws: int, start: int, factor: float, workdir: Path) -> None:
+    """Own draws with hidden effects only, each ``factor`` x its drawn size (most
+    scorecard draws sit under the claim floor on the held-out flight): records in
+    ``WORKDIR/own-large.jsonl``, directories ``own-large-NNNN``."""
+    import numpy as np
+
+    from benchmarks.scorecard_draws import draw_spec, hidden_parameters, run_draw
+    from omavctl.physics.effects import EFFECTS
+
+    out = workdir / "own-large.jsonl"
+    done = {r["index"] for r in read_records([out])} if out.exists() else set()
+    for i in range(start, start + draws):
+        spec = draw_spec("own", i, sorted(EFFECTS))
+        if not spec["hidden"] or i in done:
+            continue
+        rng = np.random.default_rng([2_000_000 + i, 0x1A7])
+        spec["split"] = "own-large"
+        spec["scales"] = {n: factor * v for n, v in spec["scales"].items()}
+        spec["hidden"] = {n: hidden_parameters(n, v, rng) for n, v in spec["scales"].items()}
+        spec["truth"]["effects"] = spec["hidden"]
+        rec = run_draw(spec, workdir)
+        with out.open("a") as f:
+            f.write(json.dumps(rec, allow_nan=False) + "\n")
+        print(_line(rec), file=sys.stderr, flush=True)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -203,6 +229,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     dr.add_argument("--start", type=int, default=0)
     dr.add_argument("--jobs", type=int, default=1)
     dr.add_argument("--workdir", type=Path, default=Path("build/scorecard-replay"))
+    lg = sub.add_parser("large", help="own draws, hidden effects only, sizes x FACTOR")
+    lg.add_argument("--draws", type=int, default=6)
+    lg.add_argument("--start", type=int, default=0)
+    lg.add_argument("--factor", type=float, default=3.0)
+    lg.add_argument("--workdir", type=Path, default=Path("build/scorecard-replay"))
     rp = sub.add_parser("replay", help="replay the diagnosis steps of kept draws")
     rp.add_argument("records", type=Path)
     rp.add_argument("--label", default="replay")
@@ -216,6 +247,8 @@ def main(argv: Sequence[str] | None = None) -> None:
 
         wd = args.workdir.resolve()
         run(args.split, args.draws, args.start, args.jobs, wd, wd / f"{args.split}.jsonl")
+    elif args.mode == "large":
+        draw_large(args.draws, args.start, args.factor, args.workdir.resolve())
     elif args.mode == "replay":
         only = set(args.only) if args.only is not None else None
         replay(args.records, args.label, args.workdir, only)

@@ -253,11 +253,13 @@ def _merge(joint: Sequence[JointStep], scores: list[EffectScore]) -> list[str]:
     remaining error does not claim on its own: what it names must lower the held-out
     physics-only error when estimated from the fit flight as fit --effects would."""
     by_name = {s.name: s for s in scores}
+    names = [s.name for s in joint]
     for step in joint:
-        if step.name in by_name:
-            amb = by_name[step.name].ambiguous_with
+        if step.name in by_name:  # what the joint fit separated is not ambiguous
+            amb = [n for n in by_name[step.name].ambiguous_with if n not in names]
             amb += [n for n in step.ambiguous_with if n not in amb]
-    return [s.name for s in joint]
+            by_name[step.name].ambiguous_with = amb
+    return names
 
 
 def _forward_selection(

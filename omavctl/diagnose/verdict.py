@@ -57,7 +57,12 @@ class Line:
     def plain(self) -> str:
         """The sentence with its file and command, as one line of text."""
         text = f"{self.who}: {self.text}" if self.who else self.text
-        return f"{text} Add it with: {self.command}" if self.command else text
+        return f"{text} {self.add_words}: {self.command}" if self.command else text
+
+    @property
+    def add_words(self) -> str:
+        """'Add it with', or 'Add them with' when the command adds several effects."""
+        return "Add them with" if " Also: " in self.text else "Add it with"
 
 
 @dataclass(frozen=True)
@@ -136,13 +141,13 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     amb = top.get("ambiguous_with") or []
     if amb:
         text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
-        if isinstance(sep := diag.get("separate_command"), str) and sep:
-            text += f" A flight that tells them apart: {sep}"
     alike = _look_alikes(missing[0])
     if alike:
         text += f" A residual of its shape is also left by {alike}."
     cmd = diag.get("fit_command")
     text += given_sentence(diag, missing[0])
+    if amb and isinstance(sep := diag.get("separate_command"), str) and sep:
+        text += f" To plan a flight that tells them apart: {sep}"
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
 
 
