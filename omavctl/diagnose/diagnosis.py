@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, fit_estimates
-from omavctl.diagnose.joint import JointStep, joint_selection, physics_share
+from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     MIN_EXPLAINED,
@@ -166,8 +166,8 @@ def diagnose(
     learned = score_effects(residual, regs, blocks, noise_floor=floor)
     unexplained = unexplained_structure(after, features, sg.dt)
     physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
-    joint, rejected = _claims(model, physics, candidates_raw(regs, model), blocks, floor, accepted)
-    names = _merge(joint, missing)
+    joint = joint_selection(model, physics, candidates_raw(regs, model), blocks, floor)
+    names = _merge(joint, accepted, missing)
     estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned])
     return {
         "method": {
@@ -189,9 +189,6 @@ def diagnose(
         "missing": names,
         "below_noise": None if names else _below_noise(missing, noise),
         "refit_rejected": None if names else _refit_rejected(missing),
-        # named by the forward selection, but fitted from the fit flight they would not
-        # lower the held-out physics-only error: not claimed, the verdict says why
-        "physics_rejected": rejected,
         "missing_steps": accepted,
         "joint_steps": [s.to_json() for s in joint],
         "unexplained": unexplained,
@@ -228,34 +225,19 @@ def candidates_raw(regs: dict[str, np.ndarray], model: ResidualGP) -> dict[str, 
     return {n: r for n, r in regs.items() if n not in model.effects}
 
 
-def _claims(
-    model: ResidualGP,
-    physics: np.ndarray,
-    raw: dict[str, np.ndarray],
-    blocks: np.ndarray,
-    floor: float,
-    accepted: Sequence[dict[str, Any]],
-) -> tuple[list[JointStep], dict[str, Any] | None]:
-    """The joint selection on the held-out physics-only error (n, 3), and when it
-    names nothing but the forward selection on the model's remaining error
-    (``accepted``) does, those names with the fraction of the physics-only error
-    they would remove estimated from the fit flight (``physics_rejected``)."""
-    joint = joint_selection(model, physics, raw, blocks, floor)
-    if joint or not accepted:
-        return joint, None
+def _merge(
+    joint: Sequence[JointStep], accepted: Sequence[dict[str, Any]], scores: list[EffectScore]
+) -> list[str]:
+    """The names claimed missing: the forward selection's on the model's remaining
+    error (``accepted``), then the joint selection's on the held-out physics-only
+    error that it did not name (effects the GP absorbed, the default imperfections'
+    look-alikes beside a hidden effect). Each joint step's look-alikes join its
+    score's ``ambiguous_with`` and what is claimed together leaves it (in place)."""
     names = [str(a["name"]) for a in accepted]
-    return joint, {"names": names, "share": physics_share(model, names, physics, raw)}
-
-
-def _merge(joint: Sequence[JointStep], scores: list[EffectScore]) -> list[str]:
-    """The names claimed missing: the joint selection's (each step's look-alikes join
-    its score's ``ambiguous_with``, in place). The forward selection on the model's
-    remaining error does not claim on its own: what it names must lower the held-out
-    physics-only error when estimated from the fit flight as fit --effects would."""
+    names += [s.name for s in joint if s.name not in names]
     by_name = {s.name: s for s in scores}
-    names = [s.name for s in joint]
     for step in joint:
-        if step.name in by_name:  # what the joint fit separated is not ambiguous
+        if step.name in by_name:  # what is claimed together is not ambiguous
             amb = [n for n in by_name[step.name].ambiguous_with if n not in names]
             amb += [n for n in step.ambiguous_with if n not in amb]
             by_name[step.name].ambiguous_with = amb
@@ -324,9 +306,8 @@ def effect_commands(
     diagnosis: dict[str, Any], model_path: str, model: ResidualGP
 ) -> dict[str, str]:
     """The ``fit`` command that adds each effect the diagnosis names (missing, those
-    the top one is ambiguous with, held back by the noise floor, the refit test or
-    the held-out physics-only test, learned but not modelled), by effect name, in
-    that order."""
+    the top one is ambiguous with, held back by the noise floor or the refit test,
+    learned but not modelled), by effect name, in that order."""
     top = (diagnosis.get("missing") or [None])[0]
     entry: dict[str, Any] = next(
         (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
@@ -336,7 +317,6 @@ def effect_commands(
         *(entry.get("ambiguous_with") or []),
         diagnosis.get("below_noise"),
         diagnosis.get("refit_rejected"),
-        *((diagnosis.get("physics_rejected") or {}).get("names") or []),
         *learned_not_modelled(diagnosis, list(model.effects)),
     ]
     out: dict[str, str] = {}

@@ -1,7 +1,5 @@
-"""The verdict's sentences about the joint claim (:mod:`omavctl.diagnose.joint`): how
-much of the held-out physics-only error the missing effects remove together, and why
-effects the model's remaining error shows are not claimed when the held-out test
-does not confirm them."""
+"""The verdict's sentence about the joint claim (:mod:`omavctl.diagnose.joint`): how
+much of the held-out physics-only error the missing effects remove together."""
 
 from __future__ import annotations
 
@@ -9,7 +7,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["joint_text", "physics_rejected"]
+__all__ = ["joint_text"]
 
 
 def _num(v: Any) -> float | None:
@@ -40,33 +38,3 @@ def joint_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
         f"fit --effects would, they remove {_pct(sum(v for v in shares if v))} of the "
         f"squared physics-only error on held-out data, {parts})"
     )
-
-
-def physics_rejected(diag: Mapping[str, Any]) -> tuple[str, str | None] | None:
-    """The sentence for the effects that explain the model's remaining error on the
-    held-out flight but, estimated from the fit flight as fit --effects would, do not
-    lower its physics-only error enough to be claimed (``physics_rejected``), with the
-    command that tests the first; None when there are none."""
-    held = diag.get("physics_rejected")
-    if not isinstance(held, Mapping) or not held.get("names"):
-        return None
-    names = [str(n) for n in held["names"]]
-    share = _num(held.get("share"))
-    change = (
-        "would not change it"
-        if share is None
-        else f"would lower it by {_pct(share)}"
-        if share > 0
-        else f"would make it grow by {_pct(-share)}"
-    )
-    text = (
-        f"{', '.join(names)} explain{'s' if len(names) == 1 else ''} part of the model's "
-        "remaining error on held-out data, but estimated from the fit flight as fit "
-        f"--effects would {'it' if len(names) == 1 else 'they'} {change} of the held-out "
-        "physics-only error (squared); a claim needs 15 % of it, consistently over the "
-        "flight's 2 s blocks, and a part above the claim floor: not claimed. To test it, "
-        "fit with it and compare both models on a flight neither saw."
-    )
-    commands = diag.get("effect_commands") or {}
-    command = commands.get(names[0]) if isinstance(commands, Mapping) else None
-    return text, command if isinstance(command, str) and command else None

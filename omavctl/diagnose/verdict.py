@@ -18,7 +18,7 @@ from typing import Any
 from omavctl.diagnose.estimate_text import estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
-from omavctl.diagnose.joint_text import joint_text, physics_rejected
+from omavctl.diagnose.joint_text import joint_text
 
 __all__ = [
     "COVERAGE_MIN",
@@ -116,7 +116,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         if near:
             text = f"Nothing claimed as missing: {near}"
             text += given_sentence(diag, str(diag.get("below_noise")))
-        elif held := _refit_rejected(diag) or physics_rejected(diag):
+        elif held := _refit_rejected(diag):
             text, test = f"Nothing claimed as missing: {held[0]}", held[1]
         structure = _structure(diag.get("unexplained"))
         if structure:
@@ -279,8 +279,7 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
             "a physical effect it is tested on every flight."
         )
         command = commands.get(name) if isinstance(commands, Mapping) else None
-        rejected = (diag.get("physics_rejected") or {}).get("names") or []
-        if name in (diag.get("below_noise"), diag.get("refit_rejected"), *rejected):
+        if name in (diag.get("below_noise"), diag.get("refit_rejected")):
             return Line("learned", text + " Its fit command is the one above.", subject=name)
         cmd = command if isinstance(command, str) else None
         return Line("learned", text, command=cmd, subject=name)
