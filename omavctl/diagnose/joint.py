@@ -31,7 +31,8 @@ parameters it had to guess from the first: what the loop then adds is what the
 held-out flight confirmed. A candidate not accepted whose gain alone, at the
 step where another was accepted, is at least :data:`AMBIGUOUS_RATIO` of the
 accepted one's and which passes the same tests alone, is ambiguous with it:
-the data do not tell them apart.
+the data do not tell them apart (not two lags or delays, whose linearised
+regressors coincide to first order; their exact forms tell them apart).
 """
 
 from __future__ import annotations
@@ -123,6 +124,14 @@ def _joint_theta(model: ResidualGP, names: Sequence[str]) -> dict[str, np.ndarra
     return out
 
 
+def _both_timing(a: str, b: str) -> bool:
+    """Whether both effects are lags or delays (:attr:`Effect.search`): their
+    linearised regressors coincide to first order, so this test cannot tell them
+    apart, while the exact forms of the 1-D search (the ranking's estimates, fit's)
+    can."""
+    return get_effect(a).search is not None and get_effect(b).search is not None
+
+
 def _plausible(name: str, theta: np.ndarray) -> bool:
     lo, hi = get_effect(name).theta_range
     return bool(np.all((theta >= lo - 1e-12) & (theta <= hi + 1e-12)))
@@ -203,7 +212,9 @@ def joint_selection(
             break
         best = ok[0]
         rivals[best.name] = [
-            (t.name, t.gain) for t in ok[1:] if t.gain >= AMBIGUOUS_RATIO * best.gain
+            (t.name, t.gain)
+            for t in ok[1:]
+            if t.gain >= AMBIGUOUS_RATIO * best.gain and not _both_timing(best.name, t.name)
         ]
         steps.append(
             JointStep(
