@@ -160,3 +160,37 @@ def test_a_small_effect_beside_a_large_one_waits_for_the_next_round():
     steps = joint_selection(model, left, rest, blocks, FLOOR)
     assert [s.name for s in steps] == ["rotational_drag"]
     assert steps[0].share > 0.5
+
+
+def test_the_verdict_names_every_claimed_effect_and_one_command_for_them():
+    from omavctl.diagnose.verdict import verdict
+
+    command = "omavctl fit fit.bag --effects motor_lag,com_offset --out m0+motor_lag+com_offset.npz"
+    separate = "omavctl task fig8 --out fig8.csv && omavctl plan --task fig8.csv ..."
+    tree = {
+        "diagnosis": {
+            "missing": ["motor_lag", "com_offset"],
+            "missing_effects": [
+                {"name": "motor_lag", "explained_variance": 0.5, "ambiguous_with": ["servo_lag"]},
+                {"name": "com_offset", "explained_variance": 0.2, "ambiguous_with": []},
+            ],
+            "joint_steps": [
+                {"name": "motor_lag", "share_of_total": 0.6},
+                {"name": "com_offset", "share_of_total": 0.25},
+            ],
+            "fit_command": command,
+            "separate_command": separate,
+        }
+    }
+    line = verdict(tree)[0]
+    assert line.key == "missing" and line.command == command
+    text = line.plain()
+    assert text.startswith("Missing: motor_lag — it explains 50 %")
+    assert "Also: com_offset (the fit command adds them together" in text
+    assert "they remove 85 % of the squared physics-only error on held-out data, " in text
+    assert "motor_lag 60 %, com_offset 25 %)." in text
+    assert "Ambiguous with servo_lag" in text
+    assert f"To plan a flight that tells them apart: {separate} Add them with: {command}" in text
+    # one effect: "it"
+    tree["diagnosis"]["missing"] = ["motor_lag"]
+    assert verdict(tree)[0].plain().endswith(f"Add it with: {command}")
