@@ -94,11 +94,11 @@ def _evaluate(model: str, cwd: Path, held: str, log: list[dict[str, Any]]) -> di
     return round_record(omavctl(args, cwd, log), cwd / ev)
 
 
-def replay_draw(record: dict[str, Any], workdir: Path) -> dict[str, Any]:
-    """The draw's diagnosis steps again, in ``DRAW/replay`` (logs and ``m0.npz``
+def replay_draw(record: dict[str, Any], workdir: Path, label: str = "") -> dict[str, Any]:
+    """The draw's diagnosis steps again, in ``DRAW/replay-LABEL`` (logs and ``m0.npz``
     linked from the draw): the record with new ``rounds``, ``fits``, ``commands``."""
     d = workdir / f"{record['split']}-{record['index']:04d}"
-    r = d / REPLAY_DIR
+    r = d / f"{REPLAY_DIR}-{label}" if label else d / REPLAY_DIR
     if r.exists():
         shutil.rmtree(r)
     r.mkdir()
@@ -144,7 +144,7 @@ def replay(records_path: Path, label: str, workdir: Path | None, only: set[int] 
     kept = [r for r in done if (r["split"], r["index"]) not in keep]
     target.write_text("".join(json.dumps(r, allow_nan=False) + "\n" for r in kept))
     for rec in records:
-        new = replay_draw(rec, workdir)
+        new = replay_draw(rec, workdir, label)
         with target.open("a") as f:
             f.write(json.dumps(new, allow_nan=False) + "\n")
         print(_line(new), file=sys.stderr, flush=True)
