@@ -99,6 +99,13 @@ def table_after(text: str, anchor: str) -> str:
     return text[text.index("<table>", start) : text.index("</table>", start)]
 
 
+def _signatures(path) -> int:
+    """Effect-signature figures of an evaluation: one per missing effect (the fit
+    command adds them together), else the top candidate's."""
+    diag = json.loads(path.read_text())["diagnosis"]
+    return len(diag["missing"]) or min(1, len(diag["missing_effects"]))
+
+
 def test_single_report_is_valid_self_contained_html(evals, tmp_path):
     out = tmp_path / "report.html"
     summary = write_report([evals / "before.json"], out)
@@ -107,12 +114,13 @@ def test_single_report_is_valid_self_contained_html(evals, tmp_path):
     assert doc.errors == [] and doc.stack == []
     assert doc.tags.count("html") == 1 and doc.tags.count("body") == 1
     assert text.startswith("<!DOCTYPE html>")
-    # figures: error over time with the worst segments, the signature of the missing
+    # figures: error over time with the worst segments, the signature of each missing
     # effect, the candidates' explained variance; measured vs predicted for the one log;
     # model and nominal residual vs feature; the error against the horizon
+    n = 6 + _signatures(evals / "before.json")
     pngs = [s for s in doc.srcs if s.startswith("data:image/png;base64,")]
-    assert len(pngs) == len(doc.srcs) == summary.figures == 7
-    assert text.count("data:image/png;base64,") == 7
+    assert len(pngs) == len(doc.srcs) == summary.figures == n
+    assert text.count("data:image/png;base64,") == n
     assert base64.b64decode(pngs[0].split(",", 1)[1]).startswith(b"\x89PNG\r\n\x1a\n")
     # nothing fetched from anywhere
     for bad in ("http://", "https://", 'src="//', "<script", "<link", "@import", "url("):
@@ -158,9 +166,9 @@ def test_two_file_report_compares(evals, tmp_path):
         assert summary.change()[axis] == f"{change:+.1f} %"
     # the hidden effect drives x and y: adding it makes the error fall there
     assert after["x"] < before["x"] and after["y"] < before["y"]
-    # the before/after bars + 2 evaluations x (error over time, effect signature,
+    # the before/after bars + 2 evaluations x (error over time, effect signatures,
     # candidates; measured vs predicted, 2 binned; error against the horizon)
-    assert summary.figures == 15
+    assert summary.figures == 1 + 2 * 6 + sum(_signatures(f) for f in files)
     # the horizon tables side by side, the full model's error falls at every horizon
     horizons = text[text.index('id="horizons"') : text.index('id="comparison"')]
     assert "The files side by side" in horizons

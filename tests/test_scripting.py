@@ -127,18 +127,22 @@ def test_evaluate_default_out_json_and_fit_command_from_a_subdirectory(work):
     assert (work / "models" / "gp.eval.series.npz").is_file()
     assert "wrote ../models/gp.eval.json" in stderr
     assert stderr.lstrip().startswith("verdict")
+    # the drag, with the thrust spread's look-alike when the held-out flight confirms it
     assert obj["missing"][:1] == ["rotational_drag"]
+    assert set(obj["missing"]) <= {"rotational_drag", "com_offset"}
     assert obj["verdict"][0]["key"] == "missing"
     assert set(obj["models"][0]["rmse"]) == {"x", "y", "z"}
-    # the printed command runs as printed from here, and writes beside the model
+    # the printed command runs as printed from here, adds every missing effect in one
+    # fit, and writes beside the model
     command = obj["fit_command"]
+    added = ",".join(obj["missing"])
     assert command.startswith(
-        "omavctl fit ../logs/train.bag --effects rotor_interference,rotational_drag "
+        f"omavctl fit ../logs/train.bag --effects rotor_interference,{added} "
     )
     words = shlex.split(command)
     out = _run([*words[1:], "--restarts", "0", "-q"], cwd=sub)
     assert out == ("", "")
-    assert (work / "models" / "gp+rotational_drag.npz").is_file()
+    assert (work / "models" / f"gp+{'+'.join(obj['missing'])}.npz").is_file()
 
 
 def test_fit_command_is_shell_quoted(work, tmp_path):
@@ -150,15 +154,15 @@ def test_fit_command_is_shell_quoted(work, tmp_path):
     stdout, _ = _run(
         ["evaluate", str(work / "logs" / "held.mcap"), "--model", str(odd / "m 1.npz"), "--json"]
     )
-    command = _one_json(stdout)["fit_command"]
+    obj = _one_json(stdout)
+    command = obj["fit_command"]
     if command:  # the diagnosis may or may not name the drag from 30 points
         words = shlex.split(command)
+        stem = f"m 1+{'+'.join(obj['missing'])}.npz"
         # valid from the directory evaluate ran in (relative when it is near, absolute
         # when a relative path would climb to /)
         assert any(Path(w).resolve() == (odd / "train it.bag").resolve() for w in words), words
-        assert str(odd / "m 1+rotational_drag.npz") in words or any(
-            w.endswith("m 1+rotational_drag.npz") for w in words
-        )
+        assert str(odd / stem) in words or any(w.endswith(stem) for w in words)
 
 
 def test_several_models_side_by_side(work):

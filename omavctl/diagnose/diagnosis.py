@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, fit_estimates
+from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     MIN_EXPLAINED,
@@ -40,6 +41,7 @@ __all__ = [
     "effect_commands",
     "fit_command",
     "measurement_noise",
+    "separate_command",
     "unexplained_structure",
 ]
 
@@ -145,22 +147,8 @@ def diagnose(
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
     blocks = _blocks(t, log_id, BLOCK_SECONDS)
     regs = {n: np.concatenate([s.regressors[n] for s in samples]) for n in EFFECTS}
-    # The GP was trained on data that contained any missing effect: on this data
-    # it predicts k(z, Z) (K + s^2 I)^-1 X_train theta of it. The model's error is
-    # therefore linear in theta through X - smooth(X_train) (exact for the GP
-    # mean with fixed hyperparameters).
     z = np.concatenate([s.inputs(model.features) for s in samples])
-    candidates = {}
-    refit = {}
-    for n, r in regs.items():
-        if n in model.effects:
-            continue
-        if n in model.train_regressors:
-            r = r - model.smooth(z, model.train_regressors[n])
-            refit[n] = model.basis_estimate(
-                model.train_regressors[n], np.full(r.shape[2], get_effect(n).prior_std)
-            )[0]
-        candidates[n] = r
+    candidates, refit = _candidates(regs, model, z)
     remaining = residual - model_mean
     noise = measurement_noise(samples, sg, model)
     floor = MIN_NOISE_RATIO * noise
@@ -177,6 +165,9 @@ def diagnose(
     # "effect" below the measurement's own noise is not claimed as learned
     learned = score_effects(residual, regs, blocks, noise_floor=floor)
     unexplained = unexplained_structure(after, features, sg.dt)
+    physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
+    joint = joint_selection(model, physics, candidates_raw(regs, model), blocks, floor)
+    names = _merge(joint, accepted, missing)
     estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned])
     return {
         "method": {
@@ -189,17 +180,68 @@ def diagnose(
             "refit": "parameters fitted to the model's own training points as fit --effects "
             "would (GP hyperparameters kept); a missing effect must lower the error with them",
             "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
-            "selection": "forward: best missing effect removed, others rescored, up to 3",
+            "selection": "forward: best missing effect removed, others rescored, up to 3; "
+            "with the effects that, estimated jointly from the model's training points as fit "
+            "--effects would, lower the physics-only error on the held-out flight (joint)",
             "learned_estimate": ESTIMATE_METHOD,
         },
         "missing_effects": [s.to_json() for s in missing],
-        "missing": [a["name"] for a in accepted],
-        "below_noise": None if accepted else _below_noise(missing, noise),
-        "refit_rejected": None if accepted else _refit_rejected(missing),
+        "missing": names,
+        "below_noise": None if names else _below_noise(missing, noise),
+        "refit_rejected": None if names else _refit_rejected(missing),
         "missing_steps": accepted,
+        "joint_steps": [s.to_json() for s in joint],
         "unexplained": unexplained,
         "learned": [{**s.to_json(), "estimate": estimates[s.name]} for s in learned],
     }
+
+
+def _candidates(
+    regs: dict[str, np.ndarray], model: ResidualGP, z: np.ndarray
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Each candidate's regressor (n, 3, p) against the model's remaining error, and
+    its parameters theta (p,) estimated from the model's training points.
+
+    The GP was trained on data that contained any missing effect: on this data
+    it predicts k(z, Z) (K + s^2 I)^-1 X_train theta of it. The model's error is
+    therefore linear in theta through X - smooth(X_train) (exact for the GP
+    mean with fixed hyperparameters); z (n, d) the GP inputs of the samples.
+    """
+    candidates, refit = {}, {}
+    for n, r in regs.items():
+        if n in model.effects:
+            continue
+        if n in model.train_regressors:
+            r = r - model.smooth(z, model.train_regressors[n])
+            refit[n] = model.basis_estimate(
+                model.train_regressors[n], np.full(r.shape[2], get_effect(n).prior_std)
+            )[0]
+        candidates[n] = r
+    return candidates, refit
+
+
+def candidates_raw(regs: dict[str, np.ndarray], model: ResidualGP) -> dict[str, np.ndarray]:
+    """The registry regressors (n, 3, p) of the effects ``model`` lacks."""
+    return {n: r for n, r in regs.items() if n not in model.effects}
+
+
+def _merge(
+    joint: Sequence[JointStep], accepted: Sequence[dict[str, Any]], scores: list[EffectScore]
+) -> list[str]:
+    """The names claimed missing: the forward selection's on the model's remaining
+    error (``accepted``), then the joint selection's on the held-out physics-only
+    error that it did not name (effects the GP absorbed, the default imperfections'
+    look-alikes beside a hidden effect). Each joint step's look-alikes join its
+    score's ``ambiguous_with`` and what is claimed together leaves it (in place)."""
+    names = [str(a["name"]) for a in accepted]
+    names += [s.name for s in joint if s.name not in names]
+    by_name = {s.name: s for s in scores}
+    for step in joint:
+        if step.name in by_name:  # what is claimed together is not ambiguous
+            amb = [n for n in by_name[step.name].ambiguous_with if n not in names]
+            amb += [n for n in step.ambiguous_with if n not in amb]
+            by_name[step.name].ambiguous_with = amb
+    return names
 
 
 def _forward_selection(
@@ -284,6 +326,27 @@ def effect_commands(
     return out
 
 
+def separate_command(diagnosis: dict[str, Any], model_path: str) -> str | None:
+    """The commands that plan a flight telling the top missing effect from the
+    look-alikes it is ambiguous with (``plan --objective effects`` on a figure-8
+    task), None when it has none."""
+    from omavctl.base.shell import display_path, shell_join
+
+    top = (diagnosis.get("missing") or [None])[0]
+    entry: dict[str, Any] = next(
+        (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
+    )
+    alike = [str(n) for n in entry.get("ambiguous_with") or []]
+    if not top or not alike:
+        return None
+    names = ",".join([str(top), *alike])
+    task = shell_join(["omavctl", "task", "fig8", "--out", "fig8.csv"])
+    model = display_path(model_path)
+    words = ["plan", "--task", "fig8.csv", "--model", model, "--objective", "effects"]
+    plan = shell_join(["omavctl", *words, "--effects", names, "--out", "next.csv"])
+    return f"{task} && {plan}"
+
+
 def _where(given: str, absolute: str | None) -> str:
     """A file recorded by fit (as given there, and absolute) as typed from here:
     the absolute record when it exists (fit may have run elsewhere), else as given."""
@@ -294,8 +357,9 @@ def _where(given: str, absolute: str | None) -> str:
     return display_path(given) if Path(given).exists() else given
 
 
-def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
-    """The ``omavctl fit`` command that refits ``model`` with ``effect`` added.
+def fit_command(model_path: str, model: ResidualGP, effect: str | Sequence[str]) -> str:
+    """The ``omavctl fit`` command that refits ``model`` with ``effect`` added (one
+    name, or several estimated jointly in one fit).
 
     Paths are valid from the current directory (the logs and vehicle file that fit
     read, the new model beside ``model_path``) and every word is shell-quoted.
@@ -308,10 +372,11 @@ def fit_command(model_path: str, model: ResidualGP, effect: str) -> str:
         for s in prov.get("sources", [])
         if s.get("path") or s.get("name")
     ]
-    effects = [*model.effects, effect]
+    added = [effect] if isinstance(effect, str) else [e for e in effect if e not in model.effects]
+    effects = [*model.effects, *added]
     stem = Path(display_path(model_path)).with_suffix("")
     parts = ["omavctl", "fit", *sources]
-    parts += ["--effects", ",".join(effects), "--out", f"{stem}+{effect}.npz"]
+    parts += ["--effects", ",".join(effects), "--out", f"{stem}+{'+'.join(added)}.npz"]
     kmed = prov.get("kmedoids", {})
     if "points" in kmed:
         parts += ["--points", str(kmed["points"])]

@@ -34,7 +34,7 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command
+from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command, separate_command
 from omavctl.diagnose.given import withhold_given
 from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
@@ -350,15 +350,15 @@ def _diagnosis(
     shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
     for name in shown:
         series[f"contribution_{name}"] = parts[name]
-    if diagnosis["missing"]:
-        top = diagnosis["missing"][0]
-        diagnosis["fit_command"] = fit_command(model_path, model, top)
+    if diagnosis["missing"]:  # every missing effect, estimated jointly in one fit
+        diagnosis["fit_command"] = fit_command(model_path, model, diagnosis["missing"])
     else:
         diagnosis["fit_command"] = None
     near = diagnosis.get("below_noise")
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
+    diagnosis["separate_command"] = separate_command(diagnosis, model_path)
     return diagnosis
 
 

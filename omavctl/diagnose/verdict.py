@@ -18,6 +18,7 @@ from typing import Any
 from omavctl.diagnose.estimate_text import estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
+from omavctl.diagnose.joint_text import joint_text
 
 __all__ = [
     "COVERAGE_MIN",
@@ -56,7 +57,12 @@ class Line:
     def plain(self) -> str:
         """The sentence with its file and command, as one line of text."""
         text = f"{self.who}: {self.text}" if self.who else self.text
-        return f"{text} Add it with: {self.command}" if self.command else text
+        return f"{text} {self.add_words}: {self.command}" if self.command else text
+
+    @property
+    def add_words(self) -> str:
+        """'Add it with', or 'Add them with' when the command adds several effects."""
+        return "Add them with" if " Also: " in self.text else "Add it with"
 
 
 @dataclass(frozen=True)
@@ -131,7 +137,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     claimed = {a for a in AXES if (v := _num(per_axis.get(a))) is not None and v > 0.005}
     text += estimate_sentence(learned.get(missing[0], {}), claimed)
     if len(missing) > 1:
-        text += f" Then: {', '.join(missing[1:])}."
+        text += f" Also: {', '.join(missing[1:])}{joint_text(diag, missing)}."
     amb = top.get("ambiguous_with") or []
     if amb:
         text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
@@ -140,6 +146,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" A residual of its shape is also left by {alike}."
     cmd = diag.get("fit_command")
     text += given_sentence(diag, missing[0])
+    if amb and isinstance(sep := diag.get("separate_command"), str) and sep:
+        text += f" To plan a flight that tells them apart: {sep}"
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
 
 

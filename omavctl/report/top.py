@@ -44,7 +44,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         head = ln.who or titles.get(ln.key, ln.key)
         parts: tuple[Inline, ...] = (Span(f"{head}: ", "strong"), ln.text)
         if ln.command:
-            parts = (*parts, " Add it with: ", Span(ln.command, "code"))
+            parts = (*parts, f" {ln.add_words}: ", Span(ln.command, "code"))
         items.append(parts)
     return [Heading(2, "Verdict", "verdict"), Bullets(items)]
 

@@ -1,0 +1,260 @@
+"""Replay the scorecard's diagnosis steps on kept draws (docs/scorecard.md, "Replays").
+
+A scorecard draw (benchmarks/scorecard.py) costs minutes: two simulated flights,
+three fits, three evaluations. A change to the diagnosis does not change the
+flights nor the first fit, so this replays only what it can change, on the
+draw directories ``scorecard.py run`` keeps (``WORKDIR/SPLIT-NNNN``): evaluate
+the kept first model ``m0.npz`` on the kept held-out log, run the ``fit_command``
+the verdict prints, evaluate again, two rounds (as
+:func:`benchmarks.scorecard_draws.loop`), and score the result with
+:mod:`benchmarks.scorecard_score`. Fits are cached in the draw directory by
+their arguments (fitting does not depend on the diagnosis), so a second replay
+runs only the evaluations. Evaluations skip the open-loop horizon table
+(``--horizons none``), which no score reads.
+
+    python benchmarks/scorecard_replay.py draw --draws 16 --workdir build/sc   # run once
+    python benchmarks/scorecard_replay.py replay build/sc/tune.jsonl --label after
+    python benchmarks/scorecard_replay.py compare build/sc/tune.jsonl \\
+        build/sc/tune.before.jsonl build/sc/tune.after.jsonl
+
+``draw`` runs tune draws (or ``--split own``: seeds from 2 000 000 with the held-back
+``steps`` family on one side, as the report draws have, to look for causes) with
+``scorecard.py``'s runner (one job by default).
+``replay`` writes ``<records>.<label>.jsonl`` beside the records (the original
+record with its ``rounds`` and ``fits`` replaced) and prints the tables;
+``compare`` prints the per-draw before/after lines and the table of each.
+Report draws may be replayed only to report, never to tune (docs/scorecard.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import shlex
+import shutil
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks import scorecard_score as sc
+from benchmarks.scorecard import by_effect, failures, read_records, table
+from benchmarks.scorecard_draws import ROUNDS, SPLITS, StepFailed, omavctl, round_record
+
+#: Draws of one's own (not the report split): the held-back ``steps`` family on one
+#: side as the report draws, other seeds; for finding causes, never for the report.
+OWN_SPLIT = {
+    "own": {"seed_base": 2_000_000, "families": ("fig8", "wobble", "chirp"), "held_back": "steps"}
+}
+SPLITS.update(OWN_SPLIT)
+
+REPLAY_DIR = "replay"
+CACHE_DIR = "fitcache"
+
+
+def _fit_key(argv: Sequence[str]) -> str:
+    """Cache key of a fit: its arguments without ``--out`` (effects sorted)."""
+    words = list(argv)
+    if "--out" in words:
+        i = words.index("--out")
+        del words[i : i + 2]
+    if "--effects" in words:
+        i = words.index("--effects")
+        words[i + 1] = ",".join(sorted(words[i + 1].split(",")))
+    return hashlib.sha256("\0".join(words).encode()).hexdigest()[:16]
+
+
+def cached_fit(argv: list[str], d: Path, cwd: Path, log: list[dict[str, Any]]) -> dict[str, Any]:
+    """Run ``omavctl fit ARGV`` in ``cwd`` unless the draw's cache holds it; the
+    fit's ``--json`` object. The model lands at its ``--out`` either way."""
+    cache = d / CACHE_DIR
+    cache.mkdir(exist_ok=True)
+    key = _fit_key(argv)
+    out = cwd / argv[argv.index("--out") + 1]
+    model, summary = cache / f"{key}.npz", cache / f"{key}.json"
+    if model.exists() and summary.exists():
+        shutil.copyfile(model, out)
+        log.append({"command": shlex.join(["omavctl", *argv]), "seconds": 0.0, "cached": True})
+        data: dict[str, Any] = json.loads(summary.read_text())
+        return data
+    result = omavctl(argv, cwd, log)
+    shutil.copyfile(out, model)
+    summary.write_text(json.dumps(result, allow_nan=False))
+    return result
+
+
+def _evaluate(model: str, cwd: Path, held: str, log: list[dict[str, Any]]) -> dict[str, Any]:
+    ev = Path(model).stem + ".eval.json"
+    args = ["evaluate", held, "--model", model, "--out", ev, "--horizons", "none"]
+    return round_record(omavctl(args, cwd, log), cwd / ev)
+
+
+def replay_draw(record: dict[str, Any], workdir: Path, label: str = "") -> dict[str, Any]:
+    """The draw's diagnosis steps again, in ``DRAW/replay-LABEL`` (logs and ``m0.npz``
+    linked from the draw): the record with new ``rounds``, ``fits``, ``commands``."""
+    d = workdir / f"{record['split']}-{record['index']:04d}"
+    r = d / f"{REPLAY_DIR}-{label}" if label else d / REPLAY_DIR
+    if r.exists():
+        shutil.rmtree(r)
+    r.mkdir()
+    fit_log, held = (f["log"] for f in record["flights"])
+    for name in (fit_log, held, "m0.npz"):
+        (r / name).symlink_to(d / name)
+    log: list[dict[str, Any]] = []
+    out = {**record, "commands": log, "error": None}
+    start = time.perf_counter()
+    try:
+        rounds = [_evaluate("m0.npz", r, held, log)]
+        fits = [record["fits"][0]]
+        for _ in range(ROUNDS):
+            cmd = rounds[-1]["fit_command"]
+            if not cmd:
+                break
+            argv = shlex.split(cmd)
+            if argv[:1] != ["omavctl"] or "--out" not in argv:
+                raise StepFailed(f"fit_command is not an omavctl fit with --out: {cmd}")
+            res = cached_fit(argv[1:], d, r, log)
+            fits.append({"command": cmd, "effects": res.get("effects") or {}})
+            rounds.append(_evaluate(argv[argv.index("--out") + 1], r, held, log))
+        out["rounds"], out["fits"] = rounds, fits
+    except StepFailed as exc:
+        out["error"] = str(exc)
+    out["seconds"] = round(time.perf_counter() - start, 1)
+    return out
+
+
+def _tables(records: Sequence[dict[str, Any]]) -> list[str]:
+    return [*table(records), "", *by_effect(records), ""]
+
+
+def replay(records_path: Path, label: str, workdir: Path | None, only: set[int] | None) -> Path:
+    """Replay every kept draw of ``records_path``; writes ``<stem>.<label>.jsonl``."""
+    workdir = (workdir or records_path.parent).resolve()
+    target = records_path.with_suffix(f".{label}.jsonl")
+    records = [r for r in read_records([records_path]) if not r["error"]]
+    if only is not None:
+        records = [r for r in records if r["index"] in only]
+    done = read_records([target]) if target.exists() else []
+    keep = {(r["split"], r["index"]) for r in records}
+    kept = [r for r in done if (r["split"], r["index"]) not in keep]
+    target.write_text("".join(json.dumps(r, allow_nan=False) + "\n" for r in kept))
+    for rec in records:
+        new = replay_draw(rec, workdir, label)
+        with target.open("a") as f:
+            f.write(json.dumps(new, allow_nan=False) + "\n")
+        print(_line(new), file=sys.stderr, flush=True)
+    print("\n".join(_tables(read_records([target]))))
+    return target
+
+
+def _line(r: dict[str, Any]) -> str:
+    """One draw in one line: hidden (size over the floor), what each round claimed,
+    the fall, and the judgements."""
+    if r["error"]:
+        return f"{r['split']} {r['index']}: error {r['error']}"
+    j = sc.judge(r)
+    hidden = ", ".join(
+        f"{n} ({v / r['rounds'][0]['claim_floor']:.1f}x)"
+        for n, v in sorted((r.get("sizes") or {}).items())
+    )
+    said = " | ".join(
+        "+".join(
+            n + ("~" + "~".join(c["ambiguous_with"]) if c.get("ambiguous_with") else "")
+            for n in rd["missing"]
+            for c in rd["candidates"]
+            if c["name"] == n
+        )
+        or "-"
+        for rd in r["rounds"]
+    )
+    fams = "→".join(f["family"] for f in r["flights"])
+    fall = 100 * sc.physics_fall(r)
+    marks = f"right={int(j['first_right'])} fall={fall:.0f}% invented={int(j['invented'])}"
+    return f"{r['split']} {r['index']} [{hidden or 'none'}; {fams}; {r['timing']}]: {said}; {marks}"
+
+
+def compare(paths: Sequence[Path]) -> None:
+    """Per draw, one line per file; then each file's table."""
+    sets = [{(r["split"], r["index"]): r for r in read_records([p])} for p in paths]
+    for key in sorted(set().union(*sets)):
+        for p, s in zip(paths, sets, strict=True):
+            if key in s:
+                print(f"{p.name:>28}  {_line(s[key])}")
+        print()
+    for p, s in zip(paths, sets, strict=True):
+        print(f"### {p.name}\n")
+        print("\n".join(_tables(list(s.values()))))
+        print("\n".join(failures(list(s.values()))))
+
+
+def draw_large(draws: int, start: int, factor: float, workdir: Path) -> None:
+    """Own draws with hidden effects only, each ``factor`` x its drawn size (most
+    scorecard draws sit under the claim floor on the held-out flight): records in
+    ``WORKDIR/own-large.jsonl``, directories ``own-large-NNNN``."""
+    import numpy as np
+
+    from benchmarks.scorecard_draws import draw_spec, hidden_parameters, run_draw
+    from omavctl.physics.effects import EFFECTS
+
+    out = workdir / "own-large.jsonl"
+    done = {r["index"] for r in read_records([out])} if out.exists() else set()
+    for i in range(start, start + draws):
+        spec = draw_spec("own", i, sorted(EFFECTS))
+        if not spec["hidden"] or i in done:
+            continue
+        rng = np.random.default_rng([2_000_000 + i, 0x1A7])
+        spec["split"] = "own-large"
+        spec["scales"] = {n: factor * v for n, v in spec["scales"].items()}
+        spec["hidden"] = {n: hidden_parameters(n, v, rng) for n, v in spec["scales"].items()}
+        spec["truth"]["effects"] = spec["hidden"]
+        rec = run_draw(spec, workdir)
+        with out.open("a") as f:
+            f.write(json.dumps(rec, allow_nan=False) + "\n")
+        print(_line(rec), file=sys.stderr, flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    sub = ap.add_subparsers(dest="mode", required=True)
+    dr = sub.add_parser("draw", help="run draws once, keeping their directories")
+    dr.add_argument("--split", choices=["tune", *OWN_SPLIT], default="tune")
+    dr.add_argument("--draws", type=int, default=16)
+    dr.add_argument("--start", type=int, default=0)
+    dr.add_argument("--jobs", type=int, default=1)
+    dr.add_argument("--workdir", type=Path, default=Path("build/scorecard-replay"))
+    lg = sub.add_parser("large", help="own draws, hidden effects only, sizes x FACTOR")
+    lg.add_argument("--draws", type=int, default=6)
+    lg.add_argument("--start", type=int, default=0)
+    lg.add_argument("--factor", type=float, default=3.0)
+    lg.add_argument("--workdir", type=Path, default=Path("build/scorecard-replay"))
+    rp = sub.add_parser("replay", help="replay the diagnosis steps of kept draws")
+    rp.add_argument("records", type=Path)
+    rp.add_argument("--label", default="replay")
+    rp.add_argument("--workdir", type=Path, default=None, help="default: the records' folder")
+    rp.add_argument("--only", type=int, nargs="*", default=None, help="draw indices")
+    cp = sub.add_parser("compare", help="per-draw lines and tables of several record files")
+    cp.add_argument("records", type=Path, nargs="+")
+    args = ap.parse_args(argv)
+    if args.mode == "draw":
+        from benchmarks.scorecard import run
+
+        wd = args.workdir.resolve()
+        run(args.split, args.draws, args.start, args.jobs, wd, wd / f"{args.split}.jsonl")
+    elif args.mode == "large":
+        draw_large(args.draws, args.start, args.factor, args.workdir.resolve())
+    elif args.mode == "replay":
+        only = set(args.only) if args.only is not None else None
+        replay(args.records, args.label, args.workdir, only)
+    else:
+        compare(args.records)
+
+
+if __name__ == "__main__":
+    main()

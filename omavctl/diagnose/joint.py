@@ -1,0 +1,238 @@
+"""Joint selection on the physics-only error: what ``fit --effects`` would add, tested
+on the held-out flight.
+
+The ranking of :mod:`omavctl.diagnose.scoring` judges the model's remaining
+error, after its GP. Where the GP has absorbed an effect on the fit flight, that
+remaining error can fall under the claim floor although the physics still lacks
+the effect, and the loop stops (issue 26). Here each candidate is estimated as
+``fit --effects`` would estimate it from the model's own training points
+(:meth:`ResidualGP.basis_estimate`: GLS with the model's kernel), *jointly* with
+the candidates accepted before it, and judged by how much of the model's
+physics-only error on the held-out flight (nominal + the model's effects; the
+quantity a user's next fit improves) the estimate removes. Forward selection,
+best first; a candidate is accepted when, fitted jointly with those before it,
+
+- its parameters lie in their plausible range (:data:`THETA_RANGE`),
+- its part of the held-out error is material (RMS >= the claim floor),
+- it removes at least :data:`MIN_SHARE` of the physics-only error left
+  before it (sum of squares over samples and axes) and at least
+  :data:`MIN_SHARE_OF_TOTAL` of the model's whole physics-only error (a third
+  effect that fits the last few per cent of the error is the leftover of the
+  others' approximations as often as an effect: on the scorecard's draws and a
+  test's figure-8 it named inertia_error or command_delay for 0.8-2.5 % of the
+  error, which the vehicle did not have; once the big effects are in the model,
+  the next evaluation judges the small ones against what is left), and
+- it lowers the error consistently: the mean of its per-block gains over
+  their standard error (2 s blocks) is at least :data:`MIN_BLOCK_T`.
+
+The parameters come from the fit flight and the test from the held-out one, so
+an effect the vehicle lacks must explain another flight's error with
+parameters it had to guess from the first: what the loop then adds is what the
+held-out flight confirmed. A candidate not accepted whose gain alone, at the
+step where another was accepted, is at least :data:`AMBIGUOUS_RATIO` of the
+accepted one's and which passes the same tests alone, is ambiguous with it:
+the data do not tell them apart (not two lags or delays, whose linearised
+regressors coincide to first order; their exact forms tell them apart).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from omavctl.learn.model import ResidualGP
+from omavctl.physics.effects import get_effect
+
+__all__ = [
+    "AMBIGUOUS_RATIO",
+    "MIN_BLOCK_T",
+    "MIN_SHARE",
+    "MIN_SHARE_OF_TOTAL",
+    "JointStep",
+    "joint_selection",
+]
+
+#: Share of the physics-only error (sum of squares) left before it that an
+#: accepted candidate must remove.
+MIN_SHARE = 0.15
+#: Share of the model's whole physics-only error (sum of squares) it must remove.
+MIN_SHARE_OF_TOTAL = 0.05
+#: Its per-block gains: mean / standard error at least this (as the ranking's MIN_T).
+MIN_BLOCK_T = 4.0
+#: A rejected candidate whose gain alone is this fraction of the accepted one's
+#: is ambiguous with it.
+AMBIGUOUS_RATIO = 0.7
+#: At most this many effects are accepted per evaluation: every third step seen
+#: (inertia_error on test_evaluate's yaw pair for 6.7 % of the error, on an own steps
+#: draw for 2.5 %; command_delay on test_scripting's figure-8 for 0.8 %) was an effect
+#: the vehicle lacked; the next evaluation judges what is left.
+MAX_EFFECTS = 2
+
+
+@dataclass
+class JointStep:
+    """One accepted candidate of :func:`joint_selection`."""
+
+    name: str
+    #: fraction of the physics-only error (sum of squares) left before it that it removes
+    share: float
+    #: fraction of the first physics-only error that it removes
+    share_of_total: float
+    #: RMS (rad/s^2) of its part of the held-out error, over samples and axes
+    contribution_rms: float
+    block_t: float
+    #: theta (p,) estimated jointly with the steps before it
+    theta: np.ndarray = field(repr=False)
+    ambiguous_with: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "share": self.share,
+            "share_of_total": self.share_of_total,
+            "contribution_rms": self.contribution_rms,
+            "block_t": self.block_t,
+            "ambiguous_with": self.ambiguous_with,
+        }
+
+
+@dataclass
+class _Trial:
+    """One candidate fitted jointly with the accepted ones."""
+
+    name: str
+    gain: float  # drop of the sum of squares
+    block_t: float
+    contribution_rms: float
+    plausible: bool
+    thetas: dict[str, np.ndarray]
+    pred: np.ndarray  # (n, 3) joint prediction
+
+
+def _joint_theta(model: ResidualGP, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """theta of each of ``names`` estimated jointly as ``fit --effects`` would from the
+    model's training points (:meth:`ResidualGP.basis_estimate`)."""
+    values = [model.train_regressors[n] for n in names]
+    prior = np.concatenate(
+        [np.full(v.shape[2], get_effect(n).prior_std) for n, v in zip(names, values, strict=True)]
+    )
+    theta, _ = model.basis_estimate(np.concatenate(values, axis=2), prior)
+    out, k = {}, 0
+    for n, v in zip(names, values, strict=True):
+        out[n] = theta[k : k + v.shape[2]]
+        k += v.shape[2]
+    return out
+
+
+def _both_timing(a: str, b: str) -> bool:
+    """Whether both effects are lags or delays (:attr:`Effect.search`): their
+    linearised regressors coincide to first order, so this test cannot tell them
+    apart, while the exact forms of the 1-D search (the ranking's estimates, fit's)
+    can."""
+    return get_effect(a).search is not None and get_effect(b).search is not None
+
+
+def _plausible(name: str, theta: np.ndarray) -> bool:
+    lo, hi = get_effect(name).theta_range
+    return bool(np.all((theta >= lo - 1e-12) & (theta <= hi + 1e-12)))
+
+
+def _block_t(before: np.ndarray, after: np.ndarray, blocks: np.ndarray) -> float:
+    """Mean over blocks of the drop in the sum of squares, over its standard error."""
+    ub = np.unique(blocks)
+    gains = np.array([float(before[blocks == b].sum() - after[blocks == b].sum()) for b in ub])
+    if gains.size < 3:
+        return float("inf") if gains.sum() > 0 else 0.0
+    se = gains.std(ddof=1) / np.sqrt(gains.size)
+    return float(gains.mean() / se) if se > 0 else (float("inf") if gains.mean() > 0 else 0.0)
+
+
+def _trial(
+    model: ResidualGP,
+    name: str,
+    accepted: Sequence[str],
+    regressors: Mapping[str, np.ndarray],
+    physics: np.ndarray,
+    sq_before: np.ndarray,
+    blocks: np.ndarray,
+) -> _Trial:
+    thetas = _joint_theta(model, [*accepted, name])
+    pred = sum((regressors[n] @ thetas[n] for n in thetas), np.zeros_like(physics))
+    sq_after = ((physics - pred) ** 2).sum(axis=1)
+    own = regressors[name] @ thetas[name]
+    return _Trial(
+        name=name,
+        gain=float(sq_before.sum() - sq_after.sum()),
+        block_t=_block_t(sq_before, sq_after, blocks),
+        contribution_rms=float(np.sqrt((own**2).mean())),
+        plausible=all(_plausible(n, t) for n, t in thetas.items()),
+        thetas=thetas,
+        pred=pred,
+    )
+
+
+def _passes(t: _Trial, left: float, total: float, floor: float) -> bool:
+    return (
+        t.plausible
+        and t.contribution_rms >= floor
+        and t.gain >= MIN_SHARE * left
+        and t.gain >= MIN_SHARE_OF_TOTAL * total
+        and t.block_t >= MIN_BLOCK_T
+    )
+
+
+def joint_selection(
+    model: ResidualGP,
+    physics: np.ndarray,
+    regressors: Mapping[str, np.ndarray],
+    blocks: np.ndarray,
+    floor: float,
+) -> list[JointStep]:
+    """Forward joint selection on the physics-only error (see module docstring).
+
+    physics (n, 3): the held-out measured minus nominal minus the model's effects;
+    regressors: name -> (n, 3, p) on the held-out samples, for every candidate
+    (effects the model lacks and whose regressor at its training points it holds);
+    blocks (n,) block number of each sample; floor: the claim floor (rad/s^2 RMS).
+    """
+    pool = [n for n in regressors if n in model.train_regressors and n not in model.effects]
+    total = float((physics**2).sum())
+    if total <= 0 or model.n_train == 0:
+        return []
+    steps: list[JointStep] = []
+    accepted: list[str] = []
+    pred = np.zeros_like(physics)
+    rivals: dict[str, list[tuple[str, float]]] = {}
+    while pool and len(steps) < MAX_EFFECTS:
+        sq_before = ((physics - pred) ** 2).sum(axis=1)
+        left = float(sq_before.sum())
+        trials = [_trial(model, n, accepted, regressors, physics, sq_before, blocks) for n in pool]
+        ok = sorted((t for t in trials if _passes(t, left, total, floor)), key=lambda t: -t.gain)
+        if not ok:
+            break
+        best = ok[0]
+        rivals[best.name] = [
+            (t.name, t.gain)
+            for t in ok[1:]
+            if t.gain >= AMBIGUOUS_RATIO * best.gain and not _both_timing(best.name, t.name)
+        ]
+        steps.append(
+            JointStep(
+                name=best.name,
+                share=best.gain / left,
+                share_of_total=best.gain / total,
+                contribution_rms=best.contribution_rms,
+                block_t=min(best.block_t, 1e6),
+                theta=best.thetas[best.name],
+            )
+        )
+        accepted.append(best.name)
+        pool.remove(best.name)
+        pred = best.pred
+    chosen = set(accepted)
+    for s in steps:
+        s.ambiguous_with = [n for n, _ in rivals.get(s.name, []) if n not in chosen]
+    return steps
