@@ -398,5 +398,35 @@ def test_a_component_on_an_axis_the_effect_does_not_explain_is_not_quoted():
     text = estimate_sentence(entry, {"x", "y"})
     assert "D_y = 0.0463 N m s^2 (95 %: 0.0311 to 0.0615)" in text
     assert "0.225" not in text
-    assert text.endswith(" D_z not claimed: the effect explains none of the z error here.")
+    assert text.endswith(" D_z not claimed: the effect explains under 5 % of the z error here.")
     assert "D_z = 0.225 N m s^2 (95 %: 0.164 to 0.286)" in estimate_sentence(entry)
+
+
+def test_an_axis_share_of_a_few_per_cent_is_not_a_claim_on_that_axis():
+    """After this session's band changes the demo's drag explained x 3 %, y 73 %,
+    z 2 %, and the verdict quoted D_z = 0.225 again (its interval six standard errors
+    from the truth): a share under 5 % of an axis's error is not a claim there."""
+    from omavctl.diagnose.verdict import verdict
+
+    estimate = {
+        "D": [0.0446, 0.0463, 0.225],
+        "D_ci95": [[-0.0583, 0.148], [0.0311, 0.0615], [0.164, 0.286]],
+        "D_pinned": [False, True, True],
+    }
+    diag = {
+        "missing": ["rotational_drag"],
+        "missing_effects": [
+            {
+                "name": "rotational_drag",
+                "explained_variance": 0.22,
+                "explained_variance_per_axis": {"x": 0.03, "y": 0.73, "z": 0.02},
+            }
+        ],
+        "learned": [{"name": "rotational_drag", "units": {"D": "N m s^2"}, "estimate": estimate}],
+    }
+    (line,) = [ln for ln in verdict({"diagnosis": diag}) if ln.key == "missing"]
+    assert "(x 3 %, y 73 %, z 2 %)" in line.text
+    assert "D_y = 0.0463 N m s^2" in line.text and "0.225" not in line.text
+    assert "D_x, D_z not claimed: the effect explains under 5 % of the x, z errors here." in (
+        line.text
+    )

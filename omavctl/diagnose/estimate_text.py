@@ -6,7 +6,11 @@ from __future__ import annotations
 from collections.abc import Collection, Mapping
 from typing import Any
 
-__all__ = ["estimate_sentence"]
+__all__ = ["AXIS_CLAIM", "estimate_sentence"]
+
+#: Share of an axis's error an effect must explain for its per-axis parameter on that
+#: axis to be quoted as an estimate (below it: "D_z not claimed").
+AXIS_CLAIM = 0.05
 
 
 def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = None) -> str:
@@ -51,8 +55,9 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
     if unclaimed:
         which = ", ".join(label[-1] for label in unclaimed)
         text += (
-            f" {', '.join(unclaimed)} not claimed: the effect explains none of the "
-            f"{which} error{'s' if len(unclaimed) > 1 else ''} here."
+            f" {', '.join(unclaimed)} not claimed: the effect explains under "
+            f"{100 * AXIS_CLAIM:.0f} % of the {which} error{'s' if len(unclaimed) > 1 else ''} "
+            "here."
         )
     return text
 
