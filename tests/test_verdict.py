@@ -375,3 +375,24 @@ def test_the_summary_table_gives_r2_against_the_measured_signal_too():
         [1 - (19.5 / 37.1) ** 2, 1 - (45.8 / 43.8) ** 2, 1 - (1.9 / 1.46) ** 2], rel=1e-3
     )
     assert float(str(model[1])) < 0  # no better than predicting none: below zero
+
+
+def test_a_claim_of_the_joint_selection_quotes_its_share_of_the_physics_only_error():
+    """A report draw read 'Missing: com_offset — it explains -3 % of the model's
+    remaining error': the claim came from the joint selection on the physics-only
+    error (85 %), the model's own share is what its GP left. The verdict now quotes
+    the claim's share and says the GP absorbed the effect."""
+    tree = copy.deepcopy(BEFORE)
+    diag = tree["diagnosis"]
+    diag["missing"] = ["rotational_drag"]
+    diag["missing_effects"][0]["explained_variance"] = -0.03
+    diag["joint_steps"] = [{"name": "rotational_drag", "share": 0.853, "share_of_total": 0.853}]
+    (line,) = [ln for ln in verdict(tree) if ln.key == "missing"]
+    assert line.text.startswith(
+        "Missing: rotational_drag — estimated from the fit flight as fit --effects would, it "
+        "removes 85 % of the squared physics-only error on held-out data (the model's GP has "
+        "absorbed it: it explains -3 % of the model's remaining error)."
+    )
+    # a claim of the ranking keeps its share of the model's remaining error
+    (line,) = [ln for ln in verdict(BEFORE) if ln.key == "missing"]
+    assert line.text.startswith("Missing: rotational_drag — it explains 51 % of the model's")
