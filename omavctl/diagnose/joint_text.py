@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["joint_text"]
+__all__ = ["joint_share", "joint_text", "min_explained"]
 
 
 def _num(v: Any) -> float | None:
@@ -38,3 +38,18 @@ def joint_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
         f"fit --effects would, they remove {_pct(sum(v for v in shares if v))} of the "
         f"squared physics-only error on held-out data, {parts})"
     )
+
+
+def joint_share(diag: Mapping[str, Any], name: str) -> float | None:
+    """``name``'s share of the held-out physics-only error in the joint selection."""
+    for e in diag.get("joint_steps") or []:
+        if isinstance(e, Mapping) and e.get("name") == name:
+            return _num(e.get("share"))
+    return None
+
+
+def min_explained(diag: Mapping[str, Any]) -> float:
+    """The share of the model's remaining error a claim of the ranking needs."""
+    method = diag.get("method")
+    value = _num(method.get("min_explained_variance")) if isinstance(method, Mapping) else None
+    return value if value is not None else 0.15

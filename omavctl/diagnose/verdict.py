@@ -15,10 +15,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from omavctl.diagnose.activity import activity
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
-from omavctl.diagnose.joint_text import joint_text
+from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained
 
 __all__ = [
     "COVERAGE_MIN",
@@ -102,19 +103,6 @@ def _signed(v: float) -> str:
 
 
 # ------------------------------------------------------------------ missing
-def _joint_share(diag: Mapping[str, Any], name: str) -> float | None:
-    """``name``'s share of the held-out physics-only error in the joint selection."""
-    for e in diag.get("joint_steps") or []:
-        if isinstance(e, Mapping) and e.get("name") == name:
-            return _num(e.get("share"))
-    return None
-
-
-def _min_explained(diag: Mapping[str, Any]) -> float:
-    value = _num(get_path(diag, "method", "min_explained_variance"))
-    return value if value is not None else 0.15
-
-
 def _missing_line(tree: Mapping[str, Any]) -> Line:
     diag = get_path(tree, "diagnosis", default={}) or {}
     missing = [str(m) for m in get_path(diag, "missing", default=[]) or []]
@@ -148,8 +136,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     claimed: set[str] | None = {
         a for a in AXES if (v := _num(per_axis.get(a))) is not None and v >= AXIS_CLAIM
     }
-    joint = _joint_share(diag, missing[0])
-    if joint is not None and (ev is None or ev < _min_explained(diag)):
+    joint = joint_share(diag, missing[0])
+    if joint is not None and (ev is None or ev < min_explained(diag)):
         # claimed by the joint selection on the physics-only error: the model's own
         # share (which can be negative where its GP absorbed the effect) is not the claim
         text += (
@@ -327,32 +315,6 @@ def _look_alikes(name: str) -> str:
 
 
 # --------------------------------------------------------------- where/why
-def activity(seg: Mapping[str, Any]) -> str:
-    """What the vehicle was doing in a worst segment, in words: tilt, the fastest
-    rotation, thrust (from the segment's mean |attitude|, |rate|, |wrench|; no thrust
-    when the segment says its force command is normalised, ``thrust_known``)."""
-    att = [_num(v) or 0.0 for v in (seg.get("attitude_deg") or [])][:3]
-    rate = [_num(v) or 0.0 for v in (seg.get("rate") or [])][:3]
-    u = [_num(v) or 0.0 for v in (seg.get("u") or [])]
-    parts: list[str] = []
-    if len(att) >= 2:
-        roll, pitch = att[0], att[1]
-        if max(roll, pitch) >= 5.0:
-            parts.append(f"tilted (|roll| {roll:.0f}°, |pitch| {pitch:.0f}°)")
-        else:
-            parts.append("near level")
-    if len(rate) == 3 and max(rate) >= 0.2:
-        k = max(range(3), key=lambda i: rate[i])
-        parts.append(f"{('rolling', 'pitching', 'yawing')[k]} at {rate[k]:.2f} rad/s")
-    elif rate:
-        parts.append("barely rotating")
-    if len(u) >= 3 and u[2] > 0 and seg.get("thrust_known", True) is not False:
-        g = u[2] / 9.81
-        if abs(g - 1.0) >= 0.15:
-            parts.append(f"thrust {g:.2f} g")
-    return ", ".join(parts) if parts else "no state recorded"
-
-
 def _fails_line(tree: Mapping[str, Any]) -> Line | None:
     segs = tree.get("worst_segments") or []
     if not segs or not isinstance(segs[0], Mapping):

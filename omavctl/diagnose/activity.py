@@ -1,0 +1,41 @@
+"""What the vehicle was doing in a worst segment, in words (for the verdict and the
+report; no heavy imports)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["activity"]
+
+
+def _num(v: Any) -> float | None:
+    ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    return float(v) if ok else None
+
+
+def activity(seg: Mapping[str, Any]) -> str:
+    """What the vehicle was doing in a worst segment, in words: tilt, the fastest
+    rotation, thrust (from the segment's mean |attitude|, |rate|, |wrench|; no thrust
+    when the segment says its force command is normalised, ``thrust_known``)."""
+    att = [_num(v) or 0.0 for v in (seg.get("attitude_deg") or [])][:3]
+    rate = [_num(v) or 0.0 for v in (seg.get("rate") or [])][:3]
+    u = [_num(v) or 0.0 for v in (seg.get("u") or [])]
+    parts: list[str] = []
+    if len(att) >= 2:
+        roll, pitch = att[0], att[1]
+        if max(roll, pitch) >= 5.0:
+            parts.append(f"tilted (|roll| {roll:.0f}°, |pitch| {pitch:.0f}°)")
+        else:
+            parts.append("near level")
+    if len(rate) == 3 and max(rate) >= 0.2:
+        k = max(range(3), key=lambda i: rate[i])
+        parts.append(f"{('rolling', 'pitching', 'yawing')[k]} at {rate[k]:.2f} rad/s")
+    elif rate:
+        parts.append("barely rotating")
+    if len(u) >= 3 and u[2] > 0 and seg.get("thrust_known", True) is not False:
+        g = u[2] / 9.81
+        if abs(g - 1.0) >= 0.15:
+            parts.append(f"thrust {g:.2f} g")
+    return ", ".join(parts) if parts else "no state recorded"
