@@ -145,6 +145,30 @@ def _families(split: dict[str, Any], rng: np.random.Generator) -> list[str]:
     return pair if rng.random() < 0.5 else pair[::-1]
 
 
+def truth_tree(
+    hidden: dict[str, Any], noise: float, timing: str, rng: np.random.Generator
+) -> dict[str, Any]:
+    """A draw's truth file: the vehicle seed (drawn from ``rng`` here), the hidden
+    effects, the noise scaled by ``noise`` and the controller timing."""
+    truth: dict[str, Any] = {
+        "seed": int(rng.integers(0, 2**31)),
+        "effects": hidden,
+        "noise": {k: round(v * noise, 6) for k, v in _NOISE.items()},
+    }
+    if TIMINGS[timing] is not None:
+        truth["timing"] = {"controller_rate_hz": TIMINGS[timing]}
+    return truth
+
+
+def fit_argv(cmd: str) -> tuple[list[str], str]:
+    """The argv after ``omavctl`` of a verdict's fit command and the model it writes;
+    StepFailed when it is not an ``omavctl fit ... --out M``."""
+    argv = shlex.split(cmd)
+    if argv[:1] != ["omavctl"] or "--out" not in argv:
+        raise StepFailed(f"fit_command is not an omavctl fit with --out: {cmd}")
+    return argv[1:], argv[argv.index("--out") + 1]
+
+
 def draw_spec(split_name: str, index: int, effects: list[str]) -> dict[str, Any]:
     """Everything one draw hides and flies (JSON-ready), from its split and index.
 
@@ -166,13 +190,7 @@ def draw_spec(split_name: str, index: int, effects: list[str]) -> dict[str, Any]
     timing = str(rng.choice(sorted(TIMINGS)))
     noise = float(rng.uniform(0.5, 2.0))
     fmts = [str(x) for x in rng.choice(sorted(FORMATS), 2)]
-    truth: dict[str, Any] = {
-        "seed": int(rng.integers(0, 2**31)),
-        "effects": hidden,
-        "noise": {k: round(v * noise, 6) for k, v in _NOISE.items()},
-    }
-    if TIMINGS[timing] is not None:
-        truth["timing"] = {"controller_rate_hz": TIMINGS[timing]}
+    truth = truth_tree(hidden, noise, timing, rng)
     flights = []
     for role, fam, fmt in zip(("fit", "held"), fams, fmts, strict=True):
         flights.append(
@@ -318,11 +336,8 @@ def loop(
         cmd = rounds[-1]["fit_command"]
         if not cmd:
             break
-        argv = shlex.split(cmd)
-        if argv[:1] != ["omavctl"] or "--out" not in argv:
-            raise StepFailed(f"fit_command is not an omavctl fit with --out: {cmd}")
-        model = argv[argv.index("--out") + 1]
-        fits.append({"command": cmd, **_fit_summary(omavctl(argv[1:], d, log))})
+        argv, model = fit_argv(cmd)
+        fits.append({"command": cmd, **_fit_summary(omavctl(argv, d, log))})
         rounds.append(_evaluate(model, d, log, held, extra))
     return rounds, fits
 

@@ -44,7 +44,7 @@ if __package__ in (None, ""):
 
 from benchmarks import scorecard_score as sc
 from benchmarks.scorecard import by_effect, failures, read_records, table
-from benchmarks.scorecard_draws import ROUNDS, SPLITS, StepFailed, omavctl, round_record
+from benchmarks.scorecard_draws import ROUNDS, SPLITS, StepFailed, fit_argv, omavctl, round_record
 
 #: Draws of one's own (not the report split): the held-back ``steps`` family on one
 #: side as the report draws, other seeds; for finding causes, never for the report.
@@ -115,12 +115,10 @@ def replay_draw(record: dict[str, Any], workdir: Path, label: str = "") -> dict[
             cmd = rounds[-1]["fit_command"]
             if not cmd:
                 break
-            argv = shlex.split(cmd)
-            if argv[:1] != ["omavctl"] or "--out" not in argv:
-                raise StepFailed(f"fit_command is not an omavctl fit with --out: {cmd}")
-            res = cached_fit(argv[1:], d, r, log)
+            argv, model = fit_argv(cmd)
+            res = cached_fit(argv, d, r, log)
             fits.append({"command": cmd, "effects": res.get("effects") or {}})
-            rounds.append(_evaluate(argv[argv.index("--out") + 1], r, held, log))
+            rounds.append(_evaluate(model, r, held, log))
         out["rounds"], out["fits"] = rounds, fits
     except StepFailed as exc:
         out["error"] = str(exc)

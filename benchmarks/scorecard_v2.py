@@ -38,7 +38,13 @@ PLACEHOLDERS = ("{reference}", "{truth}", "{out}", "{seed}")
 
 def draw_spec_v2(split_name: str, split: dict[str, Any], index: int, effects: list[str]) -> Any:
     """Version 2's draw (the JSON-ready spec of :func:`scorecard_draws.draw_spec`)."""
-    from benchmarks.scorecard_draws import _NOISE, FORMATS, TIMINGS, _families, _task_options
+    from benchmarks.scorecard_draws import (
+        FORMATS,
+        TIMINGS,
+        _families,
+        _task_options,
+        truth_tree,
+    )
 
     seed = split["seed_base"] + index
     rng = np.random.default_rng([seed, 0x5C2])
@@ -57,13 +63,7 @@ def draw_spec_v2(split_name: str, split: dict[str, Any], index: int, effects: li
     for n in names:
         m, hidden[n] = draw_size(n, bases[1], noise, rng)
         multiples[n] = None if np.isnan(m) else round(m, 4)
-    truth: dict[str, Any] = {
-        "seed": int(rng.integers(0, 2**31)),
-        "effects": hidden,
-        "noise": {k: round(v * noise, 6) for k, v in _NOISE.items()},
-    }
-    if TIMINGS[timing] is not None:
-        truth["timing"] = {"controller_rate_hz": TIMINGS[timing]}
+    truth = truth_tree(hidden, noise, timing, rng)
     flights = []
     for role, fam, base, fmt in zip(("fit", "held"), fams, bases, fmts, strict=True):
         options = _task_options(base, rng)  # drawn for a planned flight too (the stream)
