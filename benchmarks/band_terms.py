@@ -1,6 +1,6 @@
 """The terms of a model's 2-sigma band on a held-out log, inside the fit flight's inputs.
 
-    python benchmarks/band_terms.py MODEL.npz LOG [--floor-everywhere]
+    python benchmarks/band_terms.py MODEL.npz LOG
 
 Per axis, over the log's samples inside the model's training inputs (as ``evaluate``
 counts them: at most a quarter of a training range beyond the training points' box):
@@ -8,13 +8,11 @@ the RMSE of the model, the RMS std of each term of the predictive variance, the 
 the 2-sigma coverage and the 95th percentile of |error| / std (2 for a calibrated
 normal error). The terms: ``latent`` the calibrated GP posterior variance inside the
 box, ``beyond`` its growth beyond the box, ``weigh`` the variance the mean's weighing
-adds (``mean_shrink``), ``noise`` the noise (``band_noise`` inside, rising to
-``noise_variance`` beyond), ``effects`` the effects' parameter term. Also the blocked
+adds (``mean_shrink``), ``noise`` the noise variance (with fit's floor from the
+held-out error), ``effects`` the effects' parameter term. Also the blocked
 cross-validation's figures (``provenance.gp.validation``: the factor on the std, the
 held-out coverage before it, the held-out RMSE) and the gyro-derived noise floor.
-``--floor-everywhere`` gives the band of before (the noise floor from the held-out
-error inside the fit inputs too). docs/intervals.md, "The model's band inside the fit
-flight's inputs".
+docs/intervals.md, "The model's band inside the fit flight's inputs".
 """
 
 from __future__ import annotations
@@ -44,11 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("model", type=Path)
     ap.add_argument("log", type=Path)
-    ap.add_argument("--floor-everywhere", action="store_true")
     args = ap.parse_args(argv)
     m = load_model(args.model)
-    if args.floor_everywhere:
-        m.band_noise = m.noise_variance.copy()
     rate, sg = _grid(m)
     s, *_ = _read_log(args.log, m.vehicle, rate, sg, None)
     z = s.inputs(m.features)
@@ -81,10 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{v.get('coverage')}, held-out RMSE {v.get('rmse_gp')}; gyro noise floor "
         f"{_r(gp.get('noise_floor'))}"
     )
-    print(
-        f"  noise std: inside {np.sqrt(m.band_noise).round(3)}, beyond "
-        f"{np.sqrt(m.noise_variance).round(3)}"
-    )
+    print(f"  noise std {np.sqrt(m.noise_variance).round(3)}")
     for a in range(3):
         e, tot = err[inside, a], band[inside, a] + eff[inside, a]
         if e.size == 0:

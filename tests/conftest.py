@@ -44,8 +44,7 @@ def rebuilt(model: ResidualGP, **changes) -> ResidualGP:
         for k in (
             "vehicle", "features", "input_names", "inputs", "targets", "input_mean",
             "input_scale", "target_mean", "signal_variance", "length_scales",
-            "noise_variance", "band_noise", "latent_scale", "beyond_scale", "mean_shrink",
-            "effects",
+            "noise_variance", "latent_scale", "beyond_scale", "mean_shrink", "effects",
         )
     }  # fmt: skip
     return ResidualGP(**{**kwargs, **changes})

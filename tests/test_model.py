@@ -517,37 +517,3 @@ def test_beyond_scale_round_trips_and_is_checked(vehicle, tmp_path):
     negative = tmp_path / "negative.npz"
     _rewrite(good, negative, beyond_scale=np.array([0.5, -1.0, 0.5]))
     assert _refused(negative) == f"{negative}: key 'beyond_scale' must not be negative"
-
-
-def test_the_band_noise_rises_to_the_floor_only_beyond_the_fit_inputs(vehicle, tmp_path):
-    """``band_noise`` is the noise inside the training inputs' box and up to a quarter of
-    a training range beyond it; from there the noise rises to ``noise_variance`` (fit's
-    floor from the held-out error), fully at half a range. The mean never moves."""
-    model = make_model(vehicle)
-    band = np.array([0.5e-4, 1e-4, 3e-4])  # z equal: no floor on that axis
-    model.band_noise = band.copy()
-    lo, hi = model.inputs.min(0), model.inputs.max(0)
-    span = hi - lo
-    inside = model.inputs[:5]
-    at = {f: np.where(np.arange(6) == 3, hi + f * span, inside[0]) for f in (0.2, 0.375, 0.6)}
-    mean_in, var_in = model.gp_predict(inside, noise=True)
-    _, latent = model.gp_predict(inside)
-    np.testing.assert_allclose(var_in - latent, np.broadcast_to(band, (5, 3)), rtol=1e-12)
-    for f, share in ((0.2, 0.0), (0.375, 0.5), (0.6, 1.0)):
-        _, v = model.gp_predict(at[f][None, :], noise=True)
-        _, lat = model.gp_predict(at[f][None, :])
-        expect = band + share * (model.noise_variance - band)
-        np.testing.assert_allclose(v[0] - lat[0], expect, rtol=1e-9)
-    mean_before, _ = make_model(vehicle).gp_predict(inside, noise=True)
-    np.testing.assert_array_equal(mean_in, mean_before)
-    path = tmp_path / "m.npz"
-    save_model(path, model)
-    np.testing.assert_array_equal(load_model(path).band_noise, band)
-    with np.load(path, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files if k != "band_noise"}
-    old = tmp_path / "old.npz"
-    np.savez(old, **arrays)
-    np.testing.assert_array_equal(load_model(old).band_noise, model.noise_variance)
-    negative = tmp_path / "negative.npz"
-    _rewrite(path, negative, band_noise=np.array([1e-4, -1e-4, 1e-4]))
-    assert _refused(negative) == f"{negative}: key 'band_noise' must not be negative"

@@ -279,7 +279,6 @@ def _model(
         signal_variance=gp.sv,
         length_scales=gp.ls,
         noise_variance=gp.nv,
-        band_noise=gp.band_noise,
         latent_scale=gp.latent,
         beyond_scale=gp.beyond,
         mean_shrink=MEAN_SHRINK * (gp.sv > 0),

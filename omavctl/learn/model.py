@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
-from omavctl.learn.effects_band import beyond_weight, effect_residual, parameter_variance
+from omavctl.learn.effects_band import effect_residual, parameter_variance
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.mean_shrink import shrink_mean
 from omavctl.learn.validation import beyond_envelope_variance
@@ -53,8 +53,7 @@ class ResidualGP:
     Cholesky factors and weights are computed once, at construction. Attributes
     (read-only by convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
     (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,), ``target_mean``,
-    ``signal_variance``, ``noise_variance`` (3,) (the GP's; the band's inside the fit
-    flight's inputs: ``band_noise`` (3,), :meth:`band_at`), ``length_scales`` (3, d), ``effects``
+    ``signal_variance``, ``noise_variance`` (3,), ``length_scales`` (3, d), ``effects``
     (name -> :class:`EffectEstimate`), ``provenance`` (dict).
     """
 
@@ -72,7 +71,6 @@ class ResidualGP:
         signal_variance: np.ndarray,
         length_scales: np.ndarray,
         noise_variance: np.ndarray,
-        band_noise: np.ndarray | None = None,
         latent_scale: np.ndarray | None = None,
         beyond_scale: np.ndarray | None = None,
         mean_shrink: np.ndarray | None = None,
@@ -92,9 +90,6 @@ class ResidualGP:
         self.signal_variance = np.asarray(signal_variance, dtype=float)
         self.length_scales = np.asarray(length_scales, dtype=float)
         self.noise_variance = np.asarray(noise_variance, dtype=float)
-        #: (3,) the band's noise variance inside the fit inputs (:meth:`band_at`)
-        band = self.noise_variance if band_noise is None else np.asarray(band_noise, float)
-        self.band_noise = np.minimum(band, self.noise_variance)
         #: factor (3,) on the latent (posterior) variance in predictions: fit's
         #: calibration for extrapolation (1 = as the kernel says)
         self.latent_scale = np.ones(3) if latent_scale is None else np.asarray(latent_scale, float)
@@ -214,27 +209,7 @@ class ResidualGP:
         if shrink:
             mean, added = shrink_mean(mean, var, self.mean_shrink)
             var += added
-        if variance and noise:
-            var = self.band_at(z, var)
-        return mean, var if variance else None
-
-    def band_at(self, z: np.ndarray, var: np.ndarray) -> np.ndarray:
-        """Predictive variance (B, 3) of a new measurement at inputs z (B, d) from the
-        GP's variance ``var`` (B, 3) there (latent, growth beyond the box, mean weighing).
-
-        Inside the fit flight's inputs ``var + band_noise``: the band as fit's
-        cross-validation calibrated it on held-out time blocks, ``band_noise`` the noise
-        before the floor from the held-out error (time blocks and input ends pooled).
-        From a quarter of a training range beyond the training inputs' box the noise
-        rises to ``noise_variance`` (that floor), fully at half a range
-        (:func:`omavctl.learn.effects_band.beyond_weight`, as the effects' term): wider
-        than needed there is accepted, overconfident is not.
-        """
-        extra = self.noise_variance - self.band_noise
-        if not np.any(extra > 0):
-            return np.asarray(var + self.noise_variance)
-        rho = beyond_weight(self.inputs, np.atleast_2d(np.asarray(z, dtype=float)))
-        return np.asarray(var + self.band_noise + rho[:, None] * extra)
+        return mean, (var + self.noise_variance * noise) if variance else None
 
     def latent(self, z: np.ndarray, variance: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """The GP mean before ``mean_shrink`` (B, 3) and its calibrated latent variance
@@ -472,7 +447,6 @@ class ResidualGP:
             "signal_variance": self.signal_variance,
             "length_scales": self.length_scales,
             "noise_variance": self.noise_variance,
-            "band_noise": self.band_noise,
             "latent_scale": self.latent_scale,
             "beyond_scale": self.beyond_scale,
             "mean_shrink": self.mean_shrink,
