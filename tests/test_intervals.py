@@ -256,3 +256,25 @@ def test_diagnosis_and_fit_agree_on_the_octocopters_delay():
     # correlation with the measured acceleration says (docs/logs.md)
     lo, hi = diag.interval95()["tau_d"][0]
     assert diag.pinned()["tau_d"][0] and 0.015 < lo < hi < 0.06
+
+
+def test_the_diagnosis_interval_is_as_wide_as_fits_on_the_same_log():
+    """A CoM offset on a wobble with the simulator's default thrust spread (a new
+    user's case): the first pass alone said r_y = -0.01348 m (95 %: -0.0135 to
+    -0.01346), 20x narrower than fit's on the same log; with fit's joint step the
+    diagnosis's standard errors are fit's within a factor 2, and the values agree."""
+    vehicle = default_vehicle()
+    ref = wobble(amplitude_deg=15.0, duration=12.0, seed=3)
+    tree = {"seed": 3, "effects": {"com_offset": {"r": [0.02, -0.015, 0.0]}}}
+    log = align(simulate(ref, vehicle, truth_from_tree(tree, vehicle), seed=3).log)
+    samples = log_samples(log, vehicle, SG)[0]
+    fitted = fit_model([log], vehicle, effects=["com_offset"], points=200, restarts=0)
+    est = fitted.model.effects["com_offset"]
+    alone = fit_estimate([samples], [], "com_offset")
+    diag = fit_estimate([samples], [], "com_offset", fitted.model, SG)
+    for i in (0, 1):
+        f, f_se = float(est.values["r"][i]), float(est.stderr["r"][i])
+        d, d_se = float(diag.values["r"][i]), float(diag.stderr["r"][i])
+        assert 0.5 < d_se / f_se < 2.0, (i, d_se, f_se)
+        assert abs(d - f) < 2 * math.hypot(d_se, f_se), (i, d, f)
+        assert float(alone.stderr["r"][i]) < 0.25 * f_se, (i, alone.stderr["r"][i], f_se)

@@ -168,7 +168,7 @@ def diagnose(
     physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
     joint = joint_selection(model, physics, candidates_raw(regs, model), blocks, floor)
     names = _merge(joint, accepted, missing)
-    estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned])
+    estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned], model, sg)
     return {
         "method": {
             "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
