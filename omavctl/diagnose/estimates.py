@@ -12,15 +12,16 @@ the same samples, with the effects ``fit`` would estimate together (the
 model's, plus this one, as the suggested ``fit`` command names them): the
 exact 1-D search for lags and delays, least squares for the others, the
 autocorrelation-robust standard errors and their 95 % intervals. With the
-evaluated model's features at hand, the effects that ``fit`` then estimates jointly
-with its GP (:func:`omavctl.learn.fit_steps.joint_step`) are estimated so here too:
-GP hyperparameters fitted to the first pass's residual at k-medoids points of these
-samples, generalised least squares there, the covariance made honest as fit makes
-it. (The model's own hyperparameters will not do: its GP learned the missing effect
-on its fit flight and absorbs it all.) Without that
-step the interval ignored what the GP can absorb: on a simulated CoM offset the
-first pass alone said r_y = -0.01348 m (95 %: -0.0135 to -0.01346) where ``fit``
-on the same log says -0.01347 +- 0.00038 m, twenty times wider.
+evaluated model's features at hand, ``fit``'s second stage follows as well: GP
+hyperparameters fitted to the first pass's residual at k-medoids points of these
+samples, the lags and delays searched again jointly with that GP, the other effects
+by generalised least squares there, the covariance made honest as fit makes it.
+(The model's own hyperparameters will not do: its GP learned the missing effect on
+its fit flight and absorbs it all.) Without that stage the intervals ignored what
+the GP can absorb: on a simulated CoM offset the first pass alone said r_y =
+-0.01348 m (95 %: -0.0135 to -0.01346) where ``fit`` on the same log says -0.01347
++- 0.00038 m, twenty times wider; on the Crazyflie's log15 (33.3-50.8 s) it said
+T_m = 86.5 ms (83.5 to 89.5) where ``fit`` says 77.8 +- 10.2 ms.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from omavctl.learn.effect_fit import (
     merged_estimates,
     refit_estimates,
 )
+from omavctl.learn.effect_search import SearchResult, gls_search
 from omavctl.learn.fit_steps import Residuals, first_pass
 from omavctl.learn.hyperparameters import fit_hyperparameters, measurement_noise_std
 from omavctl.learn.model import EffectEstimate, ResidualGP
@@ -59,37 +61,53 @@ ESTIMATE_METHOD = (
 JOINT_POINTS = 200
 
 
-def _joint_with_gp(
-    res: Residuals, model: ResidualGP, sg: SavitzkyGolay
-) -> dict[str, EffectEstimate]:
-    """The linear effects of ``res`` estimated jointly with a GP as ``fit``'s joint step
-    (:func:`omavctl.learn.fit_steps.joint_step`) estimates them on these samples: GP
-    hyperparameters fitted to the first pass's residual at k-medoids points of the
-    model's inputs (one optimiser start), then generalised least squares there and
-    the covariance made honest about autocorrelation."""
-    names = res.linear
-    if not names or res.x_eff is None:
-        return dict(res.first_pass.estimates)
-    inputs = np.concatenate([s.inputs(model.features) for s in res.samples])
+def _points(samples: Sequence[ResidualSamples], model: ResidualGP) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised GP inputs (N, d) of the stacked samples and the indices (k,) of their
+    k-medoids points, as ``fit`` picks its training points."""
+    inputs = np.concatenate([s.inputs(model.features) for s in samples])
     mean, scale = normalisation(inputs)
     zn = (inputs - mean) / scale
     idx, _ = select_points(zn, min(JOINT_POINTS, zn.shape[0]), 0)
-    x_tr = res.x_eff[idx]
-    floor = measurement_noise_std(res.samples, sg)
+    return zn, idx
+
+
+def _with_gp(
+    original: list[ResidualSamples],
+    res: Residuals,
+    model: ResidualGP,
+    sg: SavitzkyGolay,
+    points: tuple[np.ndarray, np.ndarray],
+) -> tuple[dict[str, EffectEstimate], dict[str, SearchResult]]:
+    """The effects of ``res`` estimated jointly with a GP as ``fit`` estimates them on
+    these samples: GP hyperparameters fitted to the first pass's residual at k-medoids
+    points of the model's inputs (one optimiser start); the searched effects again by
+    the 1-D search jointly with that GP (:func:`omavctl.learn.effect_search.gls_search`,
+    as fit's ``_refine_searched``), the linear ones by generalised least squares there
+    (:func:`omavctl.learn.fit_steps.joint_step`), their covariance made honest about
+    autocorrelation. Returns the linear estimates and the searched results."""
+    zn, idx = points
     with threadpool_limits(1):
         axes, t_mean, sv, ls, _ = fit_hyperparameters(
             zn[idx],
             res.targets[idx],
             restarts=0,
             input_names=feature_names(model.features),
-            noise_floor=floor,
+            noise_floor=measurement_noise_std(res.samples, sg),
         )
-    y_raw = res.targets[idx] + x_tr @ res.first_pass.theta
-    p_mean, p_std = effect_prior(names, res.first_pass, model.vehicle)
     nv = np.array([a.noise_std**2 for a in axes])
+    names = res.linear
+    p_mean, p_std = effect_prior(names, res.first_pass, model.vehicle)
+    x_tr = res.x_eff[idx] if res.x_eff is not None else np.zeros((len(idx), 3, 0))
+    found = res.found
+    if found:
+        hyper = (t_mean, sv, ls, nv)
+        found = gls_search(original, idx, found, x_tr, (p_mean, p_std), zn[idx], hyper)
+    if not names:
+        return dict(res.first_pass.estimates), found
+    y_raw = res.targets[idx] + x_tr @ res.first_pass.theta
     theta, cov = joint_effects(zn[idx], y_raw, x_tr, t_mean, sv, ls, nv, p_std, p_mean)
     eff = refit_estimates(names, theta, honest_covariance(cov, res.first_pass), res.first_pass)
-    return dict(eff.estimates)
+    return dict(eff.estimates), found
 
 
 def fit_estimate(
@@ -98,19 +116,23 @@ def fit_estimate(
     name: str,
     model: ResidualGP | None = None,
     sg: SavitzkyGolay | None = None,
+    points: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> EffectEstimate:
     """``name``'s estimate as ``fit --effects <model_effects>,<name>`` makes it: its
     first pass, then (given the evaluated ``model``'s features and the derivative
-    filter ``sg``) the linear effects jointly with a GP fitted to these samples.
+    filter ``sg``) jointly with a GP fitted to these samples.
 
-    ``samples`` must carry every named effect's regressor and context.
+    ``samples`` must carry every named effect's regressor and context; ``points``
+    (from :func:`_points`, computed here when not given) saves the k-medoids
+    selection when several effects are estimated on the same samples.
     """
     names = list(model_effects) if name in model_effects else [*model_effects, name]
     res = first_pass(list(samples), names)
-    linear = res.first_pass.estimates
-    if model is not None and sg is not None and name in res.linear:
-        linear = _joint_with_gp(res, model, sg)
-    return merged_estimates([name], linear, res.found)[name]
+    linear, found = res.first_pass.estimates, res.found
+    if model is not None and sg is not None:
+        points = _points(samples, model) if points is None else points
+        linear, found = _with_gp(list(samples), res, model, sg, points)
+    return merged_estimates([name], linear, found)[name]
 
 
 def fit_estimates(
@@ -122,4 +144,6 @@ def fit_estimates(
 ) -> dict[str, dict[str, Any]]:
     """The JSON of :func:`fit_estimate` (values, standard errors, 95 % intervals,
     whether each is pinned down) for every effect of ``names``."""
-    return {n: fit_estimate(samples, model_effects, n, model, sg).to_json() for n in names}
+    names = list(names)
+    points = _points(samples, model) if model is not None and sg is not None and names else None
+    return {n: fit_estimate(samples, model_effects, n, model, sg, points).to_json() for n in names}
