@@ -196,6 +196,13 @@ def test_the_region_task_plan_is_compared_with_its_own_cost_ranking() -> None:
     assert "Spearman of the `--region task` cost with the region error" in text
     assert "(`--region pool`) with the region error the refit removes" in text
     assert "| planned | --region task plan | oracle |" in text
+    for d in draws:  # the same draws, flown with benchmark --baseline-plan uncapped
+        d["baseline_plan"] = "uncapped"
+    rows = {(name, label): g for name, label, g in comparisons(draws)}
+    assert rows[("planned vs the uncapped plan", region)] == [pytest.approx(100 * 0.4 / 0.9)] * 3
+    text = markdown(draws, {**cfg, "sims": 4, "pool_extra": 1}, 60.0, ["--seeds", "0"])
+    assert "Spearman of the uncapped plan's cost (`--tilt-margin 90`) with the region" in text
+    assert "| planned | uncapped plan | oracle |" in text and "--region task" not in text
 
 
 def test_the_plans_expectation_is_set_beside_the_realised_gain() -> None:
