@@ -275,8 +275,9 @@ def markdown(results: Sequence[dict], cfg: dict, seconds: float, argv: Sequence[
         f"{cfg['duration']:g} s flights, `plan --candidates {cfg['candidates']} --sims "
         f"{cfg['sims']}`, {_further(results, cfg['pool_extra'])}; "
         f"each draw {min(r['seconds'] for r in results) / 60:.0f}–"
-        f"{max(r['seconds'] for r in results) / 60:.0f} min wall-clock, two or three at a "
-        f"time on 2 cores shared with other work; this page rendered in {seconds:.0f} s from "
+        f"{max(r['seconds'] for r in results) / 60:.0f} min wall-clock, "
+        f"{cfg.get('jobs', 2)} at a time on 2 cores shared with other work; this page "
+        f"rendered in {seconds:.0f} s from "
         "the draws cached in the workdir). Protocol: the docstring of "
         "benchmarks/informative.py.",
         "",
