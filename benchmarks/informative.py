@@ -11,12 +11,14 @@ Per draw (a hidden effect set of :data:`EFFECT_SETS` x a seed s), every step the
    task: the figure-8 (26 deg, 8 s period, ``--duration`` s);
 2. first flight of the task (noise seed s) -> ``fit`` -> the first model;
 3. ``plan --task --model --candidates K --scores`` (variance objective, plan seed s;
-   the default ``--region pool``), and the same with ``--region task`` (the paper's
-   test points around the task: the objective before issue 29, the same candidates
-   and simulations);
+   the defaults ``--region pool --tilt-margin 10``), and a baseline plan on the same
+   candidates and simulations (``--baseline-plan``): ``--region task`` (the paper's
+   test points around the task: the objective before issue 29) or ``uncapped``
+   (``--tilt-margin 90``: the default before the tilt margin);
 4. second flights, all with noise seed 100 + s: the task again; the planned
-   reference (and the ``--region task`` plan's choice); one random candidate of the
-   same pool (a seeded draw from the same deviation distribution); ``--pool-extra``
+   reference (and the baseline plan's choice); one random candidate of the
+   same pool (a seeded draw among the candidates feasible for the planned flight's
+   limits, the tilt margin included: the same deviation distribution); ``--pool-extra``
    further random candidates of the pool,
    so that the best of all flown candidates by realised error is the oracle (a lower
    bound of the room the selection has); with ``--with-effects`` also
@@ -159,12 +161,15 @@ def _pool(w: Path, task: Path, chosen: list[int], scores: Path) -> dict[int, Pat
 def _plan(
     paths: dict[str, Path], w: Path, seed: int, cfg: argparse.Namespace, kind: str, tag: str = ""
 ) -> dict:
-    """``plan`` the second flight (variance or effects objective; ``tag`` "-task": with
-    ``--region task``); its JSON object."""
+    """``plan`` the second flight (variance or effects objective; ``tag`` "-task": the
+    baseline plan, with ``--region task`` or, for ``--baseline-plan uncapped``,
+    ``--tilt-margin 90``); its JSON object."""
     args = ["--task", str(paths["task"]), "--model", str(paths["model"])]
     args += ["--candidates", str(cfg.candidates), "--sims", str(cfg.sims), "--seed", str(seed)]
     args += ["--objective", kind, "--jobs", "1", "--scores", str(w / f"scores-{kind}{tag}.csv")]
-    args += ["--region", "task"] if tag == "-task" else []
+    if tag == "-task":  # the second plan of a draw: --baseline-plan
+        args += ["--region", "task"] if cfg.baseline_plan == "task-region" else []
+        args += ["--tilt-margin", "90"] if cfg.baseline_plan == "uncapped" else []
     return omavctl("plan", *args, "--out", str(w / f"plan-{kind}{tag}.csv"))
 
 
@@ -206,6 +211,7 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
     }
     res.update(best=best, random=drawn[0], task_cost=float(planned["task_cost"]))
     res.update(best_task_region=best_paper, task_cost_task_region=float(paper["task_cost"]))
+    res.update(baseline_plan=cfg.baseline_plan, max_tilt_deg=float(planned["max_tilt_deg"]))
     if cfg.with_effects:
         _plan(paths, w, seed, cfg, "effects")
         res["effects_plan"] = _second(w / "plan-effects.csv", paths, seed, w, "effects")
@@ -224,6 +230,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sims", type=int, default=4)
     ap.add_argument("--pool-extra", type=int, default=3, help="random pool candidates also flown")
     ap.add_argument("--with-effects", action="store_true", help="also plan --objective effects")
+    ap.add_argument("--baseline-plan", choices=["task-region", "uncapped"], default="task-region",
+                    help="the second plan each draw flies: --region task, or the default "
+                    "region without the tilt margin (--tilt-margin 90)")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=2, help="draws run at once")
     ap.add_argument("--out", type=Path, default=None, help="Markdown results (docs/informative.md)")
     ap.add_argument("--also", nargs="*", default=[], metavar="EFFECTS:SEED",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -196,6 +197,13 @@ def test_the_region_task_plan_is_compared_with_its_own_cost_ranking() -> None:
     assert "Spearman of the `--region task` cost with the region error" in text
     assert "(`--region pool`) with the region error the refit removes" in text
     assert "| planned | --region task plan | oracle |" in text
+    for d in draws:  # the same draws, flown with benchmark --baseline-plan uncapped
+        d["baseline_plan"] = "uncapped"
+    rows = {(name, label): g for name, label, g in comparisons(draws)}
+    assert rows[("planned vs the uncapped plan", region)] == [pytest.approx(100 * 0.4 / 0.9)] * 3
+    text = markdown(draws, {**cfg, "sims": 4, "pool_extra": 1}, 60.0, ["--seeds", "0"])
+    assert "Spearman of the uncapped plan's cost (`--tilt-margin 90`) with the region" in text
+    assert "| planned | uncapped plan | oracle |" in text and "--region task" not in text
 
 
 def test_the_plans_expectation_is_set_beside_the_realised_gain() -> None:
@@ -209,3 +217,49 @@ def test_the_plans_expectation_is_set_beside_the_realised_gain() -> None:
     out = expected_vs_realised([d])
     assert out["task again"] == ([pytest.approx(50.0)], [pytest.approx(50.0)])
     assert out["random"] == ([pytest.approx(100 * 2 / 3)], [pytest.approx(100 * 0.4 / 0.9)])
+
+
+def test_tilt_analysis_bins_by_extra_tilt_and_compares_within_the_margin(tmp_path) -> None:
+    """benchmarks/informative_tilt.py on a synthetic draw: candidates that tilt beyond
+    the margin leave a worse refit; within it the cost ranks the region error exactly,
+    so its Spearman is -1 and its pick is the best there."""
+    from benchmarks.informative_tilt import before_after, by_tilt, flown
+    from omavctl.planning.candidates import sample_coefficients
+    from omavctl.sim.tasks import fig8
+    from omavctl.sim.trajectory import write_trajectory
+
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
+    write_trajectory(tmp_path / "task.csv", task)
+    coeffs = sample_coefficients(np.random.default_rng(0), 8, 2, 0.1, 2.0, 1.0)
+    cost = 1.0 + 0.1 * np.arange(8)
+    names = [f"{k}_{a}{p}" for a in "xyz" for p in (1, 2) for k in ("f", "A")]
+    rows = ["candidate," + ",".join(names) + ",cost,feasible"]
+    for k in range(8):
+        vals = ",".join(repr(float(v)) for v in coeffs[k].reshape(-1))
+        rows.append(f"{k},{vals},{float(cost[k])!r},true")
+    (tmp_path / "scores-variance.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "result.json").write_text("{}")
+    # extra tilts of seed 0: 52.7, 0.1, 30.7, 18.0, 1.7, 4.9, 2.1, 2.0 deg
+    extra = {0: 52.7, 1: 0.1, 2: 30.7, 3: 18.0, 4: 1.7, 5: 4.9, 6: 2.1, 7: 2.0}
+
+    def errors(e: float) -> dict:
+        return {"tracking": e, "region": e, "task": e}
+
+    within = {1: 1.0, 4: 1.2, 5: 1.4}  # region error grows with the cost within 10 deg
+    pool = {k: errors(within.get(k, 1.8)) for k in (0, 1, 2, 4, 5)}
+    result = {"first": errors(2.0), "pool": {str(k): v for k, v in pool.items()}}
+    result.update(best=0, random=5)
+    (tmp_path / "result.json").write_text(json.dumps(result))
+    _, cands, _, ex = flown(tmp_path)
+    assert sorted(cands) == [0, 1, 2, 4, 5]
+    np.testing.assert_allclose([ex[k] for k in extra], list(extra.values()), atol=0.1)
+    lines = by_tilt([tmp_path])
+    assert lines[0] == "5 flown candidates of 1 draws"
+    assert "  extra tilt in (20, 90] deg, n = 2: +10.0 % [+10.0, +10.0]" in lines
+    assert "  extra tilt in (-90, 5] deg, n = 3: +40.0 % [+15.2, +64.8]" in lines
+    spear, before, after = before_after([tmp_path], 10.0)
+    assert "within +10 deg (draws with 3 or more) -1.00" in spear
+    # before: the lowest cost (0) tilts 52.7 deg beyond: worse than the random one (5)
+    assert before.startswith("planned vs the random candidate, region: -28.6 % (one draw")
+    # after: the pick (1) against the mean of 4 and 5 (1.3): 23.1 %, the oracle's too
+    assert after.startswith("margin 10: its pick vs a random candidate within it, region: +23.1 %")

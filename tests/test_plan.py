@@ -94,7 +94,10 @@ def test_cli_plan_one_candidate_one_simulation(setup):
     tmp, task_path, model_path = setup
     out = tmp / "one.csv"
     args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
-    result = runner.invoke(app, [*args, "--candidates", "1", "--sims", "1", "--points", "5", "-q"])
+    # this one candidate tilts beyond the task's 20 deg + the default --tilt-margin 10
+    # (tests/test_plan_tilt.py): the single-candidate path is tested without the margin
+    one = ["--candidates", "1", "--sims", "1", "--points", "5", "--tilt-margin", "90", "-q"]
+    result = runner.invoke(app, [*args, *one])
     assert result.exit_code == 0, result.output
     assert read_trajectory(out).data.shape[1] == 19
 
@@ -143,6 +146,7 @@ def test_no_feasible_candidate_says_which_limits_and_keeps_the_reasons(setup, tm
     out, scores = tmp_path / "ref.csv", tmp_path / "scores.csv"
     args = ["plan", "--task", str(task_path), "--model", str(model_path), "--out", str(out)]
     args += ["--amplitude", "30", "--candidates", "4", "--sims", "1", "--points", "5"]
+    args += ["--tilt-margin", "90"]  # the limits of the vehicle, not of the task's region
     line = _one_error_line(runner.invoke(app, [*args, "--scores", str(scores), "-q"]))
     assert line.startswith(
         f"error: {task_path}: no feasible candidate for this task (4 candidates: "

@@ -49,6 +49,16 @@ MaxTilt = Annotated[
         "is rejected (deg).",
     ),
 ]
+TiltMargin = Annotated[
+    float | None,
+    typer.Option(
+        metavar="DEG",
+        help="Also reject a candidate whose simulated |roll| or |pitch| goes more than "
+        "this beyond the task's largest tilt (deg; 90: only --max-tilt). Default: 10 for "
+        "--objective variance (refits on flights that tilt much further than the task got "
+        "worse on it, docs/informative.md), 90 for effects.",
+    ),
+]
 Epsilon = Annotated[
     float | None,
     typer.Option(
@@ -149,6 +159,7 @@ def plan(
     max_freq: MaxFreq = 2.0,
     amplitude: Amplitude = 1.0,
     max_tilt: MaxTilt = 80.0,
+    tilt_margin: TiltMargin = None,
     epsilon: Epsilon = None,
     test_points: TestPoints = 500,
     region: Region = "pool",
@@ -183,6 +194,7 @@ def plan(
         max_freq=max_freq,
         amplitude=amplitude,
         max_tilt_deg=max_tilt,
+        tilt_margin_deg=tilt_margin,
         epsilon=epsilon,
         test_points=test_points,
         region=region,
@@ -255,6 +267,7 @@ def _render_plan(
     else:
         region = "region: the states the task and the feasible candidates reach"
     con.print(f"{task}; {region}; {rejected}/{len(result.cost)} candidates rejected{why}")
+    con.print(_tilt_line(result), markup=False)
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
     from omavctl.planning.effects_objective import effects_summary
@@ -283,6 +296,16 @@ def _render_plan(
         con.print(f"wrote {report_out} (plan report)")
     con.print(f"wrote {out} (candidate {result.best})")
     return files
+
+
+def _tilt_line(result: Any) -> str:
+    """The attitude limit the candidates were held to, beside the task's largest tilt."""
+    from omavctl.planning.planner import task_tilt_deg
+
+    return (
+        f"attitude limit: |roll|, |pitch| <= {result.max_tilt_deg:.0f} deg in simulation "
+        f"(the task tilts to {task_tilt_deg(result.task):.0f}; --tilt-margin, --max-tilt)"
+    )
 
 
 def _candidates_table(result: Any) -> Any:
@@ -348,6 +371,7 @@ def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
         "epsilon": float(result.epsilon),
         "region": result.region,
         "rejected": int((~result.feasible).sum()),
+        "max_tilt_deg": float(result.max_tilt_deg),
         "candidates": [_candidate_json(result, k) for k in range(len(result.cost))],
         "notes": list(result.notes),
         # what the terminal prints as "warning:": read before flying the reference

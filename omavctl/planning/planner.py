@@ -10,7 +10,10 @@
    method (:mod:`~omavctl.planning.search`).
 3. Simulate every candidate M times, all K*M simulations in one batch per time
    step (:mod:`~omavctl.planning.batched`; the task flies in the same batch);
-   reject those that break allocation limits, attitude limits or diverge.
+   reject those that break allocation limits, attitude limits or diverge. The
+   attitude limit is ``max_tilt_deg`` or the task's largest tilt plus
+   ``tilt_margin_deg`` (10 deg for the variance objective), the lower: a refit on a
+   flight that tilts 20 deg or more beyond the task got worse on it (docs/informative.md).
    The S test points the variance is integrated over (``region``): ``"pool"``
    (default) S medoids of the GP inputs of the task's and the first generation's
    feasible candidates' simulations (:func:`pool_test_points`):
@@ -50,7 +53,29 @@ from omavctl.planning.simulate import Batch, Simulator
 from omavctl.planning.workers import available_cores, run_tasks
 from omavctl.sim.trajectory import Trajectory
 
-__all__ = ["OBJECTIVES", "PlanResult", "PlanSettings", "plan"]
+__all__ = ["OBJECTIVES", "TILT_MARGIN_DEG", "PlanResult", "PlanSettings", "plan", "tilt_limit"]
+
+
+#: Default ``PlanSettings.tilt_margin_deg``: chosen on the informative-flight
+#: benchmark's seeds 1-4 (docs/informative.md), where flights tilting 5-10 deg beyond
+#: the task removed the most region error and those 20+ deg beyond raised the task's
+TILT_MARGIN_DEG = 10.0
+
+
+def task_tilt_deg(task: Trajectory) -> float:
+    """The task reference's largest |roll| or |pitch|, deg."""
+    return float(np.rad2deg(np.abs(task.euler[:, :2]).max()))
+
+
+def tilt_limit(task: Trajectory, settings: PlanSettings) -> float:
+    """The attitude limit the candidates' simulations are held to (deg): ``--max-tilt``,
+    or the task's largest tilt plus ``--tilt-margin`` when that is lower (by default
+    TILT_MARGIN_DEG for the variance objective; the effects objective's parameters are
+    global, so it is held to ``--max-tilt`` alone)."""
+    margin = settings.tilt_margin_deg
+    if margin is None:
+        margin = TILT_MARGIN_DEG if settings.objective == "variance" else 90.0
+    return min(settings.max_tilt_deg, task_tilt_deg(task) + margin)
 
 
 @dataclass(frozen=True)
@@ -70,6 +95,10 @@ class PlanSettings:
     seed: int = 0
     rff_features: int = 128  # per axis; ranks candidates as 256 do (docs/planning-performance.md)
     max_tilt_deg: float = 80.0  # attitude limit on roll and pitch
+    #: and at most this far beyond the task's largest reference tilt (deg;
+    #: :func:`tilt_limit`; None: TILT_MARGIN_DEG for the variance objective, whose
+    #: refit further tilts hurt on the task (docs/informative.md), none for effects)
+    tilt_margin_deg: float | None = None
     max_error_deg: float = 30.0  # attitude error beyond which a simulation diverged
     stride: int = 4  # points are picked among every stride-th simulated sample
     search: str = "random"  # or "cem"
@@ -186,6 +215,10 @@ class PlanResult:
     region: str = "pool"
     #: the effects objective's prior (names, values, scale, information), when computed
     effects: Any = None
+    #: the attitude limit the candidates were held to (deg, :func:`tilt_limit`)
+    max_tilt_deg: float = 80.0
+    #: whether that limit is the task's tilt plus the margin (not ``--max-tilt``)
+    tilt_by_margin: bool = False
 
     def versus_task(self, cost: float) -> float:
         """A cost against the task's, percent: for ``variance`` the ratio of posterior
@@ -347,7 +380,7 @@ def plan(
     rng_gp, rng_test, rng_cand = (np.random.default_rng(s) for s in seeds)
     gp = GPAxes.from_model(model)
     samples = PathwiseSamples(gp, settings.sims, rng_gp, settings.rff_features)
-    limits = (settings.max_tilt_deg, settings.max_error_deg)
+    limits = (tilt_limit(task, settings), settings.max_error_deg)
     jobs = settings.jobs or available_cores()
     sim = Simulator(model, samples, task, settings.stride, limits, settings.fast, jobs, progress)
     sizes, propose = _proposer(settings, rng_cand)
@@ -387,6 +420,8 @@ def plan(
         objective=settings.objective,
         region=settings.region,
         effects=getattr(objectives.get("effects"), "prior", None),
+        max_tilt_deg=limits[0],
+        tilt_by_margin=limits[0] < settings.max_tilt_deg,
     )
 
 

@@ -104,7 +104,13 @@ def no_feasible_candidate(result: PlanResult, task: Path, scores: Path | None) -
         if scores is not None
         else "; --scores FILE lists every candidate's reason"
     )
-    return OmavctlError(text + ": lower --amplitude or --max-freq", task)
+    remedy = ": lower --amplitude or --max-freq"
+    if result.tilt_by_margin and any("attitude limit" in r for r in result.reason):
+        remedy += (
+            f" (or raise --tilt-margin: the attitude limit was {result.max_tilt_deg:.0f} deg, "
+            "the task's largest tilt plus the margin)"
+        )
+    return OmavctlError(text + remedy, task)
 
 
 def write_plan(out: Path, best: Trajectory, result: PlanResult, scores: Path | None) -> None:

@@ -54,6 +54,9 @@ def check_plan_settings(settings: PlanSettings) -> None:
         raise OmavctlError("--max-freq must be in (0.1, 50] Hz and --amplitude in (0, 100] rad/s^2")
     if not 0 < settings.max_tilt_deg <= 90.0:
         raise OmavctlError(f"--max-tilt must be in (0, 90] deg, got {settings.max_tilt_deg:g}")
+    margin = settings.tilt_margin_deg
+    if margin is not None and not 0 <= margin <= 90.0:
+        raise OmavctlError(f"--tilt-margin must be in [0, 90] deg, got {margin:g}")
     epsilon = settings.epsilon
     if epsilon is not None and not 0 < epsilon <= 1000:
         raise OmavctlError(f"--epsilon must be in (0, 1000] normalised units, got {epsilon}")
