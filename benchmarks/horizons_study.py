@@ -44,6 +44,7 @@ DRAWS: dict[str, Any] = {
     "com_offset": {"seed": 2, "effects": {"com_offset": {"r": [0.02, -0.015, 0.0]}}},
     "motor_lag": {"seed": 3, "effects": {"motor_lag": {"T_m": 0.05}}},
     "drag_strong": {"seed": 4, "effects": {"rotational_drag": {"D": [0.1, 0.08, 0.05]}}},
+    "clean": {"seed": 5, "effects": {}},  # no hidden effect: only the actuator imperfections
 }
 AXES = ("x", "y", "z")
 KINDS = ("naive", "nominal", "effects", "model")

@@ -20,8 +20,11 @@ out-of-control span. Every horizon uses the same starts (those valid for the
 longest), so the rows of the table are comparable.
 
 The full model's band: the body-rate error at step k has the std
-``sqrt(2 s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
-the log's body-rate noise (start and end sample), ``s_j`` the std of the
+``sqrt(f_k s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
+the log's body-rate noise and ``f_k s_r^2`` the variance of the noise of sample
+k less the start's (2 for independent samples; exact through the interpolation
+weights for a gyro recorded more slowly than the grid,
+:mod:`omavctl.learn.recorded_noise`), ``s_j`` the std of the
 model's residual function at step j (GP latent variance + the effects'
 parameter variance, at the logged inputs) and ``s_p^2`` the GP's noise
 variance less what the rate noise puts into the Savitzky-Golay derivative
@@ -44,6 +47,7 @@ import numpy as np
 from omavctl.base.errors import ConfigError, OmavctlError
 from omavctl.diagnose.horizon_findings import findings
 from omavctl.learn.model import ResidualGP
+from omavctl.learn.recorded_noise import independent_noise
 from omavctl.learn.rollout_residual import (
     GridSignals,
     Windows,
@@ -158,19 +162,24 @@ def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: f
     s_fun = per_sample(win, samples, [function_std(m, s) for s in samples])
     drift = np.zeros_like(s_fun)
     drift[:, 1:] = dt * np.cumsum(s_fun[:, :-1], axis=1)
-    process = np.stack([_process_variance(m, s) for s in samples])[win.log]  # (W, 3)
+    # the white residual the body rate integrates: the GP's noise variance less what the
+    # log's rate noise puts into the Savitzky-Golay derivative (measurement, not motion)
+    process = np.maximum(m.noise_variance[None, :] - win.derivative_noise, 0.0)  # (W, 3)
     steps = np.arange(s_fun.shape[1])[None, :, None]
     walk = steps * dt**2 * process[:, None, :]
-    return np.sqrt(2.0 * win.noise[:, None, :] ** 2 + drift**2 + walk)
+    measured = win.noise_factor[:, :, None] * win.noise[:, None, :] ** 2
+    return np.sqrt(measured + drift**2 + walk)
 
 
-def _process_variance(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
-    """Variance (3,) (rad/s^2)^2 of the white residual the body rate integrates: the
-    GP's noise variance less what the log's rate noise puts into the Savitzky-Golay
-    derivative (that part is measurement, not motion)."""
-    rate_noise = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
-    gain = s.sg.noise_gain if s.sg is not None else 0.0
-    return np.maximum(m.noise_variance - (gain * rate_noise) ** 2, 0.0)
+def _noise(samples: Sequence[ResidualSamples], signals: Sequence[GridSignals]) -> list[Any]:
+    """Per log: the body-rate noise (rad/s per axis) the band uses, whether it was
+    estimated on the recorded samples of a slower recording, and the grid's estimate."""
+    out = []
+    for s, g in zip(samples, signals, strict=True):
+        grid = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
+        rn = g.noise if g.noise is not None else independent_noise(grid, s.index)
+        out.append({**_axes(rn.std), "recorded": rn.upsampled, "grid": _axes(grid)})
+    return out
 
 
 def _axes(v: np.ndarray) -> dict[str, float]:
@@ -289,7 +298,10 @@ def horizon_table(
     stride = max(stride, math.ceil(n_total * (steps[-1] + 1) / MAX_WINDOW_SAMPLES))
     win = gather(samples, signals, steps[-1], stride)
     if win.count == 0:
-        return _no_windows(steps, dt, stride, len(samples))
+        return {
+            **_no_windows(steps, dt, stride, len(samples)),
+            "rate_noise": _noise(samples, signals),
+        }
     from threadpoolctl import threadpool_limits
 
     # small GEMMs per step: threaded BLAS spends more than it saves (7x on 2 busy cores)
@@ -310,6 +322,7 @@ def horizon_table(
         "predictors": [d for d, _ in runs],
         "table": table,
         "curves": curves,
+        "rate_noise": _noise(samples, signals),
     }
     tree["findings"] = findings(tree)
     return tree
