@@ -79,6 +79,9 @@ BAND_SIGMA = 2.0
 #: at 100 Hz with 0.5 s windows (about 400 MB); longer logs get a larger stride
 MAX_WINDOW_SAMPLES = 1_200_000
 AXES = ("x", "y", "z")
+#: windows are grouped by start time into chunks of this many longest horizons for the
+#: standard errors (errors of overlapping windows are not independent)
+CHUNK_HORIZONS = 2
 
 
 def parse_horizons(text: str) -> tuple[float, ...]:
@@ -186,11 +189,36 @@ def _axes(v: np.ndarray) -> dict[str, float]:
     return {a: float(v[i]) for i, a in enumerate(AXES)}
 
 
-def _row(run: _Run, k: int, dt: float) -> dict[str, Any]:
+def _chunk_ids(win: Windows, k: int) -> np.ndarray:
+    """Chunk (W,) of each window: its log and its start's block of ``CHUNK_HORIZONS`` x
+    k samples (windows of neighbouring starts overlap: their errors are not
+    independent, the chunks' means nearly are)."""
+    key = win.log.astype(np.int64) * (1 << 40) + win.pos[:, 0] // max(CHUNK_HORIZONS * k, 1)
+    return np.unique(key, return_inverse=True)[1].reshape(-1)
+
+
+def _chunked(err: np.ndarray, ids: np.ndarray) -> tuple[dict[str, list[float]], dict[str, float]]:
+    """Per chunk the mean of err (W, 4: x, y, z, norm), and the standard error of the
+    mean over windows from the chunks' spread (0 with fewer than 2 chunks)."""
+    n = int(ids.max()) + 1 if ids.size else 0
+    counts = np.bincount(ids, minlength=n).astype(float)
+    means = np.stack([np.bincount(ids, err[:, c], minlength=n) / counts for c in range(4)], 1)
+    se = means.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.zeros(4)
+    names = (*AXES, "norm")
+    return (
+        {a: means[:, c].tolist() for c, a in enumerate(names)},
+        {a: float(se[c]) for c, a in enumerate(names)},
+    )
+
+
+def _row(run: _Run, k: int, dt: float, ids: np.ndarray) -> dict[str, Any]:
     """One predictor's table entry at k steps: mean |error| per axis and of the norm,
-    their sums over steps 1..k, and the band's coverage when it has one."""
+    their chunk means and standard errors, their sums over steps 1..k, and the
+    band's coverage when it has one."""
     rate = run.rate[:, 1 : k + 1]
     norm = np.linalg.norm(rate, axis=-1)  # (W, k)
+    last = np.column_stack([np.abs(rate[:, -1]), norm[:, -1]])
+    chunks, se = _chunked(last, ids)
     row: dict[str, Any] = {
         "seconds": k * dt,
         "steps": k,
@@ -198,6 +226,8 @@ def _row(run: _Run, k: int, dt: float) -> dict[str, Any]:
             **_axes(np.abs(rate[:, -1]).mean(axis=0)),
             "norm": float(norm[:, -1].mean()),
         },
+        "rate_error_se": se,
+        "rate_error_chunks": chunks,
         "rate_error_sum": float(norm.sum(axis=1).mean()),
         "attitude_error": None,
         "attitude_error_sum": None,
@@ -308,7 +338,8 @@ def horizon_table(
     # a rollout that diverges (a model far outside its inputs) gives inf, written as null
     with threadpool_limits(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore"):
         runs = _predictors(models, win, samples, dt)
-        table = {d["key"]: [_row(run, k, dt) for k in steps] for d, run in runs}
+        ids = _chunk_ids(win, steps[-1])
+        table = {d["key"]: [_row(run, k, dt, ids) for k in steps] for d, run in runs}
         curves = {d["key"]: _curve(run) for d, run in runs}
     tree: dict[str, Any] = {
         "steps": steps,
@@ -318,6 +349,7 @@ def horizon_table(
         "windows": win.count,
         "windows_by_log": np.bincount(win.log, minlength=len(samples)).tolist(),
         "band_sigma": BAND_SIGMA,
+        "chunk_seconds": CHUNK_HORIZONS * steps[-1] * dt,
         "attitude": win.attitude is not None,
         "predictors": [d for d, _ in runs],
         "table": table,
