@@ -88,7 +88,7 @@ bench-effects: $(STAMP)
 bench-intervals: $(STAMP)
 	nice -n 10 $(BIN)/python benchmarks/intervals.py --markdown docs/intervals-results.md
 # open-loop prediction over horizons (docs/horizons.md): the batched rollouts' speed on a
-# 60 s log, then four hidden-effect draws and the real px4tools log (about 25 minutes)
+# 60 s log, then four hidden-effect draws, a clean one and the real px4tools log (about 30 minutes)
 bench-horizons: $(STAMP)
 	$(BIN)/python benchmarks/bench_horizons.py
 	$(BIN)/python benchmarks/horizons_study.py --workdir build/horizons --markdown build/horizons/study.md

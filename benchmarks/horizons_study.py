@@ -26,6 +26,7 @@ from typing import Any
 
 from omavctl.diagnose.evalio import write_evaluation
 from omavctl.diagnose.evaluate import evaluate
+from omavctl.diagnose.horizon_findings import SIGNIFICANT, paired_se
 from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import save_model
 from omavctl.logs import write_log
@@ -44,6 +45,7 @@ DRAWS: dict[str, Any] = {
     "com_offset": {"seed": 2, "effects": {"com_offset": {"r": [0.02, -0.015, 0.0]}}},
     "motor_lag": {"seed": 3, "effects": {"motor_lag": {"T_m": 0.05}}},
     "drag_strong": {"seed": 4, "effects": {"rotational_drag": {"D": [0.1, 0.08, 0.05]}}},
+    "clean": {"seed": 5, "effects": {}},  # no hidden effect: only the actuator imperfections
 }
 AXES = ("x", "y", "z")
 KINDS = ("naive", "nominal", "effects", "model")
@@ -73,8 +75,9 @@ def run_draw(draw: str, work: Path) -> dict[str, Any]:
     if not base.exists():
         save_model(base, fit_model([fit_log], vehicle, effects=("rotor_interference",)).model)
     first = evaluate([base], [held], horizons=())
-    named = list(first.tree["diagnosis"]["missing"])[:1]
-    out: dict[str, Any] = {"draw": draw, "named": named[0] if named else None}
+    missing = list(first.tree["diagnosis"]["missing"])
+    named = missing[:1]
+    out: dict[str, Any] = {"draw": draw, "named": named[0] if named else None, "missing": missing}
     models = [base]
     if named:
         added = d / f"gp-{named[0]}.npz"
@@ -126,6 +129,35 @@ def table_lines(result: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _added_lines(result: dict[str, Any], kind: str, what: str) -> list[str]:
+    """Per axis: adding the named effect, the one-step RMSE and the 0.5 s error (with
+    the paired standard error over chunks of start times) before and after; whether
+    they agree (a 0.5 s change within 2 standard errors is no change)."""
+    tree, h = result["tree"], result["tree"]["horizons"]
+    one = [tree["metrics_by_model"][k][kind]["rmse"] for k in (0, 1)]
+    rows = [h["table"][k][-1] for k in (kind, f"{kind}_1")]
+    lines = []
+    for a in AXES:
+        d1 = one[1][a] - one[0][a]
+        d50 = rows[1]["rate_error"][a] - rows[0]["rate_error"][a]
+        se = paired_se(rows[0], rows[1], a)
+        within = se is not None and abs(d50) <= SIGNIFICANT * se
+        verdict = (
+            "within its standard error"
+            if within
+            else "agree"
+            if (d1 < 0) == (d50 < 0)
+            else "DISAGREE"
+        )
+        se_text = "" if se is None else f" ({d50:+.2g} ± {se:.2g}, {verdict})"
+        lines.append(
+            f"adding {result['named']} ({what}), {a}: one-step RMSE {one[0][a]:.3g} -> "
+            f"{one[1][a]:.3g} rad/s², 0.5 s error {rows[0]['rate_error'][a]:.3g} -> "
+            f"{rows[1]['rate_error'][a]:.3g} rad/s{se_text}"
+        )
+    return lines
+
+
 def checks(result: dict[str, Any]) -> list[str]:
     """The must-show checks of one draw, one line each."""
     tree = result["tree"]
@@ -153,35 +185,31 @@ def checks(result: dict[str, Any]) -> list[str]:
         ),
     ]
     if j:
-        one = [tree["metrics_by_model"][k]["effects"]["rmse"] for k in (0, 1)]
-        long = [h["table"][k][-1]["rate_error"] for k in ("effects", "effects_1")]
-        one_full = [tree["metrics_by_model"][k]["model"]["rmse"] for k in (0, 1)]
-        long_full = [h["table"][k][-1]["rate_error"] for k in ("model", "model_1")]
-        for a in AXES:
-            d1, d50 = one_full[1][a] - one_full[0][a], long_full[1][a] - long_full[0][a]
-            agree = (d1 < 0) == (d50 < 0)
-            lines.append(
-                f"adding {result['named']} (full model), {a}: one-step RMSE "
-                f"{one_full[0][a]:.3g} -> {one_full[1][a]:.3g} rad/s², 0.5 s error "
-                f"{long_full[0][a]:.3g} -> {long_full[1][a]:.3g} rad/s"
-                + ("" if agree else " (DISAGREE)")
-            )
-        for a in AXES:
-            d1, d50 = one[1][a] - one[0][a], long[1][a] - long[0][a]
-            agree = (d1 < 0) == (d50 < 0)
-            lines.append(
-                f"adding {result['named']} (physics + effects), {a}: one-step RMSE "
-                f"{one[0][a]:.3g} -> {one[1][a]:.3g} rad/s², 0.5 s error {long[0][a]:.3g} -> "
-                f"{long[1][a]:.3g} rad/s" + ("" if agree else " (DISAGREE)")
-            )
+        for kind, what in (("model", "full model"), ("effects", "physics + effects")):
+            lines += _added_lines(result, kind, what)
     left = [f["message"] for f in h["findings"] if f["code"] == "gp_left_out"]
     lines += [f"rollouts leave the GP mean out: {m}" for m in left] or [
         "the rollouts keep the GP mean on every axis (fit's check on held-out rollouts)"
     ]
     hurts = [f["message"] for f in h["findings"] if f["code"] == "gp_hurts_long"]
     lines += [f"GP helps at one step, hurts at 0.5 s: {m}" for m in hurts] or [
-        "the GP does not help at one step and hurt at 0.5 s on any axis"
+        "the GP does not help at one step and hurt at 0.5 s on any axis (beyond 2 SE)"
     ]
+    added = [f["message"] for f in h["findings"] if f["code"] == "effect_added_hurts_long"]
+    if j:
+        lines += [f"the added effect helps at one step, hurts at 0.5 s: {m}" for m in added] or [
+            "the added effect does not help at 0.01 s and hurt at 0.5 s on any axis (beyond 2 SE)"
+        ]
+    noise = h.get("rate_noise") or []
+    for n in noise:
+        if n.get("recorded"):
+            lines.append(
+                "gyro noise from the recorded samples: "
+                + "/".join(f"{n[a]:.2g}" for a in AXES)
+                + " rad/s (the grid's estimate "
+                + "/".join(f"{n['grid'][a]:.2g}" for a in AXES)
+                + ")"
+            )
     return lines
 
 
@@ -200,7 +228,8 @@ def main() -> None:
     for r in results:
         out += [f"### {r['draw']}", ""]
         if r["named"]:
-            out += [f"evaluate named `{r['named']}` missing; the second model adds it.", ""]
+            names = ", ".join(f"`{m}`" for m in r["missing"])
+            out += [f"evaluate named {names} missing; the second model adds `{r['named']}`.", ""]
         out += table_lines(r) + [""] + [f"- {line}" for line in checks(r)] + [""]
     evals = [work / f"{d}.eval.json" for d in args.draws.split(",") if d]
     if not args.no_real and REAL.exists():

@@ -50,6 +50,7 @@ from omavctl.diagnose.metrics import (
 from omavctl.learn.control_loss import flight_control_loss
 from omavctl.learn.flights import body_rate_rate, sha256_of
 from omavctl.learn.model import ResidualGP
+from omavctl.learn.recorded_noise import recorded_noise
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
 from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import EFFECTS
@@ -157,6 +158,7 @@ def _read_log(
         body_rate=flight.signals["body_rate"][s.index],
         torque=flight.signals["torque_command"][s.index],
         attitude=flight.signals["attitude"][s.index] if flight.has("attitude") else None,
+        noise=recorded_noise(flight, s.index, s.rate_noise),
     )
     notes = list(flight.notes)
     if not flight.has("attitude"):  # an IMU-only log (a vehicle with a rotor list)

@@ -4,11 +4,18 @@ Reads the ``horizons`` section of an evaluation (:mod:`omavctl.diagnose.horizons
 docs/schemas.md) and lists findings ``{code, model, axis, value, message}``:
 
 - ``gp_hurts_long``: the GP lowers the body-rate error at the shortest horizon
-  and raises it at the longest (on ``axis``, of model ``model``);
+  and raises it at the longest (on ``axis``, of model ``model``) by more than
+  ``SIGNIFICANT`` standard errors of the paired difference (chunk means of the
+  windows' start times, :mod:`omavctl.diagnose.horizons`; a rise within them is
+  not called a loss);
 - ``gp_worse_long``: the full model's error at the longest horizon is above
   1.05x that of physics + effects;
 - ``effects_hurt_long``: the effects lower the error at the shortest horizon and
-  raise it at the longest (against physics only);
+  raise it at the longest, beyond its standard error (against physics only);
+- ``effect_added_hurts_long``: model j (j >= 1) against model 0, physics +
+  effects or full model: lower at the shortest horizon, higher at the longest
+  beyond its standard error (adding the effect the verdict named, as ``fit
+  --effects`` with one more name, wins at one step and loses later);
 - ``band_narrow``: the full model's band covers less than 85 % at a horizon
   (``value`` the coverage, ``axis`` null);
 - ``gp_left_out``: the full model's rollouts leave the GP mean out on ``axis``
@@ -23,11 +30,14 @@ from :func:`omavctl.diagnose.horizons.horizon_table` itself.)
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["LABELS", "MIN_COVERAGE", "TOLERANCE", "findings", "label"]
+__all__ = ["LABELS", "MIN_COVERAGE", "SIGNIFICANT", "TOLERANCE", "findings", "label", "paired_se"]
 
+#: a longer-horizon rise is a loss only beyond this many standard errors
+SIGNIFICANT = 2.0
 #: the full model's longest-horizon error may exceed physics + effects by this factor
 TOLERANCE = 1.05
 #: the least band coverage at any horizon before a finding says the band is too narrow
@@ -52,13 +62,39 @@ def _err(row: Mapping[str, Any], axis: str) -> float:
     return float(row["rate_error"][axis])
 
 
+def paired_se(a: Mapping[str, Any], b: Mapping[str, Any], axis: str) -> float | None:
+    """Standard error of the difference b - a of two table entries' mean error on the
+    same windows (``axis``: x, y, z or norm), from their chunk means; None without
+    them (files written before them) or with fewer than 4 chunks."""
+    ca = (a.get("rate_error_chunks") or {}).get(axis)
+    cb = (b.get("rate_error_chunks") or {}).get(axis)
+    if not ca or not cb or len(ca) != len(cb) or len(ca) < 4:
+        return None
+    d = [float(y) - float(x) for x, y in zip(ca, cb, strict=True)]
+    if not all(math.isfinite(v) for v in d):
+        return None
+    mean = sum(d) / len(d)
+    return math.sqrt(sum((v - mean) ** 2 for v in d) / (len(d) - 1) / len(d))
+
+
+def _loss(a: Mapping[str, Any], b: Mapping[str, Any], axis: str) -> tuple[bool, str]:
+    """Whether b's error is above a's beyond ``SIGNIFICANT`` standard errors (any rise
+    without them), and the rise with its standard error in words."""
+    rise = _err(b, axis) - _err(a, axis)
+    se = paired_se(a, b, axis)
+    if se is None:
+        return rise > 0, ""
+    return rise > SIGNIFICANT * se, f", +{rise:.2g} ± {se:.2g} rad/s"
+
+
 def _crossings(
-    table: Mapping[str, Any], short: str, long: str, code: str, what: str, tree: Mapping[str, Any]
+    rows: tuple[list[Any], list[Any]], code: str, what: str, tree: Mapping[str, Any]
 ) -> list[dict[str, Any]]:
-    """Axes where ``long`` beats ``short`` at the first horizon and loses at the last."""
+    """Axes where the second of ``rows`` (table rows per horizon) beats the first at the
+    first horizon and loses at the last, beyond its standard error."""
     out = []
     first, last = tree["seconds"][0], tree["seconds"][-1]
-    a_rows, b_rows = table[short], table[long]
+    a_rows, b_rows = rows
     for axis in AXES:
         a0, b0, a1, b1 = (
             _err(a_rows[0], axis),
@@ -66,7 +102,8 @@ def _crossings(
             _err(a_rows[-1], axis),
             _err(b_rows[-1], axis),
         )
-        if b0 < a0 and b1 > a1:
+        lost, se_text = _loss(a_rows[-1], b_rows[-1], axis)
+        if b0 < a0 and lost:
             out.append(
                 {
                     "code": code,
@@ -74,9 +111,23 @@ def _crossings(
                     "value": b1 / a1 if a1 > 0 else None,
                     "message": f"{axis}: {what} lowers the {first:g} s body-rate error "
                     f"({a0:.3g} -> {b0:.3g} rad/s) but raises it at {last:g} s "
-                    f"({a1:.3g} -> {b1:.3g} rad/s)",
+                    f"({a1:.3g} -> {b1:.3g} rad/s{se_text})",
                 }
             )
+    return out
+
+
+def _added(tree: Mapping[str, Any], j: int) -> list[dict[str, Any]]:
+    """``effect_added_hurts_long`` of model j against model 0 (physics + effects and the
+    full model): the effects model j adds win at one step and lose later."""
+    table = tree["table"]
+    out = []
+    for kind, what in (("effects", "physics + effects"), ("model", "the full model")):
+        if kind not in table or f"{kind}_{j}" not in table:
+            continue
+        rows = (table[kind], table[f"{kind}_{j}"])
+        text = f"{what} of model {j} against model 0"
+        out += _crossings(rows, "effect_added_hurts_long", text, tree)
     return out
 
 
@@ -105,9 +156,12 @@ def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, An
     eff, full = f"effects{sfx}", f"model{sfx}"
     if eff not in table or full not in table:
         return []
-    out = _crossings(table, eff, full, "gp_hurts_long", "the GP", tree)
+    out = _crossings((table[eff], table[full]), "gp_hurts_long", "the GP", tree)
     if j is None or j == 0:
-        out += _crossings(table, "nominal", eff, "effects_hurt_long", "adding the effects", tree)
+        rows = (table["nominal"], table[eff])
+        out += _crossings(rows, "effects_hurt_long", "adding the effects", tree)
+    else:
+        out += _added(tree, j)
     last = tree["seconds"][-1]
     for axis in AXES:
         a, b = _err(table[eff][-1], axis), _err(table[full][-1], axis)

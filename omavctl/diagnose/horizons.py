@@ -20,8 +20,11 @@ out-of-control span. Every horizon uses the same starts (those valid for the
 longest), so the rows of the table are comparable.
 
 The full model's band: the body-rate error at step k has the std
-``sqrt(2 s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
-the log's body-rate noise (start and end sample), ``s_j`` the std of the
+``sqrt(f_k s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
+the log's body-rate noise and ``f_k s_r^2`` the variance of the noise of sample
+k less the start's (2 for independent samples; exact through the interpolation
+weights for a gyro recorded more slowly than the grid,
+:mod:`omavctl.learn.recorded_noise`), ``s_j`` the std of the
 model's residual function at step j (GP latent variance + the effects'
 parameter variance, at the logged inputs) and ``s_p^2`` the GP's noise
 variance less what the rate noise puts into the Savitzky-Golay derivative
@@ -44,6 +47,7 @@ import numpy as np
 from omavctl.base.errors import ConfigError, OmavctlError
 from omavctl.diagnose.horizon_findings import findings
 from omavctl.learn.model import ResidualGP
+from omavctl.learn.recorded_noise import independent_noise
 from omavctl.learn.rollout_residual import (
     GridSignals,
     Windows,
@@ -75,6 +79,9 @@ BAND_SIGMA = 2.0
 #: at 100 Hz with 0.5 s windows (about 400 MB); longer logs get a larger stride
 MAX_WINDOW_SAMPLES = 1_200_000
 AXES = ("x", "y", "z")
+#: windows are grouped by start time into chunks of this many longest horizons for the
+#: standard errors (errors of overlapping windows are not independent)
+CHUNK_HORIZONS = 2
 
 
 def parse_horizons(text: str) -> tuple[float, ...]:
@@ -158,30 +165,60 @@ def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: f
     s_fun = per_sample(win, samples, [function_std(m, s) for s in samples])
     drift = np.zeros_like(s_fun)
     drift[:, 1:] = dt * np.cumsum(s_fun[:, :-1], axis=1)
-    process = np.stack([_process_variance(m, s) for s in samples])[win.log]  # (W, 3)
+    # the white residual the body rate integrates: the GP's noise variance less what the
+    # log's rate noise puts into the Savitzky-Golay derivative (measurement, not motion)
+    process = np.maximum(m.noise_variance[None, :] - win.derivative_noise, 0.0)  # (W, 3)
     steps = np.arange(s_fun.shape[1])[None, :, None]
     walk = steps * dt**2 * process[:, None, :]
-    return np.sqrt(2.0 * win.noise[:, None, :] ** 2 + drift**2 + walk)
+    measured = win.noise_factor[:, :, None] * win.noise[:, None, :] ** 2
+    return np.sqrt(measured + drift**2 + walk)
 
 
-def _process_variance(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
-    """Variance (3,) (rad/s^2)^2 of the white residual the body rate integrates: the
-    GP's noise variance less what the log's rate noise puts into the Savitzky-Golay
-    derivative (that part is measurement, not motion)."""
-    rate_noise = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
-    gain = s.sg.noise_gain if s.sg is not None else 0.0
-    return np.maximum(m.noise_variance - (gain * rate_noise) ** 2, 0.0)
+def _noise(samples: Sequence[ResidualSamples], signals: Sequence[GridSignals]) -> list[Any]:
+    """Per log: the body-rate noise (rad/s per axis) the band uses, whether it was
+    estimated on the recorded samples of a slower recording, and the grid's estimate."""
+    out = []
+    for s, g in zip(samples, signals, strict=True):
+        grid = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
+        rn = g.noise if g.noise is not None else independent_noise(grid, s.index)
+        out.append({**_axes(rn.std), "recorded": rn.upsampled, "grid": _axes(grid)})
+    return out
 
 
 def _axes(v: np.ndarray) -> dict[str, float]:
     return {a: float(v[i]) for i, a in enumerate(AXES)}
 
 
-def _row(run: _Run, k: int, dt: float) -> dict[str, Any]:
+def _chunk_ids(win: Windows, k: int) -> np.ndarray:
+    """Chunk (W,) of each window: its log and its start's block of ``CHUNK_HORIZONS`` x
+    k samples (windows of neighbouring starts overlap: their errors are not
+    independent, the chunks' means nearly are)."""
+    key = win.log.astype(np.int64) * (1 << 40) + win.pos[:, 0] // max(CHUNK_HORIZONS * k, 1)
+    return np.unique(key, return_inverse=True)[1].reshape(-1)
+
+
+def _chunked(err: np.ndarray, ids: np.ndarray) -> tuple[dict[str, list[float]], dict[str, float]]:
+    """Per chunk the mean of err (W, 4: x, y, z, norm), and the standard error of the
+    mean over windows from the chunks' spread (0 with fewer than 2 chunks)."""
+    n = int(ids.max()) + 1 if ids.size else 0
+    counts = np.bincount(ids, minlength=n).astype(float)
+    means = np.stack([np.bincount(ids, err[:, c], minlength=n) / counts for c in range(4)], 1)
+    se = means.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.zeros(4)
+    names = (*AXES, "norm")
+    return (
+        {a: means[:, c].tolist() for c, a in enumerate(names)},
+        {a: float(se[c]) for c, a in enumerate(names)},
+    )
+
+
+def _row(run: _Run, k: int, dt: float, ids: np.ndarray) -> dict[str, Any]:
     """One predictor's table entry at k steps: mean |error| per axis and of the norm,
-    their sums over steps 1..k, and the band's coverage when it has one."""
+    their chunk means and standard errors, their sums over steps 1..k, and the
+    band's coverage when it has one."""
     rate = run.rate[:, 1 : k + 1]
     norm = np.linalg.norm(rate, axis=-1)  # (W, k)
+    last = np.column_stack([np.abs(rate[:, -1]), norm[:, -1]])
+    chunks, se = _chunked(last, ids)
     row: dict[str, Any] = {
         "seconds": k * dt,
         "steps": k,
@@ -189,6 +226,8 @@ def _row(run: _Run, k: int, dt: float) -> dict[str, Any]:
             **_axes(np.abs(rate[:, -1]).mean(axis=0)),
             "norm": float(norm[:, -1].mean()),
         },
+        "rate_error_se": se,
+        "rate_error_chunks": chunks,
         "rate_error_sum": float(norm.sum(axis=1).mean()),
         "attitude_error": None,
         "attitude_error_sum": None,
@@ -289,14 +328,18 @@ def horizon_table(
     stride = max(stride, math.ceil(n_total * (steps[-1] + 1) / MAX_WINDOW_SAMPLES))
     win = gather(samples, signals, steps[-1], stride)
     if win.count == 0:
-        return _no_windows(steps, dt, stride, len(samples))
+        return {
+            **_no_windows(steps, dt, stride, len(samples)),
+            "rate_noise": _noise(samples, signals),
+        }
     from threadpoolctl import threadpool_limits
 
     # small GEMMs per step: threaded BLAS spends more than it saves (7x on 2 busy cores)
     # a rollout that diverges (a model far outside its inputs) gives inf, written as null
     with threadpool_limits(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore"):
         runs = _predictors(models, win, samples, dt)
-        table = {d["key"]: [_row(run, k, dt) for k in steps] for d, run in runs}
+        ids = _chunk_ids(win, steps[-1])
+        table = {d["key"]: [_row(run, k, dt, ids) for k in steps] for d, run in runs}
         curves = {d["key"]: _curve(run) for d, run in runs}
     tree: dict[str, Any] = {
         "steps": steps,
@@ -306,10 +349,12 @@ def horizon_table(
         "windows": win.count,
         "windows_by_log": np.bincount(win.log, minlength=len(samples)).tolist(),
         "band_sigma": BAND_SIGMA,
+        "chunk_seconds": CHUNK_HORIZONS * steps[-1] * dt,
         "attitude": win.attitude is not None,
         "predictors": [d for d, _ in runs],
         "table": table,
         "curves": curves,
+        "rate_noise": _noise(samples, signals),
     }
     tree["findings"] = findings(tree)
     return tree

@@ -26,6 +26,7 @@ import numpy as np
 
 from omavctl.learn.gp_mean import FusedMean
 from omavctl.learn.model import ResidualGP
+from omavctl.learn.recorded_noise import RecordedNoise, independent_noise
 from omavctl.learn.signal import ResidualSamples
 
 __all__ = [
@@ -42,11 +43,14 @@ __all__ = [
 @dataclass(frozen=True)
 class GridSignals:
     """Unfiltered grid signals of one log at its kept samples (n of them): body rate
-    (n, 3) rad/s, torque command (n, 3), attitude (n, 3) ZYX Euler rad or None."""
+    (n, 3) rad/s, torque command (n, 3), attitude (n, 3) ZYX Euler rad or None; the
+    body rate's noise at them (None: the samples' ``rate_noise``, independent per
+    sample)."""
 
     body_rate: np.ndarray
     torque: np.ndarray
     attitude: np.ndarray | None
+    noise: RecordedNoise | None = None
 
 
 @dataclass
@@ -55,7 +59,11 @@ class Windows:
 
     log (W,) index of the log; pos (W, K + 1) sample positions in their log;
     omega, torque, u, du, attitude gathered at them ((W, K + 1, c)); noise (W, 3)
-    the body-rate noise std of their log (rad/s).
+    the body-rate noise std of their log (rad/s); noise_factor (W, K + 1) the
+    variance of the noise of sample k less the start's, in units of ``noise**2``
+    (2 for independent noise, less for a log interpolated from a slower
+    recording); derivative_noise (W, 3) the variance (rad/s^2)^2 that noise puts
+    into the Savitzky-Golay derivative.
     """
 
     log: np.ndarray
@@ -66,6 +74,8 @@ class Windows:
     du: np.ndarray
     attitude: np.ndarray | None
     noise: np.ndarray
+    noise_factor: np.ndarray
+    derivative_noise: np.ndarray
 
     @property
     def count(self) -> int:
@@ -83,6 +93,8 @@ class Windows:
             self.du[keep],
             att,
             self.noise[keep],
+            self.noise_factor[keep],
+            self.derivative_noise[keep],
         )
 
 
@@ -100,9 +112,8 @@ def gather(
     samples: Sequence[ResidualSamples], signals: Sequence[GridSignals], k: int, stride: int
 ) -> Windows:
     """Every log's windows of k steps (:func:`window_starts`), gathered."""
-    parts: dict[str, list[np.ndarray]] = {
-        key: [] for key in ("log", "pos", "omega", "torque", "u", "du", "attitude", "noise")
-    }
+    keys = ("log", "pos", "omega", "torque", "u", "du", "attitude", "noise", "factor", "deriv")
+    parts: dict[str, list[np.ndarray]] = {key: [] for key in keys}
     has_attitude = all(g.attitude is not None for g in signals)
     for i, (s, g) in enumerate(zip(samples, signals, strict=True)):
         pos = window_starts(s.index, k, stride)[:, None] + np.arange(k + 1)
@@ -115,8 +126,11 @@ def gather(
         if has_attitude:
             assert g.attitude is not None
             parts["attitude"].append(g.attitude[pos])
-        noise = np.nan_to_num(np.asarray(s.rate_noise, dtype=float), nan=0.0)
-        parts["noise"].append(np.broadcast_to(noise, (pos.shape[0], 3)))
+        rn = g.noise if g.noise is not None else independent_noise(s.rate_noise, s.index)
+        parts["noise"].append(np.broadcast_to(rn.std, (pos.shape[0], 3)))
+        parts["factor"].append(rn.difference_factor(pos[:, :1], pos))
+        gain = 0.0 if s.sg is None else rn.derivative_factor(s.sg.derivative_coefficients, s.index)
+        parts["deriv"].append(np.broadcast_to(gain * rn.std**2, (pos.shape[0], 3)))
     cat = {key: np.concatenate(v) if v else np.empty(0) for key, v in parts.items()}
     return Windows(
         log=cat["log"].astype(int),
@@ -127,6 +141,8 @@ def gather(
         du=cat["du"].reshape(-1, k + 1, 6),
         attitude=cat["attitude"].reshape(-1, k + 1, 3) if has_attitude else None,
         noise=cat["noise"].reshape(-1, 3),
+        noise_factor=cat["factor"].reshape(-1, k + 1),
+        derivative_noise=cat["deriv"].reshape(-1, 3),
     )
 
 

@@ -25,6 +25,10 @@ __all__ = ["DEFAULT_REQUIRED", "MIN_SAMPLES", "align", "interpolate", "segments_
 #: Roles ``fit`` and ``evaluate`` cannot do without.
 DEFAULT_REQUIRED: tuple[str, ...] = ("body_rate", "attitude", "force_command", "torque_command")
 
+#: Roles whose recorded samples the aligned log keeps beside the grid
+#: (:attr:`FlightLog.recorded`): the body rate's noise is estimated on them.
+RECORDED_ROLES = ("body_rate",)
+
 #: Fewest grid samples an aligned log may have.
 MIN_SAMPLES = 10
 
@@ -191,6 +195,7 @@ def align(
         topics=list(raw.topics),
         notes=list(raw.notes) + notes,
         t0=float(raw.t0) + float(start),
+        recorded={role: (s - start, v) for role, (s, v) in clean.items() if role in RECORDED_ROLES},
     )
 
 

@@ -166,6 +166,10 @@ class FlightLog:
     notes: list[str] = field(default_factory=list)
     #: Absolute time (s, the log's own clock, e.g. ROS epoch) of ``t = 0``.
     t0: float = 0.0
+    #: The body rate as the log recorded it (``"body_rate"``: stamps (m,) s on the
+    #: clock of ``t``, values (m, 3)), cleaned as the grid's source; the grid values
+    #: are its linear interpolation. Empty for a log built without :func:`align`.
+    recorded: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
     @property
     def dt(self) -> float:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.diagnose.horizon_findings import label
+from omavctl.diagnose.horizon_findings import SIGNIFICANT, label, paired_se
 from omavctl.report.document import Block, Bullets, Cell, Content, FigureBlock, Para, Table
 from omavctl.report.figures import DPI, png, style
 from omavctl.report.load import Evaluation
@@ -181,18 +181,28 @@ def _logset(tree: Mapping[str, Any]) -> tuple[str, ...]:
     return tuple(sorted(f"{lg.get('sha256', lg.get('name'))}@{lg.get('t0')}" for lg in logs))
 
 
-def _crossing_notes(
-    full: Sequence[tuple[str, tuple[str, ...], list[float]]], secs: list[float]
-) -> list[Content]:
+Full = tuple[str, tuple[str, ...], list[float], Mapping[str, Any]]
+#: the findings the side-by-side repeats: a predictor that wins early and loses late,
+#: and the axes whose GP mean the rollouts leave out
+LOSSES = ("gp_hurts_long", "effects_hurt_long", "effect_added_hurts_long", "gp_left_out")
+
+
+def _crossing_notes(full: Sequence[Full], secs: list[float]) -> list[Content]:
     """Pairs of full models on the same logs where one wins at the first horizon and
-    loses at the last: ``full`` (name, logs, error norm per horizon)."""
+    loses at the last beyond its standard error (when the rows have chunk means):
+    ``full`` (name, logs, error norm per horizon, the last horizon's row)."""
     notes: list[Content] = []
-    for i, (na, la, a) in enumerate(full):
-        for nb, lb, b in full[i + 1 :]:
+    for i, (na, la, a, ra) in enumerate(full):
+        for nb, lb, b, rb in full[i + 1 :]:
             if la != lb or len(a) != len(b):
                 continue
-            for (win, w), (lose, o) in (((na, a), (nb, b)), ((nb, b), (na, a))):
-                if w[0] < o[0] and w[-1] > o[-1]:
+            for (win, w, rw), (lose, o, ro) in (
+                ((na, a, ra), (nb, b, rb)),
+                ((nb, b, rb), (na, a, ra)),
+            ):
+                se = paired_se(ro, rw, "norm")
+                lost = w[-1] - o[-1] > (0.0 if se is None else SIGNIFICANT * se)
+                if w[0] < o[0] and lost:
                     notes.append(
                         f"{win} wins at {secs[0]:g} s ({w[0]:.3g} vs {o[0]:.3g} rad/s) and "
                         f"loses at {secs[-1]:g} s ({w[-1]:.3g} vs {o[-1]:.3g}) to {lose}"
@@ -209,7 +219,7 @@ def _side_by_side(evals: Sequence[Evaluation]) -> list[Block]:
         return []
     secs = [float(s) for s in have[0][0]["seconds"]]
     rows: list[list[Cell]] = []
-    full: list[tuple[str, tuple[str, ...], list[float]]] = []
+    full: list[Full] = []
     notes: list[Content] = []
     for h, tree, lab in have:
         if [float(s) for s in h["seconds"]] != secs:
@@ -221,12 +231,9 @@ def _side_by_side(evals: Sequence[Evaluation]) -> list[Block]:
             errors = [float(e["rate_error"]["norm"]) for e in h["table"][p["key"]]]
             rows.append([lab, label(p, n_models), *(num(e, 3) for e in errors)])
             if p["kind"] == "model":
-                full.append((f"{lab}: {label(p, n_models)}", _logset(tree), errors))
-        notes += [
-            f"{lab}: {f['message']}"
-            for f in h.get("findings") or []
-            if f["code"] in ("gp_hurts_long", "gp_left_out")
-        ]
+                last = h["table"][p["key"]][-1]
+                full.append((f"{lab}: {label(p, n_models)}", _logset(tree), errors, last))
+        notes += [f"{lab}: {f['message']}" for f in h.get("findings") or [] if f["code"] in LOSSES]
     notes = _crossing_notes(full, secs) + notes
     blocks: list[Block] = [
         Para("The files side by side: mean body-rate error norm (rad/s) at each horizon."),
@@ -291,8 +298,14 @@ def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
 
 
 def horizons_json(tree: Mapping[str, Any]) -> dict[str, Any] | None:
-    """The ``--json`` object's ``horizons``: the table and findings, without the curves."""
+    """The ``--json`` object's ``horizons``: the table (without the chunk means) and
+    findings, without the curves."""
     h = horizons_of(tree)
     if h is None:
         return None
-    return {k: v for k, v in h.items() if k != "curves"}
+    out = {k: v for k, v in h.items() if k != "curves"}
+    out["table"] = {
+        key: [{k: v for k, v in row.items() if k != "rate_error_chunks"} for row in rows]
+        for key, rows in (h.get("table") or {}).items()
+    }
+    return out
