@@ -135,6 +135,10 @@ class Effect(ABC):
     #: Physically plausible range of theta, used as bounds by ``evaluate``'s
     #: diagnosis (a missing effect must explain the error with possible values).
     theta_range: ClassVar[tuple[float, float]] = (-np.inf, np.inf)
+    #: Plausible range of every physical parameter value when theta is not the
+    #: parameters component by component (``motor_loss``'s contrasts); None: the
+    #: range follows from ``theta_range`` through :meth:`to_parameters`.
+    parameter_range: ClassVar[tuple[float, float] | None] = None
     #: Search interval of the effect's one physical parameter when it enters the
     #: residual nonlinearly (time constants, delays): ``fit`` then estimates it
     #: exactly by a 1-D search over :meth:`exact` with the linear parameters of
