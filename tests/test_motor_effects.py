@@ -265,26 +265,3 @@ def test_motor_effects_on_a_torque_level_log_are_refused(tmp_path: Path) -> None
             f"{path}: {name} needs a log of motor outputs mixed by the vehicle's rotor list "
             "(motors: in the vehicle, motor_command in the log)"
         )
-
-
-@pytest.mark.parametrize(
-    ("name", "params"),
-    [
-        ("thrust_curve", {"c": 0.1}),
-        ("motor_loss", {"l": [0.1] + [0.0] * 11}),
-        ("battery_sag", {"k": 0.1}),
-    ],
-)
-def test_the_simulator_refuses_to_hide_a_motor_level_effect(name: str, params: dict) -> None:
-    from omavctl.base.errors import ConfigError
-    from omavctl.physics.effects import SIMULATED_EFFECTS
-    from omavctl.sim.truth import truth_from_tree
-    from omavctl.vehicle import default_vehicle
-
-    with pytest.raises(ConfigError) as err:
-        truth_from_tree({"effects": {name: params}}, default_vehicle())
-    assert str(err.value) == (
-        f"'effects.{name}' acts on motor outputs through a rotor list; the simulator "
-        "flies the omav from its arm thrusts and cannot hide it"
-    )
-    assert name not in SIMULATED_EFFECTS

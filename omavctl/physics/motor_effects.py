@@ -7,8 +7,10 @@ its motor outputs (:class:`~omavctl.physics.effect_base.MotorSignals`) or, for
 zero (the diagnosis never names them) and ``fit --effects`` refuses them in one
 line (:meth:`Effect.unavailable`). Part of the registry
 :data:`omavctl.physics.effects.EFFECTS` (formulas in the class docstrings and
-``docs/effects.md``). The simulator flies the omav from its arm thrusts, not from
-motor outputs: a truth file that names them is refused.
+``docs/effects.md``). The simulator hides them in the omav's rotors
+(:meth:`Effect.configure_truth` sets the truth plant's constants; the plant bends,
+scales and sags each rotor's thrust); its logs carry the rotor speeds and the
+battery voltage they need, mixed by the ``omav-rotors`` preset.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from omavctl.base.errors import ConfigError
-from omavctl.physics.effect_base import Effect, EffectContext, MotorSignals, Parameter
+from omavctl.physics.effect_base import Effect, EffectContext, Parameter
 
 __all__ = ["MAX_LOSS_ROTORS", "BatterySag", "MotorLoss", "ThrustCurve", "loss_contrasts"]
 
@@ -32,22 +34,9 @@ _NEED_MOTORS = (
 )
 
 
-def _not_simulated(name: str) -> ConfigError:
-    return ConfigError(
-        f"'effects.{name}' acts on motor outputs through a rotor list; the simulator "
-        "flies the omav from its arm thrusts and cannot hide it"
-    )
-
-
-def _full_thrust(motor: MotorSignals) -> np.ndarray:
-    """Thrust span (R,) of each rotor's curve from command value 0 to 1; 0 for rotors
-    whose command has no range (speed units)."""
-    out = np.zeros(len(motor.motors.rotors))
-    for j, r in enumerate(motor.motors.rotors):
-        if r.span is not None:
-            poly = np.polynomial.polynomial.polyval
-            out[j] = poly(1.0, r.curve) - poly(0.0, r.curve)
-    return out
+def _within(params: dict[str, np.ndarray], name: str, key: str, lo: float, hi: float) -> None:
+    if np.any(params[key] < lo) or np.any(params[key] > hi):
+        raise ConfigError(f"'effects.{name}.{key}' must lie in {lo:g} to {hi:g}")
 
 
 class ThrustCurve(Effect):
@@ -69,7 +58,7 @@ class ThrustCurve(Effect):
     parameters = (Parameter("c", 1, "1", "curvature beyond the curve: c (x^2 - x) T_full"),)
     prior_std = 0.5
     theta_range = (-1.0, 1.0)
-    simulated = False
+    simulated = False  # hidden by the plant; not drawn (see Effect.simulated)
     look_alikes = (
         "a per-axis torque gain (inertia_error) where the collective thrust barely changes"
     )
@@ -78,22 +67,24 @@ class ThrustCurve(Effect):
         motor = ctx.motor
         if motor is None:
             return np.zeros((ctx.torque.shape[0], 3, 1))
-        x = motor.values
-        shape = _full_thrust(motor)[None, :] * (x * x - x)
+        x = motor.motors.fractions(motor.values)
+        shape = motor.motors.full_thrust()[None, :] * (x * x - x)
         return (motor.torque(shape) @ ctx.inertia_inv.T)[:, :, None]
 
     def unavailable(self, ctx: EffectContext) -> str | None:
         if ctx.motor is None:
             return f"{self.name} {_NEED_MOTORS}"
-        if not np.any(_full_thrust(ctx.motor) != 0):
+        if not np.any(ctx.motor.motors.full_thrust() != 0):
             return (
                 f"{self.name} needs rotors whose command has a range (pwm_us, dshot, pwm16, "
-                "normalised); these rotors run on speeds"
+                "normalised, or a speed unit with range: [0, full speed]); these rotors run "
+                "on speeds without one"
             )
         return None
 
     def configure_truth(self, params, truth):
-        raise _not_simulated(self.name)
+        _within(params, self.name, "c", -1.0, 1.0)
+        truth.thrust_curvature = float(params["c"][0])
 
 
 def loss_contrasts(size: int = MAX_LOSS_ROTORS) -> np.ndarray:
@@ -139,7 +130,7 @@ class MotorLoss(Effect):
     prior_std = 0.2
     theta_range = (-0.5, 0.5)
     parameter_range = (-0.5, 0.5)
-    simulated = False
+    simulated = False  # hidden by the plant; not drawn (see Effect.simulated)
     look_alikes = (
         "a centre-of-mass offset (com_offset: a constant roll/pitch torque near hover); "
         "a loss shared by the rotors is a torque gain (inertia_error), not a motor_loss"
@@ -184,7 +175,9 @@ class MotorLoss(Effect):
         return loss_contrasts().T @ np.asarray(params["l"], float).reshape(-1)
 
     def configure_truth(self, params, truth):
-        raise _not_simulated(self.name)
+        # in the truth plant l is each of the omav's 12 rotors' own loss (absolute)
+        _within(params, self.name, "l", -0.5, 0.9)
+        truth.rotor_loss = np.asarray(params["l"], float).copy()
 
 
 class BatterySag(Effect):
@@ -205,7 +198,7 @@ class BatterySag(Effect):
     parameters = (Parameter("k", 1, "1/V", "relative thrust change per volt"),)
     prior_std = 0.5  # 1/V
     theta_range = (-1.0, 2.0)
-    simulated = False
+    simulated = False  # hidden by the plant; not drawn (see Effect.simulated)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         v = ctx.battery_voltage
@@ -223,4 +216,5 @@ class BatterySag(Effect):
         return None
 
     def configure_truth(self, params, truth):
-        raise _not_simulated(self.name)
+        _within(params, self.name, "k", -1.0, 2.0)
+        truth.battery_sag = float(params["k"][0])
