@@ -18,7 +18,10 @@ and the diagnosis work on logs that have no torque command. Spelling::
 The *command value* a thrust curve takes is ``(c - lo) / (hi - lo)`` (0..1)
 for ``pwm_us``, ``dshot``, ``pwm16`` and ``normalised`` (``range`` defaults:
 1000-2000 us, 48-2047, 0-65535, 0-1), ``c`` rad/s for ``rad/s`` and
-``c 2 pi / 60`` for ``rpm``. ``thrust_curve`` is a list of polynomial
+``c 2 pi / 60`` for ``rpm`` (a ``range`` of a speed unit names the speeds meaning
+0 and full command: only ``thrust_curve``'s bend uses it). ``wrench_from: rotors``
+mixes the wrench from the rotor outputs even where the log has a wrench command
+of its own (default ``log``: the log's command wins). ``thrust_curve`` is a list of polynomial
 coefficients (constant first) or ``{k: K}`` for ``K value^2`` (``k omega^2``
 with a speed unit). ``spin`` is the propeller's sense seen from above the
 thrust axis: a ``cw`` propeller pushes the body ``+yaw_moment x thrust``
@@ -39,7 +42,15 @@ import numpy as np
 from omavctl.base.errors import ConfigError
 from omavctl.logs.types import MOTOR_OUTPUTS
 
-__all__ = ["COMMAND_UNITS", "MAX_OUTPUTS", "Motors", "Rotor", "parse_motors"]
+__all__ = [
+    "COMMAND_UNITS",
+    "MAX_OUTPUTS",
+    "SPEED_UNITS",
+    "WRENCH_FROM",
+    "Motors",
+    "Rotor",
+    "parse_motors",
+]
 
 #: Accepted command units and the default range of the normalised ones.
 COMMAND_UNITS: dict[str, tuple[float, float] | None] = {
@@ -54,14 +65,22 @@ COMMAND_UNITS: dict[str, tuple[float, float] | None] = {
 MAX_OUTPUTS = MOTOR_OUTPUTS
 
 _ROTOR_KEYS = {"position", "spin", "axis", "output", "unit", "range", "thrust_curve", "tilt"}
-_MOTOR_KEYS = {"unit", "range", "thrust_curve", "yaw_moment", "rotors"}
+_MOTOR_KEYS = {"unit", "range", "thrust_curve", "yaw_moment", "rotors", "wrench_from"}
+#: Units whose command is a rotor speed: the thrust curve takes the speed itself; a
+#: ``range`` then only names the full speed (for ``thrust_curve``'s bend).
+SPEED_UNITS = ("rad/s", "rpm")
+#: Where ``fit`` and ``evaluate`` take the commanded wrench of a log that has both a
+#: wrench command and the rotors' outputs: ``log`` (its own, default) or ``rotors``
+#: (mixed from the rotor outputs by this list, so that the motor-level effects apply).
+WRENCH_FROM = ("log", "rotors")
 
 
 @dataclass(frozen=True)
 class Rotor:
     """One rotor: ``position`` (3,) m and unit ``axis`` (3,) in body FLU; ``spin``
     +1 (cw) or -1 (ccw); ``output`` its column of ``motor_command``; ``unit`` and
-    ``span`` (lo, hi) of its command; ``curve`` polynomial coefficients (constant
+    ``span`` (lo, hi) of its command (rad/s for a speed unit: the speeds meaning 0 and
+    full command, None when not given); ``curve`` polynomial coefficients (constant
     first) of thrust N in the command value; ``tilt`` (servo, about (3,)) or None."""
 
     position: np.ndarray
@@ -76,10 +95,12 @@ class Rotor:
 
 @dataclass(frozen=True)
 class Motors:
-    """The rotors of a vehicle and its yaw-moment coefficient ``yaw_moment`` (m)."""
+    """The rotors of a vehicle, its yaw-moment coefficient ``yaw_moment`` (m) and where
+    the commanded wrench of a log with both comes from (``wrench_from``, :data:`WRENCH_FROM`)."""
 
     rotors: tuple[Rotor, ...]
     yaw_moment: float
+    wrench_from: str = "log"
 
     @property
     def n_rotors(self) -> int:
@@ -101,13 +122,39 @@ class Motors:
         cols = []
         for r in self.rotors:
             c = np.asarray(commands[:, r.output], dtype=float)
-            if r.span is not None:
+            if r.unit == "rpm":
+                c = c * (2.0 * math.pi / 60.0)
+            elif r.span is not None and r.unit not in SPEED_UNITS:
                 lo, hi = r.span
                 c = (c - lo) / (hi - lo)
-            elif r.unit == "rpm":
-                c = c * (2.0 * math.pi / 60.0)
             cols.append(c)
         return np.stack(cols, axis=-1)
+
+    def fractions(self, values: np.ndarray) -> np.ndarray:
+        """Command values (N, n_rotors) as fractions 0..1 of each rotor's range: the
+        values themselves for PWM, DShot and normalised units; ``(w - lo) / (hi - lo)``
+        for a rotor speed with a ``range``; 0 for a speed without one."""
+        out = np.array(values, dtype=float, copy=True)
+        for j, r in enumerate(self.rotors):
+            if r.unit in SPEED_UNITS:
+                if r.span is None:
+                    out[:, j] = 0.0
+                else:
+                    lo, hi = r.span
+                    out[:, j] = (out[:, j] - lo) / (hi - lo)
+        return out
+
+    def full_thrust(self) -> np.ndarray:
+        """Thrust span (n_rotors,) N of each curve over its range (command value 0 to 1,
+        or the speed range); 0 for rotors without a range."""
+        poly = np.polynomial.polynomial.polyval
+        out = np.zeros(self.n_rotors)
+        for j, r in enumerate(self.rotors):
+            if r.span is None:
+                continue
+            lo, hi = r.span if r.unit in SPEED_UNITS else (0.0, 1.0)
+            out[j] = poly(hi, r.curve) - poly(lo, r.curve)
+        return out
 
     def thrust(self, commands: np.ndarray) -> np.ndarray:
         """Thrust per rotor (N, n_rotors) in N from raw commands (N, >= n_outputs).
@@ -194,14 +241,15 @@ def _curve(value: Any, key: str, path: Path | None) -> np.ndarray:
 
 
 def _span(value: Any, unit: str, key: str, path: Path | None) -> tuple[float, float] | None:
-    default = COMMAND_UNITS[unit]
-    if value is None or default is None:
-        if value is not None:
-            raise _err(f"key '{key}' applies only to pwm_us, dshot, pwm16, normalised", path)
-        return default
+    """The command range (lo, hi); for a speed unit in rad/s (rpm converted), None when
+    not given."""
+    if value is None:
+        return COMMAND_UNITS[unit]
     lo, hi = _floats(value, key, 2, path)
     if not hi > lo:
         raise _err(f"key '{key}' must be [low, high] with high > low", path)
+    if unit == "rpm":
+        lo, hi = lo * (2.0 * math.pi / 60.0), hi * (2.0 * math.pi / 60.0)
     return float(lo), float(hi)
 
 
@@ -281,6 +329,12 @@ def parse_motors(tree: Any, path: Path | None) -> Motors | None:
     if not 0.0 <= yaw <= 10.0:
         raise _err("key 'motors.yaw_moment' must be 0 to 10 m", path)
     rotors = tuple(_rotor(item, i, tree, path) for i, item in enumerate(items))
+    wrench_from = tree.get("wrench_from", "log")
+    if wrench_from not in WRENCH_FROM:
+        raise _err(
+            f"key 'motors.wrench_from' must be {' or '.join(WRENCH_FROM)}, got {wrench_from!r}",
+            path,
+        )
     seen: dict[int, int] = {}
     for i, r in enumerate(rotors):
         if r.output in seen:
@@ -289,4 +343,4 @@ def parse_motors(tree: Any, path: Path | None) -> Motors | None:
                 path,
             )
         seen[r.output] = i
-    return Motors(rotors=rotors, yaw_moment=float(yaw))
+    return Motors(rotors=rotors, yaw_moment=float(yaw), wrench_from=str(wrench_from))

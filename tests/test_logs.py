@@ -52,13 +52,15 @@ def make_raw(duration: float = DURATION, t0: float = T0) -> RawLog:
     t100 = np.arange(round(duration * 100) + 1) * 10_000_000 / 1e9
     series = {}
     for i, (role, cols) in enumerate(ROLE_COLUMNS.items()):
-        if role in ("motor_command", "battery_voltage"):  # no bag topic carries them
+        if role == "motor_command":  # no bag topic carries it
             continue
         t = t200 if role == "body_rate" else t100
         values = _wave(t, len(cols), seed=i)
         if role in ANGLES:
             values[:, :2] *= 0.15  # roll, pitch within +-0.9 rad
             values[:, 2] = wrap_angle(2.5 + 1.5 * t)  # yaw wraps past pi
+        if role == "battery_voltage":  # sensor_msgs/BatteryState's voltage is a float32
+            values = (24.0 + values).astype(np.float32).astype(float)
         series[role] = RawSeries(stamps=t, values=values)
     return RawLog(path=Path("synthetic"), format="synthetic", t0=t0, series=series)
 

@@ -166,20 +166,26 @@ def test_the_diagnosis_names_a_bent_thrust_curve_and_not_a_straight_one(tmp_path
 
 def test_a_weak_motor_is_recovered_with_the_truth_in_its_interval(tmp_path: Path) -> None:
     veh, _ = _vehicle(tmp_path, QUAD)
-    truth = np.array([0.0, 0.15, 0.0, 0.0])
-    log = write_log(tmp_path / "a.csv", synthesise(veh, seed=1, loss=tuple(truth)))
-    model = fit_model([log], veh, effects=["motor_loss"], points=60, restarts=0).model
+    loss = np.array([0.0, 0.15, 0.0, 0.0])
+    truth = loss - loss.mean()  # relative to the rotors' mean: the mean is a gain
+    log = write_log(tmp_path / "a.csv", synthesise(veh, seed=1, loss=tuple(loss)))
+    effects = ["inertia_error", "motor_loss"]
+    model = fit_model([log], veh, effects=effects, points=60, restarts=0).model
     est = model.effects["motor_loss"]
     value, se = np.asarray(est.values["l"]), np.asarray(est.stderr["l"])
     assert _inside(value[:4], se[:4], truth), (value, se)
+    # the mean loss is the torque gain's: inertia scale 1 / (1 - mean loss)
+    gain = model.effects["inertia_error"]
+    assert _inside(gain.values["scale"], gain.stderr["scale"], 1.0 / (1.0 - loss.mean())), gain
     assert int(np.argmax(value[:4])) == 1 and se[1] < 0.03, (value, se)
-    np.testing.assert_array_equal(value[4:], 0.0)  # a quad has 4 rotors of 8
-    fit = ["fit", str(log), "--vehicle", str(tmp_path / "v.yaml"), "--effects", "motor_loss"]
+    assert abs(value.sum()) < 1e-9, value
+    np.testing.assert_array_equal(value[4:], 0.0)  # a quad has 4 rotors of 12
+    fit = ["fit", str(log), "--vehicle", str(tmp_path / "v.yaml"), "--effects", ",".join(effects)]
     out = ["--points", "60", "--restarts", "0", "--out", str(tmp_path / "m.npz")]
     res = CliRunner().invoke(app, [*fit, *out])
     assert res.exit_code == 0, res.output
     rows = [line for line in res.output.splitlines() if "motor_loss" in line and "│ l_" in line]
-    assert len(rows) == 8 and all("not excited" in r for r in rows[4:]), rows
+    assert len(rows) == 12 and all("not excited" in r for r in rows[4:]), rows
     assert not any("not excited" in r for r in rows[:4]), rows
 
 
@@ -259,26 +265,3 @@ def test_motor_effects_on_a_torque_level_log_are_refused(tmp_path: Path) -> None
             f"{path}: {name} needs a log of motor outputs mixed by the vehicle's rotor list "
             "(motors: in the vehicle, motor_command in the log)"
         )
-
-
-@pytest.mark.parametrize(
-    ("name", "params"),
-    [
-        ("thrust_curve", {"c": 0.1}),
-        ("motor_loss", {"l": [0.1] + [0.0] * 7}),
-        ("battery_sag", {"k": 0.1}),
-    ],
-)
-def test_the_simulator_refuses_to_hide_a_motor_level_effect(name: str, params: dict) -> None:
-    from omavctl.base.errors import ConfigError
-    from omavctl.physics.effects import SIMULATED_EFFECTS
-    from omavctl.sim.truth import truth_from_tree
-    from omavctl.vehicle import default_vehicle
-
-    with pytest.raises(ConfigError) as err:
-        truth_from_tree({"effects": {name: params}}, default_vehicle())
-    assert str(err.value) == (
-        f"'effects.{name}' acts on motor outputs through a rotor list; the simulator "
-        "flies the omav from its arm thrusts and cannot hide it"
-    )
-    assert name not in SIMULATED_EFFECTS

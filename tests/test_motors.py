@@ -87,6 +87,7 @@ def test_every_preset_loads_with_its_rotor_count(tmp_path: Path) -> None:
         "octo-x": 8,
         "coax-x8": 8,
         "omav": 12,
+        "omav-rotors": 12,
     }
     assert set(preset_names()) == set(rotors)
     for name, count in rotors.items():
@@ -168,9 +169,9 @@ def test_quad_presets_turn_the_way_their_flight_controllers_mix(
             "key 'motors.rotors[0].position' must be 3 numbers",
         ),
         (
-            "motors: {unit: rpm, range: [0, 1], thrust_curve: {k: 1.0e-7}, rotors: "
+            "motors: {unit: rpm, wrench_from: cmd, thrust_curve: {k: 1.0e-7}, rotors: "
             "[{position: [1, 0, 0], spin: cw}]}\n",
-            "key 'motors.range' applies only to pwm_us, dshot, pwm16, normalised",
+            "key 'motors.wrench_from' must be log or rotors, got 'cmd'",
         ),
         (
             "motors: {unit: pwm16, thrust_curve: [1.0], rotors: [{position: [1, 0, 0], "

@@ -61,11 +61,13 @@ def test_a_faster_controller_is_not_called_infeasible_for_its_step(vehicle):
 
 def test_log_has_every_role_at_contract_rates(vehicle, short_fig8):
     log = fly(vehicle, short_fig8, {}).log
-    # every contract role, none left out, but the raw motor outputs and the battery
-    # voltage: column-map roles of CSV and ULog logs (no bag topic); the omav logs its
-    # actuators as rotor speeds and tilt angles
-    expected = set(ROLE_COLUMNS) - {"motor_command", "battery_voltage"}
+    # every contract role, none left out, but the raw motor outputs (a column-map role
+    # of CSV and ULog logs, no bag topic): the omav logs its actuators as rotor speeds
+    # and tilt angles, and its battery voltage (/omav/battery)
+    expected = set(ROLE_COLUMNS) - {"motor_command"}
     assert set(log.series) == expected
+    volts = log.series["battery_voltage"].values[:, 0]
+    assert volts.shape == log.series["attitude"].stamps.shape and volts[-1] < volts[0]
     assert np.median(np.diff(log.series["body_rate"].stamps)) == pytest.approx(0.005)
     assert np.median(np.diff(log.series["attitude"].stamps)) == pytest.approx(0.01)
     assert log.series["rotor"].values.shape[1] == 12 and log.series["tilt"].values.shape[1] == 6

@@ -145,6 +145,8 @@ def null_values(name: str) -> dict[str, np.ndarray]:
 def plausible_range(name: str) -> dict[str, tuple[float, float]]:
     """Each parameter's plausible (low, high), from the effect's ``theta_range``."""
     effect = get_effect(name)
+    if effect.parameter_range is not None:
+        return {p.name: effect.parameter_range for p in effect.parameters}
     lo, hi = effect.theta_range
     out = {}
     for theta in (lo, hi):

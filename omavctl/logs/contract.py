@@ -33,6 +33,7 @@ DEFAULT_TOPICS: dict[str, str] = {
     "desired_acceleration": "/omav/desired_acceleration",
     "reference": "/omav/reference",
     "actuators": "/omav/actuators",
+    "battery": "/omav/battery",
 }
 
 #: Message type (normalised ROS 2 spelling) expected on each topic role.
@@ -43,6 +44,7 @@ TOPIC_MSGTYPES: dict[str, str] = {
     "desired_acceleration": "geometry_msgs/msg/AccelStamped",
     "reference": "geometry_msgs/msg/PoseStamped",
     "actuators": "sensor_msgs/msg/JointState",
+    "battery": "sensor_msgs/msg/BatteryState",
 }
 
 #: Signal roles carried by each topic role, in ROLE_COLUMNS order.
@@ -59,6 +61,7 @@ TOPIC_FRAMES: dict[str, str] = {
     "desired_acceleration": "base_link",
     "reference": "world",
     "actuators": "base_link",
+    "battery": "base_link",
 }
 
 #: Joint names of the actuators topic: tilt servos (position) and rotors (velocity).

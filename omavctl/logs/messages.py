@@ -53,6 +53,11 @@ def _pose_row(m: Any) -> tuple[Any, ...]:
     return (s.sec, s.nanosec, p.x, p.y, p.z, q.x, q.y, q.z, q.w)
 
 
+def _battery_row(m: Any) -> tuple[Any, ...]:
+    s = m.header.stamp
+    return (s.sec, s.nanosec, m.voltage)
+
+
 def _joint_row(m: Any) -> tuple[Any, ...]:
     s = m.header.stamp
     return (s.sec, s.nanosec, tuple(m.name), m.position, m.velocity)
@@ -66,6 +71,7 @@ ROW_EXTRACTORS: dict[str, Callable[[Any], tuple[Any, ...]]] = {
     "desired_acceleration": _accel_row,
     "reference": _pose_row,
     "actuators": _joint_row,
+    "battery": _battery_row,
 }
 
 
@@ -152,6 +158,8 @@ def rows_to_signals(
         signals = {"desired_acceleration": a[:, 2:5], "desired_linear_acceleration": a[:, 5:8]}
     elif topic_role == "reference":
         signals = {"reference_position": a[:, 2:5], "reference_attitude": _attitude(a[:, 5:9])}
+    elif topic_role == "battery":
+        signals = {"battery_voltage": a[:, 2:3]}
     else:
         raise KeyError(topic_role)
     return stamps, {k: np.ascontiguousarray(v) for k, v in signals.items()}, notes
@@ -247,6 +255,32 @@ class MessageBuilder:
                 self._vec3(body_rate),
                 strict=True,
             )
+        ]
+
+    def battery(self, headers: list[Any], voltage: np.ndarray) -> list[Any]:
+        """``sensor_msgs/BatteryState`` with the voltage (n, 1) V; what is not measured
+        is NaN (the message's convention), the status unknown (0)."""
+        state, nan = self.types["sensor_msgs/msg/BatteryState"], float("nan")
+        return [
+            state(
+                header=h,
+                voltage=v,
+                temperature=nan,
+                current=nan,
+                charge=nan,
+                capacity=nan,
+                design_capacity=nan,
+                percentage=nan,
+                power_supply_status=0,
+                power_supply_health=0,
+                power_supply_technology=0,
+                present=True,
+                cell_voltage=np.zeros(0, np.float32),
+                cell_temperature=np.zeros(0, np.float32),
+                location="",
+                serial_number="",
+            )
+            for h, (v,) in zip(headers, voltage.tolist(), strict=True)
         ]
 
     def wrench(self, headers: list[Any], force: np.ndarray, torque: np.ndarray) -> list[Any]:

@@ -91,7 +91,7 @@ ROLE_TOPIC: dict[str, str] = {
     "tilt": "actuators",
     "rotor": "actuators",
     "motor_command": "motor_outputs",  # CSV and ULog column maps only (no bag topic)
-    "battery_voltage": "battery",  # CSV and ULog column maps only (no bag topic)
+    "battery_voltage": "battery",  # sensor_msgs/BatteryState.voltage on /omav/battery
 }
 
 #: Angle roles: unwrapped before interpolation, wrapped to (-pi, pi] after.

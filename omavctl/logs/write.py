@@ -146,6 +146,8 @@ def _build_topics(raw: RawLog, names: Mapping[str, str], typestore: Any) -> list
             )
         elif topic_role == "reference":
             msgs = builder.pose(headers, get("reference_position"), get("reference_attitude"))
+        elif topic_role == "battery":
+            msgs = builder.battery(headers, get("battery_voltage"))
         else:
             msgs = builder.joint_state(
                 headers, _values_at(raw, "tilt", stamps), _values_at(raw, "rotor", stamps)

@@ -35,6 +35,9 @@ class TruthConstants(Protocol):
     command_delay: float  # s
     rotor_rotor: float  # thrust loss of a pair in a neighbour's wake
     rotor_arm: float  # thrust loss of a pair over its own tilted arm
+    thrust_curvature: float  # c of thrust_curve: each rotor's thrust bent by c (T - sqrt(T T_full))
+    rotor_loss: np.ndarray  # (12,) fraction of each rotor's thrust lost (motor_loss)
+    battery_sag: float  # 1/V, relative thrust change per volt about the nominal voltage
 
 
 @dataclass(frozen=True)
@@ -135,6 +138,10 @@ class Effect(ABC):
     #: Physically plausible range of theta, used as bounds by ``evaluate``'s
     #: diagnosis (a missing effect must explain the error with possible values).
     theta_range: ClassVar[tuple[float, float]] = (-np.inf, np.inf)
+    #: Plausible range of every physical parameter value when theta is not the
+    #: parameters component by component (``motor_loss``'s contrasts); None: the
+    #: range follows from ``theta_range`` through :meth:`to_parameters`.
+    parameter_range: ClassVar[tuple[float, float] | None] = None
     #: Search interval of the effect's one physical parameter when it enters the
     #: residual nonlinearly (time constants, delays): ``fit`` then estimates it
     #: exactly by a 1-D search over :meth:`exact` with the linear parameters of
@@ -145,8 +152,11 @@ class Effect(ABC):
     #: What else leaves a residual of this effect's shape (for the verdict to say
     #: when it names the effect); empty when nothing common does.
     look_alikes: ClassVar[str] = ""
-    #: Whether the simulator (the omav's truth plant) can hide it: False for effects
-    #: on the motor outputs of a rotor list, which the omav simulator does not fly.
+    #: Whether a benchmark's draws may hide it (``SIMULATED_EFFECTS``): the truth plant
+    #: hides every registered effect, but the motor-level ones (False) act on the
+    #: rotors' thrusts and ``fit`` sees them only through a rotor list that mixes the
+    #: log's rotor speeds (``preset: omav-rotors``), not with the default vehicle the
+    #: scorecard's loop uses.
     simulated: ClassVar[bool] = True
 
     # --- estimation --------------------------------------------------------

@@ -184,9 +184,10 @@ EFFECTS: dict[str, Effect] = {
 if tuple(EFFECTS) != EFFECT_NAMES:  # the description's names and the registry agree
     raise ImportError(f"effect registry {tuple(EFFECTS)} != vehicle.EFFECT_NAMES {EFFECT_NAMES}")
 
-#: The effects the simulator can hide in its truth plant (``simulated``), in registry
-#: order: what a benchmark may draw as hidden (the motor-level effects act on a rotor
-#: list's motor outputs, which the omav simulator does not fly).
+#: The effects a benchmark may draw as hidden (``simulated``), in registry order. The
+#: truth plant hides every registered effect; the motor-level ones act on the rotors'
+#: thrusts, which ``fit`` sees only with a rotor list mixing the log's rotor speeds
+#: (``preset: omav-rotors``), not with the default vehicle of the scorecard's loop.
 SIMULATED_EFFECTS: tuple[str, ...] = tuple(n for n, e in EFFECTS.items() if e.simulated)
 
 

@@ -50,10 +50,11 @@ def motor_source(vehicle: Vehicle, roles: Collection[str]) -> str | None:
 
     ``motor_command`` when the log has it; else ``rotor`` (measured speeds,
     rad/s) when every rotor's unit is rad/s; None when the vehicle has no
-    ``motors:`` or the log has a torque command of its own (that one is used).
+    ``motors:`` or the log has a torque command of its own (that one is used, unless
+    the rotor list says ``wrench_from: rotors``).
     """
     motors = vehicle.motors
-    if motors is None or "torque_command" in roles:
+    if motors is None or ("torque_command" in roles and motors.wrench_from == "log"):
         return None
     if "motor_command" in roles:
         return "motor_command"

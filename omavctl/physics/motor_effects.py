@@ -7,8 +7,10 @@ its motor outputs (:class:`~omavctl.physics.effect_base.MotorSignals`) or, for
 zero (the diagnosis never names them) and ``fit --effects`` refuses them in one
 line (:meth:`Effect.unavailable`). Part of the registry
 :data:`omavctl.physics.effects.EFFECTS` (formulas in the class docstrings and
-``docs/effects.md``). The simulator flies the omav from its arm thrusts, not from
-motor outputs: a truth file that names them is refused.
+``docs/effects.md``). The simulator hides them in the omav's rotors
+(:meth:`Effect.configure_truth` sets the truth plant's constants; the plant bends,
+scales and sags each rotor's thrust); its logs carry the rotor speeds and the
+battery voltage they need, mixed by the ``omav-rotors`` preset.
 """
 
 from __future__ import annotations
@@ -16,12 +18,15 @@ from __future__ import annotations
 import numpy as np
 
 from omavctl.base.errors import ConfigError
-from omavctl.physics.effect_base import Effect, EffectContext, MotorSignals, Parameter
+from omavctl.physics.effect_base import Effect, EffectContext, Parameter
 
-__all__ = ["MAX_LOSS_ROTORS", "BatterySag", "MotorLoss", "ThrustCurve"]
+__all__ = ["MAX_LOSS_ROTORS", "BatterySag", "MotorLoss", "ThrustCurve", "loss_contrasts"]
 
-#: Rotors ``motor_loss`` has a parameter for (an octo-X's, a coaxial X8's).
-MAX_LOSS_ROTORS = 8
+#: Rotors ``motor_loss`` has a parameter for (the omav's 12, an octo-X's, a coaxial X8's).
+MAX_LOSS_ROTORS = 12
+
+#: |theta| at or below which a ``motor_loss`` contrast counts as never excited.
+_UNEXCITED = 1e-12
 
 _NEED_MOTORS = (
     "needs a log of motor outputs mixed by the vehicle's rotor list "
@@ -29,22 +34,9 @@ _NEED_MOTORS = (
 )
 
 
-def _not_simulated(name: str) -> ConfigError:
-    return ConfigError(
-        f"'effects.{name}' acts on motor outputs through a rotor list; the simulator "
-        "flies the omav from its arm thrusts and cannot hide it"
-    )
-
-
-def _full_thrust(motor: MotorSignals) -> np.ndarray:
-    """Thrust span (R,) of each rotor's curve from command value 0 to 1; 0 for rotors
-    whose command has no range (speed units)."""
-    out = np.zeros(len(motor.motors.rotors))
-    for j, r in enumerate(motor.motors.rotors):
-        if r.span is not None:
-            poly = np.polynomial.polynomial.polyval
-            out[j] = poly(1.0, r.curve) - poly(0.0, r.curve)
-    return out
+def _within(params: dict[str, np.ndarray], name: str, key: str, lo: float, hi: float) -> None:
+    if np.any(params[key] < lo) or np.any(params[key] > hi):
+        raise ConfigError(f"'effects.{name}.{key}' must lie in {lo:g} to {hi:g}")
 
 
 class ThrustCurve(Effect):
@@ -66,7 +58,7 @@ class ThrustCurve(Effect):
     parameters = (Parameter("c", 1, "1", "curvature beyond the curve: c (x^2 - x) T_full"),)
     prior_std = 0.5
     theta_range = (-1.0, 1.0)
-    simulated = False
+    simulated = False  # hidden by the plant; not drawn (see Effect.simulated)
     look_alikes = (
         "a per-axis torque gain (inertia_error) where the collective thrust barely changes"
     )
@@ -75,60 +67,88 @@ class ThrustCurve(Effect):
         motor = ctx.motor
         if motor is None:
             return np.zeros((ctx.torque.shape[0], 3, 1))
-        x = motor.values
-        shape = _full_thrust(motor)[None, :] * (x * x - x)
+        x = motor.motors.fractions(motor.values)
+        shape = motor.motors.full_thrust()[None, :] * (x * x - x)
         return (motor.torque(shape) @ ctx.inertia_inv.T)[:, :, None]
 
     def unavailable(self, ctx: EffectContext) -> str | None:
         if ctx.motor is None:
             return f"{self.name} {_NEED_MOTORS}"
-        if not np.any(_full_thrust(ctx.motor) != 0):
+        if not np.any(ctx.motor.motors.full_thrust() != 0):
             return (
                 f"{self.name} needs rotors whose command has a range (pwm_us, dshot, pwm16, "
-                "normalised); these rotors run on speeds"
+                "normalised, or a speed unit with range: [0, full speed]); these rotors run "
+                "on speeds without one"
             )
         return None
 
     def configure_truth(self, params, truth):
-        raise _not_simulated(self.name)
+        _within(params, self.name, "c", -1.0, 1.0)
+        truth.thrust_curvature = float(params["c"][0])
+
+
+def loss_contrasts(size: int = MAX_LOSS_ROTORS) -> np.ndarray:
+    """Helmert contrasts (size, size): column 0 zero, column j (1 <= j < size)
+    ``(1, ..., 1, -j, 0, ..., 0) / sqrt(j (j + 1))`` (j ones). Orthonormal, each sums
+    to zero, and column j touches rotors 0..j only: for a vehicle of R rotors,
+    columns 1..R-1 span exactly the losses that differ between its rotors."""
+    h = np.zeros((size, size))
+    for j in range(1, size):
+        h[:j, j] = 1.0
+        h[j, j] = -float(j)
+        h[:, j] /= np.sqrt(j * (j + 1.0))
+    return h
 
 
 class MotorLoss(Effect):
-    """Per-motor thrust loss: rotor i delivers ``(1 - l_i)`` of its curve's thrust.
+    """Per-motor thrust loss relative to the rotors' mean: rotor i delivers
+    ``(1 - lbar - l_i)`` of its curve's thrust, ``sum_i l_i = 0``.
 
-    Residual ``-sum_i l_i I^-1 tau(e_i T_i)`` (``T_i`` the rotor's thrust from its
-    command, ``tau(.)`` the rotor list's torque): column i of the regressor is
-    ``-I^-1 tau(e_i T_i)``. ``l`` has :data:`MAX_LOSS_ROTORS` entries in the rotor
-    list's order; entries beyond the vehicle's rotors are never excited (0).
-    Dimensionless. A loss common to all rotors is a gain change
-    (``inertia_error``); on a quadrotor near hover one weak motor is a constant
-    torque, which a centre-of-mass offset (``com_offset``) also leaves on roll and
-    pitch: they are told apart only where the thrusts vary independently.
+    A loss shared by every rotor (``lbar``) scales the whole wrench: it is a torque
+    gain (``inertia_error``'s), not a weak motor, and cannot be told from one. So
+    ``l`` are the losses *relative to their mean* over the vehicle's rotors, estimated
+    as Helmert contrasts ``theta`` (:func:`loss_contrasts`, ``l = H theta``): column j
+    of the regressor is ``-sum_i H_ij I^-1 tau(e_i T_i)`` for 1 <= j < R (``T_i`` the
+    rotor's thrust from its command, ``tau(.)`` the rotor list's torque), and zero for
+    j = 0 (the common loss) and j >= R, which are never excited. Fit it with
+    ``inertia_error`` when the rotors' mean loss is not 0 (one weak motor lowers the
+    mean too): left out, the common part biases ``l`` by about ``lbar l_i``. A component of theta
+    that is exactly 0 was not excited and carries no variance into ``l``. ``l`` has
+    :data:`MAX_LOSS_ROTORS` entries in the rotor list's order; entries beyond the
+    vehicle's rotors stay 0. Dimensionless. On a quadrotor near hover one weak motor
+    is a constant torque, which a centre-of-mass offset (``com_offset``) also leaves
+    on roll and pitch: they are told apart only where the thrusts vary independently.
     """
 
     name = "motor_loss"
-    summary = "per-motor thrust loss l_i (one weak motor)"
+    summary = "per-motor thrust loss l_i relative to the rotors' mean (one weak motor)"
     parameters = (
-        Parameter("l", MAX_LOSS_ROTORS, "1", "thrust lost by each rotor (rotor-list order)"),
+        Parameter(
+            "l", MAX_LOSS_ROTORS, "1", "thrust lost by each rotor beyond the rotors' mean loss"
+        ),
     )
     prior_std = 0.2
     theta_range = (-0.5, 0.5)
-    simulated = False
+    parameter_range = (-0.5, 0.5)
+    simulated = False  # hidden by the plant; not drawn (see Effect.simulated)
     look_alikes = (
-        "a centre-of-mass offset (com_offset: a constant roll/pitch torque near hover) and "
-        "a torque gain (inertia_error: a loss shared by the rotors)"
+        "a centre-of-mass offset (com_offset: a constant roll/pitch torque near hover); "
+        "a loss shared by the rotors is a torque gain (inertia_error), not a motor_loss"
     )
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         n = ctx.torque.shape[0]
         out = np.zeros((n, 3, MAX_LOSS_ROTORS))
         motor = ctx.motor
-        if motor is None or motor.thrust.shape[1] > MAX_LOSS_ROTORS:
+        rotors = 0 if motor is None else motor.thrust.shape[1]
+        if motor is None or not 2 <= rotors <= MAX_LOSS_ROTORS:
             return out
-        for i in range(motor.thrust.shape[1]):
+        each = np.empty((n, 3, rotors))
+        for i in range(rotors):
             delta = np.zeros_like(motor.thrust)
             delta[:, i] = motor.thrust[:, i]
-            out[:, :, i] = -(motor.torque(delta) @ ctx.inertia_inv.T)
+            each[:, :, i] = -(motor.torque(delta) @ ctx.inertia_inv.T)
+        out[:, :, 1:rotors] = each @ loss_contrasts()[:rotors, 1:rotors]
         return out
 
     def unavailable(self, ctx: EffectContext) -> str | None:
@@ -137,10 +157,27 @@ class MotorLoss(Effect):
         rotors = ctx.motor.thrust.shape[1]
         if rotors > MAX_LOSS_ROTORS:
             return f"{self.name} covers at most {MAX_LOSS_ROTORS} rotors; the vehicle has {rotors}"
+        if rotors < 2:
+            return f"{self.name} needs two rotors or more: one rotor's loss is a gain"
         return None
 
+    def to_parameters(self, theta, cov):
+        h = loss_contrasts()
+        # a contrast no regressor excites (the common loss, rotors the vehicle lacks)
+        # stays at its prior mean 0 with the prior's variance: it is not a loss
+        excited = np.abs(np.asarray(theta, float)) > _UNEXCITED
+        t = np.where(excited, np.asarray(theta, float), 0.0)
+        c = np.where(np.outer(excited, excited), np.asarray(cov, float), 0.0)
+        se = np.sqrt(np.clip(np.diag(h @ c @ h.T), 0.0, None))
+        return {"l": (h @ t, se)}
+
+    def to_theta(self, params):
+        return loss_contrasts().T @ np.asarray(params["l"], float).reshape(-1)
+
     def configure_truth(self, params, truth):
-        raise _not_simulated(self.name)
+        # in the truth plant l is each of the omav's 12 rotors' own loss (absolute)
+        _within(params, self.name, "l", -0.5, 0.9)
+        truth.rotor_loss = np.asarray(params["l"], float).copy()
 
 
 class BatterySag(Effect):
@@ -161,7 +198,7 @@ class BatterySag(Effect):
     parameters = (Parameter("k", 1, "1/V", "relative thrust change per volt"),)
     prior_std = 0.5  # 1/V
     theta_range = (-1.0, 2.0)
-    simulated = False
+    simulated = False  # hidden by the plant; not drawn (see Effect.simulated)
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         v = ctx.battery_voltage
@@ -179,4 +216,5 @@ class BatterySag(Effect):
         return None
 
     def configure_truth(self, params, truth):
-        raise _not_simulated(self.name)
+        _within(params, self.name, "k", -1.0, 2.0)
+        truth.battery_sag = float(params["k"][0])

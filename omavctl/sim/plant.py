@@ -7,8 +7,10 @@ noise from a truth file (:mod:`omavctl.sim.truth`).
 Actuators: the servo shaft follows its setpoint with the first-order lag,
 limited to ``servo.max_tilt_rate``; the arm follows the shaft through the
 backlash dead band. Rotor thrust follows its (saturated) setpoint with the
-motor lag. Each rotor's thrust is scaled by ``1 + spread_i`` (drawn once per
-seed) and by an aerodynamic efficiency that depends on the tilts::
+motor lag. The thrust its speed gives is bent, lost and scaled with the battery
+voltage by the motor-level effects (``thrust_curve``, ``motor_loss``,
+``battery_sag``: :meth:`_Actuators.motor_level`), then scaled by ``1 + spread_i``
+(drawn once per seed) and by an aerodynamic efficiency that depends on the tilts::
 
     eta_j = 1 - rotor_arm sin^2(alpha_i)
               - rotor_rotor sum_k max(0, -n_k . e_kj)^4   (pairs k next to arm i of rotor j)
@@ -20,7 +22,9 @@ The rigid body is integrated with RK4 at ``physics_rate`` (default 1 kHz); the
 controller runs at ``timing.controller_rate_hz`` (default the vehicle's
 ``controller.rate_hz``) on noisy measurements; the applied setpoints are those
 of ``effects.command_delay.tau_d`` seconds before (sub-sample, at the physics
-rate). The IMU is logged at ``imu_rate`` (200 Hz), everything else at the
+rate). The battery voltage falls over the flight and sags with the total thrust
+(truth ``battery:``; logged as ``battery_voltage``). The IMU is logged at
+``imu_rate`` (200 Hz), everything else at the
 vehicle's ``controller.rate_hz`` (the log grid): each row holds the latest
 command (held when the controller is slower, sampled when it is faster). When
 the vehicle diverges (attitude error beyond 80 deg) the log goes on for
@@ -79,7 +83,9 @@ class SimulationResult:
 class _Actuators:
     """Servo, backlash, motor lag, spread and interference (vectorised over arms)."""
 
-    def __init__(self, vehicle: Vehicle, truth: TruthParameters, alloc: Allocation, rng) -> None:
+    def __init__(
+        self, vehicle: Vehicle, truth: TruthParameters, alloc: Allocation, rng, duration: float
+    ) -> None:
         self.v, self.truth, self.alloc = vehicle, truth, alloc
         self.spread = 1.0 + truth.thrust_spread * rng.standard_normal(12)
         self.health = np.ones(12)  # remaining thrust fraction per rotor (failures)
@@ -87,6 +93,34 @@ class _Actuators:
         self.shaft = np.zeros(6)
         self.tilt = np.zeros(6)
         self.thrust = np.full(12, hover)
+        self.duration = max(duration, 1e-9)
+        self.voltage = truth.battery["nominal"] + 0.5 * truth.battery["drop"]
+        self.volts = np.full(1, self.voltage)  # battery voltage after each step of a chunk
+
+    def battery(self, t: np.ndarray, thrusts: np.ndarray) -> np.ndarray:
+        """Battery voltage (n,) V at times t (n,) s with rotor thrusts (n, 12) N: the
+        nominal voltage at mid-flight hover, falling by ``drop`` over the flight and
+        sagging by ``sag`` per N of total thrust above hover."""
+        b, hover = self.truth.battery, self.v.mass * self.v.gravity
+        return (
+            b["nominal"]
+            + b["drop"] * (0.5 - t / self.duration)
+            - b["sag"] * (thrusts.sum(axis=-1) - hover)
+        )
+
+    def motor_level(self, thrusts: np.ndarray, volts: np.ndarray) -> np.ndarray:
+        """True rotor thrusts (n, 12) N from the thrusts their speeds give (n, 12): the
+        thrust curve bent by ``c`` (``T + c (T - sqrt(T T_full))``), each rotor's loss,
+        the battery's voltage about its nominal (thrust_curve, motor_loss, battery_sag)."""
+        t = self.truth
+        out = thrusts
+        if t.thrust_curvature:
+            full = self.v.max_thrust
+            out = out + t.thrust_curvature * (out - np.sqrt(np.clip(out, 0.0, None) * full))
+        out = out * (1.0 - t.rotor_loss)
+        if t.battery_sag:
+            out = out * (1.0 + t.battery_sag * (volts - t.battery["nominal"]))[:, None]
+        return out
 
     def efficiency(self, tilt: np.ndarray) -> np.ndarray:
         """Per-arm thrust efficiency (..., 6) from tilts (..., 6)."""
@@ -94,10 +128,10 @@ class _Actuators:
         return 1.0 - self.truth.rotor_arm * arm - self.truth.rotor_rotor * wake
 
     def advance(
-        self, tilt_cmd: np.ndarray, thrust_cmd: np.ndarray, dt: float, n: int
+        self, tilt_cmd: np.ndarray, thrust_cmd: np.ndarray, dt: float, n: int, t0: float
     ) -> np.ndarray:
-        """Run ``n`` steps of ``dt`` towards constant setpoints; returns the actual
-        wrench (n, 6) after each step (efficiency and forward map batched)."""
+        """Run ``n`` steps of ``dt`` from time ``t0`` towards constant setpoints; returns
+        the actual wrench (n, 6) after each step (efficiency and forward map batched)."""
         t, rate = self.truth, self.v.max_tilt_rate
         half = t.servo_backlash / 2.0
         motor = 1.0 - math.exp(-dt / t.motor_time_constant) if t.motor_time_constant > 0 else 1.0
@@ -113,7 +147,9 @@ class _Actuators:
             self.thrust = self.thrust + motor * (thrust_cmd - self.thrust)
             tilts[i], thrusts[i] = self.tilt, self.thrust
         eff = np.repeat(self.efficiency(tilts), 2, axis=-1)
-        return self.alloc.forward(tilts, thrusts * self.spread * self.health * eff)
+        self.volts = self.battery(t0 + dt * np.arange(1, n + 1), thrusts)
+        true = self.motor_level(thrusts, self.volts)
+        return self.alloc.forward(tilts, true * self.spread * self.health * eff)
 
     def fail(self, arms: tuple[int, ...], factor: float) -> None:
         """The rotor pairs of ``arms`` keep ``factor`` of their thrust from now on."""
@@ -235,7 +271,11 @@ class _Flight:
         self.v, self.truth, self.rng, self.r = vehicle, truth, rng, rates
         self.alloc = Allocation(vehicle)
         self.act = _Actuators(
-            vehicle, truth, self.alloc, np.random.default_rng([truth.seed, 0x5EED])
+            vehicle,
+            truth,
+            self.alloc,
+            np.random.default_rng([truth.seed, 0x5EED]),
+            rates.steps * rates.dt,
         )
         self.ctrl = Controller(vehicle, model)
         self.state = ControllerState.zeros(1)
@@ -267,6 +307,7 @@ class _Flight:
         self.rec = {k: np.empty((n_log, 3)) for k in _RECORDED}
         self.rec_t = np.empty(n_log)
         self.tilt_log, self.rotor_log = np.empty((n_log, 6)), np.empty((n_log, 12))
+        self.volt_log = np.empty((n_log, 1))
         n_imu = rates.steps // rates.imu_every + 1
         self.imu_t, self.imu_v = np.empty(n_imu), np.empty((n_imu, 3))
         self.n_log = self.n_imu = 0
@@ -324,6 +365,7 @@ class _Flight:
         self.rec["desired_linear_acceleration"][i] = out.desired_linear[0]
         self.tilt_log[i] = self.act.tilt
         self.rotor_log[i] = self.act.rotor_speed()
+        self.volt_log[i] = self.act.voltage
         self.n_log += 1
 
     def record_imu(self, t: float) -> None:
@@ -379,10 +421,11 @@ class _Flight:
         """Advance ``n`` physics steps from step i with constant setpoints; returns i + n."""
         r, j = self.r, self.applied(i)
         tilt, thrust = (self.cmd_tilt[j], self.cmd_thrust[j]) if j >= 0 else self.hover_cmd
-        wrenches = self.act.advance(tilt, thrust, r.dt, n)
+        wrenches = self.act.advance(tilt, thrust, r.dt, n, i * r.dt)
         xs = self.x.tolist()
         for s in range(n):
             step = i + s
+            self.act.voltage = float(self.act.volts[s])
             if step % r.log_every == 0:
                 self.record_log(step * r.dt)
             if step % r.imu_every == 0:
@@ -412,6 +455,7 @@ class _Flight:
             "reference_attitude": RawSeries(ct.copy(), ref_rows[:, 4:7].copy()),
             "tilt": RawSeries(ct.copy(), self.tilt_log[:n].copy()),
             "rotor": RawSeries(ct.copy(), self.rotor_log[:n].copy()),
+            "battery_voltage": RawSeries(ct.copy(), self.volt_log[:n].copy()),
         }
         log = RawLog(path=Path("<simulated>"), format="simulated", t0=LOG_EPOCH, series=series)
         return SimulationResult(

@@ -20,6 +20,10 @@ A truth YAML (every key optional)::
       attitude: 0.002            # rad
       position: 0.001            # m
       velocity: 0.01             # m/s
+    battery:                     # the logged battery voltage (battery_sag scales thrust by it)
+      nominal: 24.0              # V, where the rotors' thrust curve holds (mid-flight at hover)
+      drop: 1.5                  # V the open-circuit voltage falls over the flight
+      sag: 0.005                 # V lost per N of total thrust above hover
     timing:
       controller_rate_hz: 1000   # the controller's own rate (default: the log rate,
                                  # controller.rate_hz of the vehicle); the log samples the
@@ -55,6 +59,7 @@ _ACTUATOR_DEFAULTS: dict[str, Any] = {
 }
 _NOISE_DEFAULTS = {"gyro": 0.003, "attitude": 0.002, "position": 0.001, "velocity": 0.01}
 _TIMING_DEFAULTS: dict[str, Any] = {"controller_rate_hz": None}
+_BATTERY_DEFAULTS = {"nominal": 24.0, "drop": 1.5, "sag": 0.005}
 _FAILURE_DEFAULTS: dict[str, Any] = {"time": 0.0, "arms": [], "thrust_factor": 0.0}
 
 
@@ -78,6 +83,15 @@ class TruthParameters:
     controller_rate_hz: float | None = None
     #: (time s, arm indices, remaining thrust fraction) of an actuator failure
     failure: tuple[float, tuple[int, ...], float] | None = None
+    #: thrust_curve's c: each rotor's thrust T becomes T + c (T - sqrt(T T_full)),
+    #: T_full the vehicle's rotor.max_thrust (the bend c T_full (x^2 - x) in x = w / w_full)
+    thrust_curvature: float = 0.0
+    #: (12,) fraction of each rotor's thrust lost (motor_loss)
+    rotor_loss: np.ndarray = field(default_factory=lambda: np.zeros(12))
+    #: 1/V, battery_sag's k: thrust scaled by 1 + k (V - battery["nominal"])
+    battery_sag: float = 0.0
+    #: V: the battery's nominal voltage, its drop over the flight and its sag per N
+    battery: dict[str, float] = field(default_factory=lambda: dict(_BATTERY_DEFAULTS))
 
 
 def _number(tree: dict[str, Any], key: str, where: str, path: Path | None) -> float:
@@ -110,6 +124,7 @@ def truth_from_tree(
         "noise": {},
         "timing": {},
         "failure": {},
+        "battery": {},
     }
     _check_keys(tree, top, "", path)
     act_tree = tree.get("actuators") or {}
@@ -145,6 +160,12 @@ def truth_from_tree(
         truth.servo_backlash = truth.thrust_spread = 0.0
         truth.rotor_rotor = truth.rotor_arm = 0.0
     truth.controller_rate_hz = _timing(tree.get("timing") or {}, path)
+    battery_tree = tree.get("battery") or {}
+    _check_keys(battery_tree, _BATTERY_DEFAULTS, "battery.", path)
+    merged = {**_BATTERY_DEFAULTS, **battery_tree}
+    truth.battery = {k: _number(merged, k, "battery.", path) for k in _BATTERY_DEFAULTS}
+    if truth.battery["nominal"] <= truth.battery["drop"]:
+        raise ConfigError("'battery.nominal' must be above battery.drop", path)
     truth.failure = _failure(tree.get("failure") or {}, path)
     effects = tree.get("effects") or {}
     if not isinstance(effects, dict):
