@@ -108,7 +108,9 @@ def test_overconfidence_below_80_percent_and_trust_above():
 def test_before_after_per_axis_with_the_reason_for_the_worse_axis():
     lines = change_lines(scores_of_files([(BEFORE, "before.json"), (AFTER, "after.json")]))
     head = lines[0].text
-    assert head.startswith("With rotational_drag added (after.json): the model error falls by")
+    assert head.startswith(
+        "With rotational_drag added (before.json → after.json): the model error falls by"
+    )
     assert "x −31.8 %" in head and "y −61.2 %" in head and "z +24.9 %" in head
     assert len(lines) == 2 and lines[1].text.startswith("Axis z got worse (+24.9 %)")
     reason = lines[1].text
