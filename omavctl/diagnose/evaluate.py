@@ -34,7 +34,12 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command, separate_command
+from omavctl.diagnose.diagnosis import (
+    diagnose,
+    effect_commands,
+    fit_command,
+    separation,
+)
 from omavctl.diagnose.given import withhold_given
 from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
@@ -358,7 +363,7 @@ def _diagnosis(
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
-    diagnosis["separate_command"] = separate_command(diagnosis, model_path)
+    diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
     return diagnosis
 
 

@@ -168,6 +168,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     text += given_sentence(diag, missing[0])
     if amb and isinstance(sep := diag.get("separate_command"), str) and sep:
         text += f" To plan a flight that tells them apart: {sep}"
+    elif amb and isinstance(sep := diag.get("separate_flight"), str) and sep:
+        text += f" {sep[0].upper()}{sep[1:]}"
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
 
 
