@@ -143,15 +143,22 @@ def _stage_bar(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]:
         yield lambda stage, f: bar.update(job, description=stage, completed=f)
 
 
+def samples_line(log: Any) -> str:
+    """One log's samples, used and not, adding up to its grid samples (a
+    :class:`~omavctl.learn.flights.LogSummary`)."""
+    dropped = log.edge_dropped + log.short_dropped
+    lost = f"; {log.out_of_control} out of control" if log.out_of_control else ""
+    return (
+        f"{log.path}: {log.used} of {log.samples} samples used "
+        f"({log.in_gaps} invalid: in gaps, on the ground or outside the time window; "
+        f"{dropped} at segment edges or in short segments{lost})"
+    )
+
+
 def _render_fit(con: Any, summary: Any, out: Path) -> None:
     """Print the fit summary: data used, effects, GP hyperparameters, training fit."""
     for log in summary.logs:
-        dropped = log.edge_dropped + log.short_dropped
-        con.print(
-            f"{log.path}: {log.used} of {log.samples} samples used "
-            f"({log.in_gaps} invalid: in gaps, on the ground or outside the time window; "
-            f"{dropped} at segment edges or in short segments)"
-        )
+        con.print(samples_line(log), markup=False)
         for note in log.notes:
             con.print(f"  note: {note}", markup=False)
     prior = f" + {summary.points_prior} from the prior" if summary.points_prior else ""
