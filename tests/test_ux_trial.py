@@ -43,3 +43,52 @@ def test_fit_counts_the_out_of_control_samples_in_its_samples_line():
         "hexa0.csv: 3845 of 6000 samples used (0 invalid: in gaps, on the ground or outside "
         "the time window; 10 at segment edges or in short segments; 2145 out of control)"
     )
+
+
+def _betaflight_log(tmp_path: Path, motor_output: str) -> Path:
+    """A blackbox_decode CSV (2 kHz, gyro in deg/s, DShot motors, vbat in V) and its
+    header sidecar with ``motorOutput``."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    head = "loopIteration, time (us), gyroADC[0] (deg/s), gyroADC[1] (deg/s), gyroADC[2] (deg/s)"
+    rows = [f"{head}, vbatLatest (V), motor[0], motor[1], motor[2], motor[3]"]
+    for i in range(600):
+        gyro = ", ".join(f"{v:.2f}" for v in rng.normal(0.0, 60.0, 3))
+        motors = ", ".join(str(int(v)) for v in 138 + 1909 * rng.random(4))
+        rows.append(f"{i}, {1_000_000 + 500 * i}, {gyro}, {12.6 - 1e-4 * i:.4f}, {motors}")
+    path = tmp_path / "LOG00001.01.csv"
+    path.write_text("\n".join(rows) + "\n")
+    (tmp_path / "LOG00001.01.headers.txt").write_text(
+        f"H Firmware revision:Betaflight 4.2.0\nH looptime:125\nH motorOutput:{motor_output}\n"
+    )
+    return path
+
+
+def test_inspect_suggests_the_battery_voltage_and_the_headers_motor_range(tmp_path: Path):
+    """On the Betaflight CSV inspect left out battery_voltage although vbatLatest is
+    read in volts, and kept the preset's DShot 48..2047 where the header says
+    motorOutput 138,2047: the suggestion maps vbatLatest and gives the preset's rotor
+    list with the header's range, which then reads the log."""
+    from omavctl.logs.inspection import inspect_log
+    from omavctl.vehicle import load_vehicle
+
+    log = _betaflight_log(tmp_path, "138,2047")
+    ins = inspect_log(log)
+    assert ins.suggested_columns["battery_voltage"] == "vbatLatest"
+    text = ins.suggestion
+    assert (
+        "# motor commands look like dshot; the log's header says motorOutput 138.0..2047.0, "
+        "not the 48.0..2047.0 of preset quad-x-betaflight: its rotor list with the header's "
+        "range follows (motors: replaces the preset's whole list; docs/logs.md)\nmotors:\n"
+    ) in text
+    assert "  range: [138.0, 2047.0]\n" in text
+    vfile = tmp_path / "v.yaml"
+    vfile.write_text(text)
+    veh = load_vehicle(vfile)
+    assert veh.motors is not None and len(veh.motors.rotors) == 4
+    assert {r.span for r in veh.motors.rotors} == {(138.0, 2047.0)}
+    assert veh.columns["battery_voltage"] == "vbatLatest"
+    # the header agreeing with the preset: nothing to add, no rotor list
+    same = inspect_log(_betaflight_log(tmp_path, "48,2047")).suggestion
+    assert "nothing to add" in same and "\nmotors:" not in same
