@@ -92,3 +92,46 @@ def test_inspect_suggests_the_battery_voltage_and_the_headers_motor_range(tmp_pa
     # the header agreeing with the preset: nothing to add, no rotor list
     same = inspect_log(_betaflight_log(tmp_path, "48,2047")).suggestion
     assert "nothing to add" in same and "\nmotors:" not in same
+
+
+def test_report_says_every_effect_its_fit_command_adds(tmp_path: Path):
+    """`report` said "to add motor_lag to cf-eval.json's model:" above a command that
+    adds motor_lag,motor_loss."""
+    from rich.console import Console
+
+    from omavctl.cli.report import _render_report
+
+    cmd = "omavctl fit log10.csv --effects motor_lag,motor_loss --out m+motor_lag.npz"
+    ev = SimpleNamespace(label="cf-eval.json", model_rmse={"x": 1.0, "y": 2.0, "z": 3.0},
+                         missing=["motor_lag", "motor_loss"], fit_command=cmd)  # fmt: skip
+    summary = SimpleNamespace(verdict=[], evaluations=[ev], fmt="md", figures=0)
+    con = Console(record=True, width=200)
+    _render_report(con, summary, tmp_path / "r.md")
+    text = con.export_text()
+    assert f"to add motor_lag, motor_loss to cf-eval.json's model:\n  {cmd}\n" in text
+
+
+def test_the_report_verdict_titles_a_sentence_once_and_sets_the_plan_command_in_code():
+    """ "What is missing: Missing: motor_loss", and the separating plan command as
+    plain text running on into "Add it with: omavctl fit ..."."""
+    from omavctl.report.document import _md_inline
+    from omavctl.report.top import verdict_section
+
+    sep = "omavctl task fig8 --out fig8.csv && omavctl plan --model m.npz --out next.csv"
+    tree = {
+        "diagnosis": {
+            "missing": ["motor_loss"],
+            "missing_effects": [
+                {"name": "motor_loss", "explained_variance": 0.18, "ambiguous_with": ["com_offset"]}
+            ],
+            "separate_command": sep,
+            "fit_command": "omavctl fit a.csv --effects motor_loss --out m+motor_loss.npz",
+        }
+    }
+    items = [_md_inline(it) for it in verdict_section([(tree, None, "e.json")])[1].items]
+    head = items[0]
+    assert head.startswith("**Missing:** motor\\_loss — it explains 18 %")
+    assert head.endswith(
+        f"tells them apart: `{sep}`. Add it with: "
+        "`omavctl fit a.csv --effects motor_loss --out m+motor_loss.npz`"
+    )
