@@ -135,3 +135,27 @@ def test_the_report_verdict_titles_a_sentence_once_and_sets_the_plan_command_in_
         f"tells them apart: `{sep}`. Add it with: "
         "`omavctl fit a.csv --effects motor_loss --out m+motor_loss.npz`"
     )
+
+
+def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
+    """`stride_requested: 1` in the JSON, stride 8 used, and the terminal said nothing."""
+    from rich.console import Console
+
+    from omavctl.report.horizons import render_horizons
+
+    row = {"seconds": 0.01, "steps": 1, "rate_error": {"x": 1.0, "y": 1.0, "z": 1.0, "norm": 1.7}}
+    h = {"steps": [1], "seconds": [0.01], "band_sigma": 2.0, "windows": 3884, "attitude": False,
+         "predictors": [{"key": "naive", "kind": "naive", "model": None}],
+         "table": {"naive": [row]}, "findings": [], "stride": 8, "stride_requested": 1}  # fmt: skip
+    con = Console(record=True, width=400)
+    render_horizons(con, {"horizons": h})
+    said = " ".join(con.export_text().split())  # the title wraps to the table's width
+    assert said.startswith(
+        "open-loop error over horizons (3884 windows, a start every 8 samples, not the 1 "
+        "asked for: the log is long and the windows are held in memory at once): body rate "
+        "norm rad/s (no attitude in the log), 2σ coverage"
+    )
+    con = Console(record=True, width=400)
+    render_horizons(con, {"horizons": {**h, "stride": 1}})
+    said = " ".join(con.export_text().split())
+    assert said.startswith("open-loop error over horizons (3884 windows): body")
