@@ -159,3 +159,26 @@ def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
     render_horizons(con, {"horizons": {**h, "stride": 1}})
     said = " ".join(con.export_text().split())
     assert said.startswith("open-loop error over horizons (3884 windows): body")
+
+
+def test_an_unpinned_interval_is_worded_by_what_it_holds():
+    """ "D_z = 1.08 (95 %: 0.809 to 1.34, cannot be pinned down)": an interval that
+    excludes 0 called not pinned down. It lies outside drag's plausible 0 to 1."""
+    from omavctl.diagnose.estimate_text import estimate_sentence
+    from omavctl.learn.intervals import pinned_down, unpinned_words
+
+    assert not pinned_down("rotational_drag", "D", [[0.809, 1.34]])[0]
+    assert unpinned_words("rotational_drag", "D", (0.809, 1.34), 2) == (
+        "outside the plausible 0 to 1: not this effect alone, something else on this axis"
+    )
+    holds_zero = unpinned_words("rotational_drag", "D", (-0.01, 0.05), 0)
+    assert holds_zero == "cannot be pinned down from this flight"
+    entry = {
+        "name": "rotational_drag",
+        "units": {"D": "N m s^2"},
+        "estimate": {"D": [0.0375, 0.0322, 1.08], "D_pinned": [True, True, False],
+                     "D_ci95": [[0.0334, 0.0416], [0.0263, 0.0381], [0.809, 1.34]]},
+    }  # fmt: skip
+    text = estimate_sentence(entry, None)
+    assert "D_z = 1.08 N m s^2 (95 %: 0.809 to 1.34, outside the plausible 0 to 1:" in text
+    assert "pinned down" not in text
