@@ -194,3 +194,36 @@ def test_the_verdict_names_every_claimed_effect_and_one_command_for_them():
     # one effect: "it"
     tree["diagnosis"]["missing"] = ["motor_lag"]
     assert verdict(tree)[0].plain().endswith(f"Add it with: {command}")
+
+
+def test_a_vehicle_plan_cannot_fly_gets_the_separating_flight_in_words_not_a_plan():
+    """On a Betaflight quad the verdict offered `omavctl plan ... --objective effects`,
+    which refuses fixed rotors ("plan flies only the omav"): the diagnosis says in
+    words where the look-alikes differ instead, and the verdict prints that."""
+    from omavctl.diagnose.diagnosis import separation
+    from omavctl.diagnose.verdict import verdict
+
+    diagnosis: dict = {
+        "missing": ["motor_loss"],
+        "missing_effects": [
+            {"name": "motor_loss", "explained_variance": 0.18, "ambiguous_with": ["com_offset"]}
+        ],
+    }
+    assert separation(diagnosis, "bf.npz", False)["separate_command"].startswith(
+        "omavctl task fig8"
+    )
+    fixed = separation(diagnosis, "bf.npz", True)
+    assert fixed["separate_command"] is None
+    assert fixed["separate_flight"] == (
+        "plan cannot design the flight that tells them apart (plan flies only the omav, not "
+        "fixed rotors); fly one where they differ: motor_loss shows in throttle changes, in "
+        "yaw too (a weak motor also unbalances the yaw moment); com_offset shows in throttle "
+        "changes, in roll and pitch only (its torque is r × thrust)."
+    )
+    head = verdict({"diagnosis": {**diagnosis, **fixed}})[0].text
+    assert "omavctl plan" not in head
+    assert "Plan cannot design the flight that tells them apart (plan flies only" in head
+    from omavctl.diagnose.diagnosis import SHOWN_BY
+    from omavctl.physics.effects import EFFECTS
+
+    assert set(EFFECTS) <= set(SHOWN_BY)  # every registered effect has its words

@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 from omavctl.cli import app
 from omavctl.diagnose.evalio import load_evaluation, write_evaluation
 from omavctl.diagnose.evaluate import evaluate
+from omavctl.diagnose.horizon_findings import findings
 from omavctl.diagnose.horizons import GridSignals, horizon_table, window_starts
 from omavctl.learn.fit import fit_model
 from omavctl.learn.model import EffectEstimate, ResidualGP
@@ -420,3 +421,56 @@ def test_a_log_without_attitude_gets_no_attitude_column():
     assert "(no attitude in the log)" in text and "attitude rad" not in text
     tree["horizons"]["attitude"] = True
     assert "attitude" in _table(tree["horizons"]).columns
+
+
+def test_horizon_notes_say_no_change_that_rounds_to_nothing_and_compare_as_printed():
+    """ "the GP lowers the 0.01 s body-rate error (0.696 -> 0.696 rad/s)" and "holds
+    85 % ... (below 85 %)": a change that rounds to nothing is not a change, a band is
+    compared as printed, and an axis whose GP the rollouts leave out is not said to
+    be raised by the GP."""
+    errors = {"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "effects": [0.6962, 0.1]}
+    tree = _tree({**errors, "model": [0.6961, 0.2]})
+    assert not any(f["code"] == "gp_hurts_long" for f in tree["horizons"]["findings"])
+    h = _tree({**errors, "effects": [0.01, 0.1], "model": [0.008, 0.2]})["horizons"]
+    h["predictors"][-1]["rollout_gp"] = {"x": 0.0, "y": 1.0, "z": 1.0}
+    h["table"]["model"][0]["coverage"]["all"] = 0.846  # printed "85 %"
+    h["table"]["model"][1]["coverage"]["all"] = 0.844
+    found = findings(h)
+    hurts = [f["axis"] for f in found if f["code"] == "gp_hurts_long"]
+    assert hurts == ["y", "z"]  # x: "the rollouts leave the GP mean out" instead
+    assert any(f["code"] == "gp_left_out" and f["axis"] == "x" for f in found)
+    narrow = [f["message"] for f in found if f["code"] == "band_narrow"]
+    assert narrow == [
+        "at 0.5 s the full model's 2σ band holds 84 % of the body rates (below 85 %): "
+        "it is too narrow there"
+    ]
+
+
+def test_the_verdict_band_sentence_says_where_the_open_loop_band_is_too_narrow():
+    """Crazyflie: "Uncertainty can be trusted" one step ahead (91/93/96 %) above a
+    horizon table whose open-loop band holds 43 % at 0.01 s."""
+    from omavctl.diagnose.verdict import verdict
+
+    tree = _tree({"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "effects": [0.01, 0.1],
+                  "model": [0.009, 0.05]})  # fmt: skip
+    tree["metrics"] = {"model": {"coverage_2sigma": {"x": 0.91, "y": 0.93, "z": 0.96}}}
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line == "Uncertainty can be trusted: within 2σ x 91 %, y 93 %, z 96 % (95 % expected)."
+    tree["horizons"]["table"]["model"][0]["coverage"]["all"] = 0.43
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line == (
+        "Uncertainty can be trusted one step ahead: within 2σ x 91 %, y 93 %, z 96 % (95 % "
+        "expected); the open-loop 2σ band is too narrow: it holds 43 % of the body rates at "
+        "0.01 s (85 % needed; the horizon table)."
+    )
+    # 89 % is "a little narrow" (80-90 %), also beside an underconfident axis
+    tree["metrics"]["model"] = {
+        "coverage_2sigma": {"x": 1.0, "y": 0.96, "z": 0.89},
+        "mean_std": {"x": 3.0, "y": 1.0, "z": 1.0},
+        "rmse": {"x": 1.0, "y": 1.0, "z": 1.0},
+    }
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line.startswith(
+        "Uncertainty underconfident on x: the predicted σ is more than twice the actual "
+        "error (within 2σ: x 100 %, y 96 %, z 89 %); a little narrow on z; the open-loop"
+    )

@@ -144,9 +144,10 @@ def test_the_expected_error_fall_is_the_square_root_of_the_cost_ratios():
     assert e["vs_random"]["low"] == pytest.approx(50.0)
     assert e["vs_random"]["high"] == pytest.approx(65.0)  # 10-90 %: 50 + 0.6 * 25
     (line,) = expectation_lines(_result([4.0, 1.0, 4.0, 4.0, 4.0, 16.0, np.inf]))
-    assert "+50 % against the task again" in line
+    # one sign convention with the candidates table ("vs task (- better)"): a fall is -
+    assert "-50 % (- better, as in the table, whose cost is the square of this error)" in line
     assert (
-        "random candidate of the pool +50 % (median; 80 % of the 5 others between +50 and +65 %)"
+        "random candidate of the pool -50 % (median; 80 % of the 5 others between -65 and -50 %)"
         in line
     )
 

@@ -89,6 +89,35 @@ def test_where_it_fails_names_what_the_vehicle_did():
     assert level == "near level, barely rotating, thrust 1.50 g"
 
 
+def test_a_log_without_attitude_says_the_tilt_is_unknown_not_level():
+    """An IMU-only log (Crazyflie, Betaflight) read "while near level, rolling at
+    1.52 rad/s": its attitude series is zeros. evaluate gives such a segment no
+    attitude, and the verdict says the tilt is unknown."""
+    import numpy as np
+
+    from omavctl.diagnose.evaluate import _failures
+
+    n = 400
+    t = np.arange(n) * 0.01
+    err = np.zeros((n, 3))
+    err[100:150, 0] = 5.0
+    series = {
+        "t": t,
+        "log": np.zeros(n, dtype=int),
+        "measured": err,
+        "nominal": np.zeros((n, 3)),
+        "mean_0": np.zeros((n, 3)),
+        "attitude": np.zeros((n, 3)),
+        "omega": np.tile([1.52, 0.1, 0.0], (n, 1)),
+        "u": np.zeros((n, 6)),
+    }
+    seg = _failures(series, {}, ["log15"], 0.01, True, [False])["worst_segments"][0]
+    assert seg["attitude_deg"] is None
+    assert activity(seg) == "rolling at 1.52 rad/s, tilt unknown (no attitude in the log)"
+    logged = _failures(series, {}, ["log15"], 0.01, True, [True])["worst_segments"][0]
+    assert activity(logged) == "near level, rolling at 1.52 rad/s"
+
+
 def test_overconfidence_below_80_percent_and_trust_above():
     unc = next(line for line in verdict(BEFORE) if line.key == "uncertainty")
     assert unc.text.startswith("Uncertainty overconfident on y: only y 41 % of the samples")
@@ -108,7 +137,9 @@ def test_overconfidence_below_80_percent_and_trust_above():
 def test_before_after_per_axis_with_the_reason_for_the_worse_axis():
     lines = change_lines(scores_of_files([(BEFORE, "before.json"), (AFTER, "after.json")]))
     head = lines[0].text
-    assert head.startswith("With rotational_drag added (after.json): the model error falls by")
+    assert head.startswith(
+        "With rotational_drag added (before.json → after.json): the model error falls by"
+    )
     assert "x −31.8 %" in head and "y −61.2 %" in head and "z +24.9 %" in head
     assert len(lines) == 2 and lines[1].text.startswith("Axis z got worse (+24.9 %)")
     reason = lines[1].text

@@ -430,3 +430,42 @@ def test_an_axis_share_of_a_few_per_cent_is_not_a_claim_on_that_axis():
     assert "D_x, D_z not claimed: the effect explains under 5 % of the x, z errors here." in (
         line.text
     )
+
+
+def test_two_models_in_either_order_read_as_effects_added_to_the_subset():
+    """`evaluate --model new.npz --model old.npz` (the new model first, to diagnose it)
+    printed "From new.npz to old.npz, motor_lag removed: ... rises" and then "the added
+    effect and the refitted GP changed together": the model whose effects are a subset
+    is "before" in every line, whatever the order, and the verdict says which model
+    its other lines are about."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    (before, _), (after, _) = _pair(0.388)
+    after["metrics"]["model"]["rmse"]["z"] = 0.15  # one axis worse with the effect
+    old = {**before["models"][0], "name": "old.npz"}
+    new = {**after["models"][0], "name": "new.npz"}
+
+    def lines(models, metrics):
+        tree = copy.deepcopy(after if models[0] is new else before)
+        tree["models"], tree["metrics_by_model"] = models, metrics
+        return [ln.text for ln in verdict_of_models(tree) if ln.key == "change"]
+
+    new_first = lines([new, old], [after["metrics"], before["metrics"]])
+    old_first = lines([old, new], [before["metrics"], after["metrics"]])
+    assert new_first[0] == old_first[0]
+    assert new_first[0].startswith(
+        "With command_delay added (old.npz → new.npz): the model error falls by"
+    )
+    assert (
+        new_first[1]
+        == old_first[1]
+        == (
+            "Axis z got worse (+50.0 %): the files do not say why: the added effect and the "
+            "refitted GP changed together."
+        )
+    )
+    assert new_first[2] == (
+        "The lines below are about new.npz (the first --model), with effects command_delay."
+    )
+    assert old_first[2] == "The lines below are about old.npz (the first --model), with no effects."
+    assert not any("removed" in t for t in new_first)

@@ -33,13 +33,17 @@ AXES = ("x", "y", "z")
 
 def _as_typed_in_the_doc(command: str) -> str:
     """A demo command (run in examples/, outputs in build/) as the page types it: from
-    the repository's top, the demo's logs in examples/build/, new outputs in build/first/."""
+    the repository's top, the demo's logs in examples/build/, new outputs and the models
+    the page fits in build/first/; commands joined by ``&&`` each so."""
+    if " && " in command:
+        return " && ".join(_as_typed_in_the_doc(c) for c in command.split(" && "))
     words = shlex.split(command)
     out = []
     for prev, word in zip(["", *words], words, strict=False):
         if word.startswith("build/"):
             rest = word.removeprefix("build/")
-            word = f"build/first/{rest}" if prev == "--out" else f"examples/build/{rest}"
+            mine = prev in ("--out", "--model")
+            word = f"build/first/{rest}" if mine else f"examples/build/{rest}"
         out.append(word)
     return shlex.join(out)
 
@@ -59,6 +63,9 @@ def numbers(build: Path) -> dict[str, str]:
     plan = json.loads((build / "plan.json").read_text())
     head = verdict(first)[0]
     command = _as_typed_in_the_doc(str(head.command))
+    text = head.text  # the plan command in it as typed in the page too
+    if sep := first["diagnosis"].get("separate_command"):
+        text = text.replace(sep, _as_typed_in_the_doc(sep))
     top = first["diagnosis"]["missing_effects"][0]
     r0, r1 = first["metrics"]["model"]["rmse"], after["metrics"]["model"]["rmse"]
     change = {a: r1[a] / r0[a] - 1.0 for a in AXES}
@@ -67,7 +74,7 @@ def numbers(build: Path) -> dict[str, str]:
     worse = [ln.text for ln in change_lines(scores)[1:]]
     best = plan["best_cost"] / plan["task_cost"] - 1.0
     return {
-        "verdict": f"\n```text\n{head.text}\n  add it with: {command}\n```\n",
+        "verdict": f"\n```text\n{text}\n  add it with: {command}\n```\n",
         "loop": (
             f"\n```sh\n{command}\n"
             "omavctl evaluate examples/build/flight-02.bag --model "

@@ -26,7 +26,8 @@ Models = Annotated[
         metavar="MODEL.npz",
         help="Model written by fit; its vehicle and column map read the logs (repeat to "
         "compare several models side by side; the first one is diagnosed, and no fit "
-        "command is suggested for an effect a later one already has).",
+        "command is suggested for an effect a later one already has; the change is "
+        "read from the model with fewer effects to the one with more, in either order).",
     ),
 ]
 EvalOut = Annotated[
@@ -106,6 +107,12 @@ def evaluate(
 
     There is no --vehicle: the vehicle (and its column map, which reads the logs)
     comes from the first model file, as fit recorded it.
+
+    With two or more --model: the verdict's change line compares the first and the
+    last; when one's effects are a subset of the other's, it is the "before" whatever
+    the order ("With motor_lag added (a.npz → b.npz)"), otherwise the given order
+    ("From a.npz to b.npz, X added, Y removed"). The lines after it diagnose the first
+    --model.
     """
     if vehicle is not None:
         from omavctl.base.errors import OmavctlError

@@ -143,15 +143,22 @@ def _stage_bar(con: Any, quiet: bool) -> Iterator[Callable[[str, float], None]]:
         yield lambda stage, f: bar.update(job, description=stage, completed=f)
 
 
+def samples_line(log: Any) -> str:
+    """One log's samples, used and not, adding up to its grid samples (a
+    :class:`~omavctl.learn.flights.LogSummary`)."""
+    dropped = log.edge_dropped + log.short_dropped
+    lost = f"; {log.out_of_control} out of control" if log.out_of_control else ""
+    return (
+        f"{log.path}: {log.used} of {log.samples} samples used "
+        f"({log.in_gaps} invalid: in gaps, on the ground or outside the time window; "
+        f"{dropped} at segment edges or in short segments{lost})"
+    )
+
+
 def _render_fit(con: Any, summary: Any, out: Path) -> None:
     """Print the fit summary: data used, effects, GP hyperparameters, training fit."""
     for log in summary.logs:
-        dropped = log.edge_dropped + log.short_dropped
-        con.print(
-            f"{log.path}: {log.used} of {log.samples} samples used "
-            f"({log.in_gaps} invalid: in gaps, on the ground or outside the time window; "
-            f"{dropped} at segment edges or in short segments)"
-        )
+        con.print(samples_line(log), markup=False)
         for note in log.notes:
             con.print(f"  note: {note}", markup=False)
     prior = f" + {summary.points_prior} from the prior" if summary.points_prior else ""
@@ -195,7 +202,9 @@ def _effects_table(summary: Any) -> Any:
                 interval = (
                     "not excited by these logs"
                     if v == 0.0
-                    else _interval_text(intervals[p.name][i], bool(pinned[p.name][i]))
+                    else _interval_text(
+                        intervals[p.name][i], bool(pinned[p.name][i]), (name, p.name, i)
+                    )
                 )
                 eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", interval, Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
@@ -211,11 +220,14 @@ def _effects_table(summary: Any) -> Any:
     return eff
 
 
-def _interval_text(interval: Any, pinned: bool) -> str:
-    """'[low, high]' of a 95 % interval, and whether it pins the parameter down."""
+def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> str:
+    """'[low, high]' of a 95 % interval, and, when it does not pin the parameter
+    (effect, parameter, component) down, why, in words that follow the interval."""
+    from omavctl.learn.intervals import unpinned_words
+
     lo, hi = (float(x) for x in interval)
     text = f"[{lo:.3g}, {hi:.3g}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
-    return text if pinned else f"{text}: cannot be pinned down from this flight"
+    return text if pinned else f"{text}: {unpinned_words(*which[:2], (lo, hi), which[2])}"
 
 
 def _gp_table(summary: Any) -> Any:

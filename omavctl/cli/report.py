@@ -93,7 +93,8 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
         )
     last = summary.evaluations[-1]
     if last.missing and last.fit_command:
-        con.print(f"to add {last.missing[0]} to {last.label}'s model:", markup=False)
+        names = ", ".join(last.missing)  # the fit command adds every missing effect
+        con.print(f"to add {names} to {last.label}'s model:", markup=False)
         con.print(f"  {last.fit_command}", markup=False)
     figures = f", {summary.figures} figures" if summary.fmt == "html" else ""
     con.print(f"wrote {out} ({summary.fmt}{figures})", markup=False)

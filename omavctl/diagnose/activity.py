@@ -18,7 +18,8 @@ def _num(v: Any) -> float | None:
 def activity(seg: Mapping[str, Any]) -> str:
     """What the vehicle was doing in a worst segment, in words: tilt, the fastest
     rotation, thrust (from the segment's mean |attitude|, |rate|, |wrench|; no thrust
-    when the segment says its force command is normalised, ``thrust_known``)."""
+    when the segment says its force command is normalised, ``thrust_known``; the tilt
+    said unknown when its ``attitude_deg`` is None: the log has no attitude)."""
     att = [_num(v) or 0.0 for v in (seg.get("attitude_deg") or [])][:3]
     rate = [_num(v) or 0.0 for v in (seg.get("rate") or [])][:3]
     u = [_num(v) or 0.0 for v in (seg.get("u") or [])]
@@ -38,4 +39,6 @@ def activity(seg: Mapping[str, Any]) -> str:
         g = u[2] / 9.81
         if abs(g - 1.0) >= 0.15:
             parts.append(f"thrust {g:.2f} g")
+    if seg.get("attitude_deg", []) is None:  # an IMU-only log: the tilt is unknown
+        return ", ".join([*parts, "tilt unknown (no attitude in the log)"])
     return ", ".join(parts) if parts else "no state recorded"

@@ -26,6 +26,7 @@ from omavctl.diagnose.verdict import (
 __all__ = [
     "MATERIAL_FALL",
     "change_lines",
+    "ordered",
     "reconciled_head",
     "report_verdict",
     "scores_of_files",
@@ -79,8 +80,11 @@ def _disagreement(
     ]
 
 
-def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], axis: str) -> str:
-    """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold."""
+def _worse_reason(
+    before: ModelScore, after: ModelScore, added: Sequence[str], axis: str, removed: bool = False
+) -> str:
+    """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold;
+    ``removed``: ``after`` also lacks effects ``before`` has."""
     i = AXES.index(axis)
     reasons: list[str] = []
     misfit: list[str] = []
@@ -111,17 +115,28 @@ def _worse_reason(before: ModelScore, after: ModelScore, added: Sequence[str], a
             f"({noise:.2g} rad/s²)"
         )
     if not reasons:  # nothing in the files singles out the effect or the GP
-        return "the files do not say why: the added effect and the refitted GP changed together"
+        what = "the changed effects" if removed or not added else "the added effect"
+        what += "s" if len(added) > 1 and not removed else ""
+        return f"the files do not say why: {what} and the refitted GP changed together"
     return f"{'; '.join(reasons)}: the change comes from the refitted GP, not from the effect"
 
 
+def ordered(first: ModelScore, last: ModelScore) -> tuple[ModelScore, ModelScore]:
+    """(before, after) of two scores: when one's effects are a strict subset of the
+    other's, the subset is "before" whatever the order they were given in (the change
+    is then always effects *added*); otherwise the given order."""
+    if set(last.effects) < set(first.effects):
+        return last, first
+    return first, last
+
+
 def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[Line]:
-    """Before/after: the first score against the last, per axis, worse axes explained;
-    ``name_after`` names the last one in the sentence (when the line does not say
-    which files it compares)."""
+    """Before/after: the first score against the last (ordered by :func:`ordered`),
+    per axis, worse axes explained; ``name_after`` names both in the sentence (when
+    the line does not say which files it compares)."""
     if len(scores) < 2:
         return []
-    before, after = scores[0], scores[-1]
+    before, after = ordered(scores[0], scores[-1])
     added = [e for e in after.effects if e not in before.effects]
     removed = [e for e in before.effects if e not in after.effects]
     changes: dict[str, float] = {}
@@ -131,11 +146,15 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
             changes[a] = r1 / r0 - 1.0
     if not changes:
         return []
-    what = "With " + ", ".join(added) + " added" if added else f"From {before.label} to"
-    if name_after or not added:
-        what = f"{what} ({after.label})" if added else f"{what} {after.label}"
-    if removed:
-        what += f", {', '.join(removed)} removed"
+    if added and not removed:
+        what = "With " + ", ".join(added) + " added"
+        if name_after:
+            what += f" ({before.label} → {after.label})"
+    else:  # neither holds the other's effects: the given order, said in words
+        what = f"From {before.label} to {after.label}"
+        what += "".join(
+            f", {', '.join(e)} {w}" for e, w in ((added, "added"), (removed, "removed")) if e
+        )
     b0 = [v for a in AXES if (v := _num(before.rmse.get(a))) is not None]
     b1 = [v for a in AXES if (v := _num(after.rmse.get(a))) is not None]
     mean = sum(b1) / sum(b0) - 1.0 if b0 and len(b0) == len(b1) and sum(b0) > 0 else None
@@ -151,7 +170,8 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
             lines.append(
                 Line(
                     "change",
-                    f"Axis {a} got worse ({_signed(c)}): {_worse_reason(before, after, added, a)}.",
+                    f"Axis {a} got worse ({_signed(c)}): "
+                    f"{_worse_reason(before, after, added, a, bool(removed))}.",
                 )
             )
     return lines
@@ -237,12 +257,24 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
     models = scores_of_models(tree)
     if len(models) < 2:
         return own
-    added = {e for e in models[-1].effects if e not in models[0].effects}
+    before, after = ordered(models[0], models[-1])
+    added = {e for e in after.effects if e not in before.effects}
     # the first "missing" sentence, wherever flags put it, is reconciled with the change
     at = next((i for i, ln in enumerate(own) if ln.key == "missing"), 0)
-    own[at] = reconciled_head(own[at], models[0], models[-1])
+    if before is models[0]:  # the diagnosed model is the one the effects were added to
+        own[at] = reconciled_head(own[at], before, after)
     rest = [ln for ln in own[1:] if not (ln.key == "learned" and ln.subject in added)]
-    return [own[0], *change_lines(models), *rest]
+    which = Line(
+        "change",
+        f"The lines below are about {models[0].label} (the first --model), "
+        f"{_effects_words(models[0])}.",
+    )
+    return [own[0], *change_lines(models), which, *rest]
+
+
+def _effects_words(score: ModelScore) -> str:
+    """ "with effects a, b" or "with no effects" for one model."""
+    return f"with effects {', '.join(score.effects)}" if score.effects else "with no effects"
 
 
 def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]:
@@ -259,6 +291,8 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
     lines: list[Line] = []
 
     def step(i: int, j: int) -> list[Line]:
+        if ordered(scores[i], scores[j])[0] is scores[j]:
+            i, j = j, i
         return [
             Line(ln.key, ln.text, f"{evals[i][1]} → {evals[j][1]}")
             for ln in change_lines([scores[i], scores[j]], name_after=False)

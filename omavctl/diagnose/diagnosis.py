@@ -42,6 +42,8 @@ __all__ = [
     "fit_command",
     "measurement_noise",
     "separate_command",
+    "separate_flight",
+    "separation",
     "unexplained_structure",
 ]
 
@@ -345,6 +347,48 @@ def separate_command(diagnosis: dict[str, Any], model_path: str) -> str | None:
     words = ["plan", "--task", "fig8.csv", "--model", model, "--objective", "effects"]
     plan = shell_join(["omavctl", *words, "--effects", names, "--out", "next.csv"])
     return f"{task} && {plan}"
+
+
+#: Where an effect shows (what a flight must vary), in words: the flight that tells
+#: look-alikes apart varies what one responds to and the other does not.
+SHOWN_BY = {
+    "rotational_drag": "fast sustained body rates (its torque grows with the rate squared)",
+    "com_offset": "throttle changes, in roll and pitch only (its torque is r × thrust)",
+    "inertia_error": "large angular accelerations",
+    "gyro_bias": "level hover and slow turns (a constant rate offset)",
+    "servo_lag": "fast tilt-servo moves",
+    "motor_lag": "fast command steps or a sweep to high frequency (a lag's phase levels off)",
+    "command_delay": "a sweep over several frequencies (a delay's phase grows with frequency)",
+    "rotor_interference": "a wide range of arm tilts",
+    "thrust_curve": "a wide range of throttle",
+    "motor_loss": "throttle changes, in yaw too (a weak motor also unbalances the yaw moment)",
+    "battery_sag": "varied throttle over a long stretch of the battery",
+}
+
+
+def separate_flight(diagnosis: dict[str, Any], why_not: str) -> str | None:
+    """In words, the flight that would tell the top missing effect from its look-alikes
+    where ``plan`` cannot fly the vehicle (``why_not``, e.g. "plan flies only the
+    omav"); None when it has none."""
+    top = (diagnosis.get("missing") or [None])[0]
+    entry: dict[str, Any] = next(
+        (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
+    )
+    names = [str(n) for n in [top, *(entry.get("ambiguous_with") or [])] if n]
+    if len(names) < 2:
+        return None
+    parts = [f"{n} shows in {SHOWN_BY[n]}" for n in names if n in SHOWN_BY]
+    text = f"plan cannot design the flight that tells them apart ({why_not})"
+    return f"{text}; fly one where they differ: {'; '.join(parts)}." if parts else f"{text}."
+
+
+def separation(diagnosis: dict[str, Any], model_path: str, fixed_rotors: bool) -> dict[str, Any]:
+    """The diagnosis' ``separate_command`` (plan flies the omav) or, for a vehicle of
+    fixed rotors that plan cannot fly, ``separate_flight``: that flight in words."""
+    if fixed_rotors:
+        why = "plan flies only the omav, not fixed rotors"
+        return {"separate_command": None, "separate_flight": separate_flight(diagnosis, why)}
+    return {"separate_command": separate_command(diagnosis, model_path)}
 
 
 def _where(given: str, absolute: str | None) -> str:

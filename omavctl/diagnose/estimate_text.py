@@ -49,7 +49,7 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             lo, hi, digits = _distinct(ci[0], ci[1])
             text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {lo} to {hi}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:
-                text += ", cannot be pinned down from this flight"
+                text += f", {_unpinned(str(entry.get('name')), name, ci, i)}"
             parts.append(text + ")")
     text = f" Estimated on this flight as fit would: {'; '.join(parts)}." if parts else ""
     if unclaimed:
@@ -70,3 +70,14 @@ def _distinct(lo: float, hi: float) -> tuple[str, str, int]:
         if a != b:
             return a, b, digits
     return f"{lo:.6g}", f"{hi:.6g}", 6
+
+
+def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:
+    """Why the interval does not pin the parameter down, in words that follow it
+    (:func:`omavctl.learn.intervals.unpinned_words`; imported here, when needed)."""
+    from omavctl.learn.intervals import unpinned_words
+
+    try:
+        return unpinned_words(effect, param, ci, i)
+    except (KeyError, ValueError):  # an effect or parameter this version does not know
+        return "cannot be pinned down from this flight"

@@ -34,7 +34,12 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.diagnosis import diagnose, effect_commands, fit_command, separate_command
+from omavctl.diagnose.diagnosis import (
+    diagnose,
+    effect_commands,
+    fit_command,
+    separation,
+)
 from omavctl.diagnose.given import withhold_given
 from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
@@ -163,8 +168,7 @@ def _read_log(
     notes = list(flight.notes)
     if not flight.has("attitude"):  # an IMU-only log (a vehicle with a rotor list)
         notes.append(
-            "no attitude in the log: the tilt is unknown, and 'what the vehicle was doing' "
-            "takes it as level"
+            "no attitude in the log: the tilt is unknown, and 'what the vehicle was doing' says so"
         )
     log_json = {
         "path": str(p),
@@ -360,7 +364,7 @@ def _diagnosis(
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
-    diagnosis["separate_command"] = separate_command(diagnosis, model_path)
+    diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
     return diagnosis
 
 
@@ -370,11 +374,14 @@ def _failures(
     log_names: Sequence[str],
     dt: float,
     thrust_known: bool = True,
+    attitude_logged: Sequence[bool] = (),
 ) -> dict[str, Any]:
     """``worst_segments`` and ``binned``: where the first model's error is largest.
 
     ``thrust_known``: False when the force command is normalised (its ``u`` is not
-    an acceleration, so no segment may speak of thrust in g).
+    an acceleration, so no segment may speak of thrust in g). ``attitude_logged``:
+    per log, whether it holds the attitude (a segment of one that does not has no
+    ``attitude_deg``, so that no one reads its zeros as "level").
     """
     residual = series["measured"] - series["nominal"]
     err = residual - series["mean_0"]
@@ -386,6 +393,9 @@ def _failures(
     segments = worst_segments(series["t"], series["log"], err, context, log_names, dt)
     for seg in segments:
         seg["thrust_known"] = thrust_known
+        i = log_names.index(seg["log"])
+        if i < len(attitude_logged) and not attitude_logged[i]:
+            seg["attitude_deg"] = None
     return {"worst_segments": segments, "binned": binned_errors(err, residual, features)}
 
 
@@ -446,7 +456,14 @@ def evaluate(
         "metrics_by_log": per_model[0]["metrics_by_log"],
         "metrics_by_model": [pm["metrics"] for pm in per_model],
         "tracking": tracking,
-        **_failures(series, features, log_names, sg.dt, not model.vehicle.force_normalised),
+        **_failures(
+            series,
+            features,
+            log_names,
+            sg.dt,
+            not model.vehicle.force_normalised,
+            [g.attitude is not None for g in grids],
+        ),
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
         "flags": training_data_flags(model, logs_json, time_window)

@@ -34,7 +34,16 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["LABELS", "MIN_COVERAGE", "SIGNIFICANT", "TOLERANCE", "findings", "label", "paired_se"]
+__all__ = [
+    "LABELS",
+    "MIN_COVERAGE",
+    "SIGNIFICANT",
+    "TOLERANCE",
+    "findings",
+    "label",
+    "open_loop_narrow",
+    "paired_se",
+]
 
 #: a longer-horizon rise is a loss only beyond this many standard errors
 SIGNIFICANT = 2.0
@@ -103,7 +112,9 @@ def _crossings(
             _err(b_rows[-1], axis),
         )
         lost, se_text = _loss(a_rows[-1], b_rows[-1], axis)
-        if b0 < a0 and lost:
+        # a change that rounds to nothing at the printed digits is not a change
+        same = f"{a0:.3g}" == f"{b0:.3g}" or f"{a1:.3g}" == f"{b1:.3g}"
+        if b0 < a0 and lost and not same:
             out.append(
                 {
                     "code": code,
@@ -156,7 +167,14 @@ def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, An
     eff, full = f"effects{sfx}", f"model{sfx}"
     if eff not in table or full not in table:
         return []
-    out = _crossings((table[eff], table[full]), "gp_hurts_long", "the GP", tree)
+    left_out = _left_out(tree, full)
+    # an axis whose GP mean the rollouts leave out: the GP there cannot raise its error
+    gone = {f["axis"] for f in left_out}
+    out = [
+        f
+        for f in _crossings((table[eff], table[full]), "gp_hurts_long", "the GP", tree)
+        if f["axis"] not in gone
+    ]
     if j is None or j == 0:
         rows = (table["nominal"], table[eff])
         out += _crossings(rows, "effects_hurt_long", "adding the effects", tree)
@@ -175,23 +193,51 @@ def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, An
                     f"({b:.3g} rad/s) is above {TOLERANCE:g}x physics + effects' ({a:.3g})",
                 }
             )
-    out += _left_out(tree, full)
-    for row in table[full]:
-        cov = row.get("coverage")
-        if cov is not None and cov["all"] < MIN_COVERAGE:
-            out.append(
-                {
-                    "code": "band_narrow",
-                    "axis": None,
-                    "value": cov["all"],
-                    "message": f"at {row['seconds']:g} s the full model's {tree['band_sigma']:g}σ "
-                    f"band holds {100 * cov['all']:.0f} % of the body rates "
-                    f"(below {100 * MIN_COVERAGE:.0f} %): it is too narrow there",
-                }
-            )
+    out += left_out
+    for row in _narrow_rows(table[full]):
+        cov = row["coverage"]
+        out.append(
+            {
+                "code": "band_narrow",
+                "axis": None,
+                "value": cov["all"],
+                "message": f"at {row['seconds']:g} s the full model's {tree['band_sigma']:g}σ "
+                f"band holds {100 * cov['all']:.0f} % of the body rates "
+                f"(below {100 * MIN_COVERAGE:.0f} %): it is too narrow there",
+            }
+        )
     for f in out:
         f["model"] = 0 if j is None else j
     return out
+
+
+def _narrow_rows(rows: list[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The rows whose band holds less than :data:`MIN_COVERAGE`, compared as printed
+    (whole percent: 84.6 % is "85 %", not below 85 %)."""
+    return [
+        r
+        for r in rows
+        if r.get("coverage") is not None
+        and round(100 * r["coverage"]["all"]) < round(100 * MIN_COVERAGE)
+    ]
+
+
+def open_loop_narrow(tree: Mapping[str, Any] | None) -> str:
+    """Where the first model's open-loop band (the horizon table's full model) is too
+    narrow, in words for the verdict's uncertainty sentence; '' where it is not, or
+    the evaluation has no horizon table."""
+    table = (tree or {}).get("table") or {}
+    rows = _narrow_rows(table.get("model") or [])
+    if not rows:
+        return ""
+    held = [f"{100 * r['coverage']['all']:.0f} %" for r in rows]
+    held[0] += " of the body rates"
+    at = ", ".join(f"{h} at {r['seconds']:g} s" for h, r in zip(held, rows, strict=True))
+    sigma = (tree or {}).get("band_sigma", 2)
+    return (
+        f"the open-loop {sigma:g}σ band is too narrow: it holds {at} "
+        f"({100 * MIN_COVERAGE:.0f} % needed; the horizon table)"
+    )
 
 
 def _ranking(tree: Mapping[str, Any]) -> list[dict[str, Any]]:

@@ -19,6 +19,7 @@ from omavctl.diagnose.activity import activity
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
+from omavctl.diagnose.horizon_findings import open_loop_narrow
 from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained
 
 __all__ = [
@@ -168,6 +169,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     text += given_sentence(diag, missing[0])
     if amb and isinstance(sep := diag.get("separate_command"), str) and sep:
         text += f" To plan a flight that tells them apart: {sep}"
+    elif amb and isinstance(sep := diag.get("separate_flight"), str) and sep:
+        text += f" {sep[0].upper()}{sep[1:]}"
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
 
 
@@ -364,6 +367,7 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
         and s > 2 * r
     ]
     shown = _shares(cov, [a for a in AXES if a in cov])
+    narrow = [a for a in AXES if a in cov and round(100 * cov[a]) < 100 * COVERAGE_GOOD]
     if over:
         text = (
             f"Uncertainty overconfident on {', '.join(over)}: only "
@@ -374,18 +378,21 @@ def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
     elif under:
         text = (
             f"Uncertainty underconfident on {', '.join(under)}: the predicted σ is more "
-            f"than twice the actual error (within 2σ: {shown})."
+            f"than twice the actual error (within 2σ: {shown})"
+            + (f"; a little narrow on {', '.join(narrow)}." if narrow else ".")
         )
-    elif narrow := [a for a in AXES if a in cov and cov[a] < COVERAGE_GOOD]:
+    elif narrow:
         text = (
             f"Uncertainty a little narrow on {', '.join(narrow)}: "
             f"{_shares(cov, narrow)} of the samples lie within "
             f"the predicted 2σ (95 % expected); use its error bars with care there "
             f"(within 2σ: {shown})."
         )
-    else:
-        text = f"Uncertainty can be trusted: within 2σ {shown} of the samples (95 % expected)."
-    return Line("uncertainty", text)
+    hor = open_loop_narrow(tree.get("horizons"))  # the horizon table's band, if narrow
+    if not (over or under or narrow):
+        ahead = " one step ahead" if hor else ""
+        text = f"Uncertainty can be trusted{ahead}: within 2σ {shown} (95 % expected)."
+    return Line("uncertainty", f"{text[:-1]}; {hor}." if hor else text)
 
 
 #: Share of a flight outside the model's training inputs from which the verdict says so.

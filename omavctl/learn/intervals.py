@@ -41,6 +41,7 @@ __all__ = [
     "pinned_down",
     "plausible_range",
     "segment_ids",
+    "unpinned_words",
 ]
 
 #: Two-sided 95 % normal quantile.
@@ -184,3 +185,25 @@ def pinned_down(name: str, param: str, interval: np.ndarray) -> np.ndarray:
         narrow = np.where(inside, width < (hi - lo), outside)
         excludes_null = (iv[:, 0] > null) | (iv[:, 1] < null)
     return np.asarray(finite & narrow & excludes_null)
+
+
+def unpinned_words(name: str, param: str, interval: Sequence[float], i: int = 0) -> str:
+    """Why component ``i``'s 95 % interval (low, high) does not pin ``name``'s ``param``
+    down (:func:`pinned_down` false), in words that follow the interval: one that
+    excludes the effect's absence but lies outside its plausible range is pinned, as
+    something this effect alone cannot be ("D_z = 1.08 (0.809 to 1.34)" is no drag)."""
+    lo, hi = (float(v) for v in interval)
+    plo, phi = plausible_range(name)[param]
+    null = np.asarray(null_values(name)[param], float).reshape(-1)
+    zero = float(null[i] if i < null.size else null[0])
+    centre = 0.5 * (lo + hi)
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo <= zero <= hi:
+        return "cannot be pinned down from this flight"
+    if name != "inertia_error" and not plo <= centre <= phi:
+        return (
+            f"outside the plausible {plo:.3g} to {phi:.3g}: not this effect alone, "
+            "something else on this axis"
+        )
+    if name != "inertia_error" and hi - lo >= phi - plo:
+        return f"wider than the plausible {plo:.3g} to {phi:.3g}: cannot be pinned down"
+    return "cannot be pinned down from this flight"

@@ -300,6 +300,7 @@ def _inspect_table(path: Path) -> Inspection:
     guess.unrecognised = [r for r in guess.unrecognised if r != "time"]
     if inv.format == "betaflight":
         guess.frame = ("FLU", "the reader turns Betaflight's gyro into rad/s FLU")
+        _betaflight_extras(guess, inv.meta, table.units)
     stamps = scan.values[table.time_column] * table.time_scale
     guess.t0, guess.duration = float(stamps[0]), float(stamps[-1] - stamps[0])
     topics = [topic_info(g.name, f"{len(g.columns)} columns", g.stamps * table.time_scale
@@ -317,6 +318,17 @@ def _inspect_table(path: Path) -> Inspection:
         column_rates={c.name: c.rate for c in inv.columns},
         header_values={k: v for k, v in inv.meta.items() if k != "header"},
     )
+
+
+def _betaflight_extras(guess: Suggestion, meta: dict[str, Any], units: dict[str, str]) -> None:
+    """The battery voltage (``vbatLatest`` when the reader has it in volts, for
+    battery_sag) and the header's ``motorOutput`` range, into a Betaflight suggestion."""
+    if str(units.get("vbatLatest", "")).startswith("V"):
+        guess.columns["battery_voltage"] = "vbatLatest"
+        guess.comments["battery_voltage"] = f"{units['vbatLatest']}; battery_sag needs it"
+    span = meta.get("motor_output")
+    if guess.motors is not None and isinstance(span, list | tuple) and len(span) == 2:
+        guess.header_range = (float(span[0]), float(span[1]))
 
 
 def _mapped_inspection(

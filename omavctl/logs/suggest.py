@@ -153,6 +153,8 @@ class Suggestion:
     frame: tuple[str, str] | None = None
     #: per-motor output columns (``motor_command``) and the preset they fit
     motors: MotorGuess | None = None
+    #: the command range the log's header declares (Betaflight's ``motorOutput``)
+    header_range: tuple[float, float] | None = None
 
 
 def _compact(cols: list[str]) -> str:
@@ -328,7 +330,7 @@ def suggestion_yaml(s: Suggestion, source: str) -> str:
             lines.append(f"preset: {m.preset}  # {m.why}")
         else:
             lines.append(f"# {m.why}")
-        lines.append(_motor_unit_line(m.unit, m.range, m.preset))
+        lines += _motor_unit_lines(m, s.header_range)
     lines.append("columns:")
     for role, value in s.columns.items():
         lines.append(f"  {role}: {_flow(value)}  # {s.comments[role]}")
@@ -351,18 +353,52 @@ def suggestion_yaml(s: Suggestion, source: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _preset_motors(name: str) -> tuple[str, list[float]] | None:
-    """(unit, range) of the rotor list of preset ``name`` (a data file of the package),
-    None when there is no such preset or it has no unit."""
+def _preset_rotors(name: str) -> dict[str, Any]:
+    """The rotor list (``motors:``) of preset ``name`` (a data file of the package),
+    {} when there is no such preset or it has none."""
     import yaml
 
     path = Path(__file__).resolve().parents[1] / "data" / "presets" / f"{name}.yaml"
     try:
         motors = (yaml.safe_load(path.read_text()) or {}).get("motors") or {}
     except (OSError, yaml.YAMLError, AttributeError):
-        return None
+        return {}
+    return motors if isinstance(motors, dict) else {}
+
+
+def _preset_motors(name: str) -> tuple[str, list[float]] | None:
+    """(unit, range) of the rotor list of preset ``name``, None when there is no such
+    preset or it has no unit."""
+    motors = _preset_rotors(name)
     unit, span = motors.get("unit"), motors.get("range")
     return (str(unit), list(span)) if unit and isinstance(span, list) else None
+
+
+def _motor_unit_lines(m: MotorGuess, header: tuple[float, float] | None) -> list[str]:
+    """The motor unit comment and, when the log's header declares a command range the
+    preset's rotor list does not, the preset's rotor list with that range (``motors:``
+    replaces the preset's as a whole)."""
+    own = _preset_motors(m.preset) if m.preset else None
+    if header is None or own is None or own[0] != m.unit:
+        return [_motor_unit_line(m.unit, m.range, m.preset)]
+    if [float(v) for v in own[1]] == [float(v) for v in header]:
+        return [_motor_unit_line(m.unit, m.range, m.preset)]
+    lo, hi = (_fmt(v) for v in header)
+    plo, phi = (_fmt(float(v)) for v in own[1])
+    rotors = _preset_rotors(m.preset)
+    lines = [
+        f"# motor commands look like {m.unit}; the log's header says motorOutput {lo}..{hi}, "
+        f"not the {plo}..{phi} of preset {m.preset}: its rotor list with the header's "
+        "range follows (motors: replaces the preset's whole list; docs/logs.md)",
+        "motors:",
+    ]
+    for key, value in rotors.items():
+        if key == "rotors":
+            lines.append("  rotors:")
+            lines += [f"    - {_flow(r)}" for r in value]
+        else:
+            lines.append(f"  {key}: {_flow(list(header) if key == 'range' else value)}")
+    return lines
 
 
 def _motor_unit_line(unit: str, span: tuple[float, float], preset: str) -> str:

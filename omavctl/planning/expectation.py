@@ -77,14 +77,16 @@ def expectation_lines(result: Any) -> list[str]:
     if r is None:
         random = f"against a random candidate: cannot tell ({e['others']} other feasible)"
     else:
+        # the table's sign (- better): a fall of the error is negative here too
         random = (
-            f"against a random candidate of the pool {r['median']:+.0f} % (median; 80 % "
-            f"of the {e['others']} others between {r['low']:+.0f} and {r['high']:+.0f} %)"
+            f"against a random candidate of the pool {-r['median']:+.0f} % (median; 80 % "
+            f"of the {e['others']} others between {-r['high']:+.0f} and {-r['low']:+.0f} %)"
         )
     return [
         f"expected by the model: RMS error over the region {e['error_now']:.3g} rad/s^2 now, "
         f"{e['error_task_again']:.3g} after flying the task again, {e['error_planned']:.3g} "
-        f"after the planned flight: {e['vs_task_again']:+.0f} % against the task again; "
+        f"after the planned flight: {-e['vs_task_again']:+.0f} % (- better, as in the "
+        "table, whose cost is the square of this error) against the task again; "
         f"{random}. The model's band, not a promise: what refits realised is in "
         "docs/informative.md"
     ]

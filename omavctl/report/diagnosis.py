@@ -40,10 +40,11 @@ def _unit(unit: str, torque_unknown: bool) -> str:
 
 
 def _param_lines(
-    params: Mapping[str, Any], units: Mapping[str, str], torque_unknown: bool
+    params: Mapping[str, Any], units: Mapping[str, str], torque_unknown: bool, effect: str = ""
 ) -> tuple[Content, ...]:
     """'name_axis = value ± stderr unit [95 % interval]' per parameter component (with
-    "cannot be pinned down from this flight" where ``P_pinned`` says so); components
+    why it is not pinned down where ``P_pinned`` says so, in words that follow the
+    interval: :func:`omavctl.learn.intervals.unpinned_words`); components
     whose ``excited`` flag is false are left out (and named as such)."""
     derived = ("_stderr", "_ci95", "_pinned")
     names = [
@@ -78,7 +79,7 @@ def _param_lines(
                 # plausible range, 0 included (drag, lags)
                 err, note = "", " (at its bound: no std. error)"
             if not note:
-                note = _interval_note(params, k, i)
+                note = _interval_note(params, k, i, effect)
             lines.append(f"{labels[i]} = {num(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
         offset += len(vals)
     if skipped:
@@ -96,12 +97,12 @@ def fitted_effect_items(effects: Mapping[str, Any], torque_unknown: bool) -> lis
         if not isinstance(params, Mapping) or name not in EFFECTS:
             continue
         units = {p.name: p.unit for p in EFFECTS[name].parameters}
-        lines = _param_lines(params, units, torque_unknown)
+        lines = _param_lines(params, units, torque_unknown, name)
         out.append(f"fitted {name}: " + "; ".join(str(x) for x in lines if isinstance(x, str)))
     return out
 
 
-def _interval_note(params: Mapping[str, Any], k: str, i: int) -> str:
+def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") -> str:
     """' [low, high]' of component i's 95 % interval, and whether it pins it down."""
     ci = as_list(params.get(f"{k}_ci95", []))
     pinned = as_list(params.get(f"{k}_pinned", []))
@@ -110,8 +111,19 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int) -> str:
     lo, hi = ci[i]
     text = f" [{num(lo, 2)}, {num(hi, 2)}]" if finite(lo) and finite(hi) else " [unbounded]"
     if i < len(pinned) and pinned[i] is False:
-        text += ": cannot be pinned down from this flight"
+        text += f": {_unpinned(effect, k, ci[i], i)}"
     return text
+
+
+def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:
+    """Why the interval does not pin the parameter down (the default words for an
+    effect or parameter this version does not know)."""
+    from omavctl.learn.intervals import unpinned_words
+
+    try:
+        return unpinned_words(effect, param, [float(v) for v in ci], i)
+    except (KeyError, ValueError, TypeError):
+        return "cannot be pinned down from this flight"
 
 
 def _flag(v: Any) -> str:
@@ -152,6 +164,7 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
                         e.get("estimate") or e.get("parameters") or {},
                         e.get("units") or {},
                         torque_unknown,
+                        str(name),
                     )
                 ),
                 num(e.get("t_value"), 3),

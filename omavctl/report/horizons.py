@@ -263,6 +263,18 @@ def horizons_section(evals: Sequence[Evaluation], figures: bool) -> list[Block]:
     return blocks + _side_by_side(evals)
 
 
+def stride_words(h: Mapping[str, Any]) -> str:
+    """', a start every 8 samples, not the 1 asked for (memory bound)' when the table
+    ran with a larger stride than requested ('' otherwise)."""
+    stride, asked = h.get("stride"), h.get("stride_requested")
+    if not isinstance(stride, int) or not isinstance(asked, int) or stride == asked:
+        return ""
+    return (
+        f", a start every {stride} samples, not the {asked} asked for: the log is long "
+        "and the windows are held in memory at once"
+    )
+
+
 def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
     """The horizon table in the terminal (nothing without one)."""
     from rich.table import Table as RichTable
@@ -274,8 +286,8 @@ def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
     # a log without attitude has no attitude column: its title does not name one
     attitude = " / attitude rad" if h.get("attitude") else " (no attitude in the log)"
     table = RichTable(
-        title=f"open-loop error over horizons ({h['windows']} windows): body rate norm "
-        f"rad/s{attitude}, 2σ coverage",
+        title=f"open-loop error over horizons ({h['windows']} windows{stride_words(h)}): "
+        f"body rate norm rad/s{attitude}, 2σ coverage",
         title_justify="left",
     )
     table.add_column("predictor")

@@ -38,15 +38,45 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "mismatch": "Model and log",
         "worse": "No help",
     }
+    commands = [
+        c
+        for tree, _, _ in evals
+        if isinstance(c := (tree.get("diagnosis") or {}).get("separate_command"), str) and c
+    ]
     items: list[Content] = []
     for ln in lines:
         # the sentences say what they are about; the bold head says which file(s)
         head = ln.who or titles.get(ln.key, ln.key)
-        parts: tuple[Inline, ...] = (Span(f"{head}: ", "strong"), ln.text)
+        lead, sep, rest = ln.text.partition(": ")
+        words = lead.lower().split()
+        # a sentence that opens with its own head is not titled twice ("What is
+        # missing: Missing: ...", "Uncertainty: Uncertainty can be trusted: ...")
+        if (
+            not ln.who
+            and sep
+            and len(lead) <= 60
+            and words
+            and (words[0] in head.lower() or "missing" in words)
+        ):
+            head, text = lead, rest
+        else:
+            text = ln.text
+        parts: tuple[Inline, ...] = (Span(f"{head}: ", "strong"), *_with_code(text, commands))
         if ln.command:
             parts = (*parts, f" {ln.add_words}: ", Span(ln.command, "code"))
         items.append(parts)
     return [Heading(2, "Verdict", "verdict"), Bullets(items)]
+
+
+def _with_code(text: str, commands: Sequence[str]) -> tuple[Inline, ...]:
+    """``text`` with each of ``commands`` in it set in code font, and a full stop after
+    one that ends the sentence (so that "Add it with:" does not run on from it)."""
+    for cmd in commands:
+        at = text.find(cmd)
+        if at >= 0:
+            tail = text[at + len(cmd) :]
+            return (text[:at], Span(cmd, "code"), *(_with_code(tail, commands) if tail else (".",)))
+    return (text,)
 
 
 def _dt(tree: Mapping[str, Any], t: np.ndarray) -> float:

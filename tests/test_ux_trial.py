@@ -1,0 +1,193 @@
+"""What a new user hit in a trial on real and synthetic motor-output logs (issues
+#26, #27, #28): each finding's exact words, checked on the object that says them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+from omavctl.learn.flights import LogSummary, upsampling_note
+from omavctl.logs.types import TopicInfo
+
+
+def _flight(log_hz: float, grid_hz: float, command_hz: float | None = None) -> SimpleNamespace:
+    topics = [TopicInfo("body_rate", "csv", 1000, 10.0, log_hz)]
+    topics.append(TopicInfo("motor_command", "csv", 1000, 10.0, command_hz or log_hz))
+    return SimpleNamespace(topics=topics, rate=grid_hz)
+
+
+def test_fit_notes_a_log_much_faster_than_the_grid_and_names_the_setting():
+    """A 500 Hz log fitted on a vehicle without controller.rate_hz is fitted on the
+    100 Hz grid (a 30 ms motor lag came out 26.4 ± 0.5 ms) and fit said nothing."""
+    vehicle = SimpleNamespace(topics={})
+    assert upsampling_note(_flight(499.99999, 100.0), vehicle) == (
+        "body rate and command logged at 500 Hz, 5.0× the 100 Hz grid (controller.rate_hz): "
+        "the fit sees one sample in 5 and resolves timing effects (motor_lag, command_delay) on a "
+        "10 ms grid; set controller: {rate_hz: 500} in the vehicle YAML to fit at the "
+        "log's own rate"
+    )
+    assert upsampling_note(_flight(190.0, 100.0), vehicle) is None
+    # the simulated omav: IMU at 200 Hz, commands on the 100 Hz grid: nothing thrown away
+    assert upsampling_note(_flight(200.0, 100.0, 100.0), vehicle) is None
+    assert upsampling_note(_flight(100.0, 100.0), vehicle) is None
+    assert upsampling_note(_flight(83.3, 100.0), vehicle).startswith("body rate logged at 83.3")
+
+
+def test_fit_counts_the_out_of_control_samples_in_its_samples_line():
+    """ "3845 of 6000 samples used (0 invalid ...; 10 at segment edges ...)" with the
+    2145 out-of-control samples only in a later note: the line adds up."""
+    from omavctl.cli.fit import samples_line
+
+    log = LogSummary(Path("hexa0.csv"), 6000, 3845, 0, 6, 4, [], 2145)
+    assert samples_line(log) == (
+        "hexa0.csv: 3845 of 6000 samples used (0 invalid: in gaps, on the ground or outside "
+        "the time window; 10 at segment edges or in short segments; 2145 out of control)"
+    )
+
+
+def _betaflight_log(tmp_path: Path, motor_output: str) -> Path:
+    """A blackbox_decode CSV (2 kHz, gyro in deg/s, DShot motors, vbat in V) and its
+    header sidecar with ``motorOutput``."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    head = "loopIteration, time (us), gyroADC[0] (deg/s), gyroADC[1] (deg/s), gyroADC[2] (deg/s)"
+    rows = [f"{head}, vbatLatest (V), motor[0], motor[1], motor[2], motor[3]"]
+    for i in range(600):
+        gyro = ", ".join(f"{v:.2f}" for v in rng.normal(0.0, 60.0, 3))
+        motors = ", ".join(str(int(v)) for v in 138 + 1909 * rng.random(4))
+        rows.append(f"{i}, {1_000_000 + 500 * i}, {gyro}, {12.6 - 1e-4 * i:.4f}, {motors}")
+    path = tmp_path / "LOG00001.01.csv"
+    path.write_text("\n".join(rows) + "\n")
+    (tmp_path / "LOG00001.01.headers.txt").write_text(
+        f"H Firmware revision:Betaflight 4.2.0\nH looptime:125\nH motorOutput:{motor_output}\n"
+    )
+    return path
+
+
+def test_inspect_suggests_the_battery_voltage_and_the_headers_motor_range(tmp_path: Path):
+    """On the Betaflight CSV inspect left out battery_voltage although vbatLatest is
+    read in volts, and kept the preset's DShot 48..2047 where the header says
+    motorOutput 138,2047: the suggestion maps vbatLatest and gives the preset's rotor
+    list with the header's range, which then reads the log."""
+    from omavctl.logs.inspection import inspect_log
+    from omavctl.vehicle import load_vehicle
+
+    log = _betaflight_log(tmp_path, "138,2047")
+    ins = inspect_log(log)
+    assert ins.suggested_columns["battery_voltage"] == "vbatLatest"
+    text = ins.suggestion
+    assert (
+        "# motor commands look like dshot; the log's header says motorOutput 138.0..2047.0, "
+        "not the 48.0..2047.0 of preset quad-x-betaflight: its rotor list with the header's "
+        "range follows (motors: replaces the preset's whole list; docs/logs.md)\nmotors:\n"
+    ) in text
+    assert "  range: [138.0, 2047.0]\n" in text
+    vfile = tmp_path / "v.yaml"
+    vfile.write_text(text)
+    veh = load_vehicle(vfile)
+    assert veh.motors is not None and len(veh.motors.rotors) == 4
+    assert {r.span for r in veh.motors.rotors} == {(138.0, 2047.0)}
+    assert veh.columns["battery_voltage"] == "vbatLatest"
+    # the header agreeing with the preset: nothing to add, no rotor list
+    same = inspect_log(_betaflight_log(tmp_path, "48,2047")).suggestion
+    assert "nothing to add" in same and "\nmotors:" not in same
+
+
+def test_report_says_every_effect_its_fit_command_adds(tmp_path: Path):
+    """`report` said "to add motor_lag to cf-eval.json's model:" above a command that
+    adds motor_lag,motor_loss."""
+    from rich.console import Console
+
+    from omavctl.cli.report import _render_report
+
+    cmd = "omavctl fit log10.csv --effects motor_lag,motor_loss --out m+motor_lag.npz"
+    ev = SimpleNamespace(label="cf-eval.json", model_rmse={"x": 1.0, "y": 2.0, "z": 3.0},
+                         missing=["motor_lag", "motor_loss"], fit_command=cmd)  # fmt: skip
+    summary = SimpleNamespace(verdict=[], evaluations=[ev], fmt="md", figures=0)
+    con = Console(record=True, width=200)
+    _render_report(con, summary, tmp_path / "r.md")
+    text = con.export_text()
+    assert f"to add motor_lag, motor_loss to cf-eval.json's model:\n  {cmd}\n" in text
+
+
+def test_the_report_verdict_titles_a_sentence_once_and_sets_the_plan_command_in_code():
+    """ "What is missing: Missing: motor_loss", and the separating plan command as
+    plain text running on into "Add it with: omavctl fit ..."."""
+    from omavctl.report.document import _md_inline
+    from omavctl.report.top import verdict_section
+
+    sep = "omavctl task fig8 --out fig8.csv && omavctl plan --model m.npz --out next.csv"
+    tree = {
+        "diagnosis": {
+            "missing": ["motor_loss"],
+            "missing_effects": [
+                {"name": "motor_loss", "explained_variance": 0.18, "ambiguous_with": ["com_offset"]}
+            ],
+            "separate_command": sep,
+            "fit_command": "omavctl fit a.csv --effects motor_loss --out m+motor_loss.npz",
+        }
+    }
+    items = [_md_inline(it) for it in verdict_section([(tree, None, "e.json")])[1].items]
+    head = items[0]
+    assert head.startswith("**Missing:** motor\\_loss — it explains 18 %")
+    assert head.endswith(
+        f"tells them apart: `{sep}`. Add it with: "
+        "`omavctl fit a.csv --effects motor_loss --out m+motor_loss.npz`"
+    )
+
+
+def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
+    """`stride_requested: 1` in the JSON, stride 8 used, and the terminal said nothing."""
+    from rich.console import Console
+
+    from omavctl.report.horizons import render_horizons
+
+    row = {"seconds": 0.01, "steps": 1, "rate_error": {"x": 1.0, "y": 1.0, "z": 1.0, "norm": 1.7}}
+    h = {"steps": [1], "seconds": [0.01], "band_sigma": 2.0, "windows": 3884, "attitude": False,
+         "predictors": [{"key": "naive", "kind": "naive", "model": None}],
+         "table": {"naive": [row]}, "findings": [], "stride": 8, "stride_requested": 1}  # fmt: skip
+    con = Console(record=True, width=400)
+    render_horizons(con, {"horizons": h})
+    said = " ".join(con.export_text().split())  # the title wraps to the table's width
+    assert said.startswith(
+        "open-loop error over horizons (3884 windows, a start every 8 samples, not the 1 "
+        "asked for: the log is long and the windows are held in memory at once): body rate "
+        "norm rad/s (no attitude in the log), 2σ coverage"
+    )
+    con = Console(record=True, width=400)
+    render_horizons(con, {"horizons": {**h, "stride": 1}})
+    said = " ".join(con.export_text().split())
+    assert said.startswith("open-loop error over horizons (3884 windows): body")
+
+
+def test_an_unpinned_interval_is_worded_by_what_it_holds():
+    """ "D_z = 1.08 (95 %: 0.809 to 1.34, cannot be pinned down)": an interval that
+    excludes 0 called not pinned down. It lies outside drag's plausible 0 to 1."""
+    from omavctl.diagnose.estimate_text import estimate_sentence
+    from omavctl.learn.intervals import pinned_down, unpinned_words
+
+    assert not pinned_down("rotational_drag", "D", [[0.809, 1.34]])[0]
+    assert unpinned_words("rotational_drag", "D", (0.809, 1.34), 2) == (
+        "outside the plausible 0 to 1: not this effect alone, something else on this axis"
+    )
+    holds_zero = unpinned_words("rotational_drag", "D", (-0.01, 0.05), 0)
+    assert holds_zero == "cannot be pinned down from this flight"
+    entry = {
+        "name": "rotational_drag",
+        "units": {"D": "N m s^2"},
+        "estimate": {"D": [0.0375, 0.0322, 1.08], "D_pinned": [True, True, False],
+                     "D_ci95": [[0.0334, 0.0416], [0.0263, 0.0381], [0.809, 1.34]]},
+    }  # fmt: skip
+    text = estimate_sentence(entry, None)
+    assert "D_z = 1.08 N m s^2 (95 %: 0.809 to 1.34, outside the plausible 0 to 1:" in text
+    assert "pinned down" not in text
+    # the report's parameter lines say the same
+    from omavctl.report.diagnosis import _interval_note
+
+    params = {"D": [0.0375, 0.0322, 1.08], "D_ci95": entry["estimate"]["D_ci95"],
+              "D_pinned": [True, True, False]}  # fmt: skip
+    assert _interval_note(params, "D", 2, "rotational_drag") == (
+        " [0.81, 1.3]: outside the plausible 0 to 1: not this effect alone, something else "
+        "on this axis"
+    )
