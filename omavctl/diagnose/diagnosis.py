@@ -14,12 +14,13 @@ command that adds the top missing effect.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from omavctl.diagnose.claims import Guarded, claimed_axes, guard_claims, learned_claim
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, fit_estimates
 from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.metrics import AXES
@@ -47,6 +48,28 @@ __all__ = [
 
 #: Alternating train/test blocks of the diagnosis, s.
 BLOCK_SECONDS = 2.0
+
+
+#: How the diagnosis decides (the evaluation JSON's ``diagnosis.method``, with the
+#: claim floor and the log's noise).
+METHOD: dict[str, Any] = {
+    "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
+    "standard_errors": "delete-one-block jackknife",
+    "min_explained_variance": MIN_EXPLAINED,
+    "min_t_value": MIN_T,
+    "refit": "parameters fitted to the model's own training points as fit --effects "
+    "would (GP hyperparameters kept); a missing effect must lower the error with them",
+    "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
+    "selection": "forward: best missing effect removed, others rescored, up to 3; "
+    "with the effects that, estimated jointly from the model's training points as fit "
+    "--effects would, lower the physics-only error on the held-out flight (joint)",
+    "claim_guard": "a claim is kept only where the 95 % interval of its estimate as the fit "
+    "command makes it excludes the effect's null on an axis it is claimed on (not_pinned)",
+    "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
+    "interval excludes its null and, estimated from the training points by least squares, "
+    "it passes the joint test on the held-out physics-only error (learned_claims)",
+    "learned_estimate": ESTIMATE_METHOD,
+}
 
 
 def _blocks(t: np.ndarray, log_id: np.ndarray, seconds: float) -> np.ndarray:
@@ -166,25 +189,13 @@ def diagnose(
     learned = score_effects(residual, regs, blocks, noise_floor=floor)
     unexplained = unexplained_structure(after, features, sg.dt)
     physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
-    joint = joint_selection(model, physics, candidates_raw(regs, model), blocks, floor)
-    names = _merge(joint, accepted, missing)
+    raw = candidates_raw(regs, model)
+    joint = joint_selection(model, physics, raw, blocks, floor)
+    guarded = _guard(samples, model, _merge(joint, accepted, missing), accepted, missing)
+    names = guarded.kept
     estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned])
-    return {
-        "method": {
-            "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
-            "standard_errors": "delete-one-block jackknife",
-            "min_explained_variance": MIN_EXPLAINED,
-            "min_t_value": MIN_T,
-            "min_contribution_rms": floor,
-            "measurement_noise_std": noise,
-            "refit": "parameters fitted to the model's own training points as fit --effects "
-            "would (GP hyperparameters kept); a missing effect must lower the error with them",
-            "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
-            "selection": "forward: best missing effect removed, others rescored, up to 3; "
-            "with the effects that, estimated jointly from the model's training points as fit "
-            "--effects would, lower the physics-only error on the held-out flight (joint)",
-            "learned_estimate": ESTIMATE_METHOD,
-        },
+    out: dict[str, Any] = {
+        "method": {**METHOD, "min_contribution_rms": floor, "measurement_noise_std": noise},
         "missing_effects": [s.to_json() for s in missing],
         "missing": names,
         "below_noise": None if names else _below_noise(missing, noise),
@@ -193,7 +204,53 @@ def diagnose(
         "joint_steps": [s.to_json() for s in joint],
         "unexplained": unexplained,
         "learned": [{**s.to_json(), "estimate": estimates[s.name]} for s in learned],
+        # the claims' estimates as the printed fit command makes them, and the claims
+        # held back because their interval holds the effect's null (claims.py)
+        "claim_estimates": guarded.estimates,
+        "not_pinned": guarded.held_back,
     }
+    for entry in out["missing_effects"]:
+        if any(h["name"] == entry["name"] for h in guarded.held_back):
+            entry["missing"] = False  # claimed by a test, but its interval holds its null
+            entry["not_pinned"] = True
+    # an effect the GP learned, pinned down and confirmed on the held-out physics-only
+    # error, is claimed when nothing else is: the loop goes on with its fit command
+    step = None
+    if not names:
+        pool = _learned_pool(out["learned"], samples, model, physics, raw, blocks, floor)
+        step = learned_claim(pool, model, physics, raw, blocks, floor)
+    return {
+        **out,
+        "learned_claims": [step[0].name] if step else [],
+        "learned_steps": [_learned_json(*step)] if step else [],
+    }
+
+
+def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:
+    """A learned claim's JSON: its ranking entry (what the physics-only residual shows,
+    the estimate, the look-alikes) with the held-out test's numbers."""
+    test = step.to_json()
+    return {**entry, **{k: test[k] for k in ("share", "share_of_total", "block_t")}}
+
+
+def _learned_pool(
+    learned: list[dict[str, Any]],
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    physics: np.ndarray,
+    raw: dict[str, np.ndarray],
+    blocks: np.ndarray,
+    floor: float,
+) -> list[dict[str, Any]]:
+    """What the GP learned beyond the model's physics: the ranking on the nominal
+    residual (``learned``) for a model without effects; for one with effects the same
+    ranking on the physics-only residual (n, 3) over the effects it lacks, each claimed
+    one with its estimate as fit --effects would make it."""
+    if not model.effects:
+        return learned
+    scores = [s for s in score_effects(physics, raw, blocks, noise_floor=floor) if s.missing]
+    ests = fit_estimates(samples, list(model.effects), [s.name for s in scores])
+    return [{**s.to_json(), "estimate": ests[s.name]} for s in scores]
 
 
 def _candidates(
@@ -223,6 +280,33 @@ def _candidates(
 def candidates_raw(regs: dict[str, np.ndarray], model: ResidualGP) -> dict[str, np.ndarray]:
     """The registry regressors (n, 3, p) of the effects ``model`` lacks."""
     return {n: r for n, r in regs.items() if n not in model.effects}
+
+
+def _guard(
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    names: list[str],
+    accepted: Sequence[dict[str, Any]],
+    scores: list[EffectScore],
+) -> Guarded:
+    """The claims ``names`` whose 95 % interval, estimated as the fit command would,
+    excludes their null on an axis they are claimed on (:func:`guard_claims`; the
+    ranking's claims on the axes where they explain at least AXIS_CLAIM, the joint
+    selection's on every axis). A claim held back stays in the ambiguous set of a
+    kept look-alike it was ambiguous with (in place): the flight did not tell them
+    apart, it only could not pin the one down."""
+    ranked = {str(a["name"]) for a in accepted}
+    by_name = {s.name: s for s in scores}
+    axes_of = {n: claimed_axes(by_name[n].explained_per_axis) for n in ranked if n in by_name}
+    guarded = guard_claims(samples, list(model.effects), names, axes_of)
+    for held in guarded.held_back:
+        x = by_name.get(held["name"])
+        for kept in guarded.kept:
+            y = by_name.get(kept)
+            if x is not None and y is not None and kept in x.ambiguous_with:
+                if x.name not in y.ambiguous_with:
+                    y.ambiguous_with.append(x.name)
+    return guarded
 
 
 def _merge(
@@ -305,16 +389,19 @@ def _refit_rejected(scores: Sequence[EffectScore]) -> str | None:
 def effect_commands(
     diagnosis: dict[str, Any], model_path: str, model: ResidualGP
 ) -> dict[str, str]:
-    """The ``fit`` command that adds each effect the diagnosis names (missing, those
-    the top one is ambiguous with, held back by the noise floor or the refit test,
-    learned but not modelled), by effect name, in that order."""
+    """The ``fit`` command that adds each effect the diagnosis names (missing, learned
+    and claimed, those the top one is ambiguous with, held back because their interval
+    holds their null, by the noise floor or by the refit test, learned but not
+    modelled), by effect name, in that order."""
     top = (diagnosis.get("missing") or [None])[0]
     entry: dict[str, Any] = next(
         (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
     )
     names = [
         *(diagnosis.get("missing") or []),
+        *(diagnosis.get("learned_claims") or []),
         *(entry.get("ambiguous_with") or []),
+        *(str(e.get("name")) for e in diagnosis.get("not_pinned") or []),
         diagnosis.get("below_noise"),
         diagnosis.get("refit_rejected"),
         *learned_not_modelled(diagnosis, list(model.effects)),

@@ -350,10 +350,10 @@ def _diagnosis(
     shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
     for name in shown:
         series[f"contribution_{name}"] = parts[name]
-    if diagnosis["missing"]:  # every missing effect, estimated jointly in one fit
-        diagnosis["fit_command"] = fit_command(model_path, model, diagnosis["missing"])
-    else:
-        diagnosis["fit_command"] = None
+    # every missing effect, estimated jointly in one fit; else the effect the GP learned
+    # that the held-out flight confirms (learned_claims), so that a loop goes on
+    claimed = diagnosis["missing"] or diagnosis["learned_claims"]
+    diagnosis["fit_command"] = fit_command(model_path, model, claimed) if claimed else None
     near = diagnosis.get("below_noise")
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None

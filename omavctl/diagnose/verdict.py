@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from omavctl.diagnose import claim_text as ct
 from omavctl.diagnose.activity import activity
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
@@ -107,6 +108,9 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     diag = get_path(tree, "diagnosis", default={}) or {}
     missing = [str(m) for m in get_path(diag, "missing", default=[]) or []]
     entries = {str(e.get("name")): e for e in diag.get("missing_effects", []) or []}
+    if not missing and (learned := ct.learned_claim_text(diag, on_what(tree))):
+        cmd = diag.get("fit_command")
+        return Line("missing", learned, command=cmd if isinstance(cmd, str) and cmd else None)
     if not missing:
         threshold = _num(get_path(diag, "method", "min_explained_variance"))
         text = "Nothing missing: no registered effect explains"
@@ -119,6 +123,9 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
             text += given_sentence(diag, str(diag.get("below_noise")))
         elif held := _refit_rejected(diag):
             text, test = f"Nothing claimed as missing: {held[0]}", held[1]
+        elif unpinned := ct.not_pinned_names(diag):
+            text = f"Nothing claimed as missing.{ct.not_pinned_text(diag)}"
+            test = (diag.get("effect_commands") or {}).get(unpinned[0])
         structure = _structure(diag.get("unexplained"))
         if structure:
             text += f" Some structure remains that no registered effect explains: {structure}."
@@ -154,8 +161,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"
         text += f" ({axes})" if axes else ""
     text += "."
-    learned = {str(e.get("name")): e for e in diag.get("learned", []) or []}
-    text += estimate_sentence(learned.get(missing[0], {}), claimed)
+    text += estimate_sentence(ct.claim_estimate(diag, missing[0]), claimed)
     if len(missing) > 1:
         text += f" Also: {', '.join(missing[1:])}{joint_text(diag, missing)}."
     amb = top.get("ambiguous_with") or []
@@ -164,6 +170,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     alike = _look_alikes(missing[0])
     if alike:
         text += f" A residual of its shape is also left by {alike}."
+    text += ct.not_pinned_text(diag)
     cmd = diag.get("fit_command")
     text += given_sentence(diag, missing[0])
     if amb and isinstance(sep := diag.get("separate_command"), str) and sep:
@@ -264,7 +271,8 @@ def learned_not_modelled(diag: Mapping[str, Any], effects: Sequence[str]) -> lis
     """Effects the nominal residual shows (``learned``, claimed there) that the model
     does not hold as physics (not in ``effects``) and that are not named missing: what
     the GP has absorbed, which ``fit --effects`` would make physical and testable."""
-    named = set(effects) | {str(m) for m in diag.get("missing") or []}
+    said = [*(diag.get("missing") or []), *(diag.get("learned_claims") or [])]
+    named = set(effects) | set(map(str, said)) | set(ct.not_pinned_names(diag))
     return [
         str(e.get("name"))
         for e in diag.get("learned") or []
