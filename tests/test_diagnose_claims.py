@@ -5,12 +5,21 @@ confirms it (issue 26)."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
-from omavctl.diagnose.claims import claimed_axes, excludes_null, guard_claims, learned_claim
+from omavctl.diagnose.claims import (
+    claimed_axes,
+    excludes_null,
+    guard_claims,
+    learned_claim,
+    material_axes,
+)
 from omavctl.diagnose.joint import MIN_SHARE, learned_step
 from omavctl.diagnose.verdict import verdict
+from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_vehicle_log, write_log
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -147,3 +156,30 @@ def test_a_claim_held_back_says_it_cannot_be_pinned_down_with_its_interval():
     )
     assert "scale_x = 1.02 (95 %: 0.97 to 1.07" in line.text
     assert line.command == "omavctl fit f.bag --effects inertia_error"
+
+
+def test_a_per_axis_component_below_the_claim_floor_is_no_claim_on_that_axis():
+    """An inertia scale pinned away from 1 on an axis the flight hardly drives (its
+    part of the error under the claim floor even at the interval's end nearest 1) is
+    not a claim there: the claim is judged on the other axes."""
+    rng = np.random.default_rng(0)
+    n = 500
+    reg = np.zeros((n, 3, 3))
+    for j, size in enumerate((1.0, 1.0, 0.1)):  # the z command hardly moves
+        reg[:, j, j] = size * rng.normal(size=n)
+    samples = [SimpleNamespace(regressors={"inertia_error": reg})]
+    est = EffectEstimate(
+        "inertia_error",
+        {"scale": np.array([1.3, 1.01, 1.3])},
+        {"scale": np.array([0.02, 0.02, 0.02])},
+    )
+    # theta = 1/scale - 1: x -0.23 (part ~0.2), z -0.23 (~0.02); y's interval holds 1
+    assert material_axes(samples, est, floor=0.1) == {"x"}
+    assert material_axes(samples, est, floor=0.005) == {"x", "z"}
+    # the interval's end nearest the null counts, not the estimate
+    wide = EffectEstimate("inertia_error", est.values, {"scale": np.array([0.2, 0.02, 0.02])})
+    assert material_axes(samples, wide, floor=0.1) == set()
+    # a component that acts on other axes too (com_offset's r) has no per-axis part
+    mixed = EffectEstimate("com_offset", {"r": np.ones(3) * 0.01}, {"r": np.ones(3) * 0.001})
+    full = np.ones((n, 3, 3))
+    assert material_axes([SimpleNamespace(regressors={"com_offset": full})], mixed, 0.1) is None

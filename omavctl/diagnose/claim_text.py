@@ -52,7 +52,7 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
         name = str(e.get("name"))
         axes = e.get("axes")
         entry = {"estimate": e.get("estimate"), "units": e.get("units")}
-        said = estimate_sentence(entry, axes if isinstance(axes, list) else None)
+        said = estimate_sentence(entry, axes if isinstance(axes, list) and axes else None)
         out += (
             f" Not claimed: {name}, which cannot be pinned down from this flight (its 95 % "
             f"interval holds {_null_words(name)}, the value at which it is absent).{said}"

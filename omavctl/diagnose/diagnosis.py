@@ -191,7 +191,7 @@ def diagnose(
     physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
     raw = candidates_raw(regs, model)
     joint = joint_selection(model, physics, raw, blocks, floor)
-    guarded = _guard(samples, model, _merge(joint, accepted, missing), accepted, missing)
+    guarded = _guard(samples, model, _merge(joint, accepted, missing), accepted, missing, floor)
     names = guarded.kept
     estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned])
     out: dict[str, Any] = {
@@ -288,17 +288,19 @@ def _guard(
     names: list[str],
     accepted: Sequence[dict[str, Any]],
     scores: list[EffectScore],
+    floor: float,
 ) -> Guarded:
     """The claims ``names`` whose 95 % interval, estimated as the fit command would,
     excludes their null on an axis they are claimed on (:func:`guard_claims`; the
     ranking's claims on the axes where they explain at least AXIS_CLAIM, the joint
-    selection's on every axis). A claim held back stays in the ambiguous set of a
+    selection's on every axis; of a per-axis parameter, only the axes where its part is
+    at least the claim ``floor``). A claim held back stays in the ambiguous set of a
     kept look-alike it was ambiguous with (in place): the flight did not tell them
     apart, it only could not pin the one down."""
     ranked = {str(a["name"]) for a in accepted}
     by_name = {s.name: s for s in scores}
     axes_of = {n: claimed_axes(by_name[n].explained_per_axis) for n in ranked if n in by_name}
-    guarded = guard_claims(samples, list(model.effects), names, axes_of)
+    guarded = guard_claims(samples, list(model.effects), names, axes_of, floor)
     for held in guarded.held_back:
         x = by_name.get(held["name"])
         for kept in guarded.kept:
