@@ -96,10 +96,10 @@ def test_a_learned_drag_is_tested_on_the_held_out_flight_with_the_fit_flights_es
         "explained_variance_per_axis": {"x": 0.6, "y": 0.5, "z": 0.4},
         "estimate": {"D_ci95": [[0.011, 0.013], [0.009, 0.011], [0.007, 0.009]]},
     }
-    found = learned_claim([entry], model, physics, regs, blocks, FLOOR)
+    found = learned_claim([entry], [], model, physics, regs, blocks, FLOOR)
     assert found is not None and found[0].name == "rotational_drag"
     wide = {**entry, "estimate": {"D_ci95": [[-0.01, 0.03]] * 3}}
-    assert learned_claim([wide], model, physics, regs, blocks, FLOOR) is None
+    assert learned_claim([wide], [], model, physics, regs, blocks, FLOOR) is None
 
 
 def _tree(diag):

@@ -23,7 +23,7 @@ that follows it would stop with the physics-only error where it was.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -187,8 +187,14 @@ def _axes(
     return material if claimed is None else claimed & material
 
 
+def _exact(samples: Sequence[ResidualSamples], name: str) -> Callable[[float], np.ndarray]:
+    """``name``'s exact form (n, 3) on the stacked samples, as a function of its value."""
+    return lambda value: np.concatenate([s.exact(name, value) for s in samples])
+
+
 def learned_claim(
     pool: Sequence[Mapping[str, Any]],
+    samples: Sequence[ResidualSamples],
     model: ResidualGP,
     physics: np.ndarray,
     regressors: Mapping[str, np.ndarray],
@@ -201,7 +207,7 @@ def learned_claim(
     estimate excludes its null and that passes :func:`omavctl.diagnose.joint.learned_step`
     on the held-out physics-only error ``physics`` (n, 3) with the largest gain, with its
     entry; None when none does. ``regressors``: name -> (n, 3, p) on the held-out
-    samples."""
+    ``samples`` (whose exact forms test a lag or delay)."""
     best: tuple[JointStep, Mapping[str, Any]] | None = None
     for entry in pool:
         name = str(entry.get("name"))
@@ -212,7 +218,8 @@ def learned_claim(
         axes = claimed_axes(entry.get("explained_variance_per_axis"))
         if not excludes_null(name, entry.get("estimate") or {}, axes):
             continue
-        step = learned_step(model, name, physics, regressors[name], blocks, floor)
+        exact = _exact(samples, name) if get_effect(name).search is not None else None
+        step = learned_step(model, name, physics, regressors[name], blocks, floor, exact)
         if step is not None and (best is None or step.share > best[0].share):
             best = step, entry
     return best

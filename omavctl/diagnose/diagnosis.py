@@ -218,7 +218,7 @@ def diagnose(
     step = None
     if not names:
         pool = _learned_pool(out["learned"], samples, model, physics, raw, blocks, floor)
-        step = learned_claim(pool, model, physics, raw, blocks, floor)
+        step = learned_claim(pool, samples, model, physics, raw, blocks, floor)
     return {
         **out,
         "learned_claims": [step[0].name] if step else [],
