@@ -152,7 +152,8 @@ def test_a_claim_held_back_says_it_cannot_be_pinned_down_with_its_interval():
     (line,) = [ln for ln in verdict(_tree(diag)) if ln.key == "missing"]
     assert line.text.startswith(
         "Nothing claimed as missing. Not claimed: inertia_error, which cannot be pinned "
-        "down from this flight (its 95 % interval holds scale = 1"
+        "down from this flight: on no axis it is claimed on does its 95 % interval exclude "
+        "scale = 1 (the value at which it is absent)"
     )
     assert "scale_x = 1.02 (95 %: 0.97 to 1.07" in line.text
     assert line.command == "omavctl fit f.bag --effects inertia_error"
@@ -176,6 +177,10 @@ def test_a_per_axis_component_below_the_claim_floor_is_no_claim_on_that_axis():
     # theta = 1/scale - 1: x -0.23 (part ~0.2), z -0.23 (~0.02); y's interval holds 1
     assert material_axes(samples, est, floor=0.1) == {"x"}
     assert material_axes(samples, est, floor=0.005) == {"x", "z"}
+    # the fit flight must confirm an axis: same side of the null, at least CONFIRM as far
+    fit = np.array([-0.2, 0.0, 0.0])  # the fit flight drove x and found its scale too
+    assert material_axes(samples, est, floor=0.005, fit_theta=fit) == {"x"}
+    assert material_axes(samples, est, floor=0.005, fit_theta=-fit) == set()
     # the interval's end nearest the null counts, not the estimate
     wide = EffectEstimate("inertia_error", est.values, {"scale": np.array([0.2, 0.02, 0.02])})
     assert material_axes(samples, wide, floor=0.1) == set()

@@ -54,8 +54,10 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
         entry = {"estimate": e.get("estimate"), "units": e.get("units")}
         said = estimate_sentence(entry, axes if isinstance(axes, list) and axes else None)
         out += (
-            f" Not claimed: {name}, which cannot be pinned down from this flight (its 95 % "
-            f"interval holds {_null_words(name)}, the value at which it is absent).{said}"
+            f" Not claimed: {name}, which cannot be pinned down from this flight: on no axis "
+            f"it is claimed on does its 95 % interval exclude {_null_words(name)} (the value "
+            "at which it is absent) by a part of the error above the claim floor that the "
+            f"fit flight's estimate confirms.{said}"
         )
     return out
 

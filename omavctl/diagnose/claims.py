@@ -48,6 +48,9 @@ __all__ = [
 ]
 
 AXES = ("x", "y", "z")
+#: The fit flight's estimate of a per-axis component must be at least this fraction of
+#: the held-out interval's end nearest the null (same side) for the claim to hold there.
+CONFIRM = 0.5
 
 
 def claimed_axes(per_axis: Mapping[str, Any] | None) -> set[str] | None:
@@ -92,7 +95,10 @@ def _estimates(
 
 
 def material_axes(
-    samples: Sequence[ResidualSamples], est: EffectEstimate, floor: float
+    samples: Sequence[ResidualSamples],
+    est: EffectEstimate,
+    floor: float,
+    fit_theta: np.ndarray | None = None,
 ) -> set[str] | None:
     """For an effect with one parameter component per axis (its regressor's component
     ``j`` acts on axis ``j`` only: inertia scale, drag), the axes where that component's
@@ -102,7 +108,14 @@ def material_axes(
     on that axis: on a figure-8 the yaw command only answers the disturbances of the
     roll and pitch, so a yaw inertia scale estimated from it is biased (1.3-2.9 on
     clean simulated figure-8s, with intervals a few per cent wide) and explains nearly
-    nothing."""
+    nothing.
+
+    ``fit_theta`` (3,): the fit flight's estimate of the components (the model's
+    training points, :func:`fit_flight_theta`); an axis then also needs it on the same
+    side of the null and at least :data:`CONFIRM` as far from it as the interval's
+    nearest end: a yaw scale that the regulated yaw of a figure-8 biases is not what
+    a chirp that drives yaw finds (tune2 draw 8: 1.17-1.35 on the figure-8, which the
+    vehicle did not have)."""
     reg = np.concatenate([s.regressors[est.name] for s in samples])  # (n, 3, p)
     if reg.shape[2] != 3 or reg.shape[0] == 0:
         return None
@@ -111,7 +124,28 @@ def material_axes(
         return None
     near = _nearest_to_null(est)
     part = np.sqrt(np.mean((reg[:, [0, 1, 2], [0, 1, 2]] * near) ** 2, axis=0))
-    return {a for a, v in zip(AXES, part, strict=True) if np.isfinite(v) and v >= floor}
+    ok = np.isfinite(part) & (part >= floor)
+    if fit_theta is not None and fit_theta.shape == near.shape:
+        ok &= (np.sign(fit_theta) == np.sign(near)) & (np.abs(fit_theta) >= CONFIRM * np.abs(near))
+    return {a for a, good in zip(AXES, ok, strict=True) if good}
+
+
+def fit_flight_theta(model: ResidualGP | None, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """theta of each of ``names`` on the fit flight: least squares of the model's
+    training targets (its physics-only residual there) on their regressors at the
+    training points, all together (fit's first pass, on its training points); {} when
+    the model lacks them."""
+    if model is None or model.n_train == 0 or any(n not in model.train_regressors for n in names):
+        return {}
+    values = [model.train_regressors[n] for n in names]
+    x = np.concatenate(values, axis=2)
+    n, _, p = x.shape
+    theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), model.targets.reshape(3 * n), rcond=None)
+    out, k = {}, 0
+    for name, v in zip(names, values, strict=True):
+        out[name] = theta[k : k + v.shape[2]]
+        k += v.shape[2]
+    return out
 
 
 def _nearest_to_null(est: EffectEstimate) -> np.ndarray:
@@ -143,18 +177,20 @@ def guard_claims(
     names: Sequence[str],
     axes_of: Mapping[str, set[str] | None],
     floor: float | None = None,
+    model: ResidualGP | None = None,
 ) -> Guarded:
     """Keep the claims of ``names`` whose interval excludes their null on an axis they
     are claimed on (``axes_of``: name -> axes, None or absent: all; with ``floor``, only
-    the axes where a per-axis component's part is material, :func:`material_axes`);
-    the others are held back, and the rest estimated again without them, until all
-    kept pass.
+    the axes where a per-axis component's part is material and, with ``model``, the fit
+    flight confirms it, :func:`material_axes`); the others are held back, and the rest
+    estimated again without them, until all kept pass.
 
     ``samples`` must carry every named effect's regressor and context."""
     out = Guarded(kept=list(names))
     while out.kept:
         est = _estimates(samples, model_effects, out.kept)
-        axes = {n: _axes(samples, est[n], axes_of.get(n), floor) for n in out.kept}
+        fit = fit_flight_theta(model, out.kept)
+        axes = {n: _axes(samples, est[n], axes_of.get(n), floor, fit.get(n)) for n in out.kept}
         as_json = {n: e.to_json() for n, e in est.items()}
         drop = [n for n in out.kept if not excludes_null(n, as_json[n], axes[n])]
         if not drop:
@@ -179,9 +215,11 @@ def _axes(
     est: EffectEstimate,
     claimed: set[str] | None,
     floor: float | None,
+    fit_theta: np.ndarray | None = None,
 ) -> set[str] | None:
-    """The axes a claim is judged on: those it is claimed on that are material."""
-    material = None if floor is None else material_axes(samples, est, floor)
+    """The axes a claim is judged on: those it is claimed on that are material (and
+    confirmed by the fit flight's ``fit_theta``)."""
+    material = None if floor is None else material_axes(samples, est, floor, fit_theta)
     if material is None:
         return claimed
     return material if claimed is None else claimed & material

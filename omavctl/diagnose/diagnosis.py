@@ -300,7 +300,7 @@ def _guard(
     ranked = {str(a["name"]) for a in accepted}
     by_name = {s.name: s for s in scores}
     axes_of = {n: claimed_axes(by_name[n].explained_per_axis) for n in ranked if n in by_name}
-    guarded = guard_claims(samples, list(model.effects), names, axes_of, floor)
+    guarded = guard_claims(samples, list(model.effects), names, axes_of, floor, model)
     for held in guarded.held_back:
         x = by_name.get(held["name"])
         for kept in guarded.kept:
