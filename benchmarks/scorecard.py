@@ -143,7 +143,12 @@ def table(records: Sequence[dict[str, Any]]) -> list[str]:
     head = ["metric", "goal", "all", "hidden >= 1x floor", *bins]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     above = [j for r, j in judged if r["hidden"] and sc.size_ratio(r) >= 1.0]
+    # the strict first-answer row only for records that carry learned claims (since
+    # 2026-11-26): older records' tables are unchanged
+    learned = any("learned_claims" in rd for r in ok for rd in r["rounds"])
     for label, key, goal in sc.METRICS:
+        if key == "first_right_strict" and not learned:
+            continue
         cells = [label, goal, _rate(*sc.tally([j for _, j in judged], key))]
         cells.append(_rate(*sc.tally(above, key)))
         for b in bins:

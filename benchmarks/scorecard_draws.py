@@ -299,6 +299,10 @@ def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
     )
     return {
         "missing": list(out.get("missing") or []),
+        # an effect the GP learned that the held-out flight confirms, claimed with the
+        # fit command when nothing is missing (scored as named; the strict figure not)
+        "learned_claims": list(diag.get("learned_claims") or []),
+        "not_pinned": [e.get("name") for e in diag.get("not_pinned") or []],
         "candidates": [{k: e.get(k) for k in keep} for e in diag.get("missing_effects", [])],
         "learned": [e["name"] for e in diag.get("learned", []) if e.get("missing")],
         "model_effects": list(model.get("effects") or []),

@@ -162,17 +162,23 @@ def _line(r: dict[str, Any]) -> str:
     )
     said = " | ".join(
         "+".join(
-            n + ("~" + "~".join(c["ambiguous_with"]) if c.get("ambiguous_with") else "")
-            for n in rd["missing"]
-            for c in rd["candidates"]
-            if c["name"] == n
+            [
+                n + ("~" + "~".join(c["ambiguous_with"]) if c.get("ambiguous_with") else "")
+                for n in rd["missing"]
+                for c in rd["candidates"]
+                if c["name"] == n
+            ]
+            + [f"L:{n}" for n in rd.get("learned_claims") or []]  # learned by the GP, claimed
         )
         or "-"
         for rd in r["rounds"]
     )
     fams = "→".join(f["family"] for f in r["flights"])
     fall = 100 * sc.physics_fall(r)
-    marks = f"right={int(j['first_right'])} fall={fall:.0f}% invented={int(j['invented'])}"
+    marks = (
+        f"right={int(j['first_right'])} strict={int(j['first_right_strict'])} "
+        f"fall={fall:.0f}% invented={int(j['invented'])} worse={int(j['worse'])}"
+    )
     return f"{r['split']} {r['index']} [{hidden or 'none'}; {fams}; {r['timing']}]: {said}; {marks}"
 
 

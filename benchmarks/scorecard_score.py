@@ -48,11 +48,20 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def claimed_sets(evaluation: Mapping[str, Any]) -> list[set[str]]:
-    """What one evaluation claims is missing: one set per named effect, the name with
-    the look-alikes it is ambiguous with (an ambiguous answer names the set)."""
+def claimed(evaluation: Mapping[str, Any], strict: bool = False) -> list[str]:
+    """The effects one evaluation names with a fit command: the missing ones, and
+    (unless ``strict``) the effects the GP learned that it claims when nothing is
+    missing (``learned_claims``, since 2026-11-26; older records have none)."""
+    names = list(evaluation["missing"])
+    return names if strict else names + list(evaluation.get("learned_claims") or [])
+
+
+def claimed_sets(evaluation: Mapping[str, Any], strict: bool = False) -> list[set[str]]:
+    """What one evaluation claims: one set per named effect, the name with the
+    look-alikes it is ambiguous with (an ambiguous answer names the set);
+    ``strict``: the missing effects only."""
     ambiguous = {e.get("name"): e.get("ambiguous_with") or [] for e in evaluation["candidates"]}
-    return [{name, *ambiguous.get(name, [])} for name in evaluation["missing"]]
+    return [{name, *ambiguous.get(name, [])} for name in claimed(evaluation, strict)]
 
 
 def _allowed(hidden: Iterable[str]) -> set[str]:
@@ -65,12 +74,13 @@ def invented(names: Iterable[str], hidden: Iterable[str]) -> list[str]:
     return sorted(n for n in set(names) if n not in allowed)
 
 
-def first_answer_right(record: Mapping[str, Any]) -> bool:
+def first_answer_right(record: Mapping[str, Any], strict: bool = False) -> bool:
     """The first evaluation names a hidden effect (alone or in an ambiguous set that
     holds it) and invents nothing; with nothing hidden, it claims nothing the
-    vehicle lacks (a default imperfection may be named)."""
+    vehicle lacks (a default imperfection may be named). ``strict``: only what it
+    names missing counts, not an effect the GP learned that it claims."""
     hidden = set(record["hidden"])
-    sets = claimed_sets(record["rounds"][0])
+    sets = claimed_sets(record["rounds"][0], strict)
     allowed = _allowed(hidden)
     # a claimed set is fine if it holds something the vehicle has
     if any(not (s & allowed) for s in sets):
@@ -81,9 +91,10 @@ def first_answer_right(record: Mapping[str, Any]) -> bool:
 
 
 def final_names(record: Mapping[str, Any]) -> set[str]:
-    """Effects the loop ends with: the last model's effects and the last evaluation's claims."""
+    """Effects the loop ends with: the last model's effects and the last evaluation's
+    claims (missing or learned)."""
     last = record["rounds"][-1]
-    return set(last["model_effects"]) | set(last["missing"])
+    return set(last["model_effects"]) | set(claimed(last))
 
 
 def ends_invented(record: Mapping[str, Any]) -> bool:
@@ -235,7 +246,8 @@ def judge(record: Mapping[str, Any]) -> dict[str, Any]:
     hidden = bool(record["hidden"])
     return {
         "first_right": first_answer_right(record),
-        "none_silent": None if hidden else not record["rounds"][0]["missing"],
+        "first_right_strict": first_answer_right(record, strict=True),
+        "none_silent": None if hidden else not claimed(record["rounds"][0]),
         "fall": (physics_fall(record) >= FALL) if hidden else None,
         "invented": ends_invented(record),
         "worse": bool(worse_axes(record["rounds"][-1])),
@@ -253,6 +265,11 @@ METRICS: tuple[tuple[str, str, str], ...] = (
         "first answer right (hidden effect or a set holding it; none: no claim)",
         "first_right",
         ">= 90 %",
+    ),
+    (
+        "first answer right, strict: what it names missing only (learned claims not counted)",
+        "first_right_strict",
+        "-",
     ),
     ("none draws: no claim at all (strict: a default imperfection counts too)", "none_silent", "-"),
     ("physics-only held-out error falls >= 50 % (hidden effects only)", "fall", ">= 90 %"),

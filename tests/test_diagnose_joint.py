@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from omavctl.diagnose.diagnosis import _blocks, fit_command, separate_command
+from omavctl.diagnose.commands import fit_command, separate_command
+from omavctl.diagnose.diagnosis import _blocks
 from omavctl.diagnose.joint import MIN_SHARE, MIN_SHARE_OF_TOTAL, joint_selection
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import feature_names
@@ -200,7 +201,7 @@ def test_a_vehicle_plan_cannot_fly_gets_the_separating_flight_in_words_not_a_pla
     """On a Betaflight quad the verdict offered `omavctl plan ... --objective effects`,
     which refuses fixed rotors ("plan flies only the omav"): the diagnosis says in
     words where the look-alikes differ instead, and the verdict prints that."""
-    from omavctl.diagnose.diagnosis import separation
+    from omavctl.diagnose.commands import separation
     from omavctl.diagnose.verdict import verdict
 
     diagnosis: dict = {
@@ -223,7 +224,7 @@ def test_a_vehicle_plan_cannot_fly_gets_the_separating_flight_in_words_not_a_pla
     head = verdict({"diagnosis": {**diagnosis, **fixed}})[0].text
     assert "omavctl plan" not in head
     assert "Plan cannot design the flight that tells them apart (plan flies only" in head
-    from omavctl.diagnose.diagnosis import SHOWN_BY
+    from omavctl.diagnose.commands import SHOWN_BY
     from omavctl.physics.effects import EFFECTS
 
     assert set(EFFECTS) <= set(SHOWN_BY)  # every registered effect has its words

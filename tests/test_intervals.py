@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omavctl.diagnose.estimates import fit_estimate
+from omavctl.diagnose.estimates import SecondStage, fit_estimate
 from omavctl.diagnose.scoring import score_effects
 from omavctl.learn.fit import fit_model
 from omavctl.learn.fit_steps import first_pass
@@ -258,7 +258,8 @@ def test_diagnosis_and_fit_agree_on_the_octocopters_delay():
     assert diag.pinned()["tau_d"][0] and 0.015 < lo < hi < 0.06
     # with the evaluated model, the diagnosis searches it again jointly with a GP as
     # fit does, and the two agree closely (1.76 -> 0.28 combined errors at 200 points)
-    gp = fit_estimate(samples, ["inertia_error"], "command_delay", fit.model, sg)
+    stage = SecondStage(samples, fit.model, sg)
+    gp = fit_estimate(samples, ["inertia_error"], "command_delay", stage)
     g, g_se = float(gp.values["tau_d"][0]), float(gp.stderr["tau_d"][0])
     assert abs(g - f) < math.hypot(g_se, f_se), (g, g_se, f, f_se)
 
@@ -276,7 +277,7 @@ def test_the_diagnosis_interval_is_as_wide_as_fits_on_the_same_log():
     fitted = fit_model([log], vehicle, effects=["com_offset"], points=200, restarts=0)
     est = fitted.model.effects["com_offset"]
     alone = fit_estimate([samples], [], "com_offset")
-    diag = fit_estimate([samples], [], "com_offset", fitted.model, SG)
+    diag = fit_estimate([samples], [], "com_offset", SecondStage([samples], fitted.model, SG))
     for i in (0, 1):
         f, f_se = float(est.values["r"][i]), float(est.stderr["r"][i])
         d, d_se = float(diag.values["r"][i]), float(diag.stderr["r"][i])
@@ -297,7 +298,7 @@ def test_the_diagnosis_searches_a_lag_jointly_with_a_gp_as_fit_does():
     samples = log_samples(log, vehicle, SG)[0]
     fitted = fit_model([log], vehicle, effects=["motor_lag"], points=200, restarts=0)
     est = fitted.model.effects["motor_lag"]
-    diag = fit_estimate([samples], [], "motor_lag", fitted.model, SG)
+    diag = fit_estimate([samples], [], "motor_lag", SecondStage([samples], fitted.model, SG))
     f, f_se = float(est.values["T_m"][0]), float(est.stderr["T_m"][0])
     d, d_se = float(diag.values["T_m"][0]), float(diag.stderr["T_m"][0])
     assert 0.5 < d_se / f_se < 2.0, (d_se, f_se)

@@ -76,6 +76,22 @@ def test_ambiguous_set_holding_the_truth_counts_as_right():
     assert not sc.first_answer_right(rec)
 
 
+def test_a_learned_claim_counts_as_named_and_the_strict_figure_does_not_count_it():
+    learned = {**_round(), "learned_claims": ["rotational_drag"]}
+    rec = _record(DRAG, [learned, _round(effects=["rotational_drag"])])
+    assert sc.first_answer_right(rec)
+    assert not sc.first_answer_right(rec, strict=True)
+    judged = sc.judge(rec)
+    assert judged["first_right"] and not judged["first_right_strict"]
+    # a learned claim the vehicle lacks, left at the end of the loop, is invented
+    rec = _record({}, [_round(), {**_round(), "learned_claims": ["inertia_error"]}])
+    assert sc.ends_invented(rec) and sc.judge(rec)["none_silent"] is True
+    # the strict row is in the table only for records that carry learned claims
+    assert any(line.startswith("| first answer right, strict") for line in table([rec]))
+    old = _record({}, [_round()])
+    assert not any(line.startswith("| first answer right, strict") for line in table([old]))
+
+
 def test_claim_on_a_none_draw_counts_as_invented():
     rec = _record({}, [_round(missing=["command_delay"]), _round(effects=["command_delay"])])
     assert not sc.first_answer_right(rec)

@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["activity"]
+__all__ = ["activity", "fails_text"]
 
 
 def _num(v: Any) -> float | None:
@@ -42,3 +42,26 @@ def activity(seg: Mapping[str, Any]) -> str:
     if seg.get("attitude_deg", []) is None:  # an IMU-only log: the tilt is unknown
         return ", ".join([*parts, "tilt unknown (no attitude in the log)"])
     return ", ".join(parts) if parts else "no state recorded"
+
+
+def fails_text(tree: Mapping[str, Any]) -> str | None:
+    """The verdict's "Fails most at ..." sentence: the evaluation's worst segment, its
+    worst axis against that axis's overall error, and what the vehicle was doing."""
+    segs = tree.get("worst_segments") or []
+    if not segs or not isinstance(segs[0], Mapping):
+        return None
+    seg = segs[0]
+    rmse = seg.get("rmse") or {}
+    vals = {a: v for a in ("x", "y", "z") if (v := _num(rmse.get(a))) is not None}
+    if not vals:
+        return None
+    axis = max(vals, key=lambda a: vals[a])
+    model = ((tree.get("metrics") or {}).get("model") or {}).get("rmse") or {}
+    overall = _num(model.get(axis)) if isinstance(model, Mapping) else None
+    ratio = f", {vals[axis] / overall:.1f}× its overall" if overall else ""
+    start, end = _num(seg.get("start")), _num(seg.get("end"))
+    when = f"{start:.1f}–{end:.1f} s" if start is not None and end is not None else "?"
+    return (
+        f"Fails most at {when} of {seg.get('log', '?')}: {axis} error "
+        f"{vals[axis]:.3g} rad/s² RMS{ratio}, while {activity(seg)}."
+    )

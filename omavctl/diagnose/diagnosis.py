@@ -14,13 +14,13 @@ command that adds the top missing effect.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from pathlib import Path
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from omavctl.diagnose.estimates import ESTIMATE_METHOD, fit_estimates
+from omavctl.diagnose.claims import Guarded, claimed_axes, guard_claims, learned_claim
+from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
 from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
@@ -30,7 +30,6 @@ from omavctl.diagnose.scoring import (
     EffectScore,
     score_effects,
 )
-from omavctl.diagnose.verdict import learned_not_modelled
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -38,17 +37,34 @@ from omavctl.physics.effects import EFFECTS, get_effect
 __all__ = [
     "BLOCK_SECONDS",
     "diagnose",
-    "effect_commands",
-    "fit_command",
     "measurement_noise",
-    "separate_command",
-    "separate_flight",
-    "separation",
     "unexplained_structure",
 ]
 
 #: Alternating train/test blocks of the diagnosis, s.
 BLOCK_SECONDS = 2.0
+
+
+#: How the diagnosis decides (the evaluation JSON's ``diagnosis.method``, with the
+#: claim floor and the log's noise).
+METHOD: dict[str, Any] = {
+    "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
+    "standard_errors": "delete-one-block jackknife",
+    "min_explained_variance": MIN_EXPLAINED,
+    "min_t_value": MIN_T,
+    "refit": "parameters fitted to the model's own training points as fit --effects "
+    "would (GP hyperparameters kept); a missing effect must lower the error with them",
+    "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
+    "selection": "forward: best missing effect removed, others rescored, up to 3; "
+    "with the effects that, estimated jointly from the model's training points as fit "
+    "--effects would, lower the physics-only error on the held-out flight (joint)",
+    "claim_guard": "a claim is kept only where the 95 % interval of its estimate as the fit "
+    "command makes it excludes the effect's null on an axis it is claimed on (not_pinned)",
+    "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
+    "interval excludes its null and, estimated from the training points by least squares, "
+    "it passes the joint test on the held-out physics-only error (learned_claims)",
+    "learned_estimate": ESTIMATE_METHOD,
+}
 
 
 def _blocks(t: np.ndarray, log_id: np.ndarray, seconds: float) -> np.ndarray:
@@ -168,25 +184,16 @@ def diagnose(
     learned = score_effects(residual, regs, blocks, noise_floor=floor)
     unexplained = unexplained_structure(after, features, sg.dt)
     physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
-    joint = joint_selection(model, physics, candidates_raw(regs, model), blocks, floor)
-    names = _merge(joint, accepted, missing)
-    estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned], model, sg)
-    return {
-        "method": {
-            "split": f"alternate {BLOCK_SECONDS:g} s blocks: fit on even, score on odd",
-            "standard_errors": "delete-one-block jackknife",
-            "min_explained_variance": MIN_EXPLAINED,
-            "min_t_value": MIN_T,
-            "min_contribution_rms": floor,
-            "measurement_noise_std": noise,
-            "refit": "parameters fitted to the model's own training points as fit --effects "
-            "would (GP hyperparameters kept); a missing effect must lower the error with them",
-            "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
-            "selection": "forward: best missing effect removed, others rescored, up to 3; "
-            "with the effects that, estimated jointly from the model's training points as fit "
-            "--effects would, lower the physics-only error on the held-out flight (joint)",
-            "learned_estimate": ESTIMATE_METHOD,
-        },
+    raw = candidates_raw(regs, model)
+    joint = joint_selection(model, physics, raw, blocks, floor)
+    # fit's second stage (a GP fitted to these samples) for every estimate quoted
+    stage = SecondStage(samples, model, sg)
+    claims = _merge(joint, accepted, missing)
+    guarded = _guard(samples, model, claims, (accepted, missing, floor), stage)
+    names = guarded.kept
+    estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned], stage)
+    out: dict[str, Any] = {
+        "method": {**METHOD, "min_contribution_rms": floor, "measurement_noise_std": noise},
         "missing_effects": [s.to_json() for s in missing],
         "missing": names,
         "below_noise": None if names else _below_noise(missing, noise),
@@ -195,7 +202,53 @@ def diagnose(
         "joint_steps": [s.to_json() for s in joint],
         "unexplained": unexplained,
         "learned": [{**s.to_json(), "estimate": estimates[s.name]} for s in learned],
+        # the claims' estimates as the printed fit command makes them, and the claims
+        # held back because their interval holds the effect's null (claims.py)
+        "claim_estimates": guarded.estimates,
+        "not_pinned": guarded.held_back,
     }
+    for entry in out["missing_effects"]:
+        if any(h["name"] == entry["name"] for h in guarded.held_back):
+            entry["missing"] = False  # claimed by a test, but its interval holds its null
+            entry["not_pinned"] = True
+    # an effect the GP learned, pinned down and confirmed on the held-out physics-only
+    # error, is claimed when nothing else is: the loop goes on with its fit command
+    step = None
+    if not names:
+        pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)
+        step = learned_claim(pool, samples, model, physics, raw, blocks, floor)
+    return {
+        **out,
+        "learned_claims": [step[0].name] if step else [],
+        "learned_steps": [_learned_json(*step)] if step else [],
+    }
+
+
+def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:
+    """A learned claim's JSON: its ranking entry (what the physics-only residual shows,
+    the estimate, the look-alikes) with the held-out test's numbers."""
+    test = step.to_json()
+    return {**entry, **{k: test[k] for k in ("share", "share_of_total", "block_t")}}
+
+
+def _learned_pool(
+    learned: list[dict[str, Any]],
+    stage: SecondStage,
+    physics: np.ndarray,
+    raw: dict[str, np.ndarray],
+    blocks: np.ndarray,
+    floor: float,
+) -> list[dict[str, Any]]:
+    """What the GP learned beyond the model's physics: the ranking on the nominal
+    residual (``learned``) for a model without effects; for one with effects the same
+    ranking on the physics-only residual (n, 3) over the effects it lacks, each claimed
+    one with its estimate as fit --effects would make it."""
+    model = stage.model
+    if not model.effects:
+        return learned
+    scores = [s for s in score_effects(physics, raw, blocks, noise_floor=floor) if s.missing]
+    ests = fit_estimates(stage.samples, list(model.effects), [s.name for s in scores], stage)
+    return [{**s.to_json(), "estimate": ests[s.name]} for s in scores]
 
 
 def _candidates(
@@ -225,6 +278,37 @@ def _candidates(
 def candidates_raw(regs: dict[str, np.ndarray], model: ResidualGP) -> dict[str, np.ndarray]:
     """The registry regressors (n, 3, p) of the effects ``model`` lacks."""
     return {n: r for n, r in regs.items() if n not in model.effects}
+
+
+def _guard(
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    names: list[str],
+    ranking: tuple[Sequence[dict[str, Any]], list[EffectScore], float],
+    stage: SecondStage,
+) -> Guarded:
+    """The claims ``names`` whose 95 % interval, estimated as the fit command would,
+    excludes their null on an axis they are claimed on (:func:`guard_claims`; the
+    ranking's claims on the axes where they explain at least AXIS_CLAIM, the joint
+    selection's on every axis; of a per-axis parameter, only the axes where its part is
+    at least the claim ``floor``; ``ranking`` = (the forward selection's accepted steps,
+    the scores, ``floor``); the estimates with fit's second ``stage``). A claim held
+    back stays in the ambiguous set of a
+    kept look-alike it was ambiguous with (in place): the flight did not tell them
+    apart, it only could not pin the one down."""
+    accepted, scores, floor = ranking
+    ranked = {str(a["name"]) for a in accepted}
+    by_name = {s.name: s for s in scores}
+    axes_of = {n: claimed_axes(by_name[n].explained_per_axis) for n in ranked if n in by_name}
+    guarded = guard_claims(samples, list(model.effects), names, axes_of, floor, model, stage)
+    for held in guarded.held_back:
+        x = by_name.get(held["name"])
+        for kept in guarded.kept:
+            y = by_name.get(kept)
+            if x is not None and y is not None and kept in x.ambiguous_with:
+                if x.name not in y.ambiguous_with:
+                    y.ambiguous_with.append(x.name)
+    return guarded
 
 
 def _merge(
@@ -302,142 +386,3 @@ def _refit_rejected(scores: Sequence[EffectScore]) -> str | None:
         ):
             return s.name
     return None
-
-
-def effect_commands(
-    diagnosis: dict[str, Any], model_path: str, model: ResidualGP
-) -> dict[str, str]:
-    """The ``fit`` command that adds each effect the diagnosis names (missing, those
-    the top one is ambiguous with, held back by the noise floor or the refit test,
-    learned but not modelled), by effect name, in that order."""
-    top = (diagnosis.get("missing") or [None])[0]
-    entry: dict[str, Any] = next(
-        (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
-    )
-    names = [
-        *(diagnosis.get("missing") or []),
-        *(entry.get("ambiguous_with") or []),
-        diagnosis.get("below_noise"),
-        diagnosis.get("refit_rejected"),
-        *learned_not_modelled(diagnosis, list(model.effects)),
-    ]
-    out: dict[str, str] = {}
-    for name in names:
-        if name and name not in out and name not in model.effects:
-            out[str(name)] = fit_command(model_path, model, str(name))
-    return out
-
-
-def separate_command(diagnosis: dict[str, Any], model_path: str) -> str | None:
-    """The commands that plan a flight telling the top missing effect from the
-    look-alikes it is ambiguous with (``plan --objective effects`` on a figure-8
-    task), None when it has none."""
-    from omavctl.base.shell import display_path, shell_join
-
-    top = (diagnosis.get("missing") or [None])[0]
-    entry: dict[str, Any] = next(
-        (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
-    )
-    alike = [str(n) for n in entry.get("ambiguous_with") or []]
-    if not top or not alike:
-        return None
-    names = ",".join([str(top), *alike])
-    task = shell_join(["omavctl", "task", "fig8", "--out", "fig8.csv"])
-    model = display_path(model_path)
-    words = ["plan", "--task", "fig8.csv", "--model", model, "--objective", "effects"]
-    plan = shell_join(["omavctl", *words, "--effects", names, "--out", "next.csv"])
-    return f"{task} && {plan}"
-
-
-#: Where an effect shows (what a flight must vary), in words: the flight that tells
-#: look-alikes apart varies what one responds to and the other does not.
-SHOWN_BY = {
-    "rotational_drag": "fast sustained body rates (its torque grows with the rate squared)",
-    "com_offset": "throttle changes, in roll and pitch only (its torque is r × thrust)",
-    "inertia_error": "large angular accelerations",
-    "gyro_bias": "level hover and slow turns (a constant rate offset)",
-    "servo_lag": "fast tilt-servo moves",
-    "motor_lag": "fast command steps or a sweep to high frequency (a lag's phase levels off)",
-    "command_delay": "a sweep over several frequencies (a delay's phase grows with frequency)",
-    "rotor_interference": "a wide range of arm tilts",
-    "thrust_curve": "a wide range of throttle",
-    "motor_loss": "throttle changes, in yaw too (a weak motor also unbalances the yaw moment)",
-    "battery_sag": "varied throttle over a long stretch of the battery",
-}
-
-
-def separate_flight(diagnosis: dict[str, Any], why_not: str) -> str | None:
-    """In words, the flight that would tell the top missing effect from its look-alikes
-    where ``plan`` cannot fly the vehicle (``why_not``, e.g. "plan flies only the
-    omav"); None when it has none."""
-    top = (diagnosis.get("missing") or [None])[0]
-    entry: dict[str, Any] = next(
-        (e for e in diagnosis.get("missing_effects") or [] if e["name"] == top), {}
-    )
-    names = [str(n) for n in [top, *(entry.get("ambiguous_with") or [])] if n]
-    if len(names) < 2:
-        return None
-    parts = [f"{n} shows in {SHOWN_BY[n]}" for n in names if n in SHOWN_BY]
-    text = f"plan cannot design the flight that tells them apart ({why_not})"
-    return f"{text}; fly one where they differ: {'; '.join(parts)}." if parts else f"{text}."
-
-
-def separation(diagnosis: dict[str, Any], model_path: str, fixed_rotors: bool) -> dict[str, Any]:
-    """The diagnosis' ``separate_command`` (plan flies the omav) or, for a vehicle of
-    fixed rotors that plan cannot fly, ``separate_flight``: that flight in words."""
-    if fixed_rotors:
-        why = "plan flies only the omav, not fixed rotors"
-        return {"separate_command": None, "separate_flight": separate_flight(diagnosis, why)}
-    return {"separate_command": separate_command(diagnosis, model_path)}
-
-
-def _where(given: str, absolute: str | None) -> str:
-    """A file recorded by fit (as given there, and absolute) as typed from here:
-    the absolute record when it exists (fit may have run elsewhere), else as given."""
-    from omavctl.base.shell import display_path
-
-    if absolute and Path(absolute).exists():
-        return display_path(absolute)
-    return display_path(given) if Path(given).exists() else given
-
-
-def fit_command(model_path: str, model: ResidualGP, effect: str | Sequence[str]) -> str:
-    """The ``omavctl fit`` command that refits ``model`` with ``effect`` added (one
-    name, or several estimated jointly in one fit).
-
-    Paths are valid from the current directory (the logs and vehicle file that fit
-    read, the new model beside ``model_path``) and every word is shell-quoted.
-    """
-    from omavctl.base.shell import display_path, shell_join
-
-    prov = model.provenance
-    sources = [
-        _where(str(s.get("path") or s.get("name")), s.get("abspath"))
-        for s in prov.get("sources", [])
-        if s.get("path") or s.get("name")
-    ]
-    added = [effect] if isinstance(effect, str) else [e for e in effect if e not in model.effects]
-    effects = [*model.effects, *added]
-    stem = Path(display_path(model_path)).with_suffix("")
-    parts = ["omavctl", "fit", *sources]
-    parts += ["--effects", ",".join(effects), "--out", f"{stem}+{'+'.join(added)}.npz"]
-    kmed = prov.get("kmedoids", {})
-    if "points" in kmed:
-        parts += ["--points", str(kmed["points"])]
-    sg = prov.get("savitzky_golay", {})
-    if sg:
-        parts += ["--sg-window", str(sg.get("window")), "--sg-order", str(sg.get("order"))]
-    if model.features != "wrench":
-        parts += ["--features", model.features]
-    if "seed" in prov:
-        parts += ["--seed", str(prov["seed"])]
-    window = prov.get("time_window")
-    if window and any(w is not None for w in window):
-        lo, hi = window
-        parts += [
-            "--time-window",
-            f"{'' if lo is None else f'{lo:g}'}:{'' if hi is None else f'{hi:g}'}",
-        ]
-    if prov.get("vehicle_path"):
-        parts += ["--vehicle", _where(str(prov["vehicle_path"]), prov.get("vehicle_abspath"))]
-    return shell_join(parts)

@@ -27,6 +27,7 @@ T_m = 86.5 ms (83.5 to 89.5) where ``fit`` says 77.8 +- 10.2 ms.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -46,7 +47,13 @@ from omavctl.learn.model import EffectEstimate, ResidualGP
 from omavctl.learn.points import normalisation, select_points
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names
 
-__all__ = ["ESTIMATE_METHOD", "fit_estimate", "fit_estimates"]
+__all__ = [
+    "ESTIMATE_METHOD",
+    "SecondStage",
+    "estimate_together",
+    "fit_estimate",
+    "fit_estimates",
+]
 
 #: How the diagnosis estimates an effect's parameters (in the evaluation JSON).
 ESTIMATE_METHOD = (
@@ -71,12 +78,24 @@ def _points(samples: Sequence[ResidualSamples], model: ResidualGP) -> tuple[np.n
     return zn, idx
 
 
+class SecondStage:
+    """What ``fit``'s second stage needs on one evaluation's samples: the evaluated
+    model (its GP features, its vehicle), the derivative filter ``sg`` and, picked
+    once on first use for all the effects estimated, the k-medoids points."""
+
+    def __init__(
+        self, samples: Sequence[ResidualSamples], model: ResidualGP, sg: SavitzkyGolay
+    ) -> None:
+        self.samples, self.model, self.sg = list(samples), model, sg
+
+    @cached_property
+    def points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Normalised inputs (N, d) and k-medoids indices (k,) (:func:`_points`)."""
+        return _points(self.samples, self.model)
+
+
 def _with_gp(
-    original: list[ResidualSamples],
-    res: Residuals,
-    model: ResidualGP,
-    sg: SavitzkyGolay,
-    points: tuple[np.ndarray, np.ndarray],
+    original: list[ResidualSamples], res: Residuals, stage: SecondStage
 ) -> tuple[dict[str, EffectEstimate], dict[str, SearchResult]]:
     """The effects of ``res`` estimated jointly with a GP as ``fit`` estimates them on
     these samples: GP hyperparameters fitted to the first pass's residual at k-medoids
@@ -85,7 +104,8 @@ def _with_gp(
     as fit's ``_refine_searched``), the linear ones by generalised least squares there
     (:func:`omavctl.learn.fit_steps.joint_step`), their covariance made honest about
     autocorrelation. Returns the linear estimates and the searched results."""
-    zn, idx = points
+    model, sg = stage.model, stage.sg
+    zn, idx = stage.points
     with threadpool_limits(1):
         axes, t_mean, sv, ls, _ = fit_hyperparameters(
             zn[idx],
@@ -110,40 +130,45 @@ def _with_gp(
     return dict(eff.estimates), found
 
 
+def estimate_together(
+    samples: Sequence[ResidualSamples],
+    model_effects: Sequence[str],
+    names: Sequence[str],
+    stage: SecondStage | None = None,
+) -> dict[str, EffectEstimate]:
+    """Every one of ``names`` estimated as ``fit --effects <model_effects>,<names>``
+    estimates them, all together: its first pass and, given the ``stage``, its second
+    (jointly with a GP fitted to these samples).
+
+    ``samples`` must carry every named effect's regressor and context.
+    """
+    every = [*model_effects, *(n for n in names if n not in model_effects)]
+    res = first_pass(list(samples), every)
+    linear, found = res.first_pass.estimates, res.found
+    if stage is not None:
+        linear, found = _with_gp(list(samples), res, stage)
+    merged = merged_estimates(list(names), linear, found)
+    return {n: merged[n] for n in names}
+
+
 def fit_estimate(
     samples: Sequence[ResidualSamples],
     model_effects: Sequence[str],
     name: str,
-    model: ResidualGP | None = None,
-    sg: SavitzkyGolay | None = None,
-    points: tuple[np.ndarray, np.ndarray] | None = None,
+    stage: SecondStage | None = None,
 ) -> EffectEstimate:
-    """``name``'s estimate as ``fit --effects <model_effects>,<name>`` makes it: its
-    first pass, then (given the evaluated ``model``'s features and the derivative
-    filter ``sg``) jointly with a GP fitted to these samples.
-
-    ``samples`` must carry every named effect's regressor and context; ``points``
-    (from :func:`_points`, computed here when not given) saves the k-medoids
-    selection when several effects are estimated on the same samples.
-    """
-    names = list(model_effects) if name in model_effects else [*model_effects, name]
-    res = first_pass(list(samples), names)
-    linear, found = res.first_pass.estimates, res.found
-    if model is not None and sg is not None:
-        points = _points(samples, model) if points is None else points
-        linear, found = _with_gp(list(samples), res, model, sg, points)
-    return merged_estimates([name], linear, found)[name]
+    """``name``'s estimate as ``fit --effects <model_effects>,<name>`` makes it
+    (:func:`estimate_together` of one effect)."""
+    return estimate_together(samples, model_effects, [name], stage)[name]
 
 
 def fit_estimates(
     samples: Sequence[ResidualSamples],
     model_effects: Sequence[str],
     names: Iterable[str],
-    model: ResidualGP | None = None,
-    sg: SavitzkyGolay | None = None,
+    stage: SecondStage | None = None,
 ) -> dict[str, dict[str, Any]]:
     """The JSON of :func:`fit_estimate` (values, standard errors, 95 % intervals,
-    whether each is pinned down) for every effect of ``names``."""
-    names = list(names)
-    points = _points(samples, model) if model is not None and sg is not None and names else None
-    return {n: fit_estimate(samples, model_effects, n, model, sg, points).to_json() for n in names}
+    whether each is pinned down) for every effect of ``names``, each estimated with
+    the model's effects alone."""
+    return {n: fit_estimate(samples, model_effects, n, stage).to_json() for n in names}

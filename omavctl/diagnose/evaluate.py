@@ -34,12 +34,8 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.diagnosis import (
-    diagnose,
-    effect_commands,
-    fit_command,
-    separation,
-)
+from omavctl.diagnose.commands import effect_commands, fit_command, separation
+from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
 from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
@@ -356,10 +352,10 @@ def _diagnosis(
     shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
     for name in shown:
         series[f"contribution_{name}"] = parts[name]
-    if diagnosis["missing"]:  # every missing effect, estimated jointly in one fit
-        diagnosis["fit_command"] = fit_command(model_path, model, diagnosis["missing"])
-    else:
-        diagnosis["fit_command"] = None
+    # every missing effect, estimated jointly in one fit; else the effect the GP learned
+    # that the held-out flight confirms (learned_claims), so that a loop goes on
+    claimed = diagnosis["missing"] or diagnosis["learned_claims"]
+    diagnosis["fit_command"] = fit_command(model_path, model, claimed) if claimed else None
     near = diagnosis.get("below_noise")
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None

@@ -15,7 +15,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from omavctl.diagnose.activity import activity
+from omavctl.diagnose import claim_text as ct
+from omavctl.diagnose.activity import activity, fails_text
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
@@ -108,6 +109,9 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     diag = get_path(tree, "diagnosis", default={}) or {}
     missing = [str(m) for m in get_path(diag, "missing", default=[]) or []]
     entries = {str(e.get("name")): e for e in diag.get("missing_effects", []) or []}
+    if not missing and (learned := ct.learned_claim_text(diag, on_what(tree))):
+        cmd = diag.get("fit_command")
+        return Line("missing", learned, command=cmd if isinstance(cmd, str) and cmd else None)
     if not missing:
         threshold = _num(get_path(diag, "method", "min_explained_variance"))
         text = "Nothing missing: no registered effect explains"
@@ -120,6 +124,9 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
             text += given_sentence(diag, str(diag.get("below_noise")))
         elif held := _refit_rejected(diag):
             text, test = f"Nothing claimed as missing: {held[0]}", held[1]
+        elif unpinned := ct.not_pinned_names(diag):
+            text = f"Nothing claimed as missing.{ct.not_pinned_text(diag)}"
+            test = (diag.get("effect_commands") or {}).get(unpinned[0])
         structure = _structure(diag.get("unexplained"))
         if structure:
             text += f" Some structure remains that no registered effect explains: {structure}."
@@ -155,8 +162,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"
         text += f" ({axes})" if axes else ""
     text += "."
-    learned = {str(e.get("name")): e for e in diag.get("learned", []) or []}
-    text += estimate_sentence(learned.get(missing[0], {}), claimed)
+    text += estimate_sentence(ct.claim_estimate(diag, missing[0]), claimed)
     if len(missing) > 1:
         text += f" Also: {', '.join(missing[1:])}{joint_text(diag, missing)}."
     amb = top.get("ambiguous_with") or []
@@ -165,6 +171,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     alike = _look_alikes(missing[0])
     if alike:
         text += f" A residual of its shape is also left by {alike}."
+    text += ct.not_pinned_text(diag)
     cmd = diag.get("fit_command")
     text += given_sentence(diag, missing[0])
     if amb and isinstance(sep := diag.get("separate_command"), str) and sep:
@@ -267,7 +274,8 @@ def learned_not_modelled(diag: Mapping[str, Any], effects: Sequence[str]) -> lis
     """Effects the nominal residual shows (``learned``, claimed there) that the model
     does not hold as physics (not in ``effects``) and that are not named missing: what
     the GP has absorbed, which ``fit --effects`` would make physical and testable."""
-    named = set(effects) | {str(m) for m in diag.get("missing") or []}
+    said = [*(diag.get("missing") or []), *(diag.get("learned_claims") or [])]
+    named = set(effects) | set(map(str, said)) | set(ct.not_pinned_names(diag))
     return [
         str(e.get("name"))
         for e in diag.get("learned") or []
@@ -319,24 +327,8 @@ def _look_alikes(name: str) -> str:
 
 # --------------------------------------------------------------- where/why
 def _fails_line(tree: Mapping[str, Any]) -> Line | None:
-    segs = tree.get("worst_segments") or []
-    if not segs or not isinstance(segs[0], Mapping):
-        return None
-    seg = segs[0]
-    rmse = seg.get("rmse") or {}
-    vals = {a: v for a in AXES if (v := _num(rmse.get(a))) is not None}
-    if not vals:
-        return None
-    axis = max(vals, key=lambda a: vals[a])
-    overall = _num(get_path(tree, "metrics", "model", "rmse", axis))
-    ratio = f", {vals[axis] / overall:.1f}× its overall" if overall else ""
-    start, end = _num(seg.get("start")), _num(seg.get("end"))
-    when = f"{start:.1f}–{end:.1f} s" if start is not None and end is not None else "?"
-    text = (
-        f"Fails most at {when} of {seg.get('log', '?')}: {axis} error "
-        f"{vals[axis]:.3g} rad/s² RMS{ratio}, while {activity(seg)}."
-    )
-    return Line("fails", text)
+    text = fails_text(tree)
+    return Line("fails", text) if text else None
 
 
 def coverage_of(metrics: Mapping[str, Any]) -> dict[str, float]:

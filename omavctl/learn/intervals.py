@@ -134,13 +134,9 @@ def interval95(value: np.ndarray, stderr: np.ndarray) -> np.ndarray:
 
 
 def null_values(name: str) -> dict[str, np.ndarray]:
-    """Each parameter's value (size,) at which the effect ``name`` is absent (theta 0)."""
-    effect = get_effect(name)
-    zero = np.zeros(effect.n_theta)
-    return {
-        k: np.asarray(v, float)
-        for k, (v, _) in effect.to_parameters(zero, np.zeros((zero.size, zero.size))).items()
-    }
+    """Each parameter's value (size,) at which the effect ``name`` is absent
+    (:meth:`Effect.null_parameters`)."""
+    return get_effect(name).null_parameters()
 
 
 def plausible_range(name: str) -> dict[str, tuple[float, float]]:

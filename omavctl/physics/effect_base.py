@@ -195,6 +195,17 @@ class Effect(ABC):
             i += p.size
         return out
 
+    def null_parameters(self) -> dict[str, np.ndarray]:
+        """Each parameter's value (size,) at which the effect is absent: its null
+        (theta 0 through :meth:`to_parameters`: inertia scale 1; lags, delays, drag,
+        offsets, biases, interference 0). A claim that the effect is present needs an
+        interval that excludes it (``omavctl.diagnose.claims``)."""
+        zero = np.zeros(self.n_theta)
+        return {
+            k: np.asarray(v, float)
+            for k, (v, _) in self.to_parameters(zero, np.zeros((zero.size, zero.size))).items()
+        }
+
     def to_theta(self, params: dict[str, np.ndarray]) -> np.ndarray:
         """Inverse of :meth:`to_parameters` (values only)."""
         return np.concatenate(

@@ -258,13 +258,25 @@ def diagnosis_section(
         )
     else:
         blocks.append(Para("No registered effect is missing from this model."))
+    learned = [str(x) for x in diag.get("learned_claims") or []]
+    if learned:  # what the GP learned, confirmed on the held-out flight: claimed
+        names = (s for name in learned for s in (Span(name, "strong"), " "))
+        blocks.append(Para(("Learned by the GP, not yet in the physics: ", *names)[:-1]))
+    held = [str(e.get("name")) for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)]
+    if held:
+        blocks.append(
+            Para(
+                f"Not claimed, cannot be pinned down from this flight (the 95 % interval holds "
+                f"the value of no effect): {', '.join(held)}."
+            )
+        )
     entries = diag.get("missing_effects") or []
     if entries:
         blocks.append(Heading(4, "Candidate missing effects, best first"))
         blocks.append(_ranking_table(entries, torque_unknown, "missing"))
     command = diag.get("fit_command")
     if isinstance(command, str) and command:
-        top = missing[0] if missing else "the top effect"
+        top = missing[0] if missing else (learned or ["the top effect"])[0]
         blocks.append(Heading(4, f"Command that adds {top}"))
         blocks.append(Code(command))
     unexplained = _unexplained_items(diag.get("unexplained") or [])

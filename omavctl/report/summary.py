@@ -114,6 +114,9 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
         "models": out_models,
         "tracking": tree.get("tracking"),
         "missing": list(diag.get("missing") or []),
+        # effects the GP learned that the held-out flight confirms, claimed (with the fit
+        # command) when nothing is missing
+        "learned_claims": list(diag.get("learned_claims") or []),
         "fit_command": diag.get("fit_command"),
         # the fit command of every effect the diagnosis names (missing, held back, learned)
         "effect_commands": dict(diag.get("effect_commands") or {}),

@@ -1,0 +1,108 @@
+"""The verdict's sentences about the claims guard (:mod:`omavctl.diagnose.claims`): a
+claim held back because its interval holds the effect's null, and an effect the GP
+learned that the held-out flight confirms (``learned_claims``)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from omavctl.diagnose.estimate_text import estimate_sentence
+
+__all__ = ["claim_estimate", "learned_claim_text", "not_pinned_names", "not_pinned_text"]
+
+
+def _num(v: Any) -> float | None:
+    ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    return float(v) if ok else None
+
+
+def _pct(v: float) -> str:
+    return f"{100 * v:.0f} %"
+
+
+def _held(diag: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    items = diag.get("not_pinned")
+    return [e for e in items if isinstance(e, Mapping)] if isinstance(items, list) else []
+
+
+def not_pinned_names(diag: Mapping[str, Any]) -> list[str]:
+    """The effects held back because their interval holds their null."""
+    return [str(e.get("name")) for e in _held(diag)]
+
+
+def _null_words(name: str) -> str:
+    """'scale = 1' / 'D = 0': the effect's null, as the interval is compared with it."""
+    from omavctl.physics.effects import EFFECTS
+
+    effect = EFFECTS.get(name)
+    if effect is None:
+        return "the value of no effect"
+    nulls = effect.null_parameters()
+    return ", ".join(f"{k} = {float(v.flat[0]):g}" for k, v in nulls.items())
+
+
+def not_pinned_text(diag: Mapping[str, Any]) -> str:
+    """' Not claimed: inertia_error, which cannot be pinned down from this flight: ...'
+    for every claim held back ('' when none was), with the interval that holds the
+    null and the look-alike it stays ambiguous with."""
+    out = ""
+    for e in _held(diag):
+        name = str(e.get("name"))
+        axes = e.get("axes")
+        entry = {"estimate": e.get("estimate"), "units": e.get("units")}
+        said = estimate_sentence(entry, axes if isinstance(axes, list) and axes else None)
+        out += (
+            f" Not claimed: {name}, which cannot be pinned down from this flight: on no axis "
+            f"it is claimed on does its 95 % interval exclude {_null_words(name)} (the value "
+            "at which it is absent) by a part of the error above the claim floor that the "
+            f"fit flight's estimate confirms.{said}"
+        )
+    return out
+
+
+def claim_estimate(diag: Mapping[str, Any], name: str) -> Mapping[str, Any]:
+    """The estimate the verdict quotes for a claim: the guard's (all claims estimated
+    together, as the printed fit command does), else the learned entry's; with the
+    units of ``name``'s parameters, as :func:`estimate_sentence` reads it."""
+    learned: Mapping[str, Any] = next(
+        (e for e in diag.get("learned") or [] if isinstance(e, Mapping) and e.get("name") == name),
+        {},
+    )
+    ests = diag.get("claim_estimates")
+    if isinstance(ests, Mapping) and isinstance(ests.get(name), Mapping):
+        return {"units": learned.get("units"), "estimate": ests[name]}
+    return learned
+
+
+def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
+    """The sentence of an effect the GP learned that the held-out flight confirms,
+    '' when there is none: what it explains of the nominal residual, what its
+    fit-flight estimate removes of the held-out physics-only error, its estimate."""
+    names = [str(n) for n in diag.get("learned_claims") or []]
+    if not names:
+        return ""
+    name = names[0]
+    step: Mapping[str, Any] = next(
+        (s for s in diag.get("learned_steps") or [] if isinstance(s, Mapping)), {}
+    )
+    ev, rms = _num(step.get("explained_variance")), _num(step.get("contribution_rms"))
+    share = _num(step.get("share"))
+    text = f"Learned by the GP, not yet in the physics: {name}"
+    if ev is not None and rms is not None:
+        text += (
+            f" — the physics-only residual looks like it (it explains {_pct(ev)} of it, "
+            f"{rms:.2g} rad/s² RMS)"
+        )
+    if share is not None:
+        text += (
+            f"; estimated from the fit flight by least squares as fit's first pass would, it "
+            f"removes {_pct(share)} of the squared physics-only error {where}"
+        )
+    text += "."
+    text += estimate_sentence(step)
+    return text + (
+        " What the GP learned of it holds only where the fit flight went; fitted as a "
+        "physical effect it is tested on every flight."
+    )

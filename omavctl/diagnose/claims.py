@@ -1,0 +1,252 @@
+"""Claims the flight backs: an effect is claimed only where its interval excludes its null.
+
+Both selections of the diagnosis (the ranking on the model's remaining error and the
+joint selection on the held-out physics-only error) can name an effect that explains
+a few per cent of what is left without the flight determining it: on the report2
+split, 11 of 40 draws ended with an effect the vehicle lacked, mostly an
+``inertia_error`` a joint step added whose scale could as well have been 1 (issue 26).
+:func:`guard_claims` estimates the claimed effects as the printed ``fit --effects``
+would (its first pass on the evaluated flight, with the model's effects and every
+claimed one together: the numbers the verdict quotes) and keeps a claim only when
+the 95 % interval of at least one component it is claimed on excludes the effect's
+null (:meth:`omavctl.physics.effect_base.Effect.null_parameters`: scale 1, lag 0,
+drag 0, ...). What is dropped is said to be one that "cannot be pinned down from this
+flight", with its interval, and stays in the ambiguous set of a claimed look-alike.
+
+:func:`learned_claim` turns an effect the GP learned into a claim of its own when the
+flight pins it down and, estimated from the fit flight's training points by least
+squares (``fit``'s first pass, before the GP), it lowers the held-out physics-only
+error by the joint selection's test (:func:`omavctl.diagnose.joint.learned_step`):
+otherwise the verdict would say "Nothing missing", print no fit command, and a loop
+that follows it would stop with the physics-only error where it was.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from omavctl.diagnose.estimate_text import AXIS_CLAIM
+from omavctl.diagnose.estimates import SecondStage, estimate_together
+from omavctl.diagnose.joint import JointStep, learned_step
+from omavctl.learn.estimate import EffectEstimate
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.signal import ResidualSamples
+from omavctl.physics.effects import get_effect
+
+__all__ = [
+    "Guarded",
+    "claimed_axes",
+    "excludes_null",
+    "guard_claims",
+    "learned_claim",
+    "material_axes",
+]
+
+AXES = ("x", "y", "z")
+#: The fit flight's estimate of a per-axis component must be at least this fraction of
+#: the held-out interval's end nearest the null (same side) for the claim to hold there.
+CONFIRM = 0.5
+
+
+def claimed_axes(per_axis: Mapping[str, Any] | None) -> set[str] | None:
+    """The axes a claim of the ranking is made on (its share of the axis's error at
+    least :data:`AXIS_CLAIM`, as the verdict quotes them); None (every axis) without
+    per-axis shares (a claim of the joint selection)."""
+    if not isinstance(per_axis, Mapping):
+        return None
+    return {a for a in AXES if isinstance(v := per_axis.get(a), int | float) and v >= AXIS_CLAIM}
+
+
+def excludes_null(name: str, estimate: Mapping[str, Any], axes: Collection[str] | None) -> bool:
+    """Whether the 95 % interval (``P_ci95`` of an estimate's JSON) of at least one
+    component of ``name``'s parameters that the claim is made on excludes the effect's
+    null. A per-axis parameter (three components) counts only on ``axes`` (None: all);
+    an interval that is not finite excludes nothing."""
+    null = get_effect(name).null_parameters()
+    for param, value in null.items():
+        rows = estimate.get(f"{param}_ci95")
+        if not isinstance(rows, list):
+            continue
+        for i, row in enumerate(rows):
+            if axes is not None and len(rows) == 3 and AXES[i] not in axes:
+                continue
+            if not isinstance(row, list) or len(row) != 2 or None in row:
+                continue
+            at = float(value[i] if value.size == len(rows) else value.flat[0])
+            if row[0] > at or row[1] < at:
+                return True
+    return False
+
+
+def material_axes(
+    samples: Sequence[ResidualSamples],
+    est: EffectEstimate,
+    floor: float,
+    fit_theta: np.ndarray | None = None,
+) -> set[str] | None:
+    """For an effect with one parameter component per axis (its regressor's component
+    ``j`` acts on axis ``j`` only: inertia scale, drag), the axes where that component's
+    part of the error is at least the claim ``floor`` (RMS, rad/s²) at every value its
+    95 % interval allows (at the end nearest the null: pinned down as material);
+    None for any other effect. A component whose part is below the floor is not a claim
+    on that axis: on a figure-8 the yaw command only answers the disturbances of the
+    roll and pitch, so a yaw inertia scale estimated from it is biased (1.3-2.9 on
+    clean simulated figure-8s, with intervals a few per cent wide) and explains nearly
+    nothing.
+
+    ``fit_theta`` (3,): the fit flight's estimate of the components (the model's
+    training points, :func:`fit_flight_theta`); an axis then also needs it on the same
+    side of the null and at least :data:`CONFIRM` as far from it as the interval's
+    nearest end: a yaw scale that the regulated yaw of a figure-8 biases is not what
+    a chirp that drives yaw finds (tune2 draw 8: 1.17-1.35 on the figure-8, which the
+    vehicle did not have)."""
+    reg = np.concatenate([s.regressors[est.name] for s in samples])  # (n, 3, p)
+    if reg.shape[2] != 3 or reg.shape[0] == 0:
+        return None
+    off = reg * (1.0 - np.eye(3))[None, :, :]
+    if np.abs(off).max() > 1e-9 * max(np.abs(reg).max(), 1e-300):
+        return None
+    near = _nearest_to_null(est)
+    part = np.sqrt(np.mean((reg[:, [0, 1, 2], [0, 1, 2]] * near) ** 2, axis=0))
+    ok = np.isfinite(part) & (part >= floor)
+    if fit_theta is not None and fit_theta.shape == near.shape:
+        ok &= (np.sign(fit_theta) == np.sign(near)) & (np.abs(fit_theta) >= CONFIRM * np.abs(near))
+    return {a for a, good in zip(AXES, ok, strict=True) if good}
+
+
+def fit_flight_theta(model: ResidualGP | None, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """theta of each of ``names`` on the fit flight: least squares of the model's
+    training targets (its physics-only residual there) on their regressors at the
+    training points, all together (fit's first pass, on its training points); {} when
+    the model lacks them."""
+    if model is None or model.n_train == 0 or any(n not in model.train_regressors for n in names):
+        return {}
+    values = [model.train_regressors[n] for n in names]
+    x = np.concatenate(values, axis=2)
+    n, _, p = x.shape
+    theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), model.targets.reshape(3 * n), rcond=None)
+    out, k = {}, 0
+    for name, v in zip(names, values, strict=True):
+        out[name] = theta[k : k + v.shape[2]]
+        k += v.shape[2]
+    return out
+
+
+def _nearest_to_null(est: EffectEstimate) -> np.ndarray:
+    """theta (p,) of each component at the end of its 95 % interval nearest the null
+    (0 where the interval holds it, the estimate where it is not finite): the
+    smallest effect the flight allows."""
+    intervals = est.interval95()
+    ends = [est.effect.to_theta({k: iv[:, side] for k, iv in intervals.items()}) for side in (0, 1)]
+    theta = est.theta
+    lo, hi = np.minimum(*ends), np.maximum(*ends)
+    near = np.where(lo > 0, lo, np.where(hi < 0, hi, 0.0))
+    return np.where(np.isfinite(lo) & np.isfinite(hi), near, theta)
+
+
+@dataclass
+class Guarded:
+    """What :func:`guard_claims` keeps and holds back."""
+
+    kept: list[str]
+    #: per kept claim, its estimate's JSON (all kept claims estimated together)
+    estimates: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: each held-back claim: name, units, estimate (JSON), axes it was claimed on
+    held_back: list[dict[str, Any]] = field(default_factory=list)
+
+
+def guard_claims(
+    samples: Sequence[ResidualSamples],
+    model_effects: Sequence[str],
+    names: Sequence[str],
+    axes_of: Mapping[str, set[str] | None],
+    floor: float | None = None,
+    model: ResidualGP | None = None,
+    stage: SecondStage | None = None,
+) -> Guarded:
+    """Keep the claims of ``names`` whose interval excludes their null on an axis they
+    are claimed on (``axes_of``: name -> axes, None or absent: all; with ``floor``, only
+    the axes where a per-axis component's part is material and, with ``model``, the fit
+    flight confirms it, :func:`material_axes`); the others are held back, and the rest
+    estimated again without them, until all kept pass.
+
+    ``samples`` must carry every named effect's regressor and context."""
+    out = Guarded(kept=list(names))
+    while out.kept:
+        est = estimate_together(samples, model_effects, out.kept, stage)
+        fit = fit_flight_theta(model, out.kept)
+        axes = {n: _axes(samples, est[n], axes_of.get(n), floor, fit.get(n)) for n in out.kept}
+        as_json = {n: e.to_json() for n, e in est.items()}
+        drop = [n for n in out.kept if not excludes_null(n, as_json[n], axes[n])]
+        if not drop:
+            out.estimates = as_json
+            break
+        for n in drop:
+            judged = axes[n]
+            out.held_back.append(
+                {
+                    "name": n,
+                    "units": {p.name: p.unit for p in get_effect(n).parameters},
+                    "estimate": as_json[n],
+                    "axes": None if judged is None else sorted(judged),
+                }
+            )
+        out.kept = [n for n in out.kept if n not in drop]
+    return out
+
+
+def _axes(
+    samples: Sequence[ResidualSamples],
+    est: EffectEstimate,
+    claimed: set[str] | None,
+    floor: float | None,
+    fit_theta: np.ndarray | None = None,
+) -> set[str] | None:
+    """The axes a claim is judged on: those it is claimed on that are material (and
+    confirmed by the fit flight's ``fit_theta``)."""
+    material = None if floor is None else material_axes(samples, est, floor, fit_theta)
+    if material is None:
+        return claimed
+    return material if claimed is None else claimed & material
+
+
+def _exact(samples: Sequence[ResidualSamples], name: str) -> Callable[[float], np.ndarray]:
+    """``name``'s exact form (n, 3) on the stacked samples, as a function of its value."""
+    return lambda value: np.concatenate([s.exact(name, value) for s in samples])
+
+
+def learned_claim(
+    pool: Sequence[Mapping[str, Any]],
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    physics: np.ndarray,
+    regressors: Mapping[str, np.ndarray],
+    blocks: np.ndarray,
+    floor: float,
+) -> tuple[JointStep, Mapping[str, Any]] | None:
+    """The effect the GP learned that becomes a claim when nothing is missing: among
+    ``pool`` (ranking entries with an ``estimate``, claimed on the physics-only residual,
+    not in the model, no look-alike of an effect the model holds), the one whose
+    estimate excludes its null and that passes :func:`omavctl.diagnose.joint.learned_step`
+    on the held-out physics-only error ``physics`` (n, 3) with the largest gain, with its
+    entry; None when none does. ``regressors``: name -> (n, 3, p) on the held-out
+    ``samples`` (whose exact forms test a lag or delay)."""
+    best: tuple[JointStep, Mapping[str, Any]] | None = None
+    for entry in pool:
+        name = str(entry.get("name"))
+        if entry.get("missing") is not True or name in model.effects or name not in regressors:
+            continue
+        if set(entry.get("ambiguous_with") or []) & set(model.effects):
+            continue  # what the model's own effects already explain
+        axes = claimed_axes(entry.get("explained_variance_per_axis"))
+        if not excludes_null(name, entry.get("estimate") or {}, axes):
+            continue
+        exact = _exact(samples, name) if get_effect(name).search is not None else None
+        step = learned_step(model, name, physics, regressors[name], blocks, floor, exact)
+        if step is not None and (best is None or step.share > best[0].share):
+            best = step, entry
+    return best

@@ -1,0 +1,190 @@
+"""The claims guard (omavctl/diagnose/claims.py): a claimed effect must have a 95 %
+interval, estimated as the printed fit command would, that excludes its null; an
+effect the GP learned becomes a claim with a fit command when the held-out flight
+confirms it (issue 26)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from omavctl.diagnose.claims import (
+    claimed_axes,
+    excludes_null,
+    guard_claims,
+    learned_claim,
+    material_axes,
+)
+from omavctl.diagnose.joint import MIN_SHARE, learned_step
+from omavctl.diagnose.verdict import verdict
+from omavctl.learn.estimate import EffectEstimate
+from omavctl.learn.signal import SavitzkyGolay, residual_samples
+from omavctl.logs import read_vehicle_log, write_log
+from omavctl.physics.effects import EFFECTS, get_effect
+from omavctl.sim.plant import simulate
+from omavctl.sim.tasks import fig8
+from omavctl.sim.truth import truth_from_tree
+from omavctl.vehicle import default_vehicle
+from tests.test_diagnose_joint import FLOOR, _case
+
+
+def test_every_effect_has_its_null_in_its_class():
+    nulls = {n: get_effect(n).null_parameters() for n in EFFECTS}
+    assert nulls["inertia_error"]["scale"].tolist() == [1.0, 1.0, 1.0]
+    assert nulls["rotational_drag"]["D"].tolist() == [0.0, 0.0, 0.0]
+    assert nulls["command_delay"]["tau_d"].tolist() == [0.0]
+    assert nulls["servo_lag"]["T_s"].tolist() == [0.0]
+    assert nulls["com_offset"]["r"].tolist() == [0.0, 0.0, 0.0]
+    for name, null in nulls.items():  # the effect is absent there: theta 0
+        effect = get_effect(name)
+        assert np.all(effect.to_theta(null) == 0), name
+
+
+def test_an_inertia_claim_whose_interval_holds_one_is_not_made():
+    est = {"scale": [1.02, 0.99, 1.3], "scale_ci95": [[0.97, 1.07], [0.95, 1.03], [1.2, 1.4]]}
+    assert excludes_null("inertia_error", est, None)  # z excludes 1
+    # claimed on x and y only (the ranking's axes): both hold 1, no claim
+    assert not excludes_null("inertia_error", est, {"x", "y"})
+    assert claimed_axes({"x": 0.4, "y": 0.2, "z": 0.01}) == {"x", "y"}
+    est["scale_ci95"][2] = [0.9, 1.1]
+    assert not excludes_null("inertia_error", est, None)
+    # an interval that is not finite excludes nothing
+    assert not excludes_null("inertia_error", {"scale_ci95": [[None, None]] * 3}, None)
+    assert excludes_null("command_delay", {"tau_d_ci95": [[0.02, 0.04]]}, None)
+    assert not excludes_null("command_delay", {"tau_d_ci95": [[-0.01, 0.04]]}, None)
+
+
+def _samples(tmp_path, effects):
+    vehicle = default_vehicle()
+    truth = truth_from_tree({"seed": 1, "effects": effects}, vehicle)
+    path = tmp_path / "flight.csv"
+    write_log(path, simulate(fig8(duration=12.0, ramp=2.0), vehicle, truth, seed=1).log)
+    flight = read_vehicle_log(path, vehicle)
+    return [residual_samples(flight, vehicle, SavitzkyGolay(11, 2, 0.01), tuple(EFFECTS))]
+
+
+def test_a_delay_the_flight_does_not_pin_down_is_held_back_and_a_real_one_kept(tmp_path):
+    """On a clean figure-8 a command delay estimated as fit would has an interval that
+    holds 0: the claim is held back (with its interval); a 30 ms delay is kept, and
+    its estimate is quoted from the same fit."""
+    clean = guard_claims(_samples(tmp_path, {}), ["rotor_interference"], ["command_delay"], {})
+    assert clean.kept == []
+    (held,) = clean.held_back
+    lo, hi = held["estimate"]["tau_d_ci95"][0]
+    assert lo < 0 < hi and held["units"] == {"tau_d": "s"}
+    delayed = _samples(tmp_path, {"command_delay": {"tau_d": 0.03}})
+    kept = guard_claims(delayed, ["rotor_interference"], ["command_delay"], {})
+    assert kept.kept == ["command_delay"] and kept.held_back == []
+    lo, hi = kept.estimates["command_delay"]["tau_d_ci95"][0]
+    assert 0 < lo and lo <= 0.03 * 1.25 and hi >= 0.03 * 0.75
+
+
+def test_a_learned_drag_is_tested_on_the_held_out_flight_with_the_fit_flights_estimate():
+    truth = {"rotational_drag": np.array([0.012, 0.01, 0.008]), "com_offset": None}
+    model, physics, regs, blocks = _case(truth, seed=7)
+    step = learned_step(model, "rotational_drag", physics, regs["rotational_drag"], blocks, FLOOR)
+    assert step is not None and step.share >= MIN_SHARE
+    assert step.theta == pytest.approx(truth["rotational_drag"], rel=0.15)
+    # an effect the vehicle lacks fails the same test
+    assert learned_step(model, "com_offset", physics, regs["com_offset"], blocks, FLOOR) is None
+    # the claim needs an estimate whose interval excludes the null too
+    entry = {
+        "name": "rotational_drag",
+        "missing": True,
+        "explained_variance_per_axis": {"x": 0.6, "y": 0.5, "z": 0.4},
+        "estimate": {"D_ci95": [[0.011, 0.013], [0.009, 0.011], [0.007, 0.009]]},
+    }
+    found = learned_claim([entry], [], model, physics, regs, blocks, FLOOR)
+    assert found is not None and found[0].name == "rotational_drag"
+    wide = {**entry, "estimate": {"D_ci95": [[-0.01, 0.03]] * 3}}
+    assert learned_claim([wide], [], model, physics, regs, blocks, FLOOR) is None
+
+
+def _tree(diag):
+    return {"diagnosis": diag, "models": [{"effects": {}}]}
+
+
+def test_a_learned_drag_is_claimed_with_its_fit_command():
+    command = "omavctl fit f.bag --effects rotational_drag --out m+rotational_drag.npz"
+    diag = {
+        "missing": [],
+        "learned_claims": ["rotational_drag"],
+        "learned_steps": [
+            {
+                "name": "rotational_drag",
+                "explained_variance": 0.8,
+                "contribution_rms": 0.5,
+                "share": 0.72,
+                "units": {"D": "N m s^2"},
+                "estimate": {"D": [0.05, 0.05, 0.03], "D_ci95": [[0.04, 0.06]] * 3},
+            }
+        ],
+        "learned": [{"name": "rotational_drag", "missing": True, "explained_variance": 0.8}],
+        "fit_command": command,
+        "effect_commands": {"rotational_drag": command},
+    }
+    lines = verdict(_tree(diag))
+    head = lines[0]
+    assert head.key == "missing" and head.command == command
+    assert head.text.startswith("Learned by the GP, not yet in the physics: rotational_drag")
+    assert "removes 72 % of the squared physics-only error" in head.text
+    assert "D_x = 0.05 N m s^2 (95 %: 0.04 to 0.06)" in head.text
+    assert not any(ln.text.startswith("Nothing missing") for ln in lines)
+    # it is not said a second time as "not modelled as physics"
+    assert not [ln for ln in lines if ln.key == "learned"]
+
+
+def test_a_claim_held_back_says_it_cannot_be_pinned_down_with_its_interval():
+    diag = {
+        "missing": [],
+        "not_pinned": [
+            {
+                "name": "inertia_error",
+                "units": {"scale": "1"},
+                "estimate": {"scale": [1.02, 0.99, 1.01], "scale_ci95": [[0.97, 1.07]] * 3},
+                "axes": None,
+            }
+        ],
+        "effect_commands": {"inertia_error": "omavctl fit f.bag --effects inertia_error"},
+    }
+    (line,) = [ln for ln in verdict(_tree(diag)) if ln.key == "missing"]
+    assert line.text.startswith(
+        "Nothing claimed as missing. Not claimed: inertia_error, which cannot be pinned "
+        "down from this flight: on no axis it is claimed on does its 95 % interval exclude "
+        "scale = 1 (the value at which it is absent)"
+    )
+    assert "scale_x = 1.02 (95 %: 0.97 to 1.07" in line.text
+    assert line.command == "omavctl fit f.bag --effects inertia_error"
+
+
+def test_a_per_axis_component_below_the_claim_floor_is_no_claim_on_that_axis():
+    """An inertia scale pinned away from 1 on an axis the flight hardly drives (its
+    part of the error under the claim floor even at the interval's end nearest 1) is
+    not a claim there: the claim is judged on the other axes."""
+    rng = np.random.default_rng(0)
+    n = 500
+    reg = np.zeros((n, 3, 3))
+    for j, size in enumerate((1.0, 1.0, 0.1)):  # the z command hardly moves
+        reg[:, j, j] = size * rng.normal(size=n)
+    samples = [SimpleNamespace(regressors={"inertia_error": reg})]
+    est = EffectEstimate(
+        "inertia_error",
+        {"scale": np.array([1.3, 1.01, 1.3])},
+        {"scale": np.array([0.02, 0.02, 0.02])},
+    )
+    # theta = 1/scale - 1: x -0.23 (part ~0.2), z -0.23 (~0.02); y's interval holds 1
+    assert material_axes(samples, est, floor=0.1) == {"x"}
+    assert material_axes(samples, est, floor=0.005) == {"x", "z"}
+    # the fit flight must confirm an axis: same side of the null, at least CONFIRM as far
+    fit = np.array([-0.2, 0.0, 0.0])  # the fit flight drove x and found its scale too
+    assert material_axes(samples, est, floor=0.005, fit_theta=fit) == {"x"}
+    assert material_axes(samples, est, floor=0.005, fit_theta=-fit) == set()
+    # the interval's end nearest the null counts, not the estimate
+    wide = EffectEstimate("inertia_error", est.values, {"scale": np.array([0.2, 0.02, 0.02])})
+    assert material_axes(samples, wide, floor=0.1) == set()
+    # a component that acts on other axes too (com_offset's r) has no per-axis part
+    mixed = EffectEstimate("com_offset", {"r": np.ones(3) * 0.01}, {"r": np.ones(3) * 0.001})
+    full = np.ones((n, 3, 3))
+    assert material_axes([SimpleNamespace(regressors={"com_offset": full})], mixed, 0.1) is None
