@@ -6,8 +6,10 @@ a few per cent of what is left without the flight determining it: on the report2
 split, 11 of 40 draws ended with an effect the vehicle lacked, mostly an
 ``inertia_error`` a joint step added whose scale could as well have been 1 (issue 26).
 :func:`guard_claims` estimates the claimed effects as the printed ``fit --effects``
-would (its first pass on the evaluated flight, with the model's effects and every
-claimed one together: the numbers the verdict quotes) and keeps a claim only when
+would (on the evaluated flight, with the model's effects and every claimed one
+together; its first pass, then its second stage jointly with a GP fitted to these
+samples, :class:`omavctl.diagnose.estimates.SecondStage`: the numbers the verdict
+quotes) and keeps a claim only when
 the 95 % interval of at least one component it is claimed on excludes the effect's
 null (:meth:`omavctl.physics.effect_base.Effect.null_parameters`: scale 1, lag 0,
 drag 0, ...). What is dropped is said to be one that "cannot be pinned down from this
