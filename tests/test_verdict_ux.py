@@ -469,3 +469,21 @@ def test_two_models_in_either_order_read_as_effects_added_to_the_subset():
     )
     assert old_first[2] == "The lines below are about old.npz (the first --model), with no effects."
     assert not any("removed" in t for t in new_first)
+
+
+def test_a_learned_effect_the_flight_does_not_confirm_is_offered_as_a_test():
+    """When nothing is missing the learned claim's test runs (``learned_claims`` in the
+    diagnosis); an effect it did not take is still named, but as a test, not a claim:
+    on the Betaflight tunes `motor_loss` and `battery_sag` were suggested with "add it
+    with" and, fitted, pinned nothing down."""
+    tree = _absorbed()
+    tree["diagnosis"]["learned_claims"] = []
+    (line,) = [ln for ln in verdict(tree) if ln.key == "learned"]
+    assert line.text.endswith(
+        " Not claimed: this flight does not confirm it (not pinned down away from its null, "
+        "or adding it does not lower the held-out physics-only error)."
+    )
+    assert line.add_words == "Test it with" and line.plain().endswith(
+        "Test it with: omavctl fit f.bag --effects com_offset --out m+c.npz"
+    )
+    assert "test it with: omavctl fit f.bag --effects com_offset" in _terminal(tree)

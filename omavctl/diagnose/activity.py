@@ -7,10 +7,11 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["activity", "fails_text"]
+__all__ = ["activity", "fails_text", "finite"]
 
 
-def _num(v: Any) -> float | None:
+def finite(v: Any) -> float | None:
+    """``v`` as a float when it is a finite number (not a bool), else None."""
     ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
     return float(v) if ok else None
 
@@ -20,9 +21,9 @@ def activity(seg: Mapping[str, Any]) -> str:
     rotation, thrust (from the segment's mean |attitude|, |rate|, |wrench|; no thrust
     when the segment says its force command is normalised, ``thrust_known``; the tilt
     said unknown when its ``attitude_deg`` is None: the log has no attitude)."""
-    att = [_num(v) or 0.0 for v in (seg.get("attitude_deg") or [])][:3]
-    rate = [_num(v) or 0.0 for v in (seg.get("rate") or [])][:3]
-    u = [_num(v) or 0.0 for v in (seg.get("u") or [])]
+    att = [finite(v) or 0.0 for v in (seg.get("attitude_deg") or [])][:3]
+    rate = [finite(v) or 0.0 for v in (seg.get("rate") or [])][:3]
+    u = [finite(v) or 0.0 for v in (seg.get("u") or [])]
     parts: list[str] = []
     if len(att) >= 2:
         roll, pitch = att[0], att[1]
@@ -52,14 +53,14 @@ def fails_text(tree: Mapping[str, Any]) -> str | None:
         return None
     seg = segs[0]
     rmse = seg.get("rmse") or {}
-    vals = {a: v for a in ("x", "y", "z") if (v := _num(rmse.get(a))) is not None}
+    vals = {a: v for a in ("x", "y", "z") if (v := finite(rmse.get(a))) is not None}
     if not vals:
         return None
     axis = max(vals, key=lambda a: vals[a])
     model = ((tree.get("metrics") or {}).get("model") or {}).get("rmse") or {}
-    overall = _num(model.get(axis)) if isinstance(model, Mapping) else None
+    overall = finite(model.get(axis)) if isinstance(model, Mapping) else None
     ratio = f", {vals[axis] / overall:.1f}× its overall" if overall else ""
-    start, end = _num(seg.get("start")), _num(seg.get("end"))
+    start, end = finite(seg.get("start")), finite(seg.get("end"))
     when = f"{start:.1f}–{end:.1f} s" if start is not None and end is not None else "?"
     return (
         f"Fails most at {when} of {seg.get('log', '?')}: {axis} error "

@@ -10,13 +10,13 @@ report of several, are :mod:`omavctl.diagnose.change`.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from omavctl.diagnose import claim_text as ct
 from omavctl.diagnose.activity import activity, fails_text
+from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
@@ -56,6 +56,7 @@ class Line:
     command: str | None = None
     #: the effect the sentence is about, when it is about one ('' otherwise)
     subject: str = ""
+    test: bool = False  # the command tests a suggestion the flight did not confirm
 
     def plain(self) -> str:
         """The sentence with its file and command, as one line of text."""
@@ -64,8 +65,14 @@ class Line:
 
     @property
     def add_words(self) -> str:
-        """'Add it with', or 'Add them with' when the command adds several effects."""
-        return "Add them with" if " Also: " in self.text else "Add it with"
+        """'Add it with' ('Add them with': several effects; 'Test it with': unconfirmed)."""
+        return (
+            "Test it with"
+            if self.test
+            else "Add them with"
+            if " Also: " in self.text
+            else "Add it with"
+        )
 
 
 @dataclass(frozen=True)
@@ -89,11 +96,6 @@ def get_path(tree: Any, *keys: Any, default: Any = None) -> Any:
         else:
             return default
     return tree
-
-
-def _num(v: Any) -> float | None:
-    ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-    return float(v) if ok else None
 
 
 def _pct(v: float) -> str:
@@ -310,10 +312,17 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
             "a physical effect it is tested on every flight."
         )
         command = commands.get(name) if isinstance(commands, Mapping) else None
+        # the learned claim's test ran (nothing missing) and did not take it
+        unconfirmed = "learned_claims" in diag
+        if unconfirmed:
+            text += (
+                " Not claimed: this flight does not confirm it (not pinned down away from "
+                "its null, or adding it does not lower the held-out physics-only error)."
+            )
         if name in (diag.get("below_noise"), diag.get("refit_rejected")):
             return Line("learned", text + " Its fit command is the one above.", subject=name)
         cmd = command if isinstance(command, str) else None
-        return Line("learned", text, command=cmd, subject=name)
+        return Line("learned", text, command=cmd, subject=name, test=unconfirmed)
     return None
 
 

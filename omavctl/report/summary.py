@@ -44,7 +44,7 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
     for line in lines:
         con.print(Text(f"  {line.text}"))
         if line.command:
-            con.print(Text(f"    add it with: {line.command}"))
+            con.print(Text(f"    {line.add_words.lower()}: {line.command}"))
     table = Table(title="RMSE of the angular acceleration, rad/s^2", title_justify="left")
     table.add_column("prediction")
     for axis in AXES:
