@@ -161,8 +161,8 @@ def test_a_claim_held_back_says_it_cannot_be_pinned_down_with_its_interval():
 
 def test_a_per_axis_component_below_the_claim_floor_is_no_claim_on_that_axis():
     """An inertia scale pinned away from 1 on an axis the flight hardly drives (its
-    part of the error under the claim floor even at the interval's end nearest 1) is
-    not a claim there: the claim is judged on the other axes."""
+    part of the error at the estimate under the claim floor) is not a claim there:
+    the claim is judged on the other axes."""
     rng = np.random.default_rng(0)
     n = 500
     reg = np.zeros((n, 3, 3))
@@ -181,9 +181,12 @@ def test_a_per_axis_component_below_the_claim_floor_is_no_claim_on_that_axis():
     fit = np.array([-0.2, 0.0, 0.0])  # the fit flight drove x and found its scale too
     assert material_axes(samples, est, floor=0.005, fit_theta=fit) == {"x"}
     assert material_axes(samples, est, floor=0.005, fit_theta=-fit) == set()
-    # the interval's end nearest the null counts, not the estimate
+    # an axis whose interval holds the null is none; else the part at the estimate
+    # counts (x: 1.3 +- 0.12 excludes 1; at its end nearest 1 the part would be ~0.06)
     wide = EffectEstimate("inertia_error", est.values, {"scale": np.array([0.2, 0.02, 0.02])})
     assert material_axes(samples, wide, floor=0.1) == set()
+    pinned = EffectEstimate("inertia_error", est.values, {"scale": np.array([0.12, 0.02, 0.02])})
+    assert material_axes(samples, pinned, floor=0.1) == {"x"}
     # a component that acts on other axes too (com_offset's r) has no per-axis part
     mixed = EffectEstimate("com_offset", {"r": np.ones(3) * 0.01}, {"r": np.ones(3) * 0.001})
     full = np.ones((n, 3, 3))
