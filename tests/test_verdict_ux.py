@@ -357,6 +357,7 @@ def test_an_effect_named_as_a_look_alike_comes_with_the_command_that_tests_it():
         "with it and compare both models on a flight neither saw."
     )
     assert lines[1].command == "omavctl fit f.bag --effects command_delay"
+    assert lines[1].add_words == "Test it with"  # a test of the look-alike, not a claim
     named = {
         w.strip(".,()").removesuffix("'s") for ln in lines for w in ln.text.split() if "_" in w
     }

@@ -241,7 +241,7 @@ def _alternative_lines(tree: Mapping[str, Any]) -> list[Line]:
                 f"To test {alt} instead (its signature looks like {missing[0]}'s), fit with "
                 "it and compare both models on a flight neither saw."
             )
-            out.append(Line("missing", text, command=command, subject=alt))
+            out.append(Line("missing", text, command=command, subject=alt, test=True))
     return out
 
 
