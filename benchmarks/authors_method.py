@@ -4,7 +4,8 @@ Run: python benchmarks/authors_method.py [LOG_DIR] [--boot 400] [--block 1.0]
 
 Eschmann, Albani, Loianno, "Data-Driven System Identification of Quadrotors
 Subject to Motor Delays" (2024); their notebook is ``sysid.ipynb`` of
-github.com/arplaboratory/data-driven-system-identification (MIT). This file is an
+github.com/arplaboratory/data-driven-system-identification (MIT; read at commit
+d26cef879640834a2d838d884a06cdca9137ab7b). This file is an
 independent numpy/scipy re-implementation of the method as docs/real-motors.md
 ("Against the authors' method") summarises it; no code is copied. In short:
 
@@ -16,7 +17,8 @@ independent numpy/scipy re-implementation of the method as docs/real-motors.md
   the angular acceleration (``np.gradient`` of the gyro) is regressed on it,
   one inverse inertia per axis; ``T_m`` is the value on a grid whose
   least-squares fit leaves the least squared residual (the MAP estimate under
-  Gaussian noise and a flat prior);
+  Gaussian noise and a flat prior; the notebook's cells for this step were not
+  read, the abstract's "MAP" is all this step rests on, docs/real-motors.md);
 - yaw: ``I_zz = 1.832 mean(I_xx, I_yy)`` is assumed, and the yaw-moment
   coefficient ``K_tau`` is the least-squares slope of ``I_zz dw_z`` on
   ``sum d_i f_i`` on log16, 32-38 s and 45-49 s.
