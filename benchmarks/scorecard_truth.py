@@ -8,29 +8,33 @@ servo lags. A fit of ``com_offset`` on such a vehicle estimates the hidden offse
 fitted ``command_delay`` holds the wrench's 5 ms lag too. The scorecard scores a
 fitted parameter against the hidden value and against this apparent truth
 (docs/scorecard.md, "The apparent truth"), computed from the simulator's truth
-alone, never from fitted values:
+and the record's flights alone, never from fitted values:
 
-- **Thrust spread and interference** (``com_offset``, ``rotor_interference``): the
-  spread's torque ``[A(alpha) (T (s - 1) eta)]_tau`` at the rotors' actual tilts
-  ``alpha`` and thrusts ``T`` (and, when ``rotor_interference`` is not fitted beside
-  it, the interference's ``[A(alpha) (T (eta - 1))]_tau``), projected by least squares
-  onto the fitted linear effects' torque regressors (``com_offset``: ``e_j x f``) over
-  the flight's samples, in angular acceleration (``I^-1``). The flight is re-simulated
-  from the record (:func:`flight_geometry`), or the hover closed form is used
-  (:func:`hover_geometry`: one sample at hover, where ``r_x = -tau_y / (m g)``,
-  ``r_y = tau_x / (m g)`` and ``r_z`` is not seen: 0).
+- **Thrust spread and interference** (``com_offset``, and ``rotor_interference``
+  fitted with it): the spread's torque ``[A(alpha) (T (s - 1) eta)]_tau`` at the
+  rotors' actual tilts ``alpha`` and thrusts ``T`` (and, when ``rotor_interference``
+  is not fitted beside it, the interference's ``[A(alpha) (T (eta - 1))]_tau``),
+  projected by least squares onto the fitted effects' torque regressors
+  (``com_offset``: ``e_j x f``) over the flight's samples, in angular acceleration
+  (``I^-1``). The flight is re-simulated from the record (:func:`flight_geometry`),
+  or the hover closed form is used (:func:`hover_geometry`: one sample at hover,
+  where ``r_x = -tau_y / (m g)``, ``r_y = tau_x / (m g)`` and ``r_z`` is not seen: 0).
+  ``rotor_interference`` fitted without ``com_offset`` keeps the plant's
+  coefficients (measured: its regressor, zero at hover, does not take the spread).
 - **Timing** (``command_delay``, ``motor_lag``, ``servo_lag``): a first-order lag
-  ``T`` of the wrench is, at the flights' bandwidths (``omega T << 1``), a delay of
-  ``T``: a fitted delay holds the motor time constant (when ``motor_lag`` is not
-  fitted beside it). A controller faster than the log (1 kHz, logged at 100 Hz)
-  applies commands that change within a log period the fit treats as held: on
-  average the applied command leads the logged one by half a period less half a
-  controller step (4.5 ms), subtracted from a fitted delay or lag.
+  ``T`` of the wrench is, to first order in ``omega T``, a delay of ``T``: a fitted
+  delay holds the default 5 ms motor time constant when ``motor_lag`` is not fitted
+  beside it (a hidden slower lag is not a delay at these bandwidths and is not
+  added). A controller faster than the log (1 kHz, logged at 100 Hz) applies
+  commands that change within a log period the fit treats as held: on average the
+  applied command leads the logged one by half a log period less half a controller
+  step (4.5 ms), subtracted from a fitted delay or lag.
 
 What needs no correction: ``rotational_drag``, ``inertia_error``, ``gyro_bias``
 (nothing default imitates them); a hidden ``motor_lag``, ``servo_lag`` or
 ``rotor_interference`` replaces its default in the plant (the hidden value is the
-plant's), up to the timing lead and the spread's projection above.
+plant's), up to the timing lead and the spread's projection above. Checked on the
+simulator by benchmarks/scorecard_truth_check.py.
 """
 
 from __future__ import annotations
@@ -138,13 +142,20 @@ def linear_shift(
     """What the default imperfections add to the fitted linear effects' parameters
     (``{effect: {parameter: [values]}}``): the least-squares projection, in angular
     acceleration, of the spread's torque (plus the interference's when
-    ``rotor_interference`` is not fitted) onto the fitted effects' regressors. A
-    direction the samples do not see gets the minimum-norm answer (0 at hover)."""
+    ``rotor_interference`` is not fitted) onto the fitted effects' regressors; a
+    regressor the samples do not excite (the interference's at hover) stays 0, and
+    so does ``rotor_interference`` fitted without ``com_offset``."""
     from omavctl.physics.allocation import Allocation
 
     fitted = [n for n in LINEAR if n in set(fitted)]
     if not fitted:
         return {}
+    if "com_offset" not in fitted:
+        # measured (benchmarks/scorecard_truth_check.py, ri71/ri72): fitted alone, the
+        # interference keeps the plant's coefficients; its regressor, zero at hover,
+        # cannot take the spread's torque, which the fit's GP (a function of the
+        # wrench) absorbs instead
+        return {"rotor_interference": {"rotor_rotor": [0.0], "rotor_arm": [0.0]}}
     alloc = Allocation(vehicle)
     spread_tau, inter_tau = default_torques(geom, spread, rotor_rotor, rotor_arm, alloc)
     target = spread_tau if "rotor_interference" in fitted else spread_tau + inter_tau
