@@ -154,3 +154,40 @@ def test_none_draw_claims_that_are_the_defaults_look_alikes():
     assert sc.judge(_none_record([("rotor_interference", {})]), app)["none_lookalike"] is True
     for bad in (("command_delay", delay_20ms), ("com_offset", far_com), ("inertia_error", inertia)):
         assert sc.judge(_none_record([bad]), app)["none_lookalike"] is False, bad[0]
+
+
+def test_the_verdicts_quoted_estimate_is_read_per_component():
+    verdict = (
+        "Missing: com_offset — it explains 35 % of the model's remaining error. Estimated on "
+        "this flight as fit would: r_y = 0.000918 m (95 %: 0.00067 to 0.00117); r_z = "
+        "0.000412 m (95 %: -0.00156 to 0.00239, cannot be pinned down from this flight). "
+        "r_x not claimed: the effect explains under 5 % of the x error here. Also: "
+        "rotor_interference (the fit command adds them together: estimated 0.3 (95 %: 0.1 to 0.5)"
+    )
+    rec = _none_record([("com_offset", {})])
+    rec["rounds"][0]["verdict"] = ["axis x: something else", verdict]
+    assert sc.quoted_interval(rec, "com_offset", "r_y") == (0.00067, 0.00117)
+    assert sc.quoted_interval(rec, "com_offset", "r_z") == (-0.00156, 0.00239)
+    assert sc.quoted_interval(rec, "com_offset", "r_x") is None
+    assert sc.quoted_interval(rec, "rotor_interference", "rotor_rotor") is None
+
+
+def test_the_documented_rescoring_is_what_the_kept_records_give():
+    """docs/scorecard.md's apparent-truth rows are what report3's and report2's records
+    and their kept apparent truths give (a scorer change shows in the doc)."""
+    import json
+    from pathlib import Path
+
+    from benchmarks.scorecard import read_records
+
+    root = Path(__file__).resolve().parent.parent
+    doc = (root / "docs" / "scorecard.md").read_text()
+    section = doc[doc.index("## 2026-11-26: the apparent truth") :]
+    for split in ("report3", "report2"):
+        folder = root / "benchmarks" / "scorecard-runs" / f"{split}-2026-11-26"
+        records = [r for r in read_records([folder / f"{split}.jsonl"]) if not r["error"]]
+        apparent = json.loads((folder / f"{split}.apparent.json").read_text())
+        judged = [sc.judge(r, apparent[f"{r['split']}:{r['index']}"]) for r in records]
+        for key in ("param_covered", "param_covered_apparent", "none_lookalike"):
+            k, n = sc.tally(judged, key)
+            assert f"{k}/{n} = {100 * k / n:.0f} %" in section, (split, key)
