@@ -12,7 +12,7 @@ floor) are rebuilt from those lines.
     python benchmarks/scorecard.py run --split tune|report|tune2|report2|report3 [--draws N]
         [--start I] [--jobs J] [--workdir DIR] [--out FILE.jsonl]
         [--simulator 'CMD {reference} {truth} {out} {seed}']
-    python benchmarks/scorecard.py analyse FILE.jsonl... [--markdown OUT.md]
+    python benchmarks/scorecard.py analyse FILE.jsonl... [--markdown OUT.md] [--apparent A.json]
 
 The split (benchmarks/scorecard_draws.py, SPLITS): ``tune`` draws (seeds from 0,
 families figure-8, multi-sine wobble, chirp) may be looked at to change the
@@ -135,10 +135,17 @@ def _rate(k: int, n: int) -> str:
     return f"{k}/{n} = {100 * k / n:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}]"
 
 
-def table(records: Sequence[dict[str, Any]]) -> list[str]:
-    """The markdown table: every metric overall and by size bin, Wilson 95 % intervals."""
+def _apparent_of(r: dict[str, Any], apparent: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The record's entry in the apparent truths (None: none given)."""
+    return None if apparent is None else apparent[f"{r['split']}:{r['index']}"]
+
+
+def table(records: Sequence[dict[str, Any]], apparent: dict[str, Any] | None = None) -> list[str]:
+    """The markdown table: every metric overall and by size bin, Wilson 95 % intervals;
+    with ``apparent`` (benchmarks/scorecard_truth.py) the rows against the apparent
+    truth too."""
     ok = [r for r in records if not r["error"]]
-    judged = [(r, sc.judge(r)) for r in ok]
+    judged = [(r, sc.judge(r, _apparent_of(r, apparent))) for r in ok]
     bins = ["none", *(b[0] for b in sc.SIZE_BINS)]
     head = ["metric", "goal", "all", "hidden >= 1x floor", *bins]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -148,6 +155,8 @@ def table(records: Sequence[dict[str, Any]]) -> list[str]:
     learned = any("learned_claims" in rd for r in ok for rd in r["rounds"])
     for label, key, goal in sc.METRICS:
         if key == "first_right_strict" and not learned:
+            continue
+        if key in sc.APPARENT_KEYS and apparent is None:
             continue
         cells = [label, goal, _rate(*sc.tally([j for _, j in judged], key))]
         cells.append(_rate(*sc.tally(above, key)))
@@ -196,8 +205,34 @@ def _draw_label(r: dict[str, Any]) -> str:
     return f"{r['split']} {r['index']}: {hidden}; {fams}; {r['timing']}"
 
 
-def failures(records: Sequence[dict[str, Any]]) -> list[str]:
-    """One line per failed judgement, grouped by metric."""
+def _apparent_failures(
+    r: dict[str, Any], app: dict[str, Any], groups: dict[str, list[str]]
+) -> None:
+    """The record's parameters outside their interval against the apparent truth, and
+    a none draw's first claims that are no default imperfection's look-alike."""
+    for c in sc.param_checks(r, app):
+        if not c.covered:
+            ci = (
+                "no interval"
+                if c.interval is None
+                else f"[{c.interval[0]:.4g}, {c.interval[1]:.4g}]"
+            )
+            groups.setdefault("apparent truth outside the 95 % interval", []).append(
+                f"{_draw_label(r)}: {c.effect}.{c.name} {c.estimate:.4g} {ci} for {c.truth:.4g}"
+            )
+    if not r["hidden"]:
+        bad = [n for n in sc.claimed(r["rounds"][0]) if not sc.lookalike(r, app, n)]
+        if bad:
+            groups.setdefault("none draw: a claim that is no default's look-alike", []).append(
+                f"{_draw_label(r)}: {', '.join(bad)}"
+            )
+
+
+def failures(
+    records: Sequence[dict[str, Any]], apparent: dict[str, Any] | None = None
+) -> list[str]:
+    """One line per failed judgement, grouped by metric (with ``apparent``, the
+    apparent truth's too)."""
     groups: dict[str, list[str]] = {}
     for r in records:
         if r["error"]:
@@ -239,6 +274,9 @@ def failures(records: Sequence[dict[str, Any]]) -> list[str]:
                 groups.setdefault("truth outside the 95 % interval", []).append(
                     f"{_draw_label(r)}: {c.effect}.{c.name} {c.estimate:.4g} {ci} for {c.truth:.4g}"
                 )
+        app = _apparent_of(r, apparent)
+        if app is not None:
+            _apparent_failures(r, app, groups)
         last = r["rounds"][-1]
         low = {a: c for a, c in last["coverage"].items() if c < sc.COVER_MIN}
         if low:
@@ -262,16 +300,20 @@ def cost(records: Sequence[dict[str, Any]]) -> str:
     )
 
 
-def analyse(paths: Sequence[Path], markdown: Path | None) -> None:
-    """Print (and optionally write) the tables per split and the failures."""
+def analyse(
+    paths: Sequence[Path], markdown: Path | None, apparent_path: Path | None = None
+) -> None:
+    """Print (and optionally write) the tables per split and the failures; with
+    ``apparent_path`` (benchmarks/scorecard_truth.py's JSON) the apparent truth's rows."""
     records = read_records(paths)
+    apparent = None if apparent_path is None else json.loads(apparent_path.read_text())
     lines: list[str] = []
     for split in SPLITS:
         recs = [r for r in records if r["split"] == split]
         if recs:
-            lines += [f"### {split} split", "", *table(recs), "", *by_effect(recs), ""]
+            lines += [f"### {split} split", "", *table(recs, apparent), "", *by_effect(recs), ""]
             lines += [f"Cost: {cost(recs)}.", ""]
-    lines += ["### Failures by metric", "", *failures(records)]
+    lines += ["### Failures by metric", "", *failures(records, apparent)]
     text = "\n".join(lines) + "\n"
     print(text)
     if markdown is not None:
@@ -312,6 +354,12 @@ def main(argv: Sequence[str] | None = None) -> None:
     a = sub.add_parser("analyse", help="rebuild the tables from JSON lines")
     a.add_argument("records", type=Path, nargs="+")
     a.add_argument("--markdown", type=Path, default=None)
+    a.add_argument(
+        "--apparent",
+        type=Path,
+        default=None,
+        help="the records' apparent truth (benchmarks/scorecard_truth.py): adds its rows",
+    )
     args = ap.parse_args(argv)
     if args.mode == "run":
         draws = DEFAULT_DRAWS[args.split] if args.draws is None else args.draws
@@ -332,7 +380,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         count = above_floor([r for r in read_records([out]) if r["split"] == args.split])
         print(f"{args.split}: {count} draws at or above the floor after index {end - 1}")
     else:
-        analyse(args.records, args.markdown)
+        analyse(args.records, args.markdown, args.apparent)
 
 
 if __name__ == "__main__":

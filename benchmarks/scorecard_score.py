@@ -187,25 +187,116 @@ class ParamCheck:
         return (self.interval[1] - self.interval[0]) / 2 < PARAM_TOL * abs(self.estimate)
 
 
-def param_checks(record: Mapping[str, Any]) -> list[ParamCheck]:
-    """Every component of every hidden parameter that the loop's last fit estimated."""
-    fitted: dict[str, Any] = {}
+def _last_fits(record: Mapping[str, Any]) -> dict[str, tuple[Any, frozenset[str]]]:
+    """Per fitted effect: its entry in the last fit that has it and that fit's effects."""
+    out: dict[str, tuple[Any, frozenset[str]]] = {}
     for fit in record["fits"]:
-        fitted.update(fit.get("effects") or {})
+        effects = fit.get("effects") or {}
+        for name, entry in effects.items():
+            out[name] = (entry, frozenset(effects))
+    return out
+
+
+def param_checks(
+    record: Mapping[str, Any], apparent: Mapping[str, Any] | None = None
+) -> list[ParamCheck]:
+    """Every component of every hidden parameter that the loop's last fit estimated,
+    against the hidden value, or with ``apparent`` (the record's entry of
+    benchmarks/scorecard_truth.py) against the apparent truth: the hidden value
+    plus what the simulator's default imperfections add to that fit's parameter."""
+    from benchmarks.scorecard_truth import apparent_value
+
     out = []
-    for effect, params in record["hidden"].items():
-        entry = fitted.get(effect)
-        if entry is None:
+    last = _last_fits(record)
+    for effect in record["hidden"]:
+        if effect not in last:
             continue
-        for name, truth in params.items():
+        entry, fitted = last[effect]
+        app = None
+        if apparent is not None:
+            app = apparent_value(record, apparent, effect, fitted, role="fit")
+        params_of = flat_parameters(entry)
+        for name, truth in record["hidden"][effect].items():
             values = truth if isinstance(truth, list) else [truth]
+            if app is not None and name in app:
+                values = app[name]
             for i, t in enumerate(values):
                 label = f"{name}[{i}]" if isinstance(truth, list) else name
-                params_of = flat_parameters(entry)
                 est = _component(params_of[name], i)
                 ci = interval(params_of, name, i)
                 out.append(ParamCheck(effect, label, float(t), est, ci))
     return out
+
+
+#: what a none draw's claim may be, as a default imperfection's look-alike
+LOOK_ALIKES = frozenset(
+    {"rotor_interference", "com_offset", "command_delay", "motor_lag", "servo_lag"}
+)
+
+
+_NUMBER = r"(-?\d+(?:\.\d*)?(?:e[+-]?\d+)?)"
+
+
+def quoted_interval(record: Mapping[str, Any], name: str, label: str) -> tuple[float, float] | None:
+    """The 95 % interval the first verdict quotes for ``label`` (``r_x``, ``tau_d``) of
+    a claimed ``name``, "Estimated on this flight as fit would" (the claims and the
+    model's effects together, as the printed fit command estimates them); None when
+    the verdict quotes none (older records, or a claim named after "Also:")."""
+    import re
+
+    pattern = re.compile(rf"\b{re.escape(label)} = {_NUMBER} ?[^(;]*\(95 %: {_NUMBER} to {_NUMBER}")
+    for line in record["rounds"][0].get("verdict") or []:
+        if not line.startswith(f"Missing: {name} ") and not line.startswith(f"Learned: {name} "):
+            continue
+        text = line.split("Estimated on this flight as fit would:", 1)
+        if len(text) < 2:
+            continue
+        m = pattern.search(text[1].split("Also:", 1)[0])
+        if m:
+            return float(m.group(2)), float(m.group(3))
+    return None
+
+
+def lookalike(record: Mapping[str, Any], apparent: Mapping[str, Any], name: str) -> bool:
+    """Whether a claim ``name`` of the first evaluation is a default imperfection's
+    look-alike: ``rotor_interference`` (the default interference is the plant's), or a
+    ``com_offset``, ``command_delay``, ``motor_lag`` or ``servo_lag`` whose every
+    component's 95 % interval, as the verdict quotes it (estimated as the printed fit
+    command would, with the other claims and the model's effects), holds the apparent
+    truth of a vehicle without hidden effects on the held-out flight (the thrust
+    spread's offset, the default lags as a delay or a lag); a component the verdict
+    does not claim is not judged. A claim whose estimate the verdict does not quote
+    is judged on the ranking's interval (the candidate's ``parameters``: that effect
+    fitted alone against the model's remaining error)."""
+    from benchmarks.scorecard_truth import apparent_value
+
+    if name == "rotor_interference":
+        return True
+    if name not in LOOK_ALIKES:
+        return False
+    first = record["rounds"][0]
+    fitted = set(claimed(first)) | set(first.get("model_effects") or [])
+    truth = apparent_value(record, apparent, name, fitted, "held") or {}
+    checks = []  # (apparent value, interval) of each quoted component
+    for pname, values in truth.items():
+        for i, t in enumerate(values):
+            label = f"{pname}_{'xyz'[i]}" if len(values) == 3 else pname
+            ci = quoted_interval(record, name, label)
+            if ci is not None:
+                checks.append((t, ci))
+    if not checks:  # not quoted: the ranking's estimate, the effect fitted alone
+        cand = next((c for c in first["candidates"] if c.get("name") == name), None)
+        params = flat_parameters((cand or {}).get("parameters") or {})
+        alone = apparent_value(record, apparent, name, {name}, "held") or {}
+        for pname, values in alone.items():
+            for i, t in enumerate(values):
+                checks.append((t, interval(params, pname, i) if pname in params else None))
+    return bool(checks) and all(ci is not None and ci[0] <= t <= ci[1] for t, ci in checks)
+
+
+def none_lookalikes(record: Mapping[str, Any], apparent: Mapping[str, Any]) -> bool:
+    """A none draw's first evaluation claims nothing but default look-alikes."""
+    return all(lookalike(record, apparent, n) for n in claimed(record["rounds"][0]))
 
 
 def size_ratio(record: Mapping[str, Any]) -> float:
@@ -239,25 +330,42 @@ def coverage_checks(record: Mapping[str, Any]) -> tuple[list[bool], list[bool]]:
     return low, inside
 
 
-def judge(record: Mapping[str, Any]) -> dict[str, Any]:
-    """Every per-draw judgement of one record (counts for the tables)."""
+def judge(record: Mapping[str, Any], apparent: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Every per-draw judgement of one record (counts for the tables); with
+    ``apparent`` (the record's apparent truth) the rows against it too."""
     checks = param_checks(record)
     low, inside = coverage_checks(record)
     hidden = bool(record["hidden"])
-    return {
+    out: dict[str, Any] = {
         "first_right": first_answer_right(record),
         "first_right_strict": first_answer_right(record, strict=True),
         "none_silent": None if hidden else not claimed(record["rounds"][0]),
+        "none_lookalike": None,
         "fall": (physics_fall(record) >= FALL) if hidden else None,
         "invented": ends_invented(record),
         "worse": bool(worse_axes(record["rounds"][-1])),
         "param_within": [c.within_tol for c in checks],
         "param_covered": [c.covered for c in checks],
         "narrow_within": [c.within_tol for c in checks if c.narrow],
+        "param_within_apparent": None,
+        "param_covered_apparent": None,
+        "narrow_within_apparent": None,
         "coverage_low_ok": low,
         "coverage_inside_ok": inside,
     }
+    if apparent is not None:
+        app = param_checks(record, apparent)
+        out["param_within_apparent"] = [c.within_tol for c in app]
+        out["param_covered_apparent"] = [c.covered for c in app]
+        out["narrow_within_apparent"] = [c.within_tol for c in app if c.narrow]
+        out["none_lookalike"] = None if hidden else none_lookalikes(record, apparent)
+    return out
 
+
+#: the rows that need the apparent truth (benchmarks/scorecard_truth.py): shown only with it
+APPARENT_KEYS = frozenset(
+    {"none_lookalike", "param_within_apparent", "param_covered_apparent", "narrow_within_apparent"}
+)
 
 #: (row label, judgement key, goal) of the table
 METRICS: tuple[tuple[str, str, str], ...] = (
@@ -272,12 +380,24 @@ METRICS: tuple[tuple[str, str, str], ...] = (
         "-",
     ),
     ("none draws: no claim at all (strict: a default imperfection counts too)", "none_silent", "-"),
+    (
+        "none draws: no claim but a default imperfection's look-alike at its apparent value",
+        "none_lookalike",
+        "all",
+    ),
     ("physics-only held-out error falls >= 50 % (hidden effects only)", "fall", ">= 90 %"),
     ("ends with an effect the vehicle does not have", "invented", "0"),
     ("model > 1.05x physics-only on an axis (held-out)", "worse", "0"),
     ("fitted parameter within 15 % of the truth", "param_within", "-"),
     ("truth inside the reported 95 % interval", "param_covered", ">= 85 %"),
     ("within 15 % where the interval's half-width < 15 %", "narrow_within", ">= 90 %"),
+    ("fitted parameter within 15 % of the apparent truth", "param_within_apparent", "-"),
+    ("apparent truth inside the reported 95 % interval", "param_covered_apparent", ">= 85 %"),
+    (
+        "within 15 % of the apparent truth where the half-width < 15 %",
+        "narrow_within_apparent",
+        ">= 90 %",
+    ),
     ("2-sigma coverage >= 0.85 (axis-flights)", "coverage_low_ok", "all"),
     (
         "2-sigma coverage <= 0.99 inside the fit inputs (axis-flights)",
