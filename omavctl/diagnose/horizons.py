@@ -57,6 +57,7 @@ from omavctl.learn.rollout_residual import (
     residual_function,
     window_starts,
 )
+from omavctl.learn.rollout_walk import walk_gain_at
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.open_loop import rollout
 from omavctl.physics.rigid_body import rotation_matrix
@@ -168,8 +169,10 @@ def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: f
     # the white residual the body rate integrates: the GP's noise variance less what the
     # log's rate noise puts into the Savitzky-Golay derivative (measurement, not motion)
     process = np.maximum(m.noise_variance[None, :] - win.derivative_noise, 0.0)  # (W, 3)
-    steps = np.arange(s_fun.shape[1])[None, :, None]
-    walk = steps * dt**2 * process[:, None, :]
+    # a random walk, times how much faster the fit flight's held-out residual adds up
+    steps = np.arange(s_fun.shape[1])
+    gain = walk_gain_at(m.provenance.get("rollout_walk"), steps)  # (K + 1, 3)
+    walk = (steps[:, None] * gain)[None] * dt**2 * process[:, None, :]
     measured = win.noise_factor[:, :, None] * win.noise[:, None, :] ** 2
     return np.sqrt(measured + drift**2 + walk)
 
