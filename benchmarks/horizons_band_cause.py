@@ -5,10 +5,11 @@ band), then per axis and horizon prints the coverage of the full model's 2σ
 band for windows inside the fit flight's inputs and for windows that start or
 pass beyond them (the one-step rule of ``training_envelope``: an input a
 quarter of its training range beyond the training points' [min, max]), the
-mean |error| and the mean band half-width there, and the share of the band's
+mean |error| and the median 2σ half-width there, and the share of the band's
 variance each term holds: the measured noise, the drift of the residual
 function (GP latent, beyond-the-box growth, effects' parameters, the GP mean
-left out of rollouts) and the random walk of the GP's noise variance.
+left out of rollouts) and the random walk of the GP's noise variance (times the
+walk gain ``fit`` measured, :mod:`omavctl.learn.rollout_walk`; 1 for an older file).
 
     python benchmarks/horizons_band_cause.py MODEL.npz LOG [--time-window A:B]
         [--stride N]
@@ -18,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 from typing import Any
-from unittest import mock
 
 import numpy as np
 
@@ -27,22 +27,18 @@ from omavctl.diagnose import horizons as hz
 from omavctl.diagnose.metrics import ENVELOPE_MARGIN
 from omavctl.learn.model_file import load_model
 from omavctl.learn.rollout_residual import gather, per_sample
+from omavctl.learn.rollout_walk import walk_gain_at
 from omavctl.learn.validation import beyond_envelope_variance
 
 AXES = ("x", "y", "z")
 
 
 def captured(model: str, log: str, window: Any) -> tuple[Any, list[Any], list[Any], float]:
-    """The model, samples, grid signals and rate ``evaluate`` hands the horizon table."""
-    got: dict[str, Any] = {}
-
-    def keep(models, samples, grids, rate, *_a, **_k):  # type: ignore[no-untyped-def]
-        got.update(models=models, samples=samples, grids=grids, rate=rate)
-        return None
-
-    with mock.patch.object(ev, "horizon_table", keep):
-        ev.evaluate([model], [log], time_window=window)
-    return got["models"][0], got["samples"], got["grids"], got["rate"]
+    """The model, and the samples, grid signals and rate ``evaluate`` reads the log with."""
+    m = load_model(model)
+    rate, sg = ev._grid(m)
+    samples, grids, _, _ = ev._read_logs([log], m.vehicle, rate, sg, window, None)
+    return m, samples, grids, rate
 
 
 def outside(m: Any, samples: list[Any]) -> list[np.ndarray]:
@@ -92,7 +88,6 @@ def main() -> None:
         a, b = args.time_window.split(":")
         window = (float(a) if a else None, float(b) if b else None)
     m, samples, grids, rate = captured(args.model, args.log, window)
-    m = load_model(args.model)
     dt = 1.0 / rate
     steps = hz.horizon_steps(hz.DEFAULT_HORIZONS, rate)
     n_total = sum(s.n for s in samples)
@@ -130,7 +125,7 @@ def main() -> None:
         starts_out = out_w[:, 0] > 0
         passes_out = out_w[:, : k + 1].max(axis=1) > 0
         drift = dt * total_fun[:, :k].sum(axis=1)  # (W, 3)
-        walk = k * dt**2 * process
+        walk = k * dt**2 * process * walk_gain_at(m.provenance.get("rollout_walk"), [k])[0]
         print(f"\nhorizon {k * dt:g} s ({k} steps): windows inside {np.mean(~passes_out):.0%}")
         for a, name in enumerate(AXES):
             e = np.abs(err[:, k, a])

@@ -20,7 +20,7 @@ out-of-control span. Every horizon uses the same starts (those valid for the
 longest), so the rows of the table are comparable.
 
 The full model's band: the body-rate error at step k has the std
-``sqrt(f_k s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
+``sqrt(f_k s_r^2 + (dt sum_{j<k} s_j)^2 + g_k k dt^2 s_p^2)`` per axis, with ``s_r``
 the log's body-rate noise and ``f_k s_r^2`` the variance of the noise of sample
 k less the start's (2 for independent samples; exact through the interpolation
 weights for a gyro recorded more slowly than the grid,
@@ -28,7 +28,9 @@ weights for a gyro recorded more slowly than the grid,
 model's residual function at step j (GP latent variance + the effects'
 parameter variance, at the logged inputs) and ``s_p^2`` the GP's noise
 variance less what the rate noise puts into the Savitzky-Golay derivative
-(white motion the model cannot predict, integrated as a random walk).
+(motion the model cannot predict, integrated as a random walk times ``g_k``: how
+much faster the residual the model leaves added up over k steps on the fit
+flight's held-out blocks, :mod:`omavctl.learn.rollout_walk`; 1 for white noise).
 Summing the std along the window treats the function's error as fully
 correlated over the window: exact for an error in a constant parameter, an
 upper bound for a GP whose inputs move less than its length scales. Coverage
