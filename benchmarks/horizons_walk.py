@@ -17,6 +17,7 @@ Cases (fitted into ``--workdir`` when missing; fits are deterministic):
   ``evaluate`` named there (``NAMED``), on the held-out figure-8;
 - ``crazyflie``: log15, fit on the first half of the roll/pitch window,
   evaluated on the second (``make crazyflie``'s halves, both models);
+  ``crazyflie-window``: fit on log10 and log16, evaluated on log15's window;
 - ``px4``: the px4tools octocopter, fit on 6.5-15 s, evaluated from 15 s;
 - ``bf-better-on-smooth`` and ``bf-smooth-on-better``: the Betaflight tunes.
 
@@ -101,6 +102,11 @@ def cases(name: str, work: Path) -> list[tuple[str, Path, Path, Any]]:
         )  # fmt: skip
         return [("crazyflie halves (base)", base, CF, second),
                 ("crazyflie halves (lag)", lag, CF, second)]  # fmt: skip
+    if name == "crazyflie-window":  # make crazyflie's window: fit on log10 + log16
+        v = load_vehicle(ROOT / "examples/crazyflie.yaml")
+        logs = [REAL / "arpl_crazyflie/log10", REAL / "arpl_crazyflie/log16"]
+        base = _fit(work / "cf-base.npz", logs, v)
+        return [("crazyflie window (base)", base, CF, (15.76, 50.76))]
     if name == "px4":
         v = load_vehicle(ROOT / "examples/px4tools-octocopter.yaml")
         log = REAL / "px4tools_octocopter/01_07_59.csv"
