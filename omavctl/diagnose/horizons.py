@@ -20,7 +20,7 @@ out-of-control span. Every horizon uses the same starts (those valid for the
 longest), so the rows of the table are comparable.
 
 The full model's band: the body-rate error at step k has the std
-``sqrt(f_k s_r^2 + (dt sum_{j<k} s_j)^2 + k dt^2 s_p^2)`` per axis, with ``s_r``
+``sqrt(f_k s_r^2 + (dt sum_{j<k} s_j)^2 + g_k k dt^2 s_p^2)`` per axis, with ``s_r``
 the log's body-rate noise and ``f_k s_r^2`` the variance of the noise of sample
 k less the start's (2 for independent samples; exact through the interpolation
 weights for a gyro recorded more slowly than the grid,
@@ -28,7 +28,9 @@ weights for a gyro recorded more slowly than the grid,
 model's residual function at step j (GP latent variance + the effects'
 parameter variance, at the logged inputs) and ``s_p^2`` the GP's noise
 variance less what the rate noise puts into the Savitzky-Golay derivative
-(white motion the model cannot predict, integrated as a random walk).
+(motion the model cannot predict, integrated as a random walk times ``g_k``: how
+much faster the residual the model leaves added up over k steps on the fit
+flight's held-out blocks, :mod:`omavctl.learn.rollout_walk`; 1 for white noise).
 Summing the std along the window treats the function's error as fully
 correlated over the window: exact for an error in a constant parameter, an
 upper bound for a GP whose inputs move less than its length scales. Coverage
@@ -57,6 +59,7 @@ from omavctl.learn.rollout_residual import (
     residual_function,
     window_starts,
 )
+from omavctl.learn.rollout_walk import walk_gain_at
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.open_loop import rollout
 from omavctl.physics.rigid_body import rotation_matrix
@@ -168,8 +171,10 @@ def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: f
     # the white residual the body rate integrates: the GP's noise variance less what the
     # log's rate noise puts into the Savitzky-Golay derivative (measurement, not motion)
     process = np.maximum(m.noise_variance[None, :] - win.derivative_noise, 0.0)  # (W, 3)
-    steps = np.arange(s_fun.shape[1])[None, :, None]
-    walk = steps * dt**2 * process[:, None, :]
+    # a random walk, times how much faster the fit flight's held-out residual adds up
+    steps = np.arange(s_fun.shape[1])
+    gain = walk_gain_at(m.provenance.get("rollout_walk"), steps)  # (K + 1, 3)
+    walk = (steps[:, None] * gain)[None] * dt**2 * process[:, None, :]
     measured = win.noise_factor[:, :, None] * win.noise[:, None, :] ** 2
     return np.sqrt(measured + drift**2 + walk)
 

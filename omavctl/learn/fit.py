@@ -71,6 +71,7 @@ from omavctl.learn.mean_shrink import MEAN_SHRINK
 from omavctl.learn.model import EffectEstimate, ResidualGP
 from omavctl.learn.provenance import fit_provenance
 from omavctl.learn.rollout_check import rollout_verdict
+from omavctl.learn.rollout_walk import walk_gain
 from omavctl.learn.signal import (
     DEFAULT_FEATURES,
     DEFAULT_SG_ORDER,
@@ -292,7 +293,9 @@ def _rollout_check(
     model: ResidualGP, original: Sequence[ResidualSamples], train: TrainingSet, notes: list[str]
 ) -> None:
     """The GP mean's weight in open-loop rollouts (:mod:`omavctl.learn.rollout_check`),
-    recorded in the model, its provenance (``rollout_check``) and the notes."""
+    recorded in the model, its provenance (``rollout_check``) and the notes; and how
+    the residual it leaves adds up over a rollout (``rollout_walk``,
+    :mod:`omavctl.learn.rollout_walk`)."""
     verdict = rollout_verdict(model, original, train.idx, train.n_prior)
     model.rollout_gp = verdict.weights
 
@@ -307,6 +310,8 @@ def _rollout_check(
         "stderr": axes(verdict.stderr),
         "chunks": verdict.chunks,
     }
+    # how the residual the model leaves adds up over a rollout (the horizon band's walk)
+    model.provenance["rollout_walk"] = walk_gain(model, original, train.idx, train.n_prior)
     notes += verdict.notes
 
 

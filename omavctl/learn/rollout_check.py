@@ -72,7 +72,7 @@ class RolloutVerdict:
     notes: list[str] = field(default_factory=list)
 
 
-def _without_points(m: ResidualGP, keep: np.ndarray) -> ResidualGP:
+def held_out_model(m: ResidualGP, keep: np.ndarray) -> ResidualGP:
     """The model conditioned on the training points where ``keep`` (n,) (same
     hyperparameters, effects and calibration; rollout weight 1)."""
     return ResidualGP(
@@ -115,7 +115,7 @@ def _held_out_errors(
     errors = np.full((2, win.count, 3), np.nan)
     for f in np.unique(win_fold[win_fold >= 0]):
         sel = win_fold == f
-        sub, part = _without_points(m, point_fold != f), win.subset(sel)
+        sub, part = held_out_model(m, point_fold != f), win.subset(sel)
         eta0 = np.zeros((part.count, 3))
         for j, with_gp in enumerate((False, True)):
             fn = residual_function(sub, part, samples, with_gp)
