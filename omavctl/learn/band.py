@@ -14,16 +14,17 @@ variance, its growth beyond the training box, what weighing the mean adds:
 - **beyond them** it rises to ``noise_variance`` (``fit``'s floor from the held-out
   error of time blocks and input ends), fully at twice the margin
   (:func:`~omavctl.learn.effects_band.beyond_weight`, as the effects' robust term);
-- and it grows with how far the commanded angular acceleration ``I^-1 tau`` lies
+- and, rising over the same quarter range (so that nothing changes inside), it grows
+  with how far the commanded angular acceleration ``I^-1 tau`` lies
   beyond the fit flight's: ``(g ||e||)^2``, ``e`` (3,) rad/s^2 the excess of the
   sample's ``I^-1 tau`` over the training inputs' range per axis (0 inside it), ``g``
   = ``torque_growth`` (:data:`TORQUE_GROWTH`). The residuals a model meets beyond
   its fit flight's torques (an inertia error, a lag, a drag, the rotors' interference
   at thrusts it never saw) grow with the torque; a GP returns to its prior there, and
   the fit flight cannot show how fast they grow (its own input ends say "hardly").
-- and it grows with how far the sample lies beyond the training inputs' box in any
-  input, in training ranges (``reach``, the largest over the inputs, as ``evaluate``
-  measures a flight's excursions): ``(r reach)^2``, ``r`` = ``range_growth`` (3,)
+- and with how far the sample lies beyond the training inputs' box in any input, in
+  training ranges (``reach``, the largest over the inputs, as ``evaluate`` measures a
+  flight's excursions): ``(r reach)^2``, ``r`` = ``range_growth`` (3,)
   rad/s^2, which ``fit`` sets to :data:`RANGE_GROWTH` times the RMS of the training
   targets about their mean: over one more training range the residual may change by
   twice what it varied over the fit flight's (the rotors' interference at a thrust the
@@ -50,14 +51,14 @@ __all__ = ["RANGE_GROWTH", "TORQUE_GROWTH", "band_variance", "range_reach", "tor
 
 #: ``g``: the band's std beyond the fit flight's torques grows by this fraction of how
 #: far the commanded angular acceleration lies beyond them (a model error of up to
-#: about 15 % of the extra torque inside 2 sigma). Measured post hoc on
-#: ``benchmarks/band_calibration.py``'s models (docs/intervals.md).
+#: about 15 % of the extra torque inside 2 sigma); the value docs/generalisation.md
+#: measured ("Beyond the fit flight's torques"), not re-chosen.
 TORQUE_GROWTH = 0.3
 
 #: ``fit``'s ``range_growth`` per axis: this times the RMS of the training targets about
 #: their mean, the band's std per training range beyond the training inputs' box.
-#: Measured post hoc on ``benchmarks/band_calibration.py``'s models (docs/intervals.md:
-#: 1 left 2 of 108 axis-flights below 0.85 coverage, 2 none, 4 widened more inside).
+#: Measured post hoc on ``benchmarks/band_calibration.py``'s models
+#: (``benchmarks/band_variants.py``, docs/intervals.md).
 RANGE_GROWTH = 2.0
 
 #: The GP inputs that hold the commanded angular acceleration ``I^-1 tau`` (rad/s^2).
@@ -93,18 +94,18 @@ def range_reach(train: np.ndarray, z: np.ndarray) -> np.ndarray:
 def band_variance(model: Any, z: np.ndarray, var: np.ndarray) -> np.ndarray:
     """Predictive variance (B, 3) of a new measurement at GP inputs z (B, d), from the
     GP's variance ``var`` (B, 3) there (see the module docstring): ``var + band_noise``
-    inside the fit flight's inputs, the noise rising to ``noise_variance`` beyond them,
-    plus ``(torque_growth ||e||)^2`` beyond the fit flight's torques and
-    ``(range_growth reach)^2`` beyond its inputs' box."""
+    inside the fit flight's inputs; beyond them, weighted by ``w`` rising from 0 to 1
+    between a quarter and half a training range beyond the box
+    (:func:`~omavctl.learn.effects_band.beyond_weight`), the noise rises to
+    ``noise_variance`` and the band gains ``(torque_growth ||e||)^2`` and
+    ``(range_growth reach)^2``."""
     z = np.atleast_2d(np.asarray(z, dtype=float))
-    out = var + model.band_noise
-    extra = model.noise_variance - model.band_noise
-    if np.any(extra > 0):
-        out = out + beyond_weight(model.inputs, z)[:, None] * extra
+    rho = beyond_weight(model.inputs, z)[:, None]  # 0 inside, 1 from half a range beyond
+    out = var + model.band_noise + rho * (model.noise_variance - model.band_noise)
     growth = np.asarray(model.torque_growth, dtype=float)
     if np.any(growth > 0):
-        out = out + (growth[None, :] * torque_excess(model, z)[:, None]) ** 2
+        out = out + rho * (growth[None, :] * torque_excess(model, z)[:, None]) ** 2
     per_range = np.asarray(model.range_growth, dtype=float)
     if np.any(per_range > 0):
-        out = out + (per_range[None, :] * range_reach(model.inputs, z)[:, None]) ** 2
+        out = out + rho * (per_range[None, :] * range_reach(model.inputs, z)[:, None]) ** 2
     return np.asarray(out)
