@@ -8,8 +8,10 @@ the RMSE of the model, the RMS std of each term of the predictive variance, the 
 the 2-sigma coverage and the 95th percentile of |error| / std (2 for a calibrated
 normal error). The terms: ``latent`` the calibrated GP posterior variance inside the
 box, ``beyond`` its growth beyond the box, ``weigh`` the variance the mean's weighing
-adds (``mean_shrink``), ``noise`` the noise variance (with fit's floor from the
-held-out error), ``effects`` the effects' parameter term. Also the blocked
+adds (``mean_shrink``), ``noise`` the band's noise (``band_noise`` inside the fit
+inputs; beyond them rising to fit's floor from the held-out error, with the growth
+with the torque and the reach: ``omavctl/learn/band.py``), ``effects`` the effects'
+parameter term. Also the blocked
 cross-validation's figures (``provenance.gp.validation``: the factor on the std, the
 held-out coverage before it, the held-out RMSE) and the gyro-derived noise floor.
 docs/intervals.md, "The model's band inside the fit flight's inputs".

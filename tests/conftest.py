@@ -44,7 +44,8 @@ def rebuilt(model: ResidualGP, **changes) -> ResidualGP:
         for k in (
             "vehicle", "features", "input_names", "inputs", "targets", "input_mean",
             "input_scale", "target_mean", "signal_variance", "length_scales",
-            "noise_variance", "latent_scale", "beyond_scale", "mean_shrink", "effects",
+            "noise_variance", "band_noise", "torque_growth", "range_growth", "latent_scale",
+            "beyond_scale", "mean_shrink", "effects",
         )
     }  # fmt: skip
     return ResidualGP(**{**kwargs, **changes})

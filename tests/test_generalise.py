@@ -140,7 +140,10 @@ def test_the_band_grows_where_a_flight_leaves_the_training_inputs(tmp_path):
     assert env["outside_fraction"] > 0.5 and "(I^-1 tau)x" in env["beyond"]
     assert env["coverage_outside"]["x"] >= 0.8 and env["coverage_outside"]["z"] >= 0.8
     assert len(lines) == 1 and lines[0].endswith("its band still covers the errors there.")
-    fig8_model.beyond_scale = np.zeros(3)  # the band of a plain SE GP, as before
+    # the band of a plain SE GP, as before: no growth beyond the training inputs (neither
+    # the GP's nor the band's with the torque and the reach, omavctl/learn/band.py)
+    fig8_model.beyond_scale = np.zeros(3)
+    fig8_model.torque_growth, fig8_model.range_growth = np.zeros(3), np.zeros(3)
     env, lines = envelope(fig8_model, logs["wobble"])
     assert env["coverage_outside"]["x"] < 0.8 < env["coverage_inside"]["x"]
     assert len(lines) == 1 and "the model extrapolates" in lines[0]
@@ -160,9 +163,11 @@ def test_two_flights_with_the_named_effects_hold_on_two_other_trajectories(tmp_p
     independent ``X se`` terms everywhere, had widened it to 0.997-0.999 on fig8fast
     and the upper bound was relaxed to 0.995 on wobble7 alone; the parameter term is
     now that of a GP with explicit basis functions inside the fit inputs
-    (docs/generalisation.md, "The band inside the fit flight's inputs"). Measured:
-    fig8fast 0.987 / 0.994 / 0.928, inside 0.981 / 0.989 / 0.972 (48 % of it outside);
-    wobble7 0.981 / 0.932 / 0.982 (all inside)."""
+    (docs/generalisation.md, "The band inside the fit flight's inputs"). Measured
+    with the held-out floor only beyond the fit inputs and the band's growth there
+    (docs/intervals.md): fig8fast 0.982 / 0.994 / 0.969, inside 0.970 / 0.989 / 0.963
+    (48 % of it outside); wobble7 0.967 / 0.932 / 0.965 (all inside). Before: fig8fast
+    0.987 / 0.994 / 0.928, inside 0.981 / 0.989 / 0.972; wobble7 0.981 / 0.932 / 0.982."""
     from benchmarks.generalise import known_effects, run_two_flights
 
     for o in run_two_flights(

@@ -517,3 +517,107 @@ def test_beyond_scale_round_trips_and_is_checked(vehicle, tmp_path):
     negative = tmp_path / "negative.npz"
     _rewrite(good, negative, beyond_scale=np.array([0.5, -1.0, 0.5]))
     assert _refused(negative) == f"{negative}: key 'beyond_scale' must not be negative"
+
+
+def test_the_band_noise_rises_to_the_floor_only_beyond_the_fit_inputs(vehicle, tmp_path):
+    """``band_noise`` is the noise inside the training inputs' box and up to a quarter of
+    a training range beyond it; from there the noise rises to ``noise_variance`` (fit's
+    floor from the held-out error), fully at half a range. The mean never moves."""
+    model = make_model(vehicle)
+    band = np.array([0.5e-4, 1e-4, 3e-4])  # z equal: no floor on that axis
+    model.band_noise = band.copy()
+    lo, hi = model.inputs.min(0), model.inputs.max(0)
+    span = hi - lo
+    inside = model.inputs[:5]
+    at = {f: np.where(np.arange(6) == 3, hi + f * span, inside[0]) for f in (0.2, 0.375, 0.6)}
+    mean_in, var_in = model.gp_predict(inside, noise=True)
+    _, latent = model.gp_predict(inside)
+    np.testing.assert_allclose(var_in - latent, np.broadcast_to(band, (5, 3)), rtol=1e-12)
+    for f, share in ((0.2, 0.0), (0.375, 0.5), (0.6, 1.0)):
+        _, v = model.gp_predict(at[f][None, :], noise=True)
+        _, lat = model.gp_predict(at[f][None, :])
+        expect = band + share * (model.noise_variance - band)
+        np.testing.assert_allclose(v[0] - lat[0], expect, rtol=1e-9)
+    mean_before, _ = make_model(vehicle).gp_predict(inside, noise=True)
+    np.testing.assert_array_equal(mean_in, mean_before)
+    path = tmp_path / "m.npz"
+    save_model(path, model)
+    np.testing.assert_array_equal(load_model(path).band_noise, band)
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files if k != "band_noise"}
+    old = tmp_path / "old.npz"
+    np.savez(old, **arrays)
+    np.testing.assert_array_equal(load_model(old).band_noise, model.noise_variance)
+    negative = tmp_path / "negative.npz"
+    _rewrite(path, negative, band_noise=np.array([1e-4, -1e-4, 1e-4]))
+    assert _refused(negative) == f"{negative}: key 'band_noise' must not be negative"
+
+
+def test_the_band_grows_with_the_torque_beyond_the_fit_flights(vehicle, tmp_path):
+    """Beyond the fit flight's commanded angular accelerations the band gains
+    ``(torque_growth ||e||)^2``, ``e`` how far each axis' ``I^-1 tau`` lies beyond the
+    training range (issue 26: wider beyond the fit inputs is accepted, overconfident
+    is not), fully from half a training range beyond the box; within a quarter range
+    (inside, as ``evaluate`` counts it) and along other inputs, nothing; the mean
+    never moves."""
+    model = make_model(vehicle)
+    lo, hi = model.inputs.min(0), model.inputs.max(0)
+    span = hi - lo
+    far = np.array([model.inputs[0]] * 5)
+    far[1, 3] = hi[3] + 0.6 * span[3]  # (I^-1 tau)x beyond
+    far[2, 3], far[2, 4] = lo[3] - 0.6 * span[3], hi[4] + 0.8 * span[4]  # x and y
+    far[3, 0] = hi[0] + 5.0 * span[0]  # a force beyond: not a torque
+    far[4, 3] = hi[3] + 0.2 * span[3]  # inside the fit inputs as evaluate counts them
+    mean0, var0 = model.gp_predict(far, noise=True)
+    growth = np.array([0.3, 0.3, 0.1])
+    model.torque_growth = growth
+    mean1, var1 = model.gp_predict(far, noise=True)
+    np.testing.assert_array_equal(mean1, mean0)
+    added = var1 - var0
+    np.testing.assert_allclose(added[[0, 3, 4]], 0.0, atol=1e-15)
+    np.testing.assert_allclose(added[1], (growth * 0.6 * span[3]) ** 2, rtol=1e-9)
+    e2 = (0.6 * span[3]) ** 2 + (0.8 * span[4]) ** 2
+    np.testing.assert_allclose(added[2], growth**2 * e2, rtol=1e-9)
+    _, latent = model.gp_predict(far)  # the latent band (horizons, planning): unchanged
+    model.torque_growth = np.zeros(3)
+    np.testing.assert_array_equal(model.gp_predict(far)[1], latent)
+    model.torque_growth = growth
+    path = tmp_path / "m.npz"
+    save_model(path, model)
+    np.testing.assert_array_equal(load_model(path).torque_growth, growth)
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files if k != "torque_growth"}
+    old = tmp_path / "old.npz"
+    np.savez(old, **arrays)
+    np.testing.assert_array_equal(load_model(old).torque_growth, np.zeros(3))
+    negative = tmp_path / "negative.npz"
+    _rewrite(path, negative, torque_growth=np.array([0.3, -0.1, 0.3]))
+    assert _refused(negative) == f"{negative}: key 'torque_growth' must not be negative"
+
+
+def test_the_band_grows_with_the_reach_beyond_the_training_inputs(vehicle, tmp_path):
+    """Beyond the training inputs' box in any input the band gains ``(range_growth
+    reach)^2``, ``reach`` the largest excursion in training ranges (a thrust the fit
+    flight never reached: issue 26's chirp -> figure-8), rising from a quarter to half a
+    range beyond the box (as the floor from the held-out error); inside, nothing."""
+    model = make_model(vehicle)
+    lo, hi = model.inputs.min(0), model.inputs.max(0)
+    span = hi - lo
+    at = np.array([model.inputs[0]] * 4)
+    at[1, 2] = hi[2] + 0.5 * span[2]  # the thrust half a range beyond
+    at[2, 2], at[2, 0] = lo[2] - 0.2 * span[2], hi[0] + 1.5 * span[0]  # the largest counts
+    at[3, 1] = hi[1] + 0.375 * span[1]  # halfway up the ramp: half the term
+    _, var0 = model.gp_predict(at, noise=True)
+    model.range_growth = np.array([0.4, 0.2, 0.1])
+    _, var1 = model.gp_predict(at, noise=True)
+    added = var1 - var0
+    np.testing.assert_allclose(added[0], 0.0, atol=1e-15)
+    np.testing.assert_allclose(added[1], (model.range_growth * 0.5) ** 2, rtol=1e-9)
+    np.testing.assert_allclose(added[2], (model.range_growth * 1.5) ** 2, rtol=1e-9)
+    np.testing.assert_allclose(added[3], 0.5 * (model.range_growth * 0.375) ** 2, rtol=1e-9)
+    path = tmp_path / "m.npz"
+    save_model(path, model)
+    np.testing.assert_array_equal(load_model(path).range_growth, [0.4, 0.2, 0.1])
+    negative = tmp_path / "negative.npz"
+    _rewrite(path, negative, range_growth=np.array([0.3, -0.1, 0.3]))
+    assert _refused(negative) == f"{negative}: key 'range_growth' must not be negative"

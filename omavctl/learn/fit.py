@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from omavctl.learn.band import RANGE_GROWTH, TORQUE_GROWTH
 from omavctl.learn.effect_fit import (
     GAIN_EFFECT,
     EffectFit,
@@ -280,6 +281,9 @@ def _model(
         signal_variance=gp.sv,
         length_scales=gp.ls,
         noise_variance=gp.nv,
+        band_noise=gp.band_noise,
+        torque_growth=np.full(3, TORQUE_GROWTH),
+        range_growth=RANGE_GROWTH * np.std(train.y, axis=0),
         latent_scale=gp.latent,
         beyond_scale=gp.beyond,
         mean_shrink=MEAN_SHRINK * (gp.sv > 0),

@@ -152,6 +152,13 @@ class GPFit:
         """Noise variances (3,) of the per-axis fits."""
         return np.array([a.noise_std**2 for a in self.axes])
 
+    @property
+    def band_noise(self) -> np.ndarray:
+        """Noise variances (3,) of the band inside the fit flight's inputs: the
+        calibrated noise before the held-out floor (``nv`` where there is none)."""
+        band = np.array([a.band_noise_std**2 for a in self.axes])
+        return np.where(np.isfinite(band), np.minimum(band, self.nv), self.nv)
+
 
 # ---------------------------------------------------------------- options
 def fit_options(

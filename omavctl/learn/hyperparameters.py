@@ -77,6 +77,9 @@ class AxisFit:
     std_factor: float = 1.0
     latent_factor: float = 1.0
     beyond_scale: float = 0.0
+    #: noise std of the band inside the fit flight's inputs (rad/s^2): the calibrated
+    #: noise before the held-out floor (:data:`HELD_OUT_NOISE`); nan: ``noise_std``
+    band_noise_std: float = float("nan")
 
 
 def fit_hyperparameters(
@@ -233,9 +236,14 @@ def apply_validation(
             )
         else:
             sv[a] *= v.std_factor**2
+            # inside the fit flight's inputs the band keeps the calibrated noise: with it
+            # the band already covers the held-out time blocks, and the floor below,
+            # counted on top, made it cover all of a new flight's samples there
+            # (docs/intervals.md, "The model's band")
+            ax.band_noise_std = math.sqrt(nv[a] * v.std_factor**2)
             # the noise is at least what the GP fails to predict on held-out data: that
             # part of the residual is no function of its inputs (history, states it
-            # does not see), and on a new flight it is noise
+            # does not see), and on a new flight it is noise (beyond the fit inputs)
             nv[a] = max(nv[a] * v.std_factor**2, HELD_OUT_NOISE * v.mse_gp)
         ax.signal_std, ax.noise_std = math.sqrt(sv[a]), math.sqrt(nv[a])
         ax.latent_factor, ax.beyond_scale = v.latent_factor, v.beyond_scale

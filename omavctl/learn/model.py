@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 
+from omavctl.learn.band import band_variance
 from omavctl.learn.effects_band import effect_residual, parameter_variance
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.mean_shrink import shrink_mean
@@ -53,7 +54,9 @@ class ResidualGP:
     Cholesky factors and weights are computed once, at construction. Attributes
     (read-only by convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
     (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,), ``target_mean``,
-    ``signal_variance``, ``noise_variance`` (3,), ``length_scales`` (3, d), ``effects``
+    ``signal_variance``, ``noise_variance`` (3,) (the GP's; the band's:
+    ``band_noise``, ``torque_growth``, ``range_growth`` (3,), :mod:`omavctl.learn.band`),
+    ``length_scales`` (3, d), ``effects``
     (name -> :class:`EffectEstimate`), ``provenance`` (dict).
     """
 
@@ -71,6 +74,9 @@ class ResidualGP:
         signal_variance: np.ndarray,
         length_scales: np.ndarray,
         noise_variance: np.ndarray,
+        band_noise: np.ndarray | None = None,
+        torque_growth: np.ndarray | None = None,
+        range_growth: np.ndarray | None = None,
         latent_scale: np.ndarray | None = None,
         beyond_scale: np.ndarray | None = None,
         mean_shrink: np.ndarray | None = None,
@@ -90,6 +96,17 @@ class ResidualGP:
         self.signal_variance = np.asarray(signal_variance, dtype=float)
         self.length_scales = np.asarray(length_scales, dtype=float)
         self.noise_variance = np.asarray(noise_variance, dtype=float)
+        #: (3,) the band's noise variance inside the fit inputs (:mod:`omavctl.learn.band`)
+        band = self.noise_variance if band_noise is None else np.asarray(band_noise, float)
+        self.band_noise = np.minimum(band, self.noise_variance)
+        #: (3,) growth of the band's std per rad/s^2 of commanded angular acceleration
+        #: beyond the fit flight's (:mod:`omavctl.learn.band`; 0: none, older files)
+        self.torque_growth = (
+            np.zeros(3) if torque_growth is None else np.asarray(torque_growth, float)
+        )
+        #: (3,) growth of the band's std (rad/s^2) per training range beyond the
+        #: training inputs' box (:mod:`omavctl.learn.band`; 0: none, older files)
+        self.range_growth = np.zeros(3) if range_growth is None else np.asarray(range_growth, float)
         #: factor (3,) on the latent (posterior) variance in predictions: fit's
         #: calibration for extrapolation (1 = as the kernel says)
         self.latent_scale = np.ones(3) if latent_scale is None else np.asarray(latent_scale, float)
@@ -117,7 +134,11 @@ class ResidualGP:
         if self.targets.shape != (n, 3) or self.length_scales.shape != (3, d):
             raise ValueError("targets must be (n, 3) and length_scales (3, d)")
         self._allocation: Any = None
-        # per axis: inputs scaled by the length scales, Cholesky factor, weights
+        self._factorise(n)
+
+    def _factorise(self, n: int) -> None:
+        """Per axis: the inputs scaled by the length scales, the Cholesky factor of
+        ``K + sigma^2 I`` (n training points) and the GP mean's weights."""
         zn = self.normalise(self.inputs)
         #: the training inputs' box (normalised), beyond which the band grows
         self._box = (zn.min(axis=0), zn.max(axis=0))
@@ -200,7 +221,8 @@ class ResidualGP:
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """GP mean (B, 3) and variance (B, 3) (rad/s^2, (rad/s^2)^2) at inputs z (B, d).
 
-        ``noise`` adds sigma^2 (a new measurement, not the latent function);
+        ``noise`` adds the band's noise (a new measurement, not the latent function:
+        :func:`omavctl.learn.band.band_variance`);
         ``variance=False`` skips it (None). The mean is weighed by its band
         (``mean_shrink``, :mod:`omavctl.learn.mean_shrink`).
         """
@@ -209,7 +231,9 @@ class ResidualGP:
         if shrink:
             mean, added = shrink_mean(mean, var, self.mean_shrink)
             var += added
-        return mean, (var + self.noise_variance * noise) if variance else None
+        if variance and noise:
+            var = band_variance(self, z, var)
+        return mean, var if variance else None
 
     def latent(self, z: np.ndarray, variance: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """The GP mean before ``mean_shrink`` (B, 3) and its calibrated latent variance
@@ -447,6 +471,9 @@ class ResidualGP:
             "signal_variance": self.signal_variance,
             "length_scales": self.length_scales,
             "noise_variance": self.noise_variance,
+            "band_noise": self.band_noise,
+            "torque_growth": self.torque_growth,
+            "range_growth": self.range_growth,
             "latent_scale": self.latent_scale,
             "beyond_scale": self.beyond_scale,
             "mean_shrink": self.mean_shrink,

@@ -22,6 +22,15 @@ target_mean        (3,)        constant prior mean per axis, rad/s^2
 signal_variance    (3,)        s^2 per axis, (rad/s^2)^2
 length_scales      (3, d)      l per axis and input, in normalised input units
 noise_variance     (3,)        sigma^2 per axis, (rad/s^2)^2
+band_noise         (3,)        optional: noise variance of the band inside the fit
+                               flight's inputs (at most noise_variance, which it
+                               reaches beyond them; absent: noise_variance)
+torque_growth      (3,)        optional: growth of the band's std per rad/s^2 of
+                               commanded angular acceleration beyond the fit
+                               flight's (omavctl.learn.band; absent: 0)
+range_growth       (3,)        optional: growth of the band's std, rad/s^2, per
+                               training range beyond the training inputs' box
+                               (omavctl.learn.band; absent: 0)
 latent_scale       (3,)        optional: factor on the posterior (latent) variance
                                in predictions, fit's extrapolation calibration
                                (absent: 1). An axis whose GP ``fit`` switched off
@@ -362,6 +371,15 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         raise ModelError("scales, variances and length scales must be positive", p)
     if np.any((sv == 0) & (nv <= 0)):
         raise ModelError("an axis with its GP off (signal variance 0) needs a noise variance", p)
+    band = _float(arrays, "band_noise", (3,), p) if "band_noise" in arrays else None
+    if band is not None and np.any(band < 0):
+        raise ModelError("key 'band_noise' must not be negative", p)
+    growth = _float(arrays, "torque_growth", (3,), p) if "torque_growth" in arrays else None
+    if growth is not None and np.any(growth < 0):
+        raise ModelError("key 'torque_growth' must not be negative", p)
+    per_range = _float(arrays, "range_growth", (3,), p) if "range_growth" in arrays else None
+    if per_range is not None and np.any(per_range < 0):
+        raise ModelError("key 'range_growth' must not be negative", p)
     latent = _float(arrays, "latent_scale", (3,), p) if "latent_scale" in arrays else None
     if latent is not None and np.any(latent <= 0):
         raise ModelError("key 'latent_scale' must be positive", p)
@@ -382,6 +400,9 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         "signal_variance": sv,
         "length_scales": ls,
         "noise_variance": nv,
+        "band_noise": band,
+        "torque_growth": growth,
+        "range_growth": per_range,
         "latent_scale": latent,
         "beyond_scale": beyond,
         "mean_shrink": shrink,

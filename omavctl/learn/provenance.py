@@ -7,6 +7,7 @@ units (``docs/file-formats.md``).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -89,6 +90,9 @@ def _gp_provenance(opts: FitOptions, gp: GPFit) -> dict[str, Any]:
             "std_factor": [a.std_factor for a in axes],
             "latent_factor": [a.latent_factor for a in axes],
             "beyond_scale": [a.beyond_scale for a in axes],
+            "band_noise_std": [
+                a.band_noise_std if math.isfinite(a.band_noise_std) else None for a in axes
+            ],
         },
     }
 
