@@ -24,8 +24,8 @@ the linear regressor of the gain is the *commanded* torque, so the searched
 form reads ``lag(tau, T) + theta tau``; physically the gain multiplies the
 *timed* torque (``g lag(tau, T)``). Where the gain is near 1 the two agree;
 where it is not (a hover flight, roll and pitch barely excited: gain ~0.2) the
-first fits a short lag plus a high-pass of the command (the rate loop answering
-gyro noise) and the two optima lie tens of ms apart: the lag and the gain trade
+first fits a short lag plus a high-pass of the command (plausibly the rate loop
+answering gyro noise) and the two optima lie tens of ms apart: the lag and the gain trade
 (measured on the Crazyflie hover logs, ``benchmarks/lag_profile.py``). The
 search is therefore repeated with the gain's regressor on the timed torque
 (:func:`_coupled_search`); the two forms are taken as equally plausible and
