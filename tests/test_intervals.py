@@ -252,10 +252,13 @@ def test_diagnosis_and_fit_agree_on_the_octocopters_delay():
     d, d_se = float(diag.values["tau_d"][0]), float(diag.stderr["tau_d"][0])
     f, f_se = float(est.values["tau_d"][0]), float(est.stderr["tau_d"][0])
     assert abs(d - f) < 2 * math.hypot(d_se, f_se), (d, d_se, f, f_se)
-    # the diagnosis's delay, no GP to share it with: 20-50 ms, as the commands'
-    # correlation with the measured acceleration says (docs/logs.md)
+    # the diagnosis's delay, no GP to share it with: pinned above 0 and holding the
+    # 40-50 ms the commands' correlation with the measured acceleration says
+    # (docs/logs.md); since 2026-11-26 its interval also holds the delay found with
+    # the torque gain on the delayed torque (58 ms: docs/intervals.md, "A lag that
+    # trades with the gain"), 35.5 +- 17.2 ms where it was 35.5 +- 7.0
     lo, hi = diag.interval95()["tau_d"][0]
-    assert diag.pinned()["tau_d"][0] and 0.015 < lo < hi < 0.06
+    assert diag.pinned()["tau_d"][0] and 0.0 < lo < 0.04 and 0.058 < hi < 0.08, (lo, hi)
     # with the evaluated model, the diagnosis searches it again jointly with a GP as
     # fit does, and the two agree closely (1.76 -> 0.28 combined errors at 200 points)
     stage = SecondStage(samples, fit.model, sg)

@@ -18,6 +18,19 @@ would be optimistic. A searched timing form is also checked against the other
 timing forms (:data:`TIMING_FORMS`): when another fits the samples better, the
 parameter's standard error grows by the shift that would cost as much as the
 better form saves (a lag searched as a delay says so in its interval).
+
+With an unknown torque gain (:data:`GAIN`, the ``scale`` of ``inertia_error``)
+the linear regressor of the gain is the *commanded* torque, so the searched
+form reads ``lag(tau, T) + theta tau``; physically the gain multiplies the
+*timed* torque (``g lag(tau, T)``). Where the gain is near 1 the two agree;
+where it is not (a hover flight, roll and pitch barely excited: gain ~0.2) the
+first fits a short lag plus a high-pass of the command (plausibly the rate loop
+answering gyro noise) and the two optima lie tens of ms apart: the lag and the gain trade
+(measured on the Crazyflie hover logs, ``benchmarks/lag_profile.py``). The
+search is therefore repeated with the gain's regressor on the timed torque
+(:func:`_coupled_search`); the two forms are taken as equally plausible and
+the spread of their optima is added to the standard error (``gain_allowance``,
+:func:`_gain_share`), so that the interval holds both.
 """
 
 from __future__ import annotations
@@ -43,6 +56,9 @@ GRID = 31
 TIMING_FORMS = tuple(name for name, e in EFFECTS.items() if e.search is not None)
 #: Coordinate-descent sweeps over several searched effects.
 SWEEPS = 2
+#: The linear effect whose regressor is the commanded torque times the unknown gain
+#: (:func:`_coupled_search`).
+GAIN = "inertia_error"
 
 
 @dataclass(frozen=True)
@@ -51,7 +67,9 @@ class SearchResult:
     ``inflation`` the variance factor of autocorrelated residuals (HAC over white);
     ``better_form`` another timing form that fits the samples better (the form may be
     wrong) and ``form_allowance`` the standard-error share it added (see
-    :func:`_form_allowance`)."""
+    :func:`_form_allowance`); ``coupled`` the value found with the torque gain on
+    the timed torque (None without a gain) and ``gain_allowance`` the share its
+    distance added (:func:`_coupled_search`)."""
 
     name: str
     value: float
@@ -60,6 +78,8 @@ class SearchResult:
     inflation: float = 1.0
     better_form: str | None = None
     form_allowance: float = 0.0
+    coupled: float | None = None
+    gain_allowance: float = 0.0
 
 
 class _Problem:
@@ -76,6 +96,34 @@ class _Problem:
             else np.zeros((self.residual.shape[0], 3, 0))
         )
         self.segment = segment_ids(samples)
+        self.gain_cols: slice | None = None
+        self.normalised = False
+        self.inertia: np.ndarray | None = None
+        if GAIN in linear:
+            start = sum(get_effect(nm).n_theta for nm in linear[: list(linear).index(GAIN)])
+            self.gain_cols = slice(start, start + 3)
+            ctx = next((c for s in samples for c, _ in s.contexts), None)
+            self.normalised = bool(ctx is not None and ctx.torque_normalised)
+            self.inertia = None if ctx is None else np.asarray(ctx.inertia, float)
+
+    def gain_shift(self, e: np.ndarray) -> np.ndarray:
+        """The change (n, 3, 3) of the gain's regressor when the torque is timed so that
+        the angular acceleration changes by e (n, 3): ``I^-1 e_k (I e)_k`` for a
+        normalised command, ``e_k`` on axis k for the inertia scale."""
+        if self.normalised and self.inertia is not None:
+            inv = np.linalg.inv(self.inertia)
+            return np.asarray(inv[None, :, :] * (e @ self.inertia.T)[:, None, :])
+        return np.asarray(np.eye(3)[None, :, :] * e[:, None, :])
+
+    def rss_coupled(self, y: np.ndarray, e: np.ndarray) -> float:
+        """:meth:`rss` of y (n, 3) with the gain's regressor on the torque timed by e."""
+        assert self.gain_cols is not None
+        x = self.x.copy()
+        x[:, :, self.gain_cols] += self.gain_shift(e)
+        a, b = x.reshape(-1, x.shape[2]), y.reshape(-1)
+        theta, *_ = np.linalg.lstsq(a, b, rcond=None)
+        r = b - a @ theta
+        return float(r @ r)
 
     def exact(self, name: str, value: float) -> np.ndarray:
         return np.concatenate([s.exact(name, value) for s in self.samples])
@@ -172,6 +220,31 @@ def _form_allowance(
     return best, math.sqrt((rss - best_rss) / jj) if jj > 0 else float("inf")
 
 
+def _coupled_search(prob: _Problem, name: str, base: np.ndarray) -> float | None:
+    """Best value of ``name`` with the torque gain (:data:`GAIN`) multiplying the timed
+    torque (``g lag(tau, T)``, not ``lag(tau, T) + (g - 1) tau``): None without a gain
+    among the linear effects."""
+    if prob.gain_cols is None:
+        return None
+    lo, hi = get_effect(name).search  # type: ignore[misc]
+    step = (hi - lo) / (GRID - 1)
+
+    def cost(v: float) -> float:
+        e = prob.exact(name, v)
+        return prob.rss_coupled(base - e, e)
+
+    grid = np.linspace(lo, hi, GRID)
+    start = float(grid[int(np.argmin([cost(float(v)) for v in grid]))])
+    return _refine(cost, lo, hi, start, 2 * step)
+
+
+def _gain_share(coupled: float, value: float) -> float:
+    """The standard-error share of the gain's form: the two forms taken as equally
+    plausible, the second moment of their optima about the reported ``value`` is
+    ``(0 + d^2) / 2`` (d = coupled - value), so ``|d| / sqrt(2)``."""
+    return abs(coupled - value) / math.sqrt(2.0)
+
+
 def search_effects(
     samples: Sequence[ResidualSamples], searched: Sequence[str], linear: Sequence[str] = ()
 ) -> dict[str, SearchResult]:
@@ -198,11 +271,21 @@ def search_effects(
         base = base_without(name)
         se, inflation = _sandwich(prob, name, base, values[name])
         better, delta = _form_allowance(prob, name, base, values[name], searched)
+        coupled = _coupled_search(prob, name, base)
+        shift = 0.0 if coupled is None else _gain_share(coupled, values[name])
         lo, hi = get_effect(name).search  # type: ignore[misc]
         step = (hi - lo) / (GRID - 1)
         at_bound = min(values[name] - lo, hi - values[name]) < 0.05 * step
         out[name] = SearchResult(
-            name, values[name], math.hypot(se, delta), bool(at_bound), inflation, better, delta
+            name,
+            values[name],
+            math.hypot(se, delta, shift),
+            bool(at_bound),
+            inflation,
+            better,
+            delta,
+            coupled,
+            shift,
         )
     return out
 
@@ -297,10 +380,21 @@ def _curvature_results(
         # the autocorrelated residuals inflate the first search's, and never report
         # less than that search's sandwich error
         first = start[name]
-        se = max(se * math.sqrt(first.inflation), first.stderr)
+        # the gain's form: the spread from this value to the value found with the gain
+        # on the timed torque (the first search's), as the first search allows it
+        shift = 0.0 if first.coupled is None else _gain_share(first.coupled, v)
+        se = max(math.hypot(se * math.sqrt(first.inflation), shift), first.stderr)
         step = (hi - lo) / (GRID - 1)
         at_bound = min(v - lo, hi - v) < 0.05 * step
         out[name] = SearchResult(
-            name, v, se, bool(at_bound), first.inflation, first.better_form, first.form_allowance
+            name,
+            v,
+            se,
+            bool(at_bound),
+            first.inflation,
+            first.better_form,
+            first.form_allowance,
+            first.coupled,
+            max(shift, first.gain_allowance),
         )
     return out

@@ -151,6 +151,13 @@ def search_notes(found: Mapping[str, SearchResult]) -> list[str]:
                 f"{r.form_allowance * 1e3:.1f} ms for it (try --effects with "
                 f"{r.better_form} instead)"
             )
+        if r.coupled is not None and r.gain_allowance >= 0.5 * r.stderr:
+            notes.append(
+                f"{r.name}: with the torque gain on the timed torque (g x lag, not lag + "
+                f"(g - 1) x command) the search finds {p.name} = {r.coupled * 1e3:.1f} ms: "
+                "the lag and the gain trade on these samples, and its standard error "
+                f"allows {r.gain_allowance * 1e3:.1f} ms for it"
+            )
         if r.at_bound:
             lo, hi = get_effect(r.name).search  # type: ignore[misc]
             notes.append(
