@@ -644,7 +644,7 @@ def test_column_map_errors(tmp_path: Path) -> None:
         read_raw(path, columns=columns)
 
 
-PX4_CSV = Path("/work/shared/data/real/px4tools_octocopter/01_07_59.csv")
+PX4_CSV = Path(__file__).parents[2] / "shared/data/real/px4tools_octocopter/01_07_59.csv"
 
 
 @pytest.mark.skipif(not PX4_CSV.exists(), reason="real PX4 log not available")
