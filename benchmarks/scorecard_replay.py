@@ -49,7 +49,15 @@ from benchmarks.scorecard_draws import ROUNDS, SPLITS, StepFailed, fit_argv, oma
 #: Draws of one's own (not the report split): the held-back ``steps`` family on one
 #: side as the report draws, other seeds; for finding causes, never for the report.
 OWN_SPLIT = {
-    "own": {"seed_base": 2_000_000, "families": ("fig8", "wobble", "chirp"), "held_back": "steps"}
+    "own": {"seed_base": 2_000_000, "families": ("fig8", "wobble", "chirp"), "held_back": "steps"},
+    # version 2's design (sizes as multiples of the claim floor, planned flights), the
+    # held-back family on one side as report2/report3 fly it; other seeds than both
+    "own2": {
+        "seed_base": 2_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 

@@ -13,6 +13,7 @@ import pytest
 from omavctl.diagnose.claims import (
     claimed_axes,
     excludes_null,
+    fit_flight_holds_null,
     guard_claims,
     learned_claim,
     material_axes,
@@ -191,3 +192,56 @@ def test_a_per_axis_component_below_the_claim_floor_is_no_claim_on_that_axis():
     mixed = EffectEstimate("com_offset", {"r": np.ones(3) * 0.01}, {"r": np.ones(3) * 0.001})
     full = np.ones((n, 3, 3))
     assert material_axes([SimpleNamespace(regressors={"com_offset": full})], mixed, 0.1) is None
+
+
+def _delay_estimate(tau: float) -> dict[str, EffectEstimate]:
+    est = EffectEstimate("command_delay", {"tau_d": np.array([tau])}, {"tau_d": np.array([0.002])})
+    return {"command_delay": est}
+
+
+def test_a_joint_claim_the_fit_flight_does_not_confirm_is_held_back():
+    """The Crazyflie case (docs/real-motors.md): a delay claimed jointly beside a motor
+    lag whose regressor it nearly copies, where on the fit flight it adds nothing (there
+    -0.56 +- 0.35 ms). Estimated on the fit flight with the lag, the delay's 95 %
+    interval holds 0: held back with that estimate; a delay the fit flight shows is
+    kept, and one it puts on the other side of 0 than the evaluated flight is not."""
+    lag = {"motor_lag": np.array([0.03]), "command_delay": None}
+    model, *_ = _case(lag, seed=8, alike={"command_delay": "motor_lag"})
+    both = ["motor_lag", "command_delay"]
+    held = fit_flight_holds_null(model, both, {"command_delay"}, _delay_estimate(0.02))
+    assert list(held) == ["command_delay"]
+    (lo, hi), *_ = held["command_delay"]["tau_d_ci95"]
+    assert lo < 0 < hi
+    # only the joint selection's own claims are judged so (the lag is the ranking's)
+    assert fit_flight_holds_null(model, both, set(), _delay_estimate(0.02)) == {}
+    # a delay the fit flight shows (its own regressor, 20 ms) is confirmed there ...
+    real = {"motor_lag": np.array([0.03]), "command_delay": np.array([0.02])}
+    model, *_ = _case(real, seed=8)
+    assert fit_flight_holds_null(model, both, {"command_delay"}, _delay_estimate(0.02)) == {}
+    # ... but not when the evaluated flight puts it on the other side of 0
+    flipped = fit_flight_holds_null(model, both, {"command_delay"}, _delay_estimate(-0.02))
+    assert list(flipped) == ["command_delay"]
+
+
+def test_a_claim_the_fit_flight_does_not_confirm_says_so_with_both_estimates():
+    diag = {
+        "missing": ["motor_lag"],
+        "missing_effects": [{"name": "motor_lag", "missing": True, "explained_variance": 0.36}],
+        "not_pinned": [
+            {
+                "name": "command_delay",
+                "units": {"tau_d": "s"},
+                "estimate": {"tau_d": [0.0040], "tau_d_ci95": [[0.0021, 0.0059]]},
+                "axes": None,
+                "fit_flight": {"tau_d": [-0.00056], "tau_d_ci95": [[-0.00125, 0.00013]]},
+            }
+        ],
+    }
+    text = " ".join(ln.text for ln in verdict(_tree(diag)))
+    assert (
+        "Not claimed: command_delay, which the fit flight does not confirm: estimated there "
+        "from the model's training points together with the other claims, its 95 % interval "
+        "does not exclude tau_d = 0 (the value at which it is absent) on the side this flight "
+        "puts it. On the fit flight: tau_d = -0.00056 s (95 %: -0.00125 to 0.00013)."
+    ) in text
+    assert "Estimated on this flight as fit would: tau_d = 0.004 s (95 %: 0.0021 to 0.0059)" in text

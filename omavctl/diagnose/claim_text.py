@@ -53,6 +53,18 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
         axes = e.get("axes")
         entry = {"estimate": e.get("estimate"), "units": e.get("units")}
         said = estimate_sentence(entry, axes if isinstance(axes, list) and axes else None)
+        fit = e.get("fit_flight")
+        if isinstance(fit, Mapping):
+            there = estimate_sentence({"estimate": fit, "units": e.get("units")}).replace(
+                "Estimated on this flight as fit would:", "On the fit flight:", 1
+            )
+            out += (
+                f" Not claimed: {name}, which the fit flight does not confirm: estimated "
+                "there from the model's training points together with the other claims, its "
+                f"95 % interval does not exclude {_null_words(name)} (the value at which it "
+                f"is absent) on the side this flight puts it.{there}{said}"
+            )
+            continue
         out += (
             f" Not claimed: {name}, which cannot be pinned down from this flight: on no axis "
             f"it is claimed on does its 95 % interval exclude {_null_words(name)} (the value "

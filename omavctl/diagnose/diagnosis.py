@@ -59,7 +59,9 @@ METHOD: dict[str, Any] = {
     "with the effects that, estimated jointly from the model's training points as fit "
     "--effects would, lower the physics-only error on the held-out flight (joint)",
     "claim_guard": "a claim is kept only where the 95 % interval of its estimate as the fit "
-    "command makes it excludes the effect's null on an axis it is claimed on (not_pinned)",
+    "command makes it excludes the effect's null on an axis it is claimed on, and, claimed by "
+    "the joint selection alone, where its estimate on the fit flight (least squares at the "
+    "model's training points, with the other claims) excludes it too (not_pinned)",
     "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
     "interval excludes its null and, estimated from the training points by least squares, "
     "it passes the joint test on the held-out physics-only error (learned_claims)",
@@ -300,7 +302,10 @@ def _guard(
     ranked = {str(a["name"]) for a in accepted}
     by_name = {s.name: s for s in scores}
     axes_of = {n: claimed_axes(by_name[n].explained_per_axis) for n in ranked if n in by_name}
-    guarded = guard_claims(samples, list(model.effects), names, axes_of, floor, model, stage)
+    joint_only = [n for n in names if n not in ranked]
+    guarded = guard_claims(
+        samples, list(model.effects), names, axes_of, floor, model, stage, joint_only
+    )
     for held in guarded.held_back:
         x = by_name.get(held["name"])
         for kept in guarded.kept:
