@@ -8,11 +8,17 @@ samples of one log; all windows of all logs are rows of the same arrays, and
 step k from the rolled-out body rate, for
 :func:`omavctl.physics.open_loop.rollout`.
 
-The effects and the GP are evaluated at the rolled-out body rate and the
-logged (held) commands; effects that act through the command history only
-(lags, delay: a 1-D search) through their exact held form on the log, once
-per sample. The GP mean enters with the model's per-axis ``rollout_gp``
-weight (``fit``'s verdict on held-out rollouts; 1 for older files).
+The effects are evaluated per grid period as the rigid body's torque is: at
+the rolled-out body rate and each period's logged command (not the
+Savitzky-Golay hold of the one-step residual, which averages ten periods);
+effects that act through the command history only (lags, delay: a 1-D
+search) through their exact form on the log, each period's own mean (the
+lag's state from the logged command history), and effects that do not move
+with the body rate on their full log context (per-rotor commands, battery
+voltage), once per sample. The GP, fitted on held inputs, is evaluated at the
+held commands and the rolled-out body rate. The GP mean enters with the
+model's per-axis ``rollout_gp`` weight (``fit``'s verdict on held-out
+rollouts; 1 for older files).
 """
 
 from __future__ import annotations
