@@ -12,12 +12,14 @@ predictors:
 - ``model``: + the GP mean (the full model).
 
 The residual of ``effects`` and ``model`` is evaluated at the rolled-out body
-rate and the commands held like the fit's inputs; effects that act through
-the command history only (lags, delay) through their exact held form on the
-log. Windows are starts whose next K samples are consecutive grid samples
-kept by ``evaluate``: no window crosses a gap, a segment edge or an
-out-of-control span. Every horizon uses the same starts (those valid for the
-longest), so the rows of the table are comparable.
+rate: the effects at each period's logged command (as the rigid body's
+torque), those that act through the command history only (lags, delay)
+through their exact per-period form on the log, the GP at the commands held
+like the fit's inputs (:mod:`omavctl.learn.rollout_residual`). Windows are
+starts whose next K samples are consecutive grid samples kept by
+``evaluate``: no window crosses a gap, a segment edge or an out-of-control
+span. Every horizon uses the same starts (those valid for the longest), so
+the rows of the table are comparable.
 
 The full model's band: the body-rate error at step k has the std
 ``sqrt(f_k s_r^2 + (dt sum_{j<k} s_j)^2 + g_k k dt^2 s_p^2)`` per axis, with ``s_r``

@@ -365,11 +365,14 @@ class ResidualGP:
     def effects_mean(self, u: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
         """Static part of the effects (B, 3) at single instants u (B, 6), omega (B, 3).
 
-        Effects that act through time derivatives of the commands (servo and
-        motor lag) contribute nothing here: an instant has no history.
+        Effects that act through the command history (servo and motor lag,
+        command delay: those estimated by a 1-D search) contribute nothing here:
+        an instant has no history (the rows of u are not a time series; a rotor
+        list's motor-lag regressor would lag one row behind the other).
         """
         u = np.atleast_2d(np.asarray(u, dtype=float))
-        if not self.effects:
+        static = [est for est in self.effects.values() if est.effect.search is None]
+        if not static:
             return np.zeros((u.shape[0], 3))
         if omega is None:
             raise ValueError("this model has physical effects: pass omega (B, 3)")
@@ -389,7 +392,10 @@ class ResidualGP:
             torque_normalised=v.torque_normalised,
             fixed_rotors=v.motors is not None and not v.motors.tilting,
         )
-        return self.effects_residual(ctx)
+        out = np.zeros((u.shape[0], 3))
+        for est in static:
+            out += est.effect.regressor(ctx) @ est.theta
+        return out
 
     def predict_samples(
         self, samples: Any, noise: bool = False, variance: bool = True

@@ -8,11 +8,17 @@ samples of one log; all windows of all logs are rows of the same arrays, and
 step k from the rolled-out body rate, for
 :func:`omavctl.physics.open_loop.rollout`.
 
-The effects and the GP are evaluated at the rolled-out body rate and the
-logged (held) commands; effects that act through the command history only
-(lags, delay: a 1-D search) through their exact held form on the log, once
-per sample. The GP mean enters with the model's per-axis ``rollout_gp``
-weight (``fit``'s verdict on held-out rollouts; 1 for older files).
+The effects are evaluated per grid period as the rigid body's torque is: at
+the rolled-out body rate and each period's logged command (not the
+Savitzky-Golay hold of the one-step residual, which averages ten periods);
+effects that act through the command history only (lags, delay: a 1-D
+search) through their exact form on the log, each period's own mean (the
+lag's state from the logged command history), and effects that do not move
+with the body rate on their full log context (per-rotor commands, battery
+voltage), once per sample. The GP, fitted on held inputs, is evaluated at the
+held commands and the rolled-out body rate. The GP mean enters with the
+model's per-axis ``rollout_gp`` weight (``fit``'s verdict on held-out
+rollouts; 1 for older files).
 """
 
 from __future__ import annotations
@@ -159,15 +165,53 @@ def per_sample(
     return out
 
 
+#: the effects a rollout adds per grid period as the physics acts over it (unheld); False:
+#: held like the one-step residual (the Savitzky-Golay kernel's weighted mean over
+#: neighbouring periods), as before 2026-11-26 (kept for benchmarks/horizons_lag.py)
+PER_PERIOD = True
+
+
+def _on_log(s: ResidualSamples, values: Any) -> np.ndarray:
+    """``values(ctx)`` (N, c) per grid period of each kept segment, at the samples (n, c):
+    not held (a rollout step integrates one period, not the derivative's window)."""
+    parts = [np.asarray(values(ctx))[keep] for ctx, keep in s.contexts]
+    out = np.concatenate(parts) if parts else np.empty((0, 3))
+    return out if s.mask is None else out[s.mask]
+
+
 def _history_effects(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
     """Residual (n, 3) of the model's effects that act through the command history
-    (lags, delay: estimated by a 1-D search), in their exact held form on the log."""
+    (lags, delay: estimated by a 1-D search) in their exact form on the log, each
+    period's own mean (the lag's state from the logged command history), beside the
+    rigid body's logged command of that period: together the lagged command."""
     out = np.zeros((s.n, 3))
     for est in m.effects.values():
         effect = est.effect
-        if effect.search is not None:
-            out += s.exact(est.name, float(est.values[effect.parameters[0].name][0]))
+        if effect.search is None:
+            continue
+        value = float(est.values[effect.parameters[0].name][0])
+        if PER_PERIOD:
+            out += _on_log(s, lambda ctx, e=effect, v=value: e.exact(ctx, v))
+        else:
+            out += s.exact(est.name, value)
     return out
+
+
+def _static_effects(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
+    """Residual (n, 3) of effects that do not move with the body rate, per period on the
+    log (their full context: per-rotor commands, battery voltage)."""
+    if PER_PERIOD and s.contexts:
+        return _on_log(s, m.effects_residual)
+    return m.effects_mean(s.u, s.omega)
+
+
+def _commands(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
+    """Scaled wrench u (n, 6) per period as logged (what the rigid body integrates), for
+    effects that move with the body rate; the held u without effect contexts."""
+    if not (PER_PERIOD and s.contexts):
+        return s.u
+    v = m.vehicle
+    return _on_log(s, lambda c: np.hstack([c.force / v.mass, c.torque @ v.inertia_inv.T]))
 
 
 def function_std(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
@@ -199,7 +243,7 @@ def _split_effects(m: ResidualGP, win: Windows) -> tuple[ResidualGP | None, Resi
     u, omega = win.u[:8, 0], win.omega[:8, 0]
     static: list[str] = []
     moving: list[str] = []
-    for name in m.effects:
+    for name in (n for n, est in m.effects.items() if est.effect.search is None):
         sub = _with_effects(m, [name])
         assert sub is not None
         same = np.array_equal(sub.effects_mean(u, omega), sub.effects_mean(u, omega + 0.37))
@@ -226,7 +270,7 @@ def residual_function(
     static, moving = _split_effects(m, win)
     fixed = [_history_effects(m, s) for s in samples]  # what the body rate does not change
     if static is not None:
-        fixed = [f + static.effects_mean(s.u, s.omega) for f, s in zip(fixed, samples, strict=True)]
+        fixed = [f + _static_effects(static, s) for f, s in zip(fixed, samples, strict=True)]
     weight = np.asarray(m.rollout_gp, dtype=float)
     with_gp = with_gp and bool(np.any(weight > 0))
     uses_rate = "rate" in m.features.split("+")
@@ -237,11 +281,13 @@ def residual_function(
         ]
     gp_rolled = _rolled_mean(m) if with_gp and uses_rate else None
     base = per_sample(win, samples, fixed)
+    u_now = None if moving is None else per_sample(win, samples, [_commands(m, s) for s in samples])
 
     def residual(k: int, omega: np.ndarray) -> np.ndarray:
         out = base[:, k]
         if moving is not None:
-            out = out + moving.effects_mean(win.u[:, k], omega)
+            assert u_now is not None
+            out = out + moving.effects_mean(u_now[:, k], omega)
         if gp_rolled is not None:
             out = out + weight * gp_rolled(m.gp_inputs(win.u[:, k], omega, win.du[:, k]))
         return out
