@@ -24,7 +24,7 @@ import numpy as np
 
 import omavctl.diagnose.evaluate as ev
 from omavctl.diagnose import horizons as hz
-from omavctl.diagnose.metrics import ENVELOPE_MARGIN
+from omavctl.diagnose.metrics import outside_envelope
 from omavctl.learn.model_file import load_model
 from omavctl.learn.rollout_residual import gather, per_sample
 from omavctl.learn.rollout_walk import walk_gain_at
@@ -42,15 +42,11 @@ def captured(model: str, log: str, window: Any) -> tuple[Any, list[Any], list[An
 
 
 def outside(m: Any, samples: list[Any]) -> list[np.ndarray]:
-    """Per log (n,) whether each sample's GP inputs lie beyond the training envelope."""
-    lo, hi = m.inputs.min(axis=0), m.inputs.max(axis=0)
-    span = np.where(hi - lo > 1e-12, hi - lo, 1.0)
-    out = []
-    for s in samples:
-        z = s.inputs(m.features)
-        gap = np.maximum(lo - z, z - hi).clip(min=0.0) / span
-        out.append((gap > ENVELOPE_MARGIN).any(axis=1)[:, None].astype(float))
-    return out
+    """Per log (n, 1) 1.0 where a sample's GP inputs lie outside the training envelope,
+    as ``evaluate`` counts it (:func:`~omavctl.diagnose.metrics.outside_envelope`)."""
+    return [
+        outside_envelope(m.inputs, s.inputs(m.features))[:, None].astype(float) for s in samples
+    ]
 
 
 def terms(m: Any, samples: list[Any]) -> dict[str, list[np.ndarray]]:

@@ -58,19 +58,26 @@ def _truth(draw: str, vehicle):
     return truth_from_tree(spec, vehicle)
 
 
-def run_draw(draw: str, work: Path) -> dict[str, Any]:
-    """One draw: fit, evaluate, fit with the named effect, evaluate both models."""
+def draw_flights(draw: str, work: Path) -> tuple[Any, Path, Path, Path]:
+    """A draw's vehicle, directory and its fit and held-out logs (figure-8s, seeds 1
+    and 2), flown into ``work/draw`` unless an earlier run left them there (same
+    draws, same seeds)."""
     vehicle = default_vehicle()
-    truth = _truth(draw, vehicle)
     d = work / draw
     d.mkdir(parents=True, exist_ok=True)
     fit_log, held = d / "flight-01.csv", d / "flight-02.csv"
-    # files of an earlier run in the same --workdir are reused (same draws, same seeds)
     if not held.exists():
+        truth = _truth(draw, vehicle)
         ref = fig8(roll_deg=26, pitch_deg=26, period=8, duration=20)
         write_log(fit_log, simulate(ref, vehicle, truth, seed=1).log)
         other = fig8(roll_deg=20, pitch_deg=30, period=6, duration=20)
         write_log(held, simulate(other, vehicle, truth, seed=2).log)
+    return vehicle, d, fit_log, held
+
+
+def run_draw(draw: str, work: Path) -> dict[str, Any]:
+    """One draw: fit, evaluate, fit with the named effect, evaluate both models."""
+    vehicle, d, fit_log, held = draw_flights(draw, work)
     base = d / "gp.npz"
     if not base.exists():
         save_model(base, fit_model([fit_log], vehicle, effects=("rotor_interference",)).model)

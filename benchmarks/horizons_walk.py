@@ -36,14 +36,14 @@ import numpy as np
 
 import omavctl.diagnose.evaluate as ev
 from omavctl.diagnose import horizons as hz
-from omavctl.diagnose.metrics import ENVELOPE_MARGIN
 from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import load_model, save_model
 from omavctl.learn.rollout_residual import gather, per_sample
-from omavctl.vehicle import default_vehicle, load_vehicle
+from omavctl.vehicle import load_vehicle
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import horizons_study as study
+from horizons_band_cause import outside
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL = ROOT.parent / "shared/data/real"
@@ -67,20 +67,7 @@ def _fit(path: Path, logs: list[Path], vehicle: Any, **kw: Any) -> Path:
 
 
 def _sim(draw: str, work: Path) -> list[tuple[str, Path, Path, Any]]:
-    from omavctl.logs import write_log
-    from omavctl.sim.plant import simulate
-    from omavctl.sim.tasks import fig8
-
-    vehicle = default_vehicle()
-    truth = study._truth(draw, vehicle)
-    d = work / draw
-    d.mkdir(parents=True, exist_ok=True)
-    fit_log, held = d / "flight-01.csv", d / "flight-02.csv"
-    if not held.exists():
-        ref = fig8(roll_deg=26, pitch_deg=26, period=8, duration=20)
-        write_log(fit_log, simulate(ref, vehicle, truth, seed=1).log)
-        other = fig8(roll_deg=20, pitch_deg=30, period=6, duration=20)
-        write_log(held, simulate(other, vehicle, truth, seed=2).log)
+    vehicle, d, fit_log, held = study.draw_flights(draw, work)
     base = _fit(d / "gp.npz", [fit_log], vehicle, effects=("rotor_interference",))
     named = NAMED[draw]
     added = _fit(d / f"gp-{named}.npz", [fit_log], vehicle, effects=("rotor_interference", named))
@@ -121,17 +108,6 @@ def cases(name: str, work: Path) -> list[tuple[str, Path, Path, Any]]:
     raise SystemExit(f"unknown case {name}")
 
 
-def _outside(m: Any, samples: list[Any]) -> list[np.ndarray]:
-    lo, hi = m.inputs.min(axis=0), m.inputs.max(axis=0)
-    span = np.where(hi - lo > 1e-12, hi - lo, 1.0)
-    out = []
-    for s in samples:
-        z = s.inputs(m.features)
-        gap = np.maximum(lo - z, z - hi).clip(min=0.0) / span
-        out.append((gap > ENVELOPE_MARGIN).any(axis=1)[:, None].astype(float))
-    return out
-
-
 def measure(label: str, model: Path, log: Path, window: Any) -> None:
     m = load_model(model)
     rate, sg = ev._grid(m)
@@ -149,7 +125,7 @@ def measure(label: str, model: Path, log: Path, window: Any) -> None:
     entry = m.provenance.pop("rollout_walk", None)
     before = hz._band(m, win, samples, dt)
     m.provenance["rollout_walk"] = entry
-    beyond = per_sample(win, samples, _outside(m, samples))[..., 0] > 0
+    beyond = per_sample(win, samples, outside(m, samples))[..., 0] > 0
     gain = "none" if not entry else "/".join(
         f"{entry['gain'][a][-1]:.3g}" for a in AXES
     )  # fmt: skip

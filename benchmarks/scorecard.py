@@ -205,21 +205,29 @@ def _draw_label(r: dict[str, Any]) -> str:
     return f"{r['split']} {r['index']}: {hidden}; {fams}; {r['timing']}"
 
 
-def _apparent_failures(
-    r: dict[str, Any], app: dict[str, Any], groups: dict[str, list[str]]
+def _uncovered(
+    r: dict[str, Any], checks: list[Any], truth: str, groups: dict[str, list[str]]
 ) -> None:
-    """The record's parameters outside their interval against the apparent truth, and
-    a none draw's first claims that are no default imperfection's look-alike."""
-    for c in sc.param_checks(r, app):
+    """The parameter checks whose interval misses their ``truth`` (its label), under
+    "<truth> outside the 95 % interval"."""
+    for c in checks:
         if not c.covered:
             ci = (
                 "no interval"
                 if c.interval is None
                 else f"[{c.interval[0]:.4g}, {c.interval[1]:.4g}]"
             )
-            groups.setdefault("apparent truth outside the 95 % interval", []).append(
+            groups.setdefault(f"{truth} outside the 95 % interval", []).append(
                 f"{_draw_label(r)}: {c.effect}.{c.name} {c.estimate:.4g} {ci} for {c.truth:.4g}"
             )
+
+
+def _apparent_failures(
+    r: dict[str, Any], app: dict[str, Any], groups: dict[str, list[str]]
+) -> None:
+    """The record's parameters outside their interval against the apparent truth, and
+    a none draw's first claims that are no default imperfection's look-alike."""
+    _uncovered(r, sc.param_checks(r, app), "apparent truth", groups)
     if not r["hidden"]:
         bad = [n for n in sc.claimed(r["rounds"][0]) if not sc.lookalike(r, app, n)]
         if bad:
@@ -264,16 +272,7 @@ def failures(
             groups.setdefault("model worse than physics-only", []).append(
                 f"{_draw_label(r)}: {ratios}"
             )
-        for c in sc.param_checks(r):
-            if not c.covered:
-                ci = (
-                    "no interval"
-                    if c.interval is None
-                    else f"[{c.interval[0]:.4g}, {c.interval[1]:.4g}]"
-                )
-                groups.setdefault("truth outside the 95 % interval", []).append(
-                    f"{_draw_label(r)}: {c.effect}.{c.name} {c.estimate:.4g} {ci} for {c.truth:.4g}"
-                )
+        _uncovered(r, sc.param_checks(r), "truth", groups)
         app = _apparent_of(r, apparent)
         if app is not None:
             _apparent_failures(r, app, groups)

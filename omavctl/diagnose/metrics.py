@@ -301,6 +301,31 @@ UNDEREXCITED_RATIO = 10.0
 ENVELOPE_MARGIN = 0.25
 
 
+def _excursions(
+    train_inputs: np.ndarray, inputs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per input (d,): varied in training, its training span (1 where unvaried); per
+    sample and input (n, d): the gap beyond the training [min, max], that gap in
+    training spans (0 for unvaried inputs), and whether an unvaried input moved."""
+    lo, hi = train_inputs.min(axis=0), train_inputs.max(axis=0)
+    scale = np.maximum(np.maximum(np.abs(lo), np.abs(hi)), 1.0)
+    varied = hi - lo > 1e-9 * scale
+    span = np.where(varied, hi - lo, 1.0)
+    gap = np.maximum(lo - inputs, inputs - hi).clip(min=0.0)
+    beyond = np.where(varied, gap / span, 0.0)
+    moved = ~varied & (gap > 1e-9 * scale)
+    return varied, span, gap, beyond, moved
+
+
+def outside_envelope(train_inputs: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+    """Whether each sample (n,) of inputs (n, d) lies outside the envelope of the
+    training inputs (m, d), as :func:`training_envelope` counts it: beyond an input's
+    training [min, max] by more than :data:`ENVELOPE_MARGIN` of its range, or an input
+    that did not vary in training has moved."""
+    _, _, _, beyond, moved = _excursions(train_inputs, inputs)
+    return np.asarray((beyond > ENVELOPE_MARGIN).any(axis=1) | moved.any(axis=1))
+
+
 def training_envelope(
     train_inputs: np.ndarray,
     inputs: np.ndarray,
@@ -319,14 +344,8 @@ def training_envelope(
     but does here, the largest distance from its training value (its units): no
     range to measure it in, and every such sample is outside.
     """
-    lo, hi = train_inputs.min(axis=0), train_inputs.max(axis=0)
-    scale = np.maximum(np.maximum(np.abs(lo), np.abs(hi)), 1.0)
-    varied = hi - lo > 1e-9 * scale
-    span = np.where(varied, hi - lo, 1.0)
-    gap = np.maximum(lo - inputs, inputs - hi).clip(min=0.0)
-    beyond = np.where(varied, gap / span, 0.0)
-    moved = ~varied & (gap > 1e-9 * scale)
-    outside = (beyond > ENVELOPE_MARGIN).any(axis=1) | moved.any(axis=1)
+    varied, span, gap, beyond, moved = _excursions(train_inputs, inputs)
+    outside = np.asarray((beyond > ENVELOPE_MARGIN).any(axis=1) | moved.any(axis=1))
     within = np.abs(error) <= 2.0 * std
 
     def coverage(sel: np.ndarray) -> dict[str, float | None]:

@@ -221,6 +221,16 @@ def _json(arrays: Mapping[str, np.ndarray], key: str, path: Path) -> Any:
         raise ModelError(f"key '{key}' is not valid JSON: {err.msg}", path) from None
 
 
+def _optional_nonnegative(arrays: Mapping[str, np.ndarray], key: str, p: Path) -> np.ndarray | None:
+    """The optional per-axis (3,) ``key``, None when absent; refused when negative."""
+    if key not in arrays:
+        return None
+    out = _float(arrays, key, (3,), p)
+    if np.any(out < 0):
+        raise ModelError(f"key '{key}' must not be negative", p)
+    return out
+
+
 def _float(
     arrays: Mapping[str, np.ndarray], key: str, shape: tuple[int, ...], path: Path
 ) -> np.ndarray:
@@ -371,24 +381,14 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         raise ModelError("scales, variances and length scales must be positive", p)
     if np.any((sv == 0) & (nv <= 0)):
         raise ModelError("an axis with its GP off (signal variance 0) needs a noise variance", p)
-    band = _float(arrays, "band_noise", (3,), p) if "band_noise" in arrays else None
-    if band is not None and np.any(band < 0):
-        raise ModelError("key 'band_noise' must not be negative", p)
-    growth = _float(arrays, "torque_growth", (3,), p) if "torque_growth" in arrays else None
-    if growth is not None and np.any(growth < 0):
-        raise ModelError("key 'torque_growth' must not be negative", p)
-    per_range = _float(arrays, "range_growth", (3,), p) if "range_growth" in arrays else None
-    if per_range is not None and np.any(per_range < 0):
-        raise ModelError("key 'range_growth' must not be negative", p)
+    band = _optional_nonnegative(arrays, "band_noise", p)
+    growth = _optional_nonnegative(arrays, "torque_growth", p)
+    per_range = _optional_nonnegative(arrays, "range_growth", p)
     latent = _float(arrays, "latent_scale", (3,), p) if "latent_scale" in arrays else None
     if latent is not None and np.any(latent <= 0):
         raise ModelError("key 'latent_scale' must be positive", p)
-    beyond = _float(arrays, "beyond_scale", (3,), p) if "beyond_scale" in arrays else None
-    if beyond is not None and np.any(beyond < 0):
-        raise ModelError("key 'beyond_scale' must not be negative", p)
-    shrink = _float(arrays, "mean_shrink", (3,), p) if "mean_shrink" in arrays else None
-    if shrink is not None and np.any(shrink < 0):
-        raise ModelError("key 'mean_shrink' must not be negative", p)
+    beyond = _optional_nonnegative(arrays, "beyond_scale", p)
+    shrink = _optional_nonnegative(arrays, "mean_shrink", p)
     rollout = _float(arrays, "rollout_gp", (3,), p) if "rollout_gp" in arrays else None
     if rollout is not None and np.any((rollout < 0) | (rollout > 1)):
         raise ModelError("key 'rollout_gp' must be between 0 and 1", p)
