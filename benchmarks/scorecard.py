@@ -9,7 +9,7 @@ again, two rounds. One JSON line per draw; the tables (every rate with its
 Wilson 95 % interval, overall and by the hidden effect's size over the claim
 floor) are rebuilt from those lines.
 
-    python benchmarks/scorecard.py run --split tune|report|tune2|report2|report3 [--draws N]
+    python benchmarks/scorecard.py run --split tune|report|tune2|report2..report5 [--draws N]
         [--start I] [--jobs J] [--workdir DIR] [--out FILE.jsonl]
         [--simulator 'CMD {reference} {truth} {out} {seed}']
     python benchmarks/scorecard.py analyse FILE.jsonl... [--markdown OUT.md] [--apparent A.json]
@@ -17,10 +17,10 @@ floor) are rebuilt from those lines.
 The split (benchmarks/scorecard_draws.py, SPLITS): ``tune`` draws (seeds from 0,
 families figure-8, multi-sine wobble, chirp) may be looked at to change the
 tool; ``report`` draws (seeds from 1 000 000, every one flying the held-back
-random-steps family) are only reported. ``tune2``, ``report2`` and ``report3`` are
+random-steps family) are only reported. ``tune2`` and ``report2`` to ``report5`` are
 version 2 (benchmarks/scorecard_v2.py: sizes as multiples of the claim floor, planned
-flights); ``report3`` has other seeds than ``report2``, whose records were read to
-find causes. ``run`` skips draws already in the output file, so an interrupted run
+flights); each later report split has other seeds than the one before, whose records
+were read to find causes. ``run`` skips draws already in the output file, so an interrupted run
 resumes.
 """
 
@@ -43,7 +43,15 @@ from benchmarks import scorecard_score as sc
 from benchmarks.scorecard_draws import SPLITS, draw_spec, run_draw
 from benchmarks.scorecard_v2 import simulator_argv
 
-DEFAULT_DRAWS = {"tune": 12, "report": 18, "tune2": 12, "report2": 48, "report3": 48}
+DEFAULT_DRAWS = {
+    "tune": 12,
+    "report": 18,
+    "tune2": 12,
+    "report2": 48,
+    "report3": 48,
+    "report4": 48,
+    "report5": 48,
+}
 
 
 def _done(out: Path) -> set[tuple[str, int]]:

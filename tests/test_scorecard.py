@@ -562,12 +562,15 @@ def test_run_until_stops_at_the_count_above_the_floor(tmp_path, monkeypatch):
     assert card.run_until("tune", 5, 1, 6, 2, tmp_path, out) == 7 and ran == [6]  # the cap
 
 
-def test_report3_is_a_fresh_report_split():
-    """report3 (from 2026-11-26, after report2's records were read) has the report
-    design (the held-back steps on one side) but none of report2's draws."""
+@pytest.mark.parametrize(
+    "old,new", [("report2", "report3"), ("report3", "report4"), ("report4", "report5")]
+)
+def test_each_report_split_is_fresh(old: str, new: str) -> None:
+    """Each report split (declared after the one before had its records read) has the
+    report design (the held-back steps on one side) but none of the earlier draws."""
     names = sorted(EFFECTS)
     for i in range(20):
-        r2, r3 = draw_spec("report2", i, names), draw_spec("report3", i, names)
+        r2, r3 = draw_spec(old, i, names), draw_spec(new, i, names)
         assert r3["seed"] != r2["seed"] and r3["version"] == 2
         assert "steps" in [f.get("base", f["family"]) for f in r3["flights"]]
         assert [f["seed"] for f in r3["flights"]] != [f["seed"] for f in r2["flights"]]
