@@ -176,11 +176,12 @@ def _render_fit(con: Any, summary: Any, out: Path) -> None:
 
 def _effects_table(summary: Any) -> Any:
     """The estimated effect parameters (and torque command gains) with standard errors."""
+    import numpy as np
     from rich.table import Table
     from rich.text import Text
 
     from omavctl.learn.fit_notes import effect_unit
-    from omavctl.learn.intervals import Z95
+    from omavctl.learn.intervals import interval95
     from omavctl.physics.effects import get_effect
 
     units = summary.command_units
@@ -210,23 +211,28 @@ def _effects_table(summary: Any) -> Any:
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         for axis, g, e in gains:
+            # a gain is positive, as the scale it inverts: cut at 0 (interval95)
+            lo, hi = interval95(np.asarray([g]), np.asarray([e]), 0.0)[0]
             eff.add_row(
                 "torque command gain",
                 f"gain_{axis} = 1/scale_{axis}",
                 f"{g:.4g} ± {e:.2g}",
-                f"[{g - Z95 * e:.3g}, {g + Z95 * e:.3g}]",
+                f"[{lo:.3g}, {hi:.3g}]" + (" (cut at gain ≥ 0)" if lo == 0.0 else ""),
                 Text("N m per command unit (assumed inertia)"),
             )
     return eff
 
 
 def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> str:
-    """'[low, high]' of a 95 % interval, and, when it does not pin the parameter
-    (effect, parameter, component) down, why, in words that follow the interval."""
-    from omavctl.learn.intervals import unpinned_words
+    """'[low, high]' of a 95 % interval (and '(cut at T_m ≥ 0)' where it ends at the
+    parameter's physical bound), and, when it does not pin the parameter (effect,
+    parameter, component) down, why, in words that follow the interval."""
+    from omavctl.learn.intervals import bound_note, unpinned_words
 
     lo, hi = (float(x) for x in interval)
     text = f"[{lo:.3g}, {hi:.3g}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
+    if note := bound_note(which[0], which[1], lo):
+        text += f" ({note})"
     return text if pinned else f"{text}: {unpinned_words(*which[:2], (lo, hi), which[2])}"
 
 

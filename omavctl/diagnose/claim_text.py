@@ -43,6 +43,14 @@ def _null_words(name: str) -> str:
     return ", ".join(f"{k} = {float(v.flat[0]):g}" for k, v in nulls.items())
 
 
+def _bound_words(name: str) -> str:
+    """'its physical bound 0' for an effect whose parameters have one."""
+    from omavctl.learn.intervals import PHYSICAL_BOUNDS
+
+    bounds = {b for (effect, _), b in PHYSICAL_BOUNDS.items() if effect == name}
+    return f"its physical bound {min(bounds):g}" if bounds else "its physical bound"
+
+
 def not_pinned_text(diag: Mapping[str, Any]) -> str:
     """' Not claimed: inertia_error, which cannot be pinned down from this flight: ...'
     for every claim held back ('' when none was), with the interval that holds the
@@ -51,7 +59,7 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
     for e in _held(diag):
         name = str(e.get("name"))
         axes = e.get("axes")
-        entry = {"estimate": e.get("estimate"), "units": e.get("units")}
+        entry = {"name": name, "estimate": e.get("estimate"), "units": e.get("units")}
         said = estimate_sentence(entry, axes if isinstance(axes, list) and axes else None)
         fit = e.get("fit_flight")
         if isinstance(fit, Mapping):
@@ -63,6 +71,16 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
                 "there from the model's training points together with the other claims, its "
                 f"95 % interval does not exclude {_null_words(name)} (the value at which it "
                 f"is absent) on the side this flight puts it.{there}{said}"
+            )
+            continue
+        beyond = e.get("not_physical")
+        if isinstance(beyond, list) and beyond:
+            out += (
+                f" Not claimed: {name}, which is not physical here: the 95 % interval of "
+                f"{', '.join(str(b) for b in beyond)} lies wholly below "
+                f"{_bound_words(name)}, where it cannot be (something else on this axis "
+                f"looks like it), and no other component it is claimed on excludes "
+                f"{_null_words(name)}.{said}"
             )
             continue
         out += (

@@ -35,12 +35,14 @@ from omavctl.diagnose.estimate_text import AXIS_CLAIM
 from omavctl.diagnose.estimates import SecondStage, estimate_together
 from omavctl.diagnose.joint import JointStep, learned_step
 from omavctl.learn.estimate import EffectEstimate
+from omavctl.learn.intervals import interval95, physical_bound
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
 __all__ = [
     "Guarded",
+    "beyond_bound",
     "claimed_axes",
     "excludes_null",
     "guard_claims",
@@ -68,10 +70,43 @@ def claimed_axes(per_axis: Mapping[str, Any] | None) -> set[str] | None:
 def excludes_null(name: str, estimate: Mapping[str, Any], axes: Collection[str] | None) -> bool:
     """Whether the 95 % interval (``P_ci95`` of an estimate's JSON) of at least one
     component of ``name``'s parameters that the claim is made on excludes the effect's
-    null. A per-axis parameter (three components) counts only on ``axes`` (None: all);
-    an interval that is not finite excludes nothing."""
-    null = get_effect(name).null_parameters()
-    for param, value in null.items():
+    null on the physical side: the part of the interval at or above the parameter's
+    physical bound (:func:`omavctl.learn.intervals.physical_bound`) lies on one side
+    of the null, and some of it exists (a negative delay, tau_d -2.70 to -0.03 ms,
+    excludes 0 only where no delay can be: :func:`beyond_bound`). A per-axis parameter
+    (three components) counts only on ``axes`` (None: all); an interval that is not
+    finite excludes nothing."""
+    for param, _, at, (low, high) in _claimed_rows(name, estimate, axes):
+        bound = physical_bound(name, param)
+        if bound is not None:
+            if high < bound:
+                continue  # wholly where the parameter cannot be
+            low = max(low, bound)
+        if low > at or high < at:
+            return True
+    return False
+
+
+def beyond_bound(name: str, estimate: Mapping[str, Any], axes: Collection[str] | None) -> list[str]:
+    """The parameters (``tau_d``, ``D_x``) of the components a claim is made on whose 95 %
+    interval lies wholly beyond the physical bound (below 0 for a lag, a delay, a drag:
+    the claim is not physical there)."""
+    out = []
+    for param, label, _, (_, high) in _claimed_rows(name, estimate, axes):
+        bound = physical_bound(name, param)
+        if bound is not None and high < bound:
+            out.append(label)
+    return out
+
+
+def _claimed_rows(
+    name: str, estimate: Mapping[str, Any], axes: Collection[str] | None
+) -> list[tuple[str, str, float, tuple[float, float]]]:
+    """(parameter, label, null, (low, high)) of every finite interval of ``name``'s
+    estimate JSON on the claimed ``axes``; the label of a per-axis component names its
+    axis (``D_x``)."""
+    out = []
+    for param, value in get_effect(name).null_parameters().items():
         rows = estimate.get(f"{param}_ci95")
         if not isinstance(rows, list):
             continue
@@ -81,9 +116,9 @@ def excludes_null(name: str, estimate: Mapping[str, Any], axes: Collection[str] 
             if not isinstance(row, list) or len(row) != 2 or None in row:
                 continue
             at = float(value[i] if value.size == len(rows) else value.flat[0])
-            if row[0] > at or row[1] < at:
-                return True
-    return False
+            label = f"{param}_{AXES[i]}" if len(rows) == 3 else param
+            out.append((param, label, at, (float(row[0]), float(row[1]))))
+    return out
 
 
 def material_axes(
@@ -171,14 +206,18 @@ def fit_flight_estimate(
 
 def _nearest_to_null(est: EffectEstimate) -> np.ndarray:
     """theta (p,) of each component at the end of its 95 % interval nearest the null
-    (0 where the interval holds it, the estimate where it is not finite): the
-    smallest effect the flight allows."""
+    (0 where the interval holds it, the estimate where it is not defined): the
+    smallest effect the flight allows. (An inertia scale's interval cut at its bound 0
+    reaches theta = +inf: the side is kept.)"""
     intervals = est.interval95()
-    ends = [est.effect.to_theta({k: iv[:, side] for k, iv in intervals.items()}) for side in (0, 1)]
+    with np.errstate(divide="ignore"):  # a scale cut at its bound 0: theta +inf
+        ends = [
+            est.effect.to_theta({k: iv[:, side] for k, iv in intervals.items()}) for side in (0, 1)
+        ]
     theta = est.theta
     lo, hi = np.minimum(*ends), np.maximum(*ends)
     near = np.where(lo > 0, lo, np.where(hi < 0, hi, 0.0))
-    return np.where(np.isfinite(lo) & np.isfinite(hi), near, theta)
+    return np.where(~np.isnan(lo) & ~np.isnan(hi), near, theta)
 
 
 @dataclass
@@ -188,7 +227,9 @@ class Guarded:
     kept: list[str]
     #: per kept claim, its estimate's JSON (all kept claims estimated together)
     estimates: dict[str, dict[str, Any]] = field(default_factory=dict)
-    #: each held-back claim: name, units, estimate (JSON), axes it was claimed on
+    #: each held-back claim: name, units, estimate (JSON), axes it was claimed on, and
+    #: ``not_physical``: the components whose interval lies wholly beyond their physical
+    #: bound (:func:`beyond_bound`), when that is why
     held_back: list[dict[str, Any]] = field(default_factory=list)
 
 
@@ -202,7 +243,8 @@ def guard_claims(
     stage: SecondStage | None = None,
     on_fit: Collection[str] = (),
 ) -> Guarded:
-    """Keep the claims of ``names`` whose interval excludes their null on an axis they
+    """Keep the claims of ``names`` whose interval excludes their null, on the physical
+    side of a bounded parameter (:func:`excludes_null`), on an axis they
     are claimed on (``axes_of``: name -> axes, None or absent: all; with ``floor``, only
     the axes where a per-axis component's part is material and, with ``model``, the fit
     flight confirms it, :func:`material_axes`); the others are held back, and the rest
@@ -225,6 +267,7 @@ def guard_claims(
             break
         for n in drop:
             judged = axes[n]
+            beyond = beyond_bound(n, as_json[n], judged)
             out.held_back.append(
                 {
                     "name": n,
@@ -232,6 +275,7 @@ def guard_claims(
                     "estimate": as_json[n],
                     "axes": None if judged is None else sorted(judged),
                     **({"fit_flight": unconfirmed[n]} if n in unconfirmed else {}),
+                    **({"not_physical": beyond} if beyond and n not in unconfirmed else {}),
                 }
             )
         out.kept = [n for n in out.kept if n not in drop]
@@ -279,8 +323,8 @@ def _theta_json(name: str, theta: np.ndarray, se: np.ndarray) -> dict[str, Any]:
         out[k] = [float(x) for x in v]
         out[f"{k}_stderr"] = [float(x) if np.isfinite(x) else None for x in s]
         out[f"{k}_ci95"] = [
-            [float(a - Z95 * b), float(a + Z95 * b)] if np.isfinite(b) else [None, None]
-            for a, b in zip(v, s, strict=True)
+            [float(lo), float(hi)] if np.isfinite(b) else [None, None]
+            for (lo, hi), b in zip(interval95(v, s, physical_bound(name, k)), s, strict=True)
         ]
     return out
 

@@ -48,6 +48,8 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             u = "" if unit == "1" else f" {unit}"
             lo, hi, digits = _distinct(ci[0], ci[1])
             text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {lo} to {hi}"
+            if note := _bound_note(str(entry.get("name")), name, ci[0]):
+                text += f", {note}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:
                 text += f", {_unpinned(str(entry.get('name')), name, ci, i)}"
             parts.append(text + ")")
@@ -70,6 +72,17 @@ def _distinct(lo: float, hi: float) -> tuple[str, str, int]:
         if a != b:
             return a, b, digits
     return f"{lo:.6g}", f"{hi:.6g}", 6
+
+
+def _bound_note(effect: str, param: str, low: Any) -> str:
+    """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound
+    (:func:`omavctl.learn.intervals.bound_note`; imported here, when needed)."""
+    from omavctl.learn.intervals import bound_note
+
+    try:
+        return bound_note(effect, param, float(low))
+    except (TypeError, ValueError):
+        return ""
 
 
 def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.metrics import AXES
-from omavctl.learn.intervals import interval95
+from omavctl.learn.intervals import interval95, physical_bound
 from omavctl.physics.effects import EFFECTS, Effect, get_effect
 
 __all__ = [
@@ -234,17 +234,22 @@ def _parameters(
 ) -> dict[str, Any]:
     """The JSON ``parameters`` of a score: physical values, their (jackknife)
     standard errors (none for parameters not excited), 95 % intervals ``P_ci95``
-    (value -/+ 1.96 standard errors) and which parameters were excited."""
+    (value -/+ 1.96 standard errors, cut at a physical bound) and which parameters
+    were excited."""
     cov = cov.copy()
     cov[~excited, :] = 0.0
     cov[:, ~excited] = 0.0
     phys = effect.to_parameters(theta_all, cov)
+
+    def bound(k: str) -> float | None:
+        return physical_bound(effect.name, k)
+
     params: dict[str, Any] = {k: v.tolist() for k, (v, _) in phys.items()}
     params.update({f"{k}_stderr": s.tolist() for k, (_, s) in phys.items()})
     params.update(
         {
             f"{k}_ci95": [[lo if isfinite(lo) else None, hi if isfinite(hi) else None]
-                          for lo, hi in interval95(v, s).tolist()]
+                          for lo, hi in interval95(v, s, bound(k)).tolist()]
             for k, (v, s) in phys.items()
         }
     )  # fmt: skip

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.learn.intervals import interval95, pinned_down
+from omavctl.learn.intervals import interval95, physical_bound, pinned_down
 from omavctl.physics.effects import Effect, get_effect
 
 __all__ = ["GAIN_EFFECT", "GAIN_PRIOR_FACTOR", "EffectEstimate"]
@@ -42,8 +42,12 @@ class EffectEstimate:
 
     def interval95(self) -> dict[str, np.ndarray]:
         """95 % interval (size, 2) per parameter: value -/+ 1.96 standard errors
-        (NaN where the standard error is not finite)."""
-        return {k: interval95(v, self.stderr[k]) for k, v in self.values.items()}
+        (NaN where the standard error is not finite), cut at the parameter's physical
+        bound (:func:`omavctl.learn.intervals.interval95`: a lag's is not negative)."""
+        return {
+            k: interval95(v, self.stderr[k], physical_bound(self.name, k))
+            for k, v in self.values.items()
+        }
 
     def pinned(self) -> dict[str, np.ndarray]:
         """bool (size,) per parameter: its 95 % interval determines it (narrower than

@@ -17,8 +17,12 @@ interval widens with it.
 
 :func:`interval95` turns a value and its standard error into a 95 % interval,
 and :func:`pinned_down` says whether the interval determines the parameter:
-not when it is wider than the parameter's plausible range or includes the
-value at which the effect is absent.
+not when it is wider than the parameter's plausible range, includes the
+value at which the effect is absent, or lies wholly beyond the parameter's
+physical bound (:data:`PHYSICAL_BOUNDS`: a time constant, a delay, a drag, a
+thrust loss, an inertia scale are not negative). An interval of an estimate
+inside its bound that reaches past it is cut at the bound (``T_m`` 9.5 ms
+-/+ 36 ms is 0 to 45.5 ms, "≥ 0"); the standard error is not changed.
 """
 
 from __future__ import annotations
@@ -32,12 +36,17 @@ from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
 __all__ = [
+    "PHYSICAL_BOUNDS",
     "Z95",
     "bandwidth",
+    "bound_note",
+    "cut_at_bound",
     "hac_covariance",
     "hac_meat",
     "interval95",
     "null_values",
+    "physical_bound",
+    "physical_side",
     "pinned_down",
     "plausible_range",
     "segment_ids",
@@ -48,6 +57,21 @@ __all__ = [
 Z95 = 1.959963984540054
 #: The largest bandwidth, as a fraction of the samples of the longest segment.
 _MAX_BANDWIDTH_FRACTION = 0.25
+#: The physical lower bound of each bounded parameter, (effect, parameter) -> bound:
+#: a time constant, a delay, a drag coefficient, a thrust loss in a wake cannot be
+#: negative, nor can an inertia scale (true / nominal; nor the torque gain 1 / scale
+#: of a normalised command). The plausible ranges (``theta_range``) are narrower and
+#: say what is usual; these say what is possible. The other parameters (CoM offset,
+#: gyro bias, thrust curvature, motor-loss contrasts, battery sag) take either sign.
+PHYSICAL_BOUNDS: dict[tuple[str, str], float] = {
+    ("rotational_drag", "D"): 0.0,
+    ("inertia_error", "scale"): 0.0,
+    ("servo_lag", "T_s"): 0.0,
+    ("motor_lag", "T_m"): 0.0,
+    ("command_delay", "tau_d"): 0.0,
+    ("rotor_interference", "rotor_rotor"): 0.0,
+    ("rotor_interference", "rotor_arm"): 0.0,
+}
 
 
 def segment_ids(samples: Sequence[ResidualSamples]) -> np.ndarray:
@@ -124,13 +148,54 @@ def hac_covariance(
     return 0.5 * (cov + cov.T), s2 * bread
 
 
-def interval95(value: np.ndarray, stderr: np.ndarray) -> np.ndarray:
+def physical_bound(name: str, param: str) -> float | None:
+    """The physical lower bound of effect ``name``'s parameter ``param``
+    (:data:`PHYSICAL_BOUNDS`), None when it takes either sign."""
+    return PHYSICAL_BOUNDS.get((name, param))
+
+
+def interval95(value: np.ndarray, stderr: np.ndarray, bound: float | None = None) -> np.ndarray:
     """95 % intervals (size, 2) ``value -/+ 1.96 stderr``; NaN where the standard
-    error is not finite."""
+    error is not finite. With a physical lower ``bound``, the low end of an estimate
+    at or above it is cut there (what lies below is impossible, not uncertain); an
+    estimate below the bound keeps its interval (it is not physical, and says so:
+    :func:`physical_side`)."""
     v = np.asarray(value, float).reshape(-1)
     se = np.asarray(stderr, float).reshape(-1)
     half = np.where(np.isfinite(se), Z95 * se, np.nan)
-    return np.stack([v - half, v + half], axis=-1)
+    low = v - half
+    if bound is not None:
+        with np.errstate(invalid="ignore"):
+            low = np.where((v >= bound) & (low < bound), bound, low)
+    return np.stack([low, v + half], axis=-1)
+
+
+def cut_at_bound(name: str, param: str, low: float) -> bool:
+    """Whether an interval's ``low`` end is ``name``'s ``param``'s physical bound (the
+    interval was cut there, :func:`interval95`: the text says "≥ 0")."""
+    bound = physical_bound(name, param)
+    return bound is not None and float(low) == bound
+
+
+def bound_note(name: str, param: str, low: float) -> str:
+    """'cut at T_m ≥ 0' when an interval's ``low`` end is the parameter's physical bound
+    (:func:`cut_at_bound`), else ''."""
+    if not cut_at_bound(name, param, low):
+        return ""
+    return f"cut at {param} ≥ {physical_bound(name, param):g}"
+
+
+def physical_side(name: str, param: str, interval: np.ndarray) -> np.ndarray:
+    """bool (size,): some of each 95 % interval (size, 2) lies at or above the
+    parameter's physical bound (always, for a parameter without one); false for an
+    interval wholly beyond it (a negative delay, tau_d -2.70 to -0.03 ms: not physical,
+    whatever else it excludes)."""
+    iv = np.asarray(interval, float).reshape(-1, 2)
+    bound = physical_bound(name, param)
+    if bound is None:
+        return np.ones(iv.shape[0], dtype=bool)
+    with np.errstate(invalid="ignore"):
+        return np.asarray(~(iv[:, 1] < bound))
 
 
 def null_values(name: str) -> dict[str, np.ndarray]:
@@ -161,7 +226,8 @@ def plausible_range(name: str) -> dict[str, tuple[float, float]]:
 
 def pinned_down(name: str, param: str, interval: np.ndarray) -> np.ndarray:
     """bool (size,): the 95 % interval (size, 2) of ``name``'s parameter ``param``
-    determines it: finite, not holding the value at which the effect is absent, and
+    determines it: finite, not holding the value at which the effect is absent, not
+    wholly beyond the physical bound (:func:`physical_side`), and
     within and narrower than the plausible range (for ``inertia_error``'s scale
     outside it, the inverse gain of a normalised torque command: a half-width below
     the estimate's magnitude)."""
@@ -180,7 +246,7 @@ def pinned_down(name: str, param: str, interval: np.ndarray) -> np.ndarray:
         outside = 0.5 * width < np.abs(centre) if gain else np.zeros_like(inside)
         narrow = np.where(inside, width < (hi - lo), outside)
         excludes_null = (iv[:, 0] > null) | (iv[:, 1] < null)
-    return np.asarray(finite & narrow & excludes_null)
+    return np.asarray(finite & narrow & excludes_null & physical_side(name, param, iv))
 
 
 def unpinned_words(name: str, param: str, interval: Sequence[float], i: int = 0) -> str:
@@ -195,6 +261,9 @@ def unpinned_words(name: str, param: str, interval: Sequence[float], i: int = 0)
     centre = 0.5 * (lo + hi)
     if not (math.isfinite(lo) and math.isfinite(hi)) or lo <= zero <= hi:
         return "cannot be pinned down from this flight"
+    bound = physical_bound(name, param)
+    if bound is not None and hi < bound:
+        return f"not physical: {param} cannot be below {bound:g}; something else on this axis"
     if name != "inertia_error" and not plo <= centre <= phi:
         return (
             f"outside the plausible {plo:.3g} to {phi:.3g}: not this effect alone, "

@@ -110,9 +110,18 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") 
         return ""
     lo, hi = ci[i]
     text = f" [{num(lo, 2)}, {num(hi, 2)}]" if finite(lo) and finite(hi) else " [unbounded]"
+    if note := _bound_note(effect, k, lo):
+        text += f" ({note})"
     if i < len(pinned) and pinned[i] is False:
         text += f": {_unpinned(effect, k, ci[i], i)}"
     return text
+
+
+def _bound_note(effect: str, param: str, low: Any) -> str:
+    """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound."""
+    from omavctl.learn.intervals import bound_note
+
+    return bound_note(effect, param, float(low)) if finite(low) else ""
 
 
 def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:
@@ -262,12 +271,21 @@ def diagnosis_section(
     if learned:  # what the GP learned, confirmed on the held-out flight: claimed
         names = (s for name in learned for s in (Span(name, "strong"), " "))
         blocks.append(Para(("Learned by the GP, not yet in the physics: ", *names)[:-1]))
-    held = [str(e.get("name")) for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)]
+    held_back = [e for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)]
+    held = [str(e.get("name")) for e in held_back if not e.get("not_physical")]
     if held:
         blocks.append(
             Para(
                 f"Not claimed, cannot be pinned down from this flight (the 95 % interval holds "
                 f"the value of no effect): {', '.join(held)}."
+            )
+        )
+    unphysical = [str(e.get("name")) for e in held_back if e.get("not_physical")]
+    if unphysical:
+        blocks.append(
+            Para(
+                "Not claimed, not physical (the 95 % interval excludes the value of no effect "
+                f"only below the parameter's physical bound): {', '.join(unphysical)}."
             )
         )
     entries = diag.get("missing_effects") or []
