@@ -1,6 +1,7 @@
-"""Claims held back together are tried one at a time (omavctl/diagnose/diagnosis.py,
-``one_at_a_time``): two look-alikes estimated together can each have an interval that
-holds its null while one alone is pinned down."""
+"""Claims held back together are held back one at a time, the last-ranked first
+(omavctl/diagnose/diagnosis.py, ``one_at_a_time``): two look-alikes estimated together
+can each have an interval that holds its null while the better one alone is pinned
+down."""
 
 from __future__ import annotations
 
@@ -56,8 +57,8 @@ def test_two_look_alikes_held_back_together_keep_the_better_one():
     out = one_at_a_time(guard, ["hidden", "alike", "absent"])
     assert out.kept == ["hidden"]
     assert sorted(h["name"] for h in out.held_back) == ["absent", "alike"]
-    # in the ranking's order: the best claim first, each beside those kept before it
-    assert calls[1:4] == [["hidden"], ["hidden", "alike"], ["hidden", "absent"]]
+    # the last-ranked of those held back is held back alone, the rest guarded again
+    assert calls == [["hidden", "alike", "absent"], ["hidden", "alike"], ["hidden"]]
 
 
 def test_a_single_held_back_claim_is_not_retried():

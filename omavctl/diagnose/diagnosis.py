@@ -64,8 +64,8 @@ METHOD: dict[str, Any] = {
     "command makes it excludes the effect's null on an axis it is claimed on, and, claimed by "
     "the joint selection alone, where its estimate on the fit flight (least squares at the "
     "model's training points, with the other claims) excludes it too (not_pinned); when "
-    "two claims or more are held back together, the claims are added one at a time, best "
-    "first, and each kept where it passes beside those kept before it",
+    "two claims or more are held back together, only the last-ranked of them is, and the "
+    "others are guarded again without it",
     "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
     "interval excludes its null and, estimated from the training points by least squares, "
     "it passes the joint test on the held-out physics-only error (learned_claims)",
@@ -324,24 +324,23 @@ def _guard(
 
 
 def one_at_a_time(guard: Callable[[list[str]], Guarded], names: list[str]) -> Guarded:
-    """``guard(names)``, and when it holds back two claims or more, the claims added one
-    at a time, best first, each kept when ``guard`` keeps it beside those kept before it:
-    two look-alikes estimated together can each have an interval that holds its null
-    while one of them alone is pinned down (own2 draw 15: com_offset and a hidden
-    inertia_error on a figure-8, the scale's interval -0.54 to 3.03 beside the offset,
-    both held back, the loop left with the offset the GP learned). What is held back
-    stays in the ambiguous set of a kept look-alike (:func:`_guard`)."""
-    full = guard(names)
-    if len(full.held_back) < 2:
-        return full
-    kept: list[str] = []
-    for name in names:
-        if len(guard([*kept, name]).kept) == len(kept) + 1:
-            kept.append(name)
-    if len(kept) <= len(full.kept):
-        return full
+    """``guard(names)``; when it holds back two claims or more together, only the
+    last-ranked of them is held back and the others are guarded again without it, until
+    at most one is held back: two look-alikes estimated together can each have an
+    interval that holds its null while the better one alone is pinned down (own2 draw
+    15: com_offset and a hidden inertia_error on a figure-8, the scale's interval -0.54
+    to 3.03 beside the offset, both held back; the test's motor lag beside a third
+    joint step, inertia_error). What is held back stays in the ambiguous set of a kept
+    look-alike (:func:`_guard`)."""
+    kept, held = list(names), []
     out = guard(kept)
-    out.held_back += [h for h in full.held_back if h["name"] not in out.kept]
+    while len(out.held_back) >= 2:
+        failing = {h["name"] for h in out.held_back}
+        last = [n for n in kept if n in failing][-1]
+        held += [h for h in out.held_back if h["name"] == last]
+        kept.remove(last)
+        out = guard(kept)
+    out.held_back += held
     return out
 
 
