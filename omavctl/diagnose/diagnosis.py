@@ -57,11 +57,15 @@ METHOD: dict[str, Any] = {
     "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
     "selection": "forward: best missing effect removed, others rescored, up to 3; "
     "with the effects that, estimated jointly from the model's training points as fit "
-    "--effects would, lower the physics-only error on the held-out flight (joint)",
+    "--effects would, lower the physics-only error on the held-out flight (joint; the "
+    "default imperfections' look-alikes take no slot of its cap, and what they leave is "
+    "the yardstick of a further effect)",
     "claim_guard": "a claim is kept only where the 95 % interval of its estimate as the fit "
     "command makes it excludes the effect's null on an axis it is claimed on, and, claimed by "
     "the joint selection alone, where its estimate on the fit flight (least squares at the "
-    "model's training points, with the other claims) excludes it too (not_pinned)",
+    "model's training points, with the other claims) excludes it too (not_pinned); when "
+    "two claims or more are held back together, only the last-ranked of them is, and the "
+    "others are guarded again without it",
     "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
     "interval excludes its null and, estimated from the training points by least squares, "
     "it passes the joint test on the held-out physics-only error (learned_claims)",
@@ -302,8 +306,11 @@ def _guard(
     by_name = {s.name: s for s in scores}
     axes_of = {n: claimed_axes(by_name[n].explained_per_axis) for n in ranked if n in by_name}
     joint_only = [n for n in names if n not in ranked]
-    guarded = guard_claims(
-        samples, list(model.effects), names, axes_of, floor, model, stage, joint_only
+    guarded = one_at_a_time(
+        lambda kept: guard_claims(
+            samples, list(model.effects), kept, axes_of, floor, model, stage, joint_only
+        ),
+        names,
     )
     for held in guarded.held_back:
         x = by_name.get(held["name"])
@@ -349,6 +356,27 @@ def _select_guarded(
             break
     guarded.held_back = held
     return accepted, after, guarded
+
+
+def one_at_a_time(guard: Callable[[list[str]], Guarded], names: list[str]) -> Guarded:
+    """``guard(names)``; when it holds back two claims or more together, only the
+    last-ranked of them is held back and the others are guarded again without it, until
+    at most one is held back: two look-alikes estimated together can each have an
+    interval that holds its null while the better one alone is pinned down (own2 draw
+    15: com_offset and a hidden inertia_error on a figure-8, the scale's interval -0.54
+    to 3.03 beside the offset, both held back; the test's motor lag beside a third
+    joint step, inertia_error). What is held back stays in the ambiguous set of a kept
+    look-alike (:func:`_guard`)."""
+    kept, held = list(names), []
+    out = guard(kept)
+    while len(out.held_back) >= 2:
+        failing = {h["name"] for h in out.held_back}
+        last = [n for n in kept if n in failing][-1]
+        held += [h for h in out.held_back if h["name"] == last]
+        kept.remove(last)
+        out = guard(kept)
+    out.held_back += held
+    return out
 
 
 def _merge(
