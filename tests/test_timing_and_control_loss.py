@@ -152,6 +152,13 @@ def test_a_flight_that_loses_control_is_evaluated_without_it(vehicle, tmp_path):
     fitted = fit_model([crash], points=60, restarts=0)
     notes = fitted.summary.logs[0].notes
     assert any("out of control" in n for n in notes)
+    # the tumble alone: the line names the cause, not the filter window
+    r = runner.invoke(
+        app, ["fit", str(crash), "--time-window", "8.6:", "--out", str(tmp_path / "t.npz")]
+    )
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert "crash.bag: no usable samples: every in-flight sample is out of control" in r.output
+    assert not (tmp_path / "t.npz").exists()
 
 
 def test_clean_flights_lose_no_samples(vehicle):

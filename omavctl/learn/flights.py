@@ -246,6 +246,14 @@ def log_samples(
     s = residual_samples(flight, vehicle, sg, tuple(EFFECTS))
     loss = flight_control_loss(flight, s.index, s.omega, s.omega_dot, vehicle)
     lost = int(loss.mask.sum()) if loss.any else 0
+    if loss.any and lost == s.n:
+        a, b, why = loss.spans[0]
+        raise LogError(
+            f"no usable samples: every in-flight sample is out of control ({a:.2f}-{b:.2f} "
+            f"s: {why}{', and more spans' if len(loss.spans) > 1 else ''}); fly a "
+            "reference the vehicle can follow",
+            flight.path,
+        )
     if loss.any:
         s = s.select(~loss.mask)
         flight = replace(
