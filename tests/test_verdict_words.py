@@ -1,0 +1,64 @@
+"""The words a report's verdict puts before a command (what a new user read, session 12).
+
+`omavctl report eval.json eval-drag.json` wrote "To test command_delay instead ... Add it
+with: omavctl fit ... --effects ...,command_delay" where `evaluate` had said "test it
+with": re-labelling each file's lines dropped whether the command adds a claimed effect
+or only tests a look-alike. And the plain text ran the plan command on into the next
+sentence ("... --out next.csv Add it with: ...").
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from omavctl.diagnose.change import report_verdict
+from omavctl.diagnose.verdict import Line, verdict
+from tests.test_verdict_ux import _nothing_missing
+
+
+def _ambiguous(rmse_y: float) -> dict[str, Any]:
+    """rotational_drag missing, command_delay its look-alike, model y error ``rmse_y``."""
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing"] = ["rotational_drag"]
+    diag["missing_effects"] = [
+        {"name": "rotational_drag", "explained_variance": 0.31, "ambiguous_with": ["command_delay"]}
+    ]
+    diag["fit_command"] = "omavctl fit f.bag --effects rotational_drag"
+    diag["effect_commands"] = {
+        "rotational_drag": "omavctl fit f.bag --effects rotational_drag",
+        "command_delay": "omavctl fit f.bag --effects command_delay",
+    }
+    tree["metrics"]["model"]["rmse"]["y"] = rmse_y
+    tree["metrics"]["nominal"] = {"rmse": {"x": 0.9, "y": 1.6, "z": 0.16}}
+    return tree
+
+
+def test_a_report_keeps_test_it_with_for_a_look_alike():
+    first = _ambiguous(0.28)
+    second = copy.deepcopy(first)
+    second["models"][0]["effects"] = {"rotational_drag": {"D": [0.05, 0.05, 0.03]}}
+    second["metrics"]["model"]["rmse"]["y"] = 0.04
+    own = {ln.text: ln.add_words for ln in verdict(first) if ln.command}
+    lines = report_verdict([(first, "eval.json"), (second, "eval-drag.json")])
+    test = [ln for ln in lines if ln.text.startswith("To test command_delay instead")]
+    assert len(test) == 2  # the first file's look-alike and the last file's own verdict
+    assert {ln.add_words for ln in test} == {"Test it with"} == {own[test[0].text]}
+    assert test[0].plain().startswith("eval.json: To test command_delay instead")
+    assert "Test it with: omavctl fit f.bag --effects command_delay" in test[0].plain()
+    claim = next(ln for ln in lines if ln.text.startswith("Missing: rotational_drag"))
+    assert claim.add_words == "Add it with"
+
+
+def test_a_sentence_that_ends_in_a_command_gets_its_full_stop():
+    plan = "omavctl plan --task fig8.csv --objective effects --out next.csv"
+    line = Line(
+        "missing", f"To plan a flight that tells them apart: {plan}", command="omavctl fit f"
+    )
+    assert line.plain() == (
+        f"To plan a flight that tells them apart: {plan}. Add it with: omavctl fit f"
+    )
+    done = Line("missing", "Missing: x.", command="omavctl fit f")
+    assert done.plain() == "Missing: x. Add it with: omavctl fit f"
