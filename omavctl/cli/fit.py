@@ -210,14 +210,19 @@ def _effects_table(summary: Any) -> Any:
                 eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", interval, Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
-        for axis, g, e in gains:
-            # a gain is positive, as the scale it inverts: cut at 0 (interval95)
+        scale = summary.effects.get("inertia_error")
+        for i, (axis, g, e) in enumerate(gains):
+            # a gain is positive, as the scale it inverts: cut at 0 (interval95); it is
+            # pinned down where the scale it inverts is (and never when it may be 0)
             lo, hi = interval95(np.asarray([g]), np.asarray([e]), 0.0)[0]
+            pinned = lo > 0.0 and (scale is None or bool(scale.pinned()["scale"][i]))
             eff.add_row(
                 "torque command gain",
                 f"gain_{axis} = 1/scale_{axis}",
                 f"{g:.4g} ± {e:.2g}",
-                f"[{lo:.3g}, {hi:.3g}]" + (" (cut at gain ≥ 0)" if lo == 0.0 else ""),
+                f"[{lo:.3g}, {hi:.3g}]"
+                + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
+                + ("" if pinned else ": cannot be pinned down from this flight"),
                 Text("N m per command unit (assumed inertia)"),
             )
     return eff
