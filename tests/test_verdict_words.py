@@ -62,3 +62,28 @@ def test_a_sentence_that_ends_in_a_command_gets_its_full_stop():
     )
     done = Line("missing", "Missing: x.", command="omavctl fit f")
     assert done.plain() == "Missing: x. Add it with: omavctl fit f"
+
+
+def test_an_input_moved_around_another_level_is_a_mismatch_not_an_unexcited_input():
+    """A PX4 octocopter model (normalised thrust: fz/m near 0.2 in training) on an omav
+    log (fz/m 8.4 to 11.3 m/s^2) said the log goes 383 training ranges beyond "because
+    the fit flight did not move it, not ... because model and log differ"."""
+    import numpy as np
+
+    from omavctl.diagnose.metrics import envelope_flags, training_envelope
+
+    t = np.linspace(0.0, 10.0, 400)
+    train = np.stack([np.sin(t), 0.2 + 0.01 * np.sin(3 * t)], axis=1)
+    err, std = np.full((400, 3), 0.05), np.full((400, 3), 0.1)
+    around = np.stack([np.sin(1.3 * t), 0.2 + 0.5 * np.sin(2 * t)], axis=1)
+    elsewhere = np.stack([np.sin(1.3 * t), 9.8 + 1.5 * np.sin(2 * t)], axis=1)
+    env = training_envelope(train, around, ["fx/m", "fz/m"], err, std)
+    assert set(env["underexcited"]) == {"fz/m"}
+    assert [f["code"] for f in envelope_flags(env)] == ["underexcited"]
+    env = training_envelope(train, elsewhere, ["fx/m", "fz/m"], err, std)
+    assert env["underexcited"] == {}
+    (flag,) = envelope_flags(env)
+    assert flag["code"] == "far_outside_training"
+    assert flag["message"].startswith(
+        "The log goes 555 training ranges beyond the model's"
+    )  # (11.3 - 0.21) / 0.02
