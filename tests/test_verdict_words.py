@@ -87,3 +87,30 @@ def test_an_input_moved_around_another_level_is_a_mismatch_not_an_unexcited_inpu
     assert flag["message"].startswith(
         "The log goes 555 training ranges beyond the model's"
     )  # (11.3 - 0.21) / 0.02
+
+
+def test_a_pinned_interval_never_prints_an_end_at_the_null():
+    """A Crazyflie fit printed inertia_error scale_x 1.103 [1, 1.21], pinned down (its
+    interval [1.00009, 1.206] excludes scale = 1), in the fit table and the verdict."""
+    from omavctl.cli.fit import _interval_text
+    from omavctl.diagnose.estimate_text import estimate_sentence
+    from omavctl.learn.intervals import interval_ends
+
+    assert interval_ends(1.0000934, 1.2061241, 1.0) == ("1.0001", "1.2061", 5)
+    assert interval_ends(0.0, 0.7242, 0.0) == ("0", "0.724", 3)  # cut at 0: the null
+    assert interval_ends(1.0000934, 1.2061241) == ("1", "1.21", 3)  # no null: as before
+    ends = (1.0000934, 1.2061241)
+    assert _interval_text(ends, True, ("inertia_error", "scale", 0)) == "[1.0001, 1.2061]"
+    entry = {
+        "name": "inertia_error",
+        "units": {"scale": "1"},
+        "estimate": {"scale": [1.1031], "scale_ci95": [list(ends)], "scale_pinned": [True]},
+    }
+    assert "scale = 1.1031 (95 %: 1.0001 to 1.2061)" in estimate_sentence(entry)
+    # the report's model lines (2 digits) too
+    from omavctl.report.diagnosis import _interval_note
+
+    params = {"scale_ci95": [list(ends)], "scale_pinned": [True]}
+    assert _interval_note(params, "scale", 0, "inertia_error") == " [1.0001, 1.2061]"
+    params = {"scale_ci95": [[0.8, 1.2]], "scale_pinned": [False]}
+    assert _interval_note(params, "scale", 0, "inertia_error").startswith(" [0.8, 1.2]: ")

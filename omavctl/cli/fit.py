@@ -232,10 +232,14 @@ def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> 
     """'[low, high]' of a 95 % interval (and '(cut at T_m ≥ 0)' where it ends at the
     parameter's physical bound), and, when it does not pin the parameter (effect,
     parameter, component) down, why, in words that follow the interval."""
-    from omavctl.learn.intervals import bound_note, unpinned_words
+    import numpy as np
+
+    from omavctl.learn.intervals import bound_note, interval_ends, null_values, unpinned_words
 
     lo, hi = (float(x) for x in interval)
-    text = f"[{lo:.3g}, {hi:.3g}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
+    null = np.asarray(null_values(which[0])[which[1]], float).reshape(-1)
+    a, b, _ = interval_ends(lo, hi, float(null[min(which[2], null.size - 1)]))
+    text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
     if note := bound_note(which[0], which[1], lo):
         text += f" ({note})"
     return text if pinned else f"{text}: {unpinned_words(*which[:2], (lo, hi), which[2])}"
