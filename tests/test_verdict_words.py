@@ -114,3 +114,17 @@ def test_a_pinned_interval_never_prints_an_end_at_the_null():
     assert _interval_note(params, "scale", 0, "inertia_error") == " [1.0001, 1.2061]"
     params = {"scale_ci95": [[0.8, 1.2]], "scale_pinned": [False]}
     assert _interval_note(params, "scale", 0, "inertia_error").startswith(" [0.8, 1.2]: ")
+
+
+def test_the_json_verdict_says_which_command_only_tests_a_look_alike():
+    """`evaluate --json` and `report --json` gave a look-alike's test command and the
+    claimed effect's fit command alike ({key, text, command}): a script piping the
+    verdict's commands to a shell could not tell a claim from a test."""
+    from omavctl.report.summary import evaluation_json
+
+    out = evaluation_json(_ambiguous(0.28), {})
+    commanded = [(v["command"], v["test"]) for v in out["verdict"] if v["command"]]
+    assert commanded == [
+        ("omavctl fit f.bag --effects rotational_drag", False),
+        ("omavctl fit f.bag --effects command_delay", True),
+    ]
