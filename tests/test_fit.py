@@ -401,11 +401,20 @@ def test_an_undetermined_parameter_is_named_as_the_reports_write_it():
             {"rotor_rotor": np.array([0.25]), "rotor_arm": np.array([0.03])},
             {"rotor_rotor": np.array([0.004]), "rotor_arm": np.array([0.04])},
         ),
+        # absent at scale 1, not 0 (a Crazyflie said "scale_x, scale_y within 2 standard
+        # errors of zero" of 29 ± 150 and 14.5 ± 32): x is near 1, y near 0 but not 1
+        "inertia_error": EffectEstimate(
+            "inertia_error",
+            {"scale": np.array([1.05, 0.4, 3.4])},
+            {"scale": np.array([0.3, 0.25, 0.46])},
+        ),
     }
-    eff = EffectFit(np.zeros(6), np.eye(6), estimates, np.zeros(3), np.zeros(3))
+    eff = EffectFit(np.zeros(9), np.eye(9), estimates, np.zeros(3), np.zeros(3))
     assert effect_notes(eff) == [
         "rotational_drag: D_z within 2 standard errors of zero: the logs barely excite it or "
         "the effect is absent",
         "rotor_interference: rotor_arm within 2 standard errors of zero: the logs barely "
         "excite it or the effect is absent",
+        "inertia_error: scale_x within 2 standard errors of 1: the logs barely excite it or "
+        "the effect is absent",
     ]

@@ -5,6 +5,7 @@ model; a normalised torque command's gain is recovered; command units and rates.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from pathlib import Path
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from rich.console import Console
 from typer.testing import CliRunner
 
 from omavctl.base.errors import ConfigError, ModelError
@@ -130,6 +132,10 @@ def test_px4tools_fit_evaluate_report_through_the_cli(tmp_path: Path) -> None:
     assert "inertia_error added to estimate its per-axis gain" in text
     assert "torque command gain" in text and "[torque unit] s^2" in text
     assert "N m s^2" not in text
+    # no gain is pinned down (the scales it inverts are not, below): the table says so
+    gain_rows = [ln for ln in out.splitlines() if "= 1/scale_" in ln]
+    assert len(gain_rows) == 3
+    assert all("cannot be pinned down from this flight" in ln for ln in gain_rows), gain_rows
     assert "body rate logged at 83.3 Hz" in text
     assert "time window 6.5:15 s" in text
 
@@ -435,6 +441,13 @@ def test_gain_of_a_normalised_torque_command_is_recovered(tmp_path: Path, vehicl
     assert np.all(result.summary.torque_gain_stderr < 0.1 * gains)
     first = np.array(result.model.provenance["torque_gain"]["first_pass_least_squares"])
     np.testing.assert_allclose(first, gains, rtol=0.10)
+    # recovered within 10 %: the fit's table gives each gain's interval, not pinned-down
+    from omavctl.cli.fit import _effects_table
+
+    con = Console(width=300, record=True, file=io.StringIO())
+    con.print(_effects_table(result.summary))
+    gain_rows = [ln for ln in con.export_text().splitlines() if "= 1/scale_" in ln]
+    assert len(gain_rows) == 3 and not any("cannot be pinned" in ln for ln in gain_rows)
 
     # the model's pointwise prediction uses the gain regressor (no unit mixing)
     model = result.model

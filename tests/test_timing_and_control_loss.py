@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 
 from omavctl.cli import app
 from omavctl.learn.fit import fit_model
+from omavctl.learn.model_file import load_model
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import align, write_log
 from omavctl.physics.effects import first_order_lag, shift_held
@@ -158,6 +159,14 @@ def test_a_flight_that_loses_control_is_evaluated_without_it(vehicle, tmp_path):
     )
     assert r.exit_code == 2 and "Traceback" not in r.output
     assert "crash.bag: no usable samples: every in-flight sample is out of control" in r.output
+    # a second of flight before the tumble, less than one validation block: fit
+    # said "internal error (ValueError)" (no training point left out of that block)
+    short = tmp_path / "short.npz"
+    args = ["fit", str(crash), "--time-window", "6.8:", "--points", "40", "--restarts", "0"]
+    r = runner.invoke(app, [*args, "--out", str(short)])
+    assert r.exit_code == 0 and "internal error" not in r.output, r.output
+    assert "too short to judge the GP mean on held-out rollouts" in r.output
+    assert load_model(short).n_train == 40
     assert not (tmp_path / "t.npz").exists()
 
 

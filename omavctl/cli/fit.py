@@ -210,14 +210,19 @@ def _effects_table(summary: Any) -> Any:
                 eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", interval, Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
-        for axis, g, e in gains:
-            # a gain is positive, as the scale it inverts: cut at 0 (interval95)
+        scale = summary.effects.get("inertia_error")
+        for i, (axis, g, e) in enumerate(gains):
+            # a gain is positive, as the scale it inverts: cut at 0 (interval95); it is
+            # pinned down where the scale it inverts is (and never when it may be 0)
             lo, hi = interval95(np.asarray([g]), np.asarray([e]), 0.0)[0]
+            pinned = lo > 0.0 and (scale is None or bool(scale.pinned()["scale"][i]))
             eff.add_row(
                 "torque command gain",
                 f"gain_{axis} = 1/scale_{axis}",
                 f"{g:.4g} ± {e:.2g}",
-                f"[{lo:.3g}, {hi:.3g}]" + (" (cut at gain ≥ 0)" if lo == 0.0 else ""),
+                f"[{lo:.3g}, {hi:.3g}]"
+                + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
+                + ("" if pinned else ": cannot be pinned down from this flight"),
                 Text("N m per command unit (assumed inertia)"),
             )
     return eff
@@ -227,10 +232,14 @@ def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> 
     """'[low, high]' of a 95 % interval (and '(cut at T_m ≥ 0)' where it ends at the
     parameter's physical bound), and, when it does not pin the parameter (effect,
     parameter, component) down, why, in words that follow the interval."""
-    from omavctl.learn.intervals import bound_note, unpinned_words
+    import numpy as np
+
+    from omavctl.learn.intervals import bound_note, interval_ends, null_values, unpinned_words
 
     lo, hi = (float(x) for x in interval)
-    text = f"[{lo:.3g}, {hi:.3g}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
+    null = np.asarray(null_values(which[0])[which[1]], float).reshape(-1)
+    a, b, _ = interval_ends(lo, hi, float(null[min(which[2], null.size - 1)]))
+    text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
     if note := bound_note(which[0], which[1], lo):
         text += f" ({note})"
     return text if pinned else f"{text}: {unpinned_words(*which[:2], (lo, hi), which[2])}"

@@ -119,7 +119,13 @@ def _report_json(summary: Any, out: Path) -> dict[str, Any]:
         ],
         "change": summary.change() if len(summary.evaluations) > 1 else None,
         "verdict": [
-            {"key": ln.key, "about": ln.who, "text": ln.text, "command": ln.command}
+            {
+                "key": ln.key,
+                "about": ln.who,
+                "text": ln.text,
+                "command": ln.command,
+                "test": ln.test,
+            }
             for ln in summary.verdict
         ],
     }

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 from omavctl.diagnose.verdict import (
@@ -304,11 +305,12 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
     for i, (tree, label) in enumerate(evals[:-1]):
         own = verdict(tree)
         head = reconciled_head(own[0], scores[i], scores[i + 1])
-        lines.append(Line(head.key, head.text, label, head.command))
-        # a warning may lead the file's verdict; what it lacked must still be said
-        lines += [Line(ln.key, ln.text, label, ln.command) for ln in own[1:] if ln.key == "missing"]
+        lines.append(replace(head, who=label))
+        # a warning may lead the file's verdict; what it lacked must still be said;
+        # replace() keeps whether a command adds an effect or only tests a look-alike
+        lines += [replace(ln, who=label) for ln in own[1:] if ln.key == "missing"]
         if len(evals) > 2:
             lines += step(i, i + 1)
     lines += step(0, len(evals) - 1)
-    lines += [Line(ln.key, ln.text, label1, ln.command) for ln in verdict(last)]
+    lines += [replace(ln, who=label1) for ln in verdict(last)]
     return lines

@@ -46,7 +46,9 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
                 unclaimed.append(labels[i])
                 continue
             u = "" if unit == "1" else f" {unit}"
-            lo, hi, digits = _distinct(ci[0], ci[1])
+            lo, hi, digits = _distinct(
+                ci[0], ci[1], null_component(str(entry.get("name")), name, i)
+            )
             text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {lo} to {hi}"
             if note := _bound_note(str(entry.get("name")), name, ci[0]):
                 text += f", {note}"
@@ -64,14 +66,24 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
     return text
 
 
-def _distinct(lo: float, hi: float) -> tuple[str, str, int]:
+def _distinct(lo: float, hi: float, null: float | None = None) -> tuple[str, str, int]:
     """Both ends of an interval with the fewest significant digits (3 to 6) that print
-    them apart, and that number of digits (for the estimate beside them)."""
-    for digits in range(3, 7):
-        a, b = f"{lo:.{digits}g}", f"{hi:.{digits}g}"
-        if a != b:
-            return a, b, digits
-    return f"{lo:.6g}", f"{hi:.6g}", 6
+    them apart (and apart from the effect's ``null``), and that number of digits
+    (:func:`omavctl.learn.intervals.interval_ends`; imported here, when needed)."""
+    from omavctl.learn.intervals import interval_ends
+
+    return interval_ends(float(lo), float(hi), null)
+
+
+def null_component(effect: str, param: str, i: int) -> float | None:
+    """Component ``i`` of the value at which ``effect`` is absent (None: unknown)."""
+    from omavctl.learn.intervals import null_values
+
+    try:
+        null = null_values(effect)[param].reshape(-1)
+    except (KeyError, ValueError, AttributeError):  # an effect this version does not know
+        return None
+    return float(null[i] if i < null.size else null[0])
 
 
 def _bound_note(effect: str, param: str, low: Any) -> str:

@@ -353,7 +353,12 @@ def training_envelope(
         return {a: float(within[sel, i].mean()) if n else None for i, a in enumerate(AXES)}
 
     flight_span = np.ptp(inputs, axis=0) if inputs.size else np.zeros(len(names))
-    weak = varied & (flight_span >= UNDEREXCITED_RATIO * span)
+    # barely excited: this flight moves the input far more, around the level the fit
+    # flight held it at (a level outside this flight's range is a mismatch of model and
+    # log: a normalised thrust's fz/m of 0.2 against 9.8 m/s^2 here)
+    mid = 0.5 * (train_inputs.min(axis=0) + train_inputs.max(axis=0)) if inputs.size else 0.0
+    held = (inputs.min(axis=0) <= mid) & (mid <= inputs.max(axis=0)) if inputs.size else False
+    weak = varied & held & (flight_span >= UNDEREXCITED_RATIO * span)
     worst = beyond.max(axis=0) if inputs.size else np.zeros(len(names))
     far = gap.max(axis=0) if inputs.size else np.zeros(len(names))
     order = np.argsort(-worst)

@@ -61,7 +61,8 @@ class Line:
     def plain(self) -> str:
         """The sentence with its file and command, as one line of text."""
         text = f"{self.who}: {self.text}" if self.who else self.text
-        return f"{text} {self.add_words}: {self.command}" if self.command else text
+        stop = "" if text.endswith((".", ":", "?", "!")) else "."  # after a plan command
+        return f"{text}{stop} {self.add_words}: {self.command}" if self.command else text
 
     @property
     def add_words(self) -> str:

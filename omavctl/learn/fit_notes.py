@@ -117,10 +117,13 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
                 "its estimate is unreliable"
             )
             continue
+        nulls = effect.null_parameters()  # where the effect is absent: scale 1, D 0
         for p in effect.parameters:
             value = np.asarray(est.values[p.name])
+            null = np.broadcast_to(np.asarray(nulls[p.name], float).reshape(-1), value.shape)
             # a component exactly 0 was never excited (motor_loss beyond the rotors)
-            weak = np.flatnonzero((np.abs(value) < 2.0 * est.stderr[p.name]) & (value != 0.0))
+            near = np.abs(value - null) < 2.0 * est.stderr[p.name]
+            weak = np.flatnonzero(near & (value != 0.0))
             if weak.size:
                 # a scalar parameter by its name; a vector's components as the reports
                 # write them (D_x)
@@ -128,9 +131,10 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
                     p.name if p.size == 1 else f"{p.name}_{'xyz'[i] if p.size == 3 else i}"
                     for i in weak
                 )
+                at = "zero" if not null[weak].any() else f"{float(null[weak][0]):g}"
                 notes.append(
-                    f"{name}: {which} within 2 standard errors of zero: the logs barely excite "
-                    "it or the effect is absent"
+                    f"{name}: {which} within 2 standard errors of {at}: the logs barely "
+                    "excite it or the effect is absent"
                 )
     return notes
 

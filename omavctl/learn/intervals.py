@@ -44,6 +44,7 @@ __all__ = [
     "hac_covariance",
     "hac_meat",
     "interval95",
+    "interval_ends",
     "null_values",
     "physical_bound",
     "physical_side",
@@ -272,3 +273,17 @@ def unpinned_words(name: str, param: str, interval: Sequence[float], i: int = 0)
     if name != "inertia_error" and hi - lo >= phi - plo:
         return f"wider than the plausible {plo:.3g} to {phi:.3g}: cannot be pinned down"
     return "cannot be pinned down from this flight"
+
+
+def interval_ends(lo: float, hi: float, null: float | None = None) -> tuple[str, str, int]:
+    """Both ends of a 95 % interval with the fewest significant digits (3 to 6) that print
+    them apart and print neither as the effect's ``null`` unless it is (a Crazyflie's
+    inertia scale [1.00009, 1.21], pinned down, printed "[1, 1.21]"), and that number
+    of digits (for the estimate beside them)."""
+    for digits in range(3, 7):
+        a, b = f"{lo:.{digits}g}", f"{hi:.{digits}g}"
+        n = f"{null:.{digits}g}" if null is not None and math.isfinite(null) else None
+        hides = n is not None and ((a == n and lo != null) or (b == n and hi != null))
+        if a != b and not hides:
+            return a, b, digits
+    return f"{lo:.6g}", f"{hi:.6g}", 6

@@ -115,6 +115,9 @@ def _held_out_errors(
     errors = np.full((2, win.count, 3), np.nan)
     for f in np.unique(win_fold[win_fold >= 0]):
         sel = win_fold == f
+        if not np.any(point_fold != f):  # every training point in this fold: none held out
+            win_fold[sel] = -1
+            continue
         sub, part = held_out_model(m, point_fold != f), win.subset(sel)
         eta0 = np.zeros((part.count, 3))
         for j, with_gp in enumerate((False, True)):

@@ -62,6 +62,8 @@ def _held_out_residual(
     resid = [s.residual - m.effects_samples(s) for s in samples]
     if m.n_train > 0 and np.any(m.gp_enabled):
         for f in np.unique(fold):
+            if not np.any(point_fold != f):  # a flight of one block (a crash): none held out
+                continue
             sub = held_out_model(m, point_fold != f)
             for i, s in enumerate(samples):
                 sel = fold[offsets[i] : offsets[i + 1]] == f

@@ -109,12 +109,25 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") 
     if i >= len(ci) or not isinstance(ci[i], list) or len(ci[i]) != 2:
         return ""
     lo, hi = ci[i]
-    text = f" [{num(lo, 2)}, {num(hi, 2)}]" if finite(lo) and finite(hi) else " [unbounded]"
+    text = f" [{_ends(lo, hi, effect, k, i)}]" if finite(lo) and finite(hi) else " [unbounded]"
     if note := _bound_note(effect, k, lo):
         text += f" ({note})"
     if i < len(pinned) and pinned[i] is False:
         text += f": {_unpinned(effect, k, ci[i], i)}"
     return text
+
+
+def _ends(lo: float, hi: float, effect: str, param: str, i: int) -> str:
+    """'low, high' in 2 significant digits, more where these print the ends alike or
+    an end as the effect's null that it is not (scale [1.00009, 1.21] as "1, 1.2")."""
+    from omavctl.diagnose.estimate_text import null_component
+    from omavctl.learn.intervals import interval_ends
+
+    a, b, null = num(lo, 2), num(hi, 2), null_component(effect, param, i)
+    n = num(null, 2) if null is not None else None
+    if a == b or (n is not None and ((a == n and lo != null) or (b == n and hi != null))):
+        a, b, _ = interval_ends(float(lo), float(hi), null)
+    return f"{a}, {b}"
 
 
 def _bound_note(effect: str, param: str, low: Any) -> str:

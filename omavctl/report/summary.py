@@ -123,7 +123,8 @@ def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[
         "flags": list(tree.get("flags") or []),
         "horizons": horizons_json(tree),
         "verdict": [
-            {"key": line.key, "text": line.text, "command": line.command} for line in lines
+            {"key": line.key, "text": line.text, "command": line.command, "test": line.test}
+            for line in lines
         ],
     }
 

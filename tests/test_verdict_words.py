@@ -1,0 +1,130 @@
+"""The words a report's verdict puts before a command (what a new user read, session 12).
+
+`omavctl report eval.json eval-drag.json` wrote "To test command_delay instead ... Add it
+with: omavctl fit ... --effects ...,command_delay" where `evaluate` had said "test it
+with": re-labelling each file's lines dropped whether the command adds a claimed effect
+or only tests a look-alike. And the plain text ran the plan command on into the next
+sentence ("... --out next.csv Add it with: ...").
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from omavctl.diagnose.change import report_verdict
+from omavctl.diagnose.verdict import Line, verdict
+from tests.test_verdict_ux import _nothing_missing
+
+
+def _ambiguous(rmse_y: float) -> dict[str, Any]:
+    """rotational_drag missing, command_delay its look-alike, model y error ``rmse_y``."""
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing"] = ["rotational_drag"]
+    diag["missing_effects"] = [
+        {"name": "rotational_drag", "explained_variance": 0.31, "ambiguous_with": ["command_delay"]}
+    ]
+    diag["fit_command"] = "omavctl fit f.bag --effects rotational_drag"
+    diag["effect_commands"] = {
+        "rotational_drag": "omavctl fit f.bag --effects rotational_drag",
+        "command_delay": "omavctl fit f.bag --effects command_delay",
+    }
+    tree["metrics"]["model"]["rmse"]["y"] = rmse_y
+    tree["metrics"]["nominal"] = {"rmse": {"x": 0.9, "y": 1.6, "z": 0.16}}
+    return tree
+
+
+def test_a_report_keeps_test_it_with_for_a_look_alike():
+    first = _ambiguous(0.28)
+    second = copy.deepcopy(first)
+    second["models"][0]["effects"] = {"rotational_drag": {"D": [0.05, 0.05, 0.03]}}
+    second["metrics"]["model"]["rmse"]["y"] = 0.04
+    own = {ln.text: ln.add_words for ln in verdict(first) if ln.command}
+    lines = report_verdict([(first, "eval.json"), (second, "eval-drag.json")])
+    test = [ln for ln in lines if ln.text.startswith("To test command_delay instead")]
+    assert len(test) == 2  # the first file's look-alike and the last file's own verdict
+    assert {ln.add_words for ln in test} == {"Test it with"} == {own[test[0].text]}
+    assert test[0].plain().startswith("eval.json: To test command_delay instead")
+    assert "Test it with: omavctl fit f.bag --effects command_delay" in test[0].plain()
+    claim = next(ln for ln in lines if ln.text.startswith("Missing: rotational_drag"))
+    assert claim.add_words == "Add it with"
+
+
+def test_a_sentence_that_ends_in_a_command_gets_its_full_stop():
+    plan = "omavctl plan --task fig8.csv --objective effects --out next.csv"
+    line = Line(
+        "missing", f"To plan a flight that tells them apart: {plan}", command="omavctl fit f"
+    )
+    assert line.plain() == (
+        f"To plan a flight that tells them apart: {plan}. Add it with: omavctl fit f"
+    )
+    done = Line("missing", "Missing: x.", command="omavctl fit f")
+    assert done.plain() == "Missing: x. Add it with: omavctl fit f"
+
+
+def test_an_input_moved_around_another_level_is_a_mismatch_not_an_unexcited_input():
+    """A PX4 octocopter model (normalised thrust: fz/m near 0.2 in training) on an omav
+    log (fz/m 8.4 to 11.3 m/s^2) said the log goes 383 training ranges beyond "because
+    the fit flight did not move it, not ... because model and log differ"."""
+    import numpy as np
+
+    from omavctl.diagnose.metrics import envelope_flags, training_envelope
+
+    t = np.linspace(0.0, 10.0, 400)
+    train = np.stack([np.sin(t), 0.2 + 0.01 * np.sin(3 * t)], axis=1)
+    err, std = np.full((400, 3), 0.05), np.full((400, 3), 0.1)
+    around = np.stack([np.sin(1.3 * t), 0.2 + 0.5 * np.sin(2 * t)], axis=1)
+    elsewhere = np.stack([np.sin(1.3 * t), 9.8 + 1.5 * np.sin(2 * t)], axis=1)
+    env = training_envelope(train, around, ["fx/m", "fz/m"], err, std)
+    assert set(env["underexcited"]) == {"fz/m"}
+    assert [f["code"] for f in envelope_flags(env)] == ["underexcited"]
+    env = training_envelope(train, elsewhere, ["fx/m", "fz/m"], err, std)
+    assert env["underexcited"] == {}
+    (flag,) = envelope_flags(env)
+    assert flag["code"] == "far_outside_training"
+    assert flag["message"].startswith(
+        "The log goes 555 training ranges beyond the model's"
+    )  # (11.3 - 0.21) / 0.02
+
+
+def test_a_pinned_interval_never_prints_an_end_at_the_null():
+    """A Crazyflie fit printed inertia_error scale_x 1.103 [1, 1.21], pinned down (its
+    interval [1.00009, 1.206] excludes scale = 1), in the fit table and the verdict."""
+    from omavctl.cli.fit import _interval_text
+    from omavctl.diagnose.estimate_text import estimate_sentence
+    from omavctl.learn.intervals import interval_ends
+
+    assert interval_ends(1.0000934, 1.2061241, 1.0) == ("1.0001", "1.2061", 5)
+    assert interval_ends(0.0, 0.7242, 0.0) == ("0", "0.724", 3)  # cut at 0: the null
+    assert interval_ends(1.0000934, 1.2061241) == ("1", "1.21", 3)  # no null: as before
+    ends = (1.0000934, 1.2061241)
+    assert _interval_text(ends, True, ("inertia_error", "scale", 0)) == "[1.0001, 1.2061]"
+    entry = {
+        "name": "inertia_error",
+        "units": {"scale": "1"},
+        "estimate": {"scale": [1.1031], "scale_ci95": [list(ends)], "scale_pinned": [True]},
+    }
+    assert "scale = 1.1031 (95 %: 1.0001 to 1.2061)" in estimate_sentence(entry)
+    # the report's model lines (2 digits) too
+    from omavctl.report.diagnosis import _interval_note
+
+    params = {"scale_ci95": [list(ends)], "scale_pinned": [True]}
+    assert _interval_note(params, "scale", 0, "inertia_error") == " [1.0001, 1.2061]"
+    params = {"scale_ci95": [[0.8, 1.2]], "scale_pinned": [False]}
+    assert _interval_note(params, "scale", 0, "inertia_error").startswith(" [0.8, 1.2]: ")
+
+
+def test_the_json_verdict_says_which_command_only_tests_a_look_alike():
+    """`evaluate --json` and `report --json` gave a look-alike's test command and the
+    claimed effect's fit command alike ({key, text, command}): a script piping the
+    verdict's commands to a shell could not tell a claim from a test."""
+    from omavctl.report.summary import evaluation_json
+
+    out = evaluation_json(_ambiguous(0.28), {})
+    commanded = [(v["command"], v["test"]) for v in out["verdict"] if v["command"]]
+    assert commanded == [
+        ("omavctl fit f.bag --effects rotational_drag", False),
+        ("omavctl fit f.bag --effects command_delay", True),
+    ]
