@@ -6,7 +6,7 @@ command in a forked process (real exit status and stderr) and asserts: a
 non-zero exit is status 2 with exactly one ``error:`` line naming the file (or
 option) and no exception text; exit 0 leaves finite, schema-valid outputs (and
 never happens for an input invalid by construction); inputs are unchanged and
-no temporary file is left. ``make test`` runs 120 cases; ``make fuzz`` thousands
+no temporary file is left. ``make test`` runs 80 cases; ``make fuzz`` thousands
 (tools/fuzz_campaign.py); OMAVCTL_FUZZ_CASES / OMAVCTL_FUZZ_SEED override here.
 """
 
@@ -24,7 +24,7 @@ except ImportError:
     from fuzzkit.cases import build_base, iter_cases
     from fuzzkit.run import FAILURES, Outcome, run_all
 
-CASES = int(os.environ.get("OMAVCTL_FUZZ_CASES", "120"))
+CASES = int(os.environ.get("OMAVCTL_FUZZ_CASES", "80"))
 SEED = int(os.environ.get("OMAVCTL_FUZZ_SEED", "2026"))
 
 
