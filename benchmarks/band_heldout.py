@@ -248,19 +248,9 @@ def main() -> int:
                         "inside": [env["coverage_inside"][a] for a in "xyz"],
                     }
                 )
-    base = {(r["model"], r["held"]): r["coverage"] for r in rows if r["variant"] == "now"}
-    for name in dict.fromkeys(r["variant"] for r in rows):
-        sel = [r for r in rows if r["variant"] == name]
-        cov = np.array([r["coverage"] for r in sel]).ravel()
-        was = np.array([base[(r["model"], r["held"])] for r in sel]).ravel()
-        ins = np.array([np.nan if c is None else c for r in sel for c in r["inside"]], float)
-        has = np.isfinite(ins)
-        print(
-            f"{name:10} {cov.size} axis-flights: >= 0.85 on {(cov >= 0.85).sum()} "
-            f"(min {cov.min():.3f}; fell below {int(((was >= 0.85) & (cov < 0.85)).sum())}); "
-            f"inside <= 0.99 on {(ins[has] <= 0.99).sum()}/{has.sum()} "
-            f"(median {np.median(ins[has]):.3f})"
-        )
+    from benchmarks.band_variants import print_summary
+
+    print_summary(rows, "now", 10)
     if args.out:
         args.out.write_text("".join(json.dumps(r) + "\n" for r in rows))
     return 0

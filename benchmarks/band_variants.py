@@ -70,6 +70,25 @@ def judge(model: Any, log: Path) -> list[dict[str, Any]]:
     return rows
 
 
+def print_summary(rows: list[dict[str, Any]], base_variant: str, width: int) -> None:
+    """Per variant of ``rows`` (a row per model, held-out flight and variant, with its
+    per-axis ``coverage`` and ``inside``): the axis-flights >= 0.85, those that fell
+    below 0.85 from ``base_variant``, and those <= 0.99 inside the fit inputs."""
+    base = {(r["model"], r["held"]): r["coverage"] for r in rows if r["variant"] == base_variant}
+    for name in dict.fromkeys(r["variant"] for r in rows):
+        sel = [r for r in rows if r["variant"] == name]
+        cov = np.array([r["coverage"] for r in sel]).ravel()
+        was = np.array([base[(r["model"], r["held"])] for r in sel]).ravel()
+        ins = np.array([np.nan if c is None else c for r in sel for c in r["inside"]], float)
+        has = np.isfinite(ins)
+        print(
+            f"{name:{width}} {cov.size} axis-flights: coverage >= 0.85 on {(cov >= 0.85).sum()} "
+            f"(min {cov.min():.3f}; fell below {int(((was >= 0.85) & (cov < 0.85)).sum())}); "
+            f"inside <= 0.99 on {(ins[has] <= 0.99).sum()}/{has.sum()} "
+            f"(median {np.median(ins[has]):.3f})"
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     from omavctl.learn.model_file import load_model
 
@@ -85,19 +104,7 @@ def main(argv: list[str] | None = None) -> int:
             log = args.workdir / f"{case}-{held}.csv"
             if held != fit_on and log.exists():
                 rows += [{"model": path.stem, "held": held, **r} for r in judge(model, log)]
-    base = {(r["model"], r["held"]): r["coverage"] for r in rows if r["variant"] == "before"}
-    for name in dict.fromkeys(r["variant"] for r in rows):
-        sel = [r for r in rows if r["variant"] == name]
-        cov = np.array([r["coverage"] for r in sel]).ravel()
-        was = np.array([base[(r["model"], r["held"])] for r in sel]).ravel()
-        ins = np.array([np.nan if c is None else c for r in sel for c in r["inside"]], float)
-        has = np.isfinite(ins)
-        print(
-            f"{name:18} {cov.size} axis-flights: coverage >= 0.85 on {(cov >= 0.85).sum()} "
-            f"(min {cov.min():.3f}; fell below {int(((was >= 0.85) & (cov < 0.85)).sum())}); "
-            f"inside <= 0.99 on {(ins[has] <= 0.99).sum()}/{has.sum()} "
-            f"(median {np.median(ins[has]):.3f})"
-        )
+    print_summary(rows, "before", 18)
     if args.out:
         args.out.write_text("".join(json.dumps(r) + "\n" for r in rows))
     return 0

@@ -336,8 +336,8 @@ def test_a_learned_effect_the_second_model_adds_is_not_offered_again():
     assert [ln.text for ln in report_verdict([(tree, "eval.json")])] == texts
 
 
-def test_an_effect_named_as_a_look_alike_comes_with_the_command_that_tests_it():
-    """ "Ambiguous with command_delay" named an effect without a way to test it."""
+def ambiguous_drag() -> dict[str, Any]:
+    """An evaluation naming rotational_drag missing, command_delay its look-alike."""
     tree = _nothing_missing()
     diag = tree["diagnosis"]
     diag["unexplained"] = []
@@ -350,6 +350,12 @@ def test_an_effect_named_as_a_look_alike_comes_with_the_command_that_tests_it():
         "rotational_drag": "omavctl fit f.bag --effects rotational_drag",
         "command_delay": "omavctl fit f.bag --effects command_delay",
     }
+    return tree
+
+
+def test_an_effect_named_as_a_look_alike_comes_with_the_command_that_tests_it():
+    """ "Ambiguous with command_delay" named an effect without a way to test it."""
+    tree = ambiguous_drag()
     lines = verdict(tree)
     assert "Ambiguous with command_delay" in lines[0].text
     assert lines[1].text == (

@@ -14,23 +14,12 @@ from typing import Any
 
 from omavctl.diagnose.change import report_verdict
 from omavctl.diagnose.verdict import Line, verdict
-from tests.test_verdict_ux import _nothing_missing
+from tests.test_verdict_ux import ambiguous_drag
 
 
 def _ambiguous(rmse_y: float) -> dict[str, Any]:
     """rotational_drag missing, command_delay its look-alike, model y error ``rmse_y``."""
-    tree = _nothing_missing()
-    diag = tree["diagnosis"]
-    diag["unexplained"] = []
-    diag["missing"] = ["rotational_drag"]
-    diag["missing_effects"] = [
-        {"name": "rotational_drag", "explained_variance": 0.31, "ambiguous_with": ["command_delay"]}
-    ]
-    diag["fit_command"] = "omavctl fit f.bag --effects rotational_drag"
-    diag["effect_commands"] = {
-        "rotational_drag": "omavctl fit f.bag --effects rotational_drag",
-        "command_delay": "omavctl fit f.bag --effects command_delay",
-    }
+    tree = ambiguous_drag()
     tree["metrics"]["model"]["rmse"]["y"] = rmse_y
     tree["metrics"]["nominal"] = {"rmse": {"x": 0.9, "y": 1.6, "z": 0.16}}
     return tree
