@@ -504,20 +504,29 @@ def test_the_band_grows_beyond_the_training_inputs_and_the_mean_does_not_move(ve
     )
 
 
+def _check_optional_key(path, tmp_path, key, saved, default, bad):
+    """The model file at ``path`` reads ``key`` back as ``saved``; without the key (a
+    file from before it) as ``default`` (None: not checked); with ``bad`` it is refused."""
+    np.testing.assert_array_equal(getattr(load_model(path), key), saved)
+    if default is not None:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files if k != key}
+        old = tmp_path / "old.npz"
+        np.savez(old, **arrays)
+        np.testing.assert_array_equal(getattr(load_model(old), key), default)
+    negative = tmp_path / "negative.npz"
+    _rewrite(path, negative, **{key: bad})
+    assert _refused(negative) == f"{negative}: key '{key}' must not be negative"
+
+
 def test_beyond_scale_round_trips_and_is_checked(vehicle, tmp_path):
     model = make_model(vehicle)
     model.beyond_scale = np.array([0.5, 0.75, 1.5])
     good = tmp_path / "good.npz"
     save_model(good, model)
-    np.testing.assert_array_equal(load_model(good).beyond_scale, [0.5, 0.75, 1.5])
-    with np.load(good, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files if k != "beyond_scale"}
-    old = tmp_path / "old.npz"
-    np.savez(old, **arrays)
-    np.testing.assert_array_equal(load_model(old).beyond_scale, np.zeros(3))
-    negative = tmp_path / "negative.npz"
-    _rewrite(good, negative, beyond_scale=np.array([0.5, -1.0, 0.5]))
-    assert _refused(negative) == f"{negative}: key 'beyond_scale' must not be negative"
+    _check_optional_key(
+        good, tmp_path, "beyond_scale", [0.5, 0.75, 1.5], np.zeros(3), np.array([0.5, -1.0, 0.5])
+    )
 
 
 def test_the_band_noise_rises_to_the_floor_only_beyond_the_fit_inputs(vehicle, tmp_path):
@@ -543,15 +552,8 @@ def test_the_band_noise_rises_to_the_floor_only_beyond_the_fit_inputs(vehicle, t
     np.testing.assert_array_equal(mean_in, mean_before)
     path = tmp_path / "m.npz"
     save_model(path, model)
-    np.testing.assert_array_equal(load_model(path).band_noise, band)
-    with np.load(path, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files if k != "band_noise"}
-    old = tmp_path / "old.npz"
-    np.savez(old, **arrays)
-    np.testing.assert_array_equal(load_model(old).band_noise, model.noise_variance)
-    negative = tmp_path / "negative.npz"
-    _rewrite(path, negative, band_noise=np.array([1e-4, -1e-4, 1e-4]))
-    assert _refused(negative) == f"{negative}: key 'band_noise' must not be negative"
+    bad = np.array([1e-4, -1e-4, 1e-4])
+    _check_optional_key(path, tmp_path, "band_noise", band, model.noise_variance, bad)
 
 
 def test_the_band_grows_with_the_torque_beyond_the_fit_flights(vehicle, tmp_path):
@@ -585,15 +587,8 @@ def test_the_band_grows_with_the_torque_beyond_the_fit_flights(vehicle, tmp_path
     model.torque_growth = growth
     path = tmp_path / "m.npz"
     save_model(path, model)
-    np.testing.assert_array_equal(load_model(path).torque_growth, growth)
-    with np.load(path, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files if k != "torque_growth"}
-    old = tmp_path / "old.npz"
-    np.savez(old, **arrays)
-    np.testing.assert_array_equal(load_model(old).torque_growth, np.zeros(3))
-    negative = tmp_path / "negative.npz"
-    _rewrite(path, negative, torque_growth=np.array([0.3, -0.1, 0.3]))
-    assert _refused(negative) == f"{negative}: key 'torque_growth' must not be negative"
+    bad = np.array([0.3, -0.1, 0.3])
+    _check_optional_key(path, tmp_path, "torque_growth", growth, np.zeros(3), bad)
 
 
 def test_the_band_grows_with_the_reach_beyond_the_training_inputs(vehicle, tmp_path):
@@ -618,7 +613,5 @@ def test_the_band_grows_with_the_reach_beyond_the_training_inputs(vehicle, tmp_p
     np.testing.assert_allclose(added[3], 0.5 * (model.range_growth * 0.375) ** 2, rtol=1e-9)
     path = tmp_path / "m.npz"
     save_model(path, model)
-    np.testing.assert_array_equal(load_model(path).range_growth, [0.4, 0.2, 0.1])
-    negative = tmp_path / "negative.npz"
-    _rewrite(path, negative, range_growth=np.array([0.3, -0.1, 0.3]))
-    assert _refused(negative) == f"{negative}: key 'range_growth' must not be negative"
+    bad = np.array([0.3, -0.1, 0.3])
+    _check_optional_key(path, tmp_path, "range_growth", [0.4, 0.2, 0.1], None, bad)

@@ -232,13 +232,11 @@ def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> 
     """'[low, high]' of a 95 % interval (and '(cut at T_m ≥ 0)' where it ends at the
     parameter's physical bound), and, when it does not pin the parameter (effect,
     parameter, component) down, why, in words that follow the interval."""
-    import numpy as np
-
-    from omavctl.learn.intervals import bound_note, interval_ends, null_values, unpinned_words
+    from omavctl.diagnose.estimate_text import null_component
+    from omavctl.learn.intervals import bound_note, interval_ends, unpinned_words
 
     lo, hi = (float(x) for x in interval)
-    null = np.asarray(null_values(which[0])[which[1]], float).reshape(-1)
-    a, b, _ = interval_ends(lo, hi, float(null[min(which[2], null.size - 1)]))
+    a, b, _ = interval_ends(lo, hi, null_component(*which))
     text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
     if note := bound_note(which[0], which[1], lo):
         text += f" ({note})"

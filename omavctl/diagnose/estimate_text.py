@@ -27,7 +27,10 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
     differently (the thrust spread beside a centre-of-mass offset) may move the
     estimate by more than it, which ``fit`` on both flights then shows. Its ends are
     printed with as many digits as it takes to tell them apart (3 to 6): "0.0123 to
-    0.0123" read as an interval of zero width."""
+    0.0123" read as an interval of zero width, nor an end as the effect's null that it
+    is not (:func:`omavctl.learn.intervals.interval_ends`)."""
+    from omavctl.learn.intervals import interval_ends
+
     est = entry.get("estimate")
     if not isinstance(est, Mapping):
         return ""
@@ -46,9 +49,8 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
                 unclaimed.append(labels[i])
                 continue
             u = "" if unit == "1" else f" {unit}"
-            lo, hi, digits = _distinct(
-                ci[0], ci[1], null_component(str(entry.get("name")), name, i)
-            )
+            null = null_component(str(entry.get("name")), name, i)
+            lo, hi, digits = interval_ends(float(ci[0]), float(ci[1]), null)
             text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {lo} to {hi}"
             if note := _bound_note(str(entry.get("name")), name, ci[0]):
                 text += f", {note}"
@@ -64,15 +66,6 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             "here."
         )
     return text
-
-
-def _distinct(lo: float, hi: float, null: float | None = None) -> tuple[str, str, int]:
-    """Both ends of an interval with the fewest significant digits (3 to 6) that print
-    them apart (and apart from the effect's ``null``), and that number of digits
-    (:func:`omavctl.learn.intervals.interval_ends`; imported here, when needed)."""
-    from omavctl.learn.intervals import interval_ends
-
-    return interval_ends(float(lo), float(hi), null)
 
 
 def null_component(effect: str, param: str, i: int) -> float | None:
