@@ -563,7 +563,13 @@ def test_run_until_stops_at_the_count_above_the_floor(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize(
-    "old,new", [("report2", "report3"), ("report3", "report4"), ("report4", "report5")]
+    "old,new",
+    [
+        ("report2", "report3"),
+        ("report3", "report4"),
+        ("report4", "report5"),
+        ("report5", "report6"),
+    ],
 )
 def test_each_report_split_is_fresh(old: str, new: str) -> None:
     """Each report split (declared after the one before had its records read) has the
