@@ -128,10 +128,36 @@ def test_look_alikes_are_named_as_an_ambiguous_set_with_the_separating_plan():
     }
     command = separate_command(diagnosis, "m0.npz")
     assert command is not None
-    assert command.startswith("omavctl task fig8 --out fig8.csv && omavctl plan --task fig8.csv")
+    assert command.startswith(
+        "omavctl task fig8 --out m0.fig8.csv && omavctl plan --task m0.fig8.csv"
+    )
     assert "--model m0.npz --objective effects --effects " in command
+    assert command.endswith(" --out m0.separate.csv")
     names = command.split("--effects ")[1].split()[0].split(",")
     assert set(names) == {"com_offset", "inertia_error"}
+
+
+def test_the_separating_commands_write_beside_the_model_not_over_the_users_files(
+    tmp_path, monkeypatch
+):
+    """The printed task/plan commands wrote fig8.csv and next.csv into the directory the
+    user ran them from, replacing a task file of their own (session 13)."""
+    import shlex
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "fig8.csv").write_text("the user's own task\n")
+    (tmp_path / "next.csv").write_text("the user's own plan\n")
+    (tmp_path / "run 2").mkdir()
+    diagnosis = {
+        "missing": ["rotational_drag"],
+        "missing_effects": [{"name": "rotational_drag", "ambiguous_with": ["command_delay"]}],
+    }
+    command = separate_command(diagnosis, str(tmp_path / "run 2" / "gp.npz"))
+    assert command is not None
+    words = shlex.split(command)
+    outs = [words[i + 1] for i, w in enumerate(words) if w == "--out"]
+    assert outs == ["run 2/gp.fig8.csv", "run 2/gp.separate.csv"]
+    assert "--task 'run 2/gp.fig8.csv'" in command
 
 
 def test_the_fit_command_adds_every_missing_effect_in_one_fit():
@@ -200,7 +226,7 @@ def test_the_verdict_names_every_claimed_effect_and_one_command_for_them():
     from omavctl.diagnose.verdict import verdict
 
     command = "omavctl fit fit.bag --effects motor_lag,com_offset --out m0+motor_lag+com_offset.npz"
-    separate = "omavctl task fig8 --out fig8.csv && omavctl plan --task fig8.csv ..."
+    separate = "omavctl task fig8 --out m0.fig8.csv && omavctl plan --task m0.fig8.csv ..."
     tree = {
         "diagnosis": {
             "missing": ["motor_lag", "com_offset"],

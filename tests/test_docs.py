@@ -111,11 +111,13 @@ def test_getting_started_quotes_the_demo_numbers_the_tool_generated():
         == "omavctl fit examples/build/flight-01 --effects a,b --out build/first/gp+b.npz --seed 0"
     )
     # the verdict's plan command names the model the page fitted (build/first/gp.npz)
+    # and writes its task and plan beside it, not over the user's files
     assert tool._as_typed_in_the_doc(
-        "omavctl task fig8 --out fig8.csv && omavctl plan --task fig8.csv --model build/gp.npz"
+        "omavctl task fig8 --out build/gp.fig8.csv && omavctl plan --task build/gp.fig8.csv "
+        "--model build/gp.npz --out build/gp.separate.csv"
     ) == (
-        "omavctl task fig8 --out fig8.csv && omavctl plan --task fig8.csv --model "
-        "build/first/gp.npz"
+        "omavctl task fig8 --out build/first/gp.fig8.csv && omavctl plan --task "
+        "build/first/gp.fig8.csv --model build/first/gp.npz --out build/first/gp.separate.csv"
     )
     assert "--model build/gp.npz" not in doc
     walk = doc[doc.index("## 3.") : doc.index("## 5.")]

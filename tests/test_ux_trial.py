@@ -117,7 +117,7 @@ def test_the_report_verdict_titles_a_sentence_once_and_sets_the_plan_command_in_
     from omavctl.report.document import _md_inline
     from omavctl.report.top import verdict_section
 
-    sep = "omavctl task fig8 --out fig8.csv && omavctl plan --model m.npz --out next.csv"
+    sep = "omavctl task fig8 --out m.fig8.csv && omavctl plan --model m.npz --out m.separate.csv"
     tree = {
         "diagnosis": {
             "missing": ["motor_loss"],

@@ -4,7 +4,7 @@
 with: omavctl fit ... --effects ...,command_delay" where `evaluate` had said "test it
 with": re-labelling each file's lines dropped whether the command adds a claimed effect
 or only tests a look-alike. And the plain text ran the plan command on into the next
-sentence ("... --out next.csv Add it with: ...").
+sentence ("... --out m.separate.csv Add it with: ...").
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def test_a_report_keeps_test_it_with_for_a_look_alike():
 
 
 def test_a_sentence_that_ends_in_a_command_gets_its_full_stop():
-    plan = "omavctl plan --task fig8.csv --objective effects --out next.csv"
+    plan = "omavctl plan --task m.fig8.csv --objective effects --out m.separate.csv"
     line = Line(
         "missing", f"To plan a flight that tells them apart: {plan}", command="omavctl fit f"
     )

@@ -34,7 +34,8 @@ AXES = ("x", "y", "z")
 def _as_typed_in_the_doc(command: str) -> str:
     """A demo command (run in examples/, outputs in build/) as the page types it: from
     the repository's top, the demo's logs in examples/build/, new outputs and the models
-    the page fits in build/first/; commands joined by ``&&`` each so."""
+    the page fits in build/first/ (and the separating plan's task, which the verdict
+    writes beside the model); commands joined by ``&&`` each so."""
     if " && " in command:
         return " && ".join(_as_typed_in_the_doc(c) for c in command.split(" && "))
     words = shlex.split(command)
@@ -42,7 +43,7 @@ def _as_typed_in_the_doc(command: str) -> str:
     for prev, word in zip(["", *words], words, strict=False):
         if word.startswith("build/"):
             rest = word.removeprefix("build/")
-            mine = prev in ("--out", "--model")
+            mine = prev in ("--out", "--model", "--task")
             word = f"build/first/{rest}" if mine else f"examples/build/{rest}"
         out.append(word)
     return shlex.join(out)

@@ -53,7 +53,13 @@ def effect_commands(
 def separate_command(diagnosis: dict[str, Any], model_path: str) -> str | None:
     """The commands that plan a flight telling the top missing effect from the
     look-alikes it is ambiguous with (``plan --objective effects`` on a figure-8
-    task), None when it has none."""
+    task), None when it has none.
+
+    Both files go beside the model, named after it (``M.fig8.csv``, the task, and
+    ``M.separate.csv``, the planned flight), never into the directory the user runs
+    the command from, where ``fig8.csv`` or ``next.csv`` may be the user's own files
+    (``task`` and ``plan`` replace an existing ``--out``).
+    """
     from omavctl.base.shell import display_path, shell_join
 
     top = (diagnosis.get("missing") or [None])[0]
@@ -64,10 +70,12 @@ def separate_command(diagnosis: dict[str, Any], model_path: str) -> str | None:
     if not top or not alike:
         return None
     names = ",".join([str(top), *alike])
-    task = shell_join(["omavctl", "task", "fig8", "--out", "fig8.csv"])
     model = display_path(model_path)
-    words = ["plan", "--task", "fig8.csv", "--model", model, "--objective", "effects"]
-    plan = shell_join(["omavctl", *words, "--effects", names, "--out", "next.csv"])
+    stem = str(Path(model).with_suffix(""))
+    fig8, out = f"{stem}.fig8.csv", f"{stem}.separate.csv"
+    task = shell_join(["omavctl", "task", "fig8", "--out", fig8])
+    words = ["plan", "--task", fig8, "--model", model, "--objective", "effects"]
+    plan = shell_join(["omavctl", *words, "--effects", names, "--out", out])
     return f"{task} && {plan}"
 
 
