@@ -13,16 +13,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
-from omavctl.diagnose.verdict import (
-    AXES,
-    Line,
-    ModelScore,
-    _num,
-    _pct,
-    _signed,
-    get_path,
-    verdict,
-)
+from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.verdict import verdict
+from omavctl.diagnose.verdict_lines import AXES, Line, ModelScore, _pct, _signed, get_path
 
 __all__ = [
     "MATERIAL_FALL",

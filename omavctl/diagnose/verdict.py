@@ -4,26 +4,43 @@ What is missing (or that nothing is), where the model fails and what the
 vehicle was doing there, and whether its uncertainty can be trusted. Used by
 ``evaluate``'s terminal summary and at the top of the report; works on the
 evaluation JSON tree (schema ``omavctl.eval/1``) only, treating missing keys as
-empty. The before/after change of two models or files, and the verdict of a
-report of several, are :mod:`omavctl.diagnose.change`.
+empty. This module says what is missing or learned and orders the lines; the
+sentence type and the lines on where the model fails, its band, the inputs it
+left and the flags are :mod:`omavctl.diagnose.verdict_lines`. The before/after
+change of two models or files, and the verdict of a report of several, are
+:mod:`omavctl.diagnose.change`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from omavctl.diagnose import claim_text as ct
-from omavctl.diagnose.activity import activity, fails_text
+from omavctl.diagnose.activity import activity
 from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
-from omavctl.diagnose.horizon_findings import open_loop_narrow
 from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained
+from omavctl.diagnose.verdict_lines import (
+    AXES,
+    COVERAGE_MIN,
+    FIRST_FLAGS,
+    Line,
+    ModelScore,
+    _pct,
+    coverage_of,
+    envelope_line,
+    excluded_line,
+    fails_line,
+    flag_lines,
+    get_path,
+    uncertainty_line,
+)
 
 __all__ = [
+    "AXES",
     "COVERAGE_MIN",
     "Line",
     "ModelScore",
@@ -33,78 +50,6 @@ __all__ = [
     "learned_not_modelled",
     "verdict",
 ]
-
-AXES = ("x", "y", "z")
-#: Below this fraction of samples within 2 sigma the uncertainty is overconfident.
-COVERAGE_MIN = 0.8
-#: Above this fraction, with a predicted std far above the error, underconfident.
-COVERAGE_UNDER = 0.995
-#: From this fraction up the uncertainty "can be trusted"; between COVERAGE_MIN and
-#: it, it is called a little narrow.
-COVERAGE_GOOD = 0.9
-
-
-@dataclass(frozen=True)
-class Line:
-    """One sentence of the verdict: ``key`` (missing, learned, change, fails, uncertainty,
-    envelope, excluded, flag), its text, which file it is about (``who``, '' for the only one)
-    and a command to run (the fit command that adds the missing effect)."""
-
-    key: str
-    text: str
-    who: str = ""
-    command: str | None = None
-    #: the effect the sentence is about, when it is about one ('' otherwise)
-    subject: str = ""
-    test: bool = False  # the command tests a suggestion the flight did not confirm
-
-    def plain(self) -> str:
-        """The sentence with its file and command, as one line of text."""
-        text = f"{self.who}: {self.text}" if self.who else self.text
-        stop = "" if text.endswith((".", ":", "?", "!")) else "."  # after a plan command
-        return f"{text}{stop} {self.add_words}: {self.command}" if self.command else text
-
-    @property
-    def add_words(self) -> str:
-        """'Add it with' ('Add them with': several effects; 'Test it with': unconfirmed)."""
-        return (
-            "Test it with"
-            if self.test
-            else "Add them with"
-            if " Also: " in self.text
-            else "Add it with"
-        )
-
-
-@dataclass(frozen=True)
-class ModelScore:
-    """A model as the before/after comparison needs it."""
-
-    label: str
-    effects: tuple[str, ...]
-    effect_params: Mapping[str, Any]
-    rmse: Mapping[str, float]
-    tree: Mapping[str, Any]
-
-
-def get_path(tree: Any, *keys: Any, default: Any = None) -> Any:
-    """``tree[k0][k1]...`` or ``default`` when any level is missing."""
-    for k in keys:
-        if isinstance(tree, Mapping) and k in tree:
-            tree = tree[k]
-        elif isinstance(tree, list) and isinstance(k, int) and -len(tree) <= k < len(tree):
-            tree = tree[k]
-        else:
-            return default
-    return tree
-
-
-def _pct(v: float) -> str:
-    return f"{100 * v:.0f} %"
-
-
-def _signed(v: float) -> str:
-    return f"{100 * v:+.1f} %".replace("-", "−")
 
 
 # ------------------------------------------------------------------ missing
@@ -335,165 +280,21 @@ def _look_alikes(name: str) -> str:
     return effect.look_alikes if effect is not None else ""
 
 
-# --------------------------------------------------------------- where/why
-def _fails_line(tree: Mapping[str, Any]) -> Line | None:
-    text = fails_text(tree)
-    return Line("fails", text) if text else None
-
-
-def coverage_of(metrics: Mapping[str, Any]) -> dict[str, float]:
-    """Per-axis fraction within 2 sigma (key ``coverage`` or ``coverage_2sigma``)."""
-    cov = metrics.get("coverage") or metrics.get("coverage_2sigma") or {}
-    return {a: v for a in AXES if (v := _num(get_path(cov, a))) is not None}
-
-
-def _shares(cov: Mapping[str, float], axes: Sequence[str]) -> str:
-    """'x 41 %, y 90 %' of the given axes."""
-    return ", ".join(f"{a} {_pct(cov[a])}" for a in axes)
-
-
-def _uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
-    model = get_path(tree, "metrics", "model", default={}) or {}
-    cov = coverage_of(model)
-    if not cov:
-        return None
-    over = [a for a in AXES if a in cov and cov[a] < COVERAGE_MIN]
-    std, rmse = model.get("mean_std") or {}, model.get("rmse") or {}
-    under = [
-        a
-        for a in AXES
-        if a in cov
-        and cov[a] > COVERAGE_UNDER
-        and (s := _num(std.get(a))) is not None
-        and (r := _num(rmse.get(a))) is not None
-        and s > 2 * r
-    ]
-    shown = _shares(cov, [a for a in AXES if a in cov])
-    narrow = [a for a in AXES if a in cov and round(100 * cov[a]) < 100 * COVERAGE_GOOD]
-    if over:
-        text = (
-            f"Uncertainty overconfident on {', '.join(over)}: only "
-            f"{_shares(cov, over)} of the samples lie within "
-            "the predicted 2σ (95 % expected); do not trust its error bars there"
-            + (f" (within 2σ: {shown})." if len(over) < len(cov) else ".")
-        )
-    elif under:
-        text = (
-            f"Uncertainty underconfident on {', '.join(under)}: the predicted σ is more "
-            f"than twice the actual error (within 2σ: {shown})"
-            + (f"; a little narrow on {', '.join(narrow)}." if narrow else ".")
-        )
-    elif narrow:
-        text = (
-            f"Uncertainty a little narrow on {', '.join(narrow)}: "
-            f"{_shares(cov, narrow)} of the samples lie within "
-            f"the predicted 2σ (95 % expected); use its error bars with care there "
-            f"(within 2σ: {shown})."
-        )
-    hor = open_loop_narrow(tree.get("horizons"))  # the horizon table's band, if narrow
-    if not (over or under or narrow):
-        ahead = " one step ahead" if hor else ""
-        text = f"Uncertainty can be trusted{ahead}: within 2σ {shown} (95 % expected)."
-    return Line("uncertainty", f"{text[:-1]}; {hor}." if hor else text)
-
-
-#: Share of a flight outside the model's training inputs from which the verdict says so.
-ENVELOPE_SHARE = 0.25
-
-
-def _envelope_line(tree: Mapping[str, Any]) -> Line | None:
-    """How much of the flight left the inputs the model was trained on, and whether
-    its band still covers the errors there (``envelope`` of the evaluation)."""
-    env = tree.get("envelope")
-    if not isinstance(env, Mapping):
-        return None
-    share = _num(env.get("outside_fraction"))
-    if share is None or share < ENVELOPE_SHARE:
-        return None
-    beyond = env.get("beyond") or {}
-    most = ", ".join(
-        f"{name} {v:.1f}×" for name, v in list(beyond.items())[:2] if _num(v) is not None
-    )
-    out, inside = env.get("coverage_outside") or {}, env.get("coverage_inside") or {}
-    low = [a for a in AXES if (v := _num(out.get(a))) is not None and v < COVERAGE_MIN]
-    where = [f"furthest, in training ranges beyond them: {most}"] if most else []
-    unvaried = ", ".join(str(name) for name in env.get("unvaried") or {})
-    if unvaried:  # constant in training: no range to measure the distance in
-        where.append(f"not varied in training, varied here: {unvaried}")
-    text = (
-        f"{_pct(share)} of the samples lie outside the inputs the model was trained on "
-        f"({'; '.join(where)})"
-    )
-    flags = tree.get("flags") or []
-    far = ("far_outside_training", "underexcited")
-    if any(isinstance(f, Mapping) and f.get("code") in far for f in flags):
-        return Line("envelope", text + ".")  # no word on a band that far out: the flag's
-    if low:
-        there = ", ".join(f"{a} {_pct(out[a])}" for a in low)
-        here = ", ".join(f"{a} {_pct(v)}" for a in low if (v := _num(inside.get(a))) is not None)
-        text += (
-            f"; there the 2σ band covers only {there} (inside: {here or 'no samples'}): "
-            "the model extrapolates; fly a flight that covers these inputs and fit on both."
-        )
-    else:
-        text += "; its band still covers the errors there."
-    return Line("envelope", text)
-
-
-def _excluded_line(tree: Mapping[str, Any]) -> Line | None:
-    spans = [s for s in tree.get("excluded_spans") or [] if isinstance(s, Mapping)]
-    if not spans:
-        return None
-    total = sum(
-        max((_num(s.get("end")) or 0.0) - (_num(s.get("start")) or 0.0), 0.0) for s in spans
-    )
-    reasons = sorted({str(s.get("reason", "")) for s in spans if s.get("reason")})
-    text = f"Kept out of the metrics: {len(spans)} span(s), {total:.1f} s"
-    text += f" ({'; '.join(reasons)})." if reasons else "."
-    return Line("excluded", text)
-
-
-def _flag_lines(tree: Mapping[str, Any]) -> list[Line]:
-    out = []
-    for flag in tree.get("flags") or []:
-        if not isinstance(flag, Mapping) or flag.get("code") in ("overconfident", "out_of_control"):
-            continue  # the uncertainty and kept-out sentences say these
-        message = str(flag.get("message", flag.get("code", "")))
-        axis = (
-            f"axis {flag['axis']}: " if flag.get("axis") and not message.startswith("axis") else ""
-        )
-        key = FIRST_FLAGS.get(str(flag.get("code")), "flag")
-        out.append(Line(key, f"{axis}{message}"))
-    return out
-
-
-#: Flags said before everything else (their line keys): what follows them is not a
-#: held-out judgement, or not of a model that belongs to the log.
-FIRST_FLAGS = {
-    "training_data": "training",
-    "underexcited": "underexcited",
-    "far_outside_training": "mismatch",
-    # a model that does not help on some axis: said before "nothing missing"
-    "worse_than_physics": "worse",
-    "no_better_than_zero": "worse",
-}
-
-
 def verdict(tree: Mapping[str, Any]) -> list[Line]:
     """The verdict of one evaluation: missing, where it fails, uncertainty, flags; a
     log the model was fitted on, one far beyond its inputs, or an axis the model does
     not help on is said first."""
-    flags = _flag_lines(tree)
+    flags = flag_lines(tree)
     first = set(FIRST_FLAGS.values())
     rank = {key: i for i, key in enumerate(dict.fromkeys(FIRST_FLAGS.values()))}
     firsts = sorted((ln for ln in flags if ln.key in first), key=lambda ln: rank[ln.key])
     lines = [*firsts, _missing_line(tree), *_alternative_lines(tree)]
     for line in (
         _learned_line(tree),
-        _fails_line(tree),
-        _uncertainty_line(tree),
-        _envelope_line(tree),
-        _excluded_line(tree),
+        fails_line(tree),
+        uncertainty_line(tree),
+        envelope_line(tree),
+        excluded_line(tree),
     ):
         if line is not None:
             lines.append(line)
