@@ -164,6 +164,37 @@ def test_a_worse_axis_with_no_reason_in_the_files_claims_none():
     )
 
 
+def test_a_worse_axis_says_whether_the_physics_or_the_gp_part_rose():
+    """The real Crazyflie halves (docs/real-motors.md): with motor_lag added the yaw
+    error rose 1.46 -> 2.07 rad/s^2, the physics-only error as much (1.51 -> 2.24); the
+    line blamed the refitted GP. It now says which factor of model = physics x (model /
+    physics) rose, from the physics-only error of both files."""
+
+    def worse(physics0: float, physics1: float, model1: float = 0.0581) -> str:
+        before, after = copy.deepcopy(BEFORE), copy.deepcopy(AFTER)
+        before["diagnosis"]["method"]["measurement_noise_std"] = 0.001
+        before["metrics"]["effects"] = {"rmse": {"x": 0.2, "y": 0.5, "z": physics0}}
+        after["metrics"]["effects"] = {"rmse": {"x": 0.1, "y": 0.2, "z": physics1}}
+        after["metrics"]["model"]["rmse"]["z"] = model1
+        scores = scores_of_files([(before, "before.json"), (after, "after.json")])
+        return change_lines(scores)[-1].text
+
+    assert worse(0.0481, 0.0714) == (  # 0.0465 -> 0.0581 (+24.9 %), physics +48.4 %
+        "Axis z got worse (+24.9 %): rotational_drag explained 0 % of the z error; its "
+        "fitted D_z = 0.036 ± 0.079 is indistinguishable from 0; the physics-only error on z "
+        "rose 0.0481 → 0.0714 rad/s² (+48.4 %) and the model's error relative to it went "
+        "0.97× → 0.81×: the refitted effects made z worse, not the GP."
+    )
+    gp = worse(0.0481, 0.0470)
+    assert gp.endswith(
+        "the physics-only error on z fell 0.0481 → 0.047 rad/s² (−2.3 %) and the model's "
+        "error relative to it went 0.97× → 1.24×: the refitted GP made z worse, not the "
+        "effects."
+    )
+    both = worse(0.0481, 0.0538)  # +11.9 % of the +24.9 %
+    assert both.endswith("both the refitted effects and the GP made z worse.")
+
+
 def test_flags_and_excluded_spans_when_present():
     tree = copy.deepcopy(AFTER)
     tree["flags"] = [

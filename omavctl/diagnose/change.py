@@ -40,7 +40,8 @@ def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Mode
     for tree, label in evals:
         effects = get_path(tree, "models", 0, "effects", default={}) or {}
         rmse = get_path(tree, "metrics", "model", "rmse", default={}) or {}
-        out.append(ModelScore(label, tuple(effects), effects, rmse, tree))
+        physics = get_path(tree, "metrics", "effects", "rmse", default={}) or {}
+        out.append(ModelScore(label, tuple(effects), effects, rmse, tree, physics))
     return out
 
 
@@ -52,7 +53,9 @@ def scores_of_models(tree: Mapping[str, Any]) -> list[ModelScore]:
     for m, metrics in zip(models, by_model, strict=False):
         effects = m.get("effects") or {}
         rmse = get_path(metrics, "model", "rmse", default={}) or {}
-        out.append(ModelScore(str(m.get("name", "?")), tuple(effects), effects, rmse, tree))
+        physics = get_path(metrics, "effects", "rmse", default={}) or {}
+        name = str(m.get("name", "?"))
+        out.append(ModelScore(name, tuple(effects), effects, rmse, tree, physics))
     return out
 
 
@@ -99,8 +102,9 @@ def _worse_reason(
                     f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable from 0"
                 )
             misfit += _disagreement(key, axis, v, se, held, i)
+    part = _which_part(before, after, axis)
     if misfit:  # the effect's own estimate is off: that is the reason, not the GP
-        return "; ".join(misfit)
+        return "; ".join([*misfit, *([part[1]] if part else [])])
     noise = _num(get_path(before.tree, "diagnosis", "method", "measurement_noise_std"))
     r0, r1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
     if noise and r0 is not None and r1 is not None and max(r0, r1) < 3 * noise:
@@ -108,11 +112,36 @@ def _worse_reason(
             f"both errors are within {max(r0, r1) / noise:.1f}× the measurement noise "
             f"({noise:.2g} rad/s²)"
         )
+    if part is not None:  # the physics-only error says which part rose
+        return "; ".join([*reasons, part[1]])
     if not reasons:  # nothing in the files singles out the effect or the GP
         what = "the changed effects" if removed or not added else "the added effect"
         what += "s" if len(added) > 1 and not removed else ""
         return f"the files do not say why: {what} and the refitted GP changed together"
     return f"{'; '.join(reasons)}: the change comes from the refitted GP, not from the effect"
+
+
+def _which_part(before: ModelScore, after: ModelScore, axis: str) -> tuple[str, str] | None:
+    """Which part of the model made ``axis`` worse, from the physics-only error on the
+    same flight: the model's error is the physics-only error times the model's error
+    relative to it (the GP's part), so the rise splits into the two factors' rises (on
+    a log scale). ("physics" | "gp" | "both", the sentence), None when a file lacks the
+    physics-only error."""
+    p0, p1 = _num(before.physics.get(axis)), _num(after.physics.get(axis))
+    m0, m1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
+    if not (p0 and p1 and m0 and m1) or min(p0, p1, m0, m1) <= 0 or m1 <= m0:
+        return None
+    g0, g1 = m0 / p0, m1 / p1
+    share = math.log(p1 / p0) / math.log(m1 / m0)  # of the model error's rise
+    verb = "rose" if p1 > p0 else "fell"
+    phys = f"the physics-only error on {axis} {verb} {p0:.3g} → {p1:.3g} rad/s²"
+    phys += f" ({_signed(p1 / p0 - 1)})"
+    gp = f"the model's error relative to it went {g0:.2f}× → {g1:.2f}×"
+    if share >= 2 / 3:
+        return "physics", f"{phys} and {gp}: the refitted effects made {axis} worse, not the GP"
+    if share <= 1 / 3:
+        return "gp", f"{phys} and {gp}: the refitted GP made {axis} worse, not the effects"
+    return "both", f"{phys} and {gp}: both the refitted effects and the GP made {axis} worse"
 
 
 def ordered(first: ModelScore, last: ModelScore) -> tuple[ModelScore, ModelScore]:

@@ -11,7 +11,7 @@ and puts the lines in order; works on the evaluation JSON tree (schema
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from omavctl.diagnose.activity import fails_text
@@ -87,6 +87,8 @@ class ModelScore:
     effect_params: Mapping[str, Any]
     rmse: Mapping[str, float]
     tree: Mapping[str, Any]
+    #: the physics-only (nominal + effects) RMSE per axis on the same flight, when known
+    physics: Mapping[str, float] = field(default_factory=dict)
 
 
 def get_path(tree: Any, *keys: Any, default: Any = None) -> Any:
