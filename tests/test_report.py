@@ -163,7 +163,7 @@ def test_two_file_report_compares(evals, tmp_path):
     for axis in "xyz":
         change = 100 * (after[axis] - before[axis]) / before[axis]
         assert f"{change:+.1f} %" in table
-        assert summary.change()[axis] == f"{change:+.1f} %"
+        assert summary.change()[axis] == pytest.approx(change / 100, rel=1e-12)
     # the hidden effect drives x and y: adding it makes the error fall there
     assert after["x"] < before["x"] and after["y"] < before["y"]
     # the before/after bars + 2 evaluations x (error over time, effect signatures,
@@ -236,6 +236,27 @@ def _error_line(result) -> str:
     assert result.exit_code == 2, text
     assert "Traceback" not in text and len(text.splitlines()) == 1, text
     return text
+
+
+def test_report_json_gives_the_change_as_numbers(evals, tmp_path):
+    """`report --json`'s change per axis was a string ("-14.1 %"): a fraction now, null
+    (never NaN) where the first file's error is not a positive number."""
+    files = [evals / "before.json", evals / "after.json"]
+    ok = runner.invoke(app, ["report", *map(str, files), "--out", str(tmp_path / "r.md"), "--json"])
+    assert ok.exit_code == 0, ok.output
+    change = json.loads(ok.stdout)["change"]
+    before, after = (json.loads(f.read_text())["metrics"]["model"]["rmse"] for f in files)
+    assert change == {a: pytest.approx(after[a] / before[a] - 1.0, rel=1e-12) for a in "xyz"}
+    assert f"x {100 * change['x']:+.1f} %" in ok.stderr  # the terminal's line unchanged
+    from omavctl.cli.report import _report_json
+    from omavctl.report.evaluation import EvaluationSummary, ReportSummary
+
+    def ev(x: float) -> EvaluationSummary:
+        return EvaluationSummary("e", "e.json", {"x": x, "y": 1.0, "z": 2.0}, {}, [], None)
+
+    summary = ReportSummary(tmp_path / "r.md", "md", 0, [ev(0.0), ev(0.5)])
+    text = json.dumps(_report_json(summary, summary.out), allow_nan=False)
+    assert json.loads(text)["change"] == {"x": None, "y": 0.0, "z": 0.0}
 
 
 def test_cli(evals, tmp_path):

@@ -88,7 +88,7 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
         change = summary.change()
         con.print(
             f"change {summary.evaluations[0].label} -> {summary.evaluations[-1].label}: "
-            + ", ".join(f"{a} {change[a]}" for a in "xyz"),
+            + ", ".join(f"{a} {_signed_pct(change[a])}" for a in "xyz"),
             markup=False,
         )
     last = summary.evaluations[-1]
@@ -98,6 +98,11 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
         con.print(f"  {last.fit_command}", markup=False)
     figures = f", {summary.figures} figures" if summary.fmt == "html" else ""
     con.print(f"wrote {out} ({summary.fmt}{figures})", markup=False)
+
+
+def _signed_pct(change: float | None) -> str:
+    """A relative change (fraction) as '-14.1 %', 'n/a' where undefined."""
+    return "n/a" if change is None else f"{100 * change:+.1f} %"
 
 
 def _report_json(summary: Any, out: Path) -> dict[str, Any]:

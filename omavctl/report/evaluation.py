@@ -47,7 +47,7 @@ from omavctl.report.diagnosis import diagnosis_section
 from omavctl.report.document import Bullets, Document, Heading, Para, Span, to_html, to_markdown
 from omavctl.report.horizons import horizons_section
 from omavctl.report.load import Evaluation, load_for_report
-from omavctl.report.numfmt import AXES, percent_change
+from omavctl.report.numfmt import AXES, relative_change
 from omavctl.report.overview import overview_table, summary_of
 from omavctl.report.residuals import binned_section, time_section, worst_section
 from omavctl.report.top import figure_sections, verdict_section
@@ -178,10 +178,11 @@ class ReportSummary:
     evaluations: list[EvaluationSummary]
     verdict: list[Any] = field(default_factory=list)
 
-    def change(self) -> dict[str, str]:
-        """Per-axis % change of the model RMSE from the first file to the last."""
+    def change(self) -> dict[str, float | None]:
+        """Per-axis relative change of the model RMSE from the first file to the last,
+        as a fraction (-0.141: 14.1 % lower); None where undefined."""
         first, last = self.evaluations[0].model_rmse, self.evaluations[-1].model_rmse
-        return {a: percent_change(last[a], first[a]) for a in AXES}
+        return {a: relative_change(last[a], first[a]) for a in AXES}
 
 
 def _labels(paths: Sequence[str | Path]) -> list[str]:

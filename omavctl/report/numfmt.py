@@ -20,6 +20,7 @@ __all__ = [
     "num",
     "pct",
     "percent_change",
+    "relative_change",
     "torque_unit_unknown",
 ]
 
@@ -47,11 +48,19 @@ def pct(v: Any) -> str:
     return f"{100 * v:.1f} %" if finite(v) else "n/a"
 
 
+def relative_change(new: Any, old: Any) -> float | None:
+    """``(new - old) / old`` as a fraction; None where undefined (not finite numbers,
+    ``old`` not above 0), never NaN or infinite."""
+    if not (finite(new) and finite(old)) or old <= 0:
+        return None
+    change = (new - old) / old
+    return float(change) if math.isfinite(change) else None
+
+
 def percent_change(new: Any, old: Any) -> str:
     """``(new - old) / old`` in percent, signed, one decimal ('n/a' if undefined)."""
-    if not (finite(new) and finite(old)) or old <= 0:
-        return "n/a"
-    return f"{100 * (new - old) / old:+.1f} %"
+    change = relative_change(new, old)
+    return "n/a" if change is None else f"{100 * change:+.1f} %"
 
 
 def axes_of(d: Any) -> list[Any]:
