@@ -134,6 +134,26 @@ def test_overconfidence_below_80_percent_and_trust_above():
     assert "overconfident on z" in next(ln.text for ln in verdict(newer) if ln.key == "uncertainty")
 
 
+def test_a_band_that_holds_every_sample_is_called_cautious():
+    """A band holding 100 % of the held-out samples got "can be trusted" and nothing
+    more: wider than needed is accepted (issue 26), but the user should know."""
+    tree = copy.deepcopy(AFTER)
+    tree["metrics"]["model"]["coverage_2sigma"]["z"] = 0.9961
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line == (
+        "Uncertainty can be trusted: within 2σ x 95 %, y 90 %, z 100 % (95 % expected); "
+        "the band is cautious on z: z 100 % inside, wider than needed."
+    )
+    tree["metrics"]["model"]["coverage_2sigma"]["z"] = 0.994  # 99 %: nothing more said
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line.endswith("z 99 % (95 % expected).")
+    # underconfident (the predicted σ more than twice the error) already says it
+    tree["metrics"]["model"]["coverage_2sigma"]["z"] = 1.0
+    tree["metrics"]["model"]["mean_std"]["z"] = 0.5
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line.startswith("Uncertainty underconfident on z") and "cautious" not in line
+
+
 def test_before_after_per_axis_with_the_reason_for_the_worse_axis():
     lines = change_lines(scores_of_files([(BEFORE, "before.json"), (AFTER, "after.json")]))
     head = lines[0].text

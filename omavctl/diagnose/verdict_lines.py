@@ -170,6 +170,14 @@ def uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
     if not (over or under or narrow):
         ahead = " one step ahead" if hor else ""
         text = f"Uncertainty can be trusted{ahead}: within 2σ {shown} (95 % expected)."
+    # a band that holds every sample is wider than needed: allowed (issue 26 accepts a
+    # wider band outside the fit inputs), but the user should know
+    cautious = [a for a in AXES if a in cov and round(100 * cov[a]) >= 100 and a not in under]
+    if cautious:
+        text = (
+            f"{text[:-1]}; the band is cautious on {', '.join(cautious)}: "
+            f"{_shares(cov, cautious)} inside, wider than needed."
+        )
     return Line("uncertainty", f"{text[:-1]}; {hor}." if hor else text)
 
 
