@@ -21,6 +21,7 @@ from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import read_trajectory, write_trajectory
 from omavctl.sim.truth import truth_from_tree
+from tests.conftest import rebuilt
 
 runner = CliRunner()
 
@@ -56,6 +57,23 @@ def test_covering_the_task_region_scores_lower_than_staying_away(setup):
     prior = gp.posterior_variance(test).mean()
     assert var[0] < var[1] <= prior + 1e-12
     assert var[0] < 0.9 * prior
+
+
+def test_the_planners_band_is_the_models_latent_band_without_its_noise(setup):
+    """GPAxes.band_variance leaves out the band's noise on purpose (its docstring: the
+    same for every candidate inside the fit inputs, no flight lowers it) and matches
+    the model's latent variance without the mean's weighing, inside the training box
+    and beyond it."""
+    _, _, model_path = setup
+    model = rebuilt(load_model(model_path), mean_shrink=np.zeros(3))
+    gp = GPAxes.from_model(model)
+    centre = model.inputs.mean(axis=0)
+    for spread in (1.0, 2.0):
+        z = centre + spread * (model.inputs - centre)
+        planner = gp.band_variance(model.normalise(z))
+        np.testing.assert_allclose(planner, model.latent(z)[1], rtol=1e-8, atol=1e-14)
+        measured = model.gp_predict(z, noise=True)[1]
+        assert np.all(measured >= planner + model.band_noise - 1e-12)
 
 
 def test_plan_scores_candidates_and_picks_the_lowest_cost(setup):
