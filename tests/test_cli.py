@@ -75,6 +75,29 @@ def test_task_writes_contract_csv(task_csv):
     assert traj.data.shape == (401, 19)
 
 
+def test_task_replaces_a_trajectory_but_not_a_log_or_other_file(task_csv, tmp_path):
+    """`task`/`plan` replaced whatever --out named, a flight log included (the printed
+    separating command wrote fig8.csv and next.csv into the user's directory)."""
+    log = tmp_path / "flight.csv"
+    log.write_text("t,roll\n0,1\n")
+    for name in ("task", "plan"):
+        args = ["task", "fig8", "--duration", "4", "--out", str(log)]
+        if name == "plan":  # refused before the model is even read
+            args = ["plan", "--task", str(task_csv), "--model", "no.npz", "--out", str(log)]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 2, result.output
+        assert result.output.strip() == (
+            f"error: {log}: exists and is not a trajectory CSV; choose another name (or "
+            "remove it)"
+        )
+        assert log.read_text() == "t,roll\n0,1\n"
+    again = tmp_path / "again.csv"
+    again.write_bytes(task_csv.read_bytes())
+    args = ["task", "fig8", "--duration", "2", "--ramp", "0.5", "--out", str(again), "-q"]
+    assert runner.invoke(app, args).exit_code == 0
+    assert read_trajectory(again).data.shape == (201, 19)
+
+
 def test_simulate_is_deterministic_and_does_not_touch_inputs(task_csv, tmp_path):
     before = task_csv.read_bytes()
     outs = []

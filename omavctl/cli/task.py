@@ -20,9 +20,10 @@ Ramp = Annotated[float, typer.Option(help="Smooth start/stop ramp, s.")]
 
 def _write_task(traj: Any, out: Path, quiet: bool, as_json: bool = False, name: str = "") -> None:
     """Write ``traj`` to ``out`` (contract CSV), say so, and with --json print the figures."""
-    from omavctl.sim.trajectory import write_trajectory
+    from omavctl.sim.trajectory import check_replaceable, write_trajectory
 
     check_outputs([], [out])
+    check_replaceable(out)
     write_trajectory(out, traj)
     if not quiet:
         console().print(f"wrote {out} ({traj.data.shape[0]} samples, {traj.duration:.2f} s)")

@@ -22,7 +22,7 @@ from omavctl.learn.model_file import check_model_paths, check_vehicle, load_mode
 from omavctl.planning.planner import PlanResult, PlanSettings, plan
 from omavctl.planning.report import no_feasible_candidate, write_plan
 from omavctl.planning.rollout import Progress
-from omavctl.sim.trajectory import Trajectory, read_trajectory
+from omavctl.sim.trajectory import Trajectory, check_replaceable, read_trajectory
 from omavctl.vehicle import load_vehicle
 
 __all__ = ["PlanJob", "check_plan_settings", "prepare_plan"]
@@ -110,6 +110,7 @@ def prepare_plan(
     """
     check_model_paths([model])
     check_outputs([task, model, vehicle, evaluation], [out, scores, report])
+    check_replaceable(out)
     if not settings.effects and evaluation is not None:
         from omavctl.planning.effects_objective import effects_from_evaluation
 

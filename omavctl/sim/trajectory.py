@@ -22,6 +22,7 @@ __all__ = [
     "COLUMNS",
     "SCHEMA",
     "Trajectory",
+    "check_replaceable",
     "read_trajectory",
     "write_trajectory",
 ]
@@ -185,6 +186,25 @@ def format_trajectory(traj: Trajectory) -> str:
     buf.write(",".join(COLUMNS) + "\n")
     np.savetxt(buf, traj.data, delimiter=",", fmt="%.12g")
     return buf.getvalue()
+
+
+def check_replaceable(path: str | Path) -> None:
+    """Refuse an existing, non-empty file at ``path`` that is not a trajectory CSV (its
+    first line not this module's header): ``task`` and ``plan`` replace a trajectory
+    (their own earlier output), never a flight log or another file the user keeps
+    under that name."""
+    p = Path(path)
+    try:
+        if not p.is_file() or p.stat().st_size == 0:
+            return
+        with p.open("rb") as fh:
+            first = fh.readline(4096).decode("utf-8", "replace")
+    except OSError:
+        return  # the writer says what is wrong with the path
+    if [h.strip() for h in first.strip().split(",")] != COLUMNS:
+        raise TrajectoryError(
+            "exists and is not a trajectory CSV; choose another name (or remove it)", p
+        )
 
 
 def write_trajectory(path: str | Path, traj: Trajectory) -> None:
