@@ -87,8 +87,7 @@ def test_task_replaces_a_trajectory_but_not_a_log_or_other_file(task_csv, tmp_pa
         result = runner.invoke(app, args)
         assert result.exit_code == 2, result.output
         assert result.output.strip() == (
-            f"error: {log}: exists and is not a trajectory CSV; choose another name (or "
-            "remove it)"
+            f"error: {log}: exists and is not a trajectory CSV; choose another name (or remove it)"
         )
         assert log.read_text() == "t,roll\n0,1\n"
     again = tmp_path / "again.csv"
