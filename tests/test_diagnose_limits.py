@@ -79,7 +79,7 @@ def _selection(monkeypatch: pytest.MonkeyPatch, first: list[str], held: str):
         out = [_score(n, n != "rotor_interference" or lookalike, err) for n in pool]
         return sorted(out, key=lambda s: (not s.missing, s.name != first[0]))
 
-    def guard(samples, model, names, ranking, stage) -> Guarded:
+    def guard(samples, model, names, ranking, stage, rivals=None) -> Guarded:
         return Guarded(
             kept=[n for n in names if n != held],
             held_back=[{"name": held}] if held in names else [],

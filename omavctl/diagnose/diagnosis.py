@@ -22,6 +22,7 @@ import numpy as np
 from omavctl.diagnose.claims import Guarded, claimed_axes, guard_claims, learned_claim
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
 from omavctl.diagnose.joint import JointStep, joint_selection
+from omavctl.diagnose.joint_timing import with_timing_rivals
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     MIN_EXPLAINED,
@@ -59,13 +60,15 @@ METHOD: dict[str, Any] = {
     "with the effects that, estimated jointly from the model's training points as fit "
     "--effects would, lower the physics-only error on the held-out flight (joint; the "
     "default imperfections' look-alikes take no slot of its cap, and what they leave is "
-    "the yardstick of a further effect)",
+    "the yardstick of a further effect; a step's part is judged against the claim floor by "
+    "the upper end of its 95 % interval)",
     "claim_guard": "a claim is kept only where the 95 % interval of its estimate as the fit "
     "command makes it excludes the effect's null on an axis it is claimed on, and, claimed by "
     "the joint selection alone, where its estimate on the fit flight (least squares at the "
     "model's training points, with the other claims) excludes it too (not_pinned); when "
     "two claims or more are held back together, only the last-ranked of them is, and the "
-    "others are guarded again without it",
+    "others are guarded again without it; a lag or delay held back gives way to the next "
+    "lag or delay that passed its joint step",
     "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
     "interval excludes its null and, estimated from the training points by least squares, "
     "it passes the joint test on the held-out physics-only error (learned_claims)",
@@ -291,6 +294,7 @@ def _guard(
     names: list[str],
     ranking: tuple[Sequence[dict[str, Any]], list[EffectScore], float],
     stage: SecondStage,
+    rivals: Mapping[str, Sequence[str]] | None = None,
 ) -> Guarded:
     """The claims ``names`` whose 95 % interval, estimated as the fit command would,
     excludes their null on an axis they are claimed on (:func:`guard_claims`; the
@@ -300,17 +304,28 @@ def _guard(
     the scores, ``floor``); the estimates with fit's second ``stage``). A claim held
     back stays in the ambiguous set of a
     kept look-alike it was ambiguous with (in place): the flight did not tell them
-    apart, it only could not pin the one down."""
+    apart, it only could not pin the one down. A lag or delay held back gives way to its
+    joint step's timing ``rivals`` (:func:`with_timing_rivals`)."""
     accepted, scores, floor = ranking
     ranked = {str(a["name"]) for a in accepted}
     by_name = {s.name: s for s in scores}
     axes_of = {n: claimed_axes(by_name[n].explained_per_axis) for n in ranked if n in by_name}
-    joint_only = [n for n in names if n not in ranked]
-    guarded = one_at_a_time(
-        lambda kept: guard_claims(
-            samples, list(model.effects), kept, axes_of, floor, model, stage, joint_only
+    guarded = with_timing_rivals(
+        lambda claims: one_at_a_time(
+            lambda kept: guard_claims(
+                samples,
+                list(model.effects),
+                kept,
+                axes_of,
+                floor,
+                model,
+                stage,
+                [n for n in claims if n not in ranked],
+            ),
+            claims,
         ),
         names,
+        rivals or {},
     )
     for held in guarded.held_back:
         x = by_name.get(held["name"])
@@ -349,7 +364,8 @@ def _select_guarded(
         pool = {n: c for n, c in candidates.items() if n not in out}
         accepted, after = _forward_selection(ranking, remaining, pool, rescore)
         claims = _merge([j for j in joint if j.name not in out], accepted, missing)
-        guarded = _guard(samples, model, claims, (accepted, missing, floor), stage)
+        rivals = {j.name: j.timing_rivals for j in joint}
+        guarded = _guard(samples, model, claims, (accepted, missing, floor), stage, rivals)
         held += guarded.held_back
         out |= {str(h["name"]) for h in guarded.held_back}
         if not guarded.held_back or guarded.kept:

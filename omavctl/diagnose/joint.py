@@ -13,7 +13,11 @@ quantity a user's next fit improves) the estimate removes. Forward selection,
 best first; a candidate is accepted when, fitted jointly with those before it,
 
 - its parameters lie in their plausible range (:data:`THETA_RANGE`),
-- its part of the held-out error is material (RMS >= the claim floor),
+- its part of the held-out error may be material: the upper end of the part's 95 %
+  interval (RMS, from the estimate's covariance) reaches the claim floor (the GLS
+  point shrinks toward zero what the kernel can represent: a hidden 50 ms delay or
+  a 2x motor lag after ``com_offset`` came out at 0.72-0.99x the floor while removing
+  45-47 % of what the offset left, at t 4.6-5.8; docs/effects.md),
 - it removes at least :data:`MIN_SHARE` of the physics-only error left
   before it (sum of squares over samples and axes) and at least
   :data:`MIN_SHARE_OF_TOTAL` of the model's whole physics-only error (a third
@@ -32,7 +36,11 @@ held-out flight confirmed. A candidate not accepted whose gain alone, at the
 step where another was accepted, is at least :data:`AMBIGUOUS_RATIO` of the
 accepted one's and which passes the same tests alone, is ambiguous with it:
 the data do not tell them apart (not two lags or delays, whose linearised
-regressors coincide to first order; their exact forms tell them apart).
+regressors coincide to first order; their exact forms tell them apart). Those that
+pass beside an accepted lag or delay are its :attr:`JointStep.timing_rivals`: when the
+claims guard holds the accepted one back, its exact estimate on the held-out flight
+not pinned down, the next rival is guarded in its place
+(:func:`omavctl.diagnose.joint_timing.with_timing_rivals`).
 
 The look-alikes of the imperfections every rotorcraft has (:data:`DEFAULT_LOOK_ALIKES`:
 a thrust spread between the rotors and the rotors' interference shift where the
@@ -68,9 +76,11 @@ __all__ = [
     "MIN_HAC_T",
     "MIN_SHARE",
     "MIN_SHARE_OF_TOTAL",
+    "Z95",
     "JointStep",
     "joint_selection",
     "learned_step",
+    "part_high",
 ]
 
 #: Share of the physics-only error (sum of squares) left before it that an
@@ -97,6 +107,8 @@ DEFAULT_LOOK_ALIKES = frozenset({"com_offset", "rotor_interference"})
 #: best of 8 is what is tested): Phi^-1(1 - 0.05 / 8) = 2.50. At 1.96 an own2 draw
 #: named an inertia_error beside its hidden servo lag (t 2.16).
 MIN_HAC_T = NormalDist().inv_cdf(1 - 0.05 / 8)
+#: Standard errors of a two-sided 95 % interval.
+Z95 = NormalDist().inv_cdf(0.975)
 
 
 @dataclass
@@ -114,6 +126,11 @@ class JointStep:
     #: theta (p,) estimated jointly with the steps before it
     theta: np.ndarray = field(repr=False)
     ambiguous_with: list[str] = field(default_factory=list)
+    #: upper end of the 95 % interval of its part (RMS, rad/s^2), what the floor judged
+    contribution_high: float | None = None
+    #: the other lags and delays that passed at this step, best first (a lag or delay
+    #: accepted here: the linearised test cannot tell them apart)
+    timing_rivals: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -123,6 +140,8 @@ class JointStep:
             "contribution_rms": self.contribution_rms,
             "block_t": self.block_t,
             "ambiguous_with": self.ambiguous_with,
+            "contribution_high": self.contribution_high,
+            "timing_rivals": self.timing_rivals,
         }
 
 
@@ -137,21 +156,52 @@ class _Trial:
     plausible: bool
     thetas: dict[str, np.ndarray]
     pred: np.ndarray  # (n, 3) joint prediction
+    #: upper end of the part's 95 % interval (None: the point, no covariance)
+    contribution_high: float | None = None
+
+    @property
+    def part_high(self) -> float:
+        """What the floor judges: the part's upper 95 % end, else its point."""
+        return self.contribution_rms if self.contribution_high is None else self.contribution_high
 
 
-def _joint_theta(model: ResidualGP, names: Sequence[str]) -> dict[str, np.ndarray]:
+def _joint_theta(
+    model: ResidualGP, names: Sequence[str]
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """theta of each of ``names`` estimated jointly as ``fit --effects`` would from the
-    model's training points (:meth:`ResidualGP.basis_estimate`)."""
+    model's training points (:meth:`ResidualGP.basis_estimate`), and the last name's
+    covariance (p, p)."""
     values = [model.train_regressors[n] for n in names]
     prior = np.concatenate(
         [np.full(v.shape[2], get_effect(n).prior_std) for n, v in zip(names, values, strict=True)]
     )
-    theta, _ = model.basis_estimate(np.concatenate(values, axis=2), prior)
+    theta, cov = model.basis_estimate(np.concatenate(values, axis=2), prior)
     out, k = {}, 0
     for n, v in zip(names, values, strict=True):
         out[n] = theta[k : k + v.shape[2]]
         k += v.shape[2]
-    return out
+    p = values[-1].shape[2]
+    return out, cov[k - p : k, k - p : k]
+
+
+def part_high(regressor: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> float:
+    """Upper end of the 95 % interval of an effect's part of the error, the RMS over
+    samples and axes of ``regressor`` (n, 3, p) @ theta (p,), with theta's covariance
+    ``cov`` (p, p): the delta method (exact for one parameter: |theta| + 1.96 sd, times
+    the regressor's RMS); at a part of 0, 1.96 times the part's largest standard
+    deviation in any direction of theta."""
+    x = regressor.reshape(-1, regressor.shape[2])
+    if x.shape[0] == 0:
+        return 0.0
+    own = x @ theta
+    rms = float(np.sqrt(np.mean(own**2)))
+    if rms > 0:
+        grad = x.T @ own / (own.size * rms)
+        sd = float(np.sqrt(max(float(grad @ cov @ grad), 0.0)))
+    else:
+        m = x.T @ x / x.shape[0]
+        sd = float(np.sqrt(max(float(np.linalg.eigvals(m @ cov).real.max()), 0.0)))
+    return rms + Z95 * sd
 
 
 def _both_timing(a: str, b: str) -> bool:
@@ -197,7 +247,7 @@ def _trial(
     sq_before: np.ndarray,
     blocks: np.ndarray,
 ) -> _Trial:
-    thetas = _joint_theta(model, [*accepted, name])
+    thetas, cov = _joint_theta(model, [*accepted, name])
     pred = sum((regressors[n] @ thetas[n] for n in thetas), np.zeros_like(physics))
     sq_after = ((physics - pred) ** 2).sum(axis=1)
     own = regressors[name] @ thetas[name]
@@ -209,6 +259,7 @@ def _trial(
         plausible=all(_plausible(n, t) for n, t in thetas.items()),
         thetas=thetas,
         pred=pred,
+        contribution_high=part_high(regressors[name], thetas[name], cov),
     )
 
 
@@ -217,7 +268,7 @@ def _passes(t: _Trial, left: float, total: float, floor: float, hac_t: float | N
     instead of the blocks' t >= MIN_BLOCK_T (an effect after the defaults' look-alikes)."""
     return (
         t.plausible
-        and t.contribution_rms >= floor
+        and t.part_high >= floor
         and t.gain >= MIN_SHARE * left
         and t.gain >= MIN_SHARE_OF_TOTAL * total
         and (t.block_t >= MIN_BLOCK_T if hac_t is None else hac_t >= MIN_HAC_T)
@@ -291,6 +342,8 @@ def joint_selection(
                 contribution_rms=best.contribution_rms,
                 block_t=min(best.block_t, 1e6),
                 theta=best.thetas[best.name],
+                contribution_high=best.contribution_high,
+                timing_rivals=[t.name for t in ok[1:] if _both_timing(best.name, t.name)],
             )
         )
         accepted.append(best.name)
@@ -300,6 +353,7 @@ def joint_selection(
     chosen = set(accepted)
     for s in steps:
         s.ambiguous_with = [n for n, _ in rivals.get(s.name, []) if n not in chosen]
+        s.timing_rivals = [n for n in s.timing_rivals if n not in chosen]
     return steps
 
 
