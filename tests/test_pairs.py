@@ -16,6 +16,7 @@ from omavctl.base.errors import ModelError
 from omavctl.learn.effect_fit import estimate_effects
 from omavctl.learn.effect_search import _Problem, _sandwich, search_effects
 from omavctl.learn.estimate import EffectEstimate
+from omavctl.learn.fit_notes import search_notes
 from omavctl.learn.flights import log_samples
 from omavctl.learn.intervals import Z95
 from omavctl.learn.model_file import _effects_from_json
@@ -134,3 +135,5 @@ def test_a_delay_beside_a_servo_lag_has_the_profile_interval_of_the_pair():
         p = get_effect(name).parameters[0].name
         est = EffectEstimate(name, {p: np.array([r.value])}, {p: np.array([r.stderr])})
         assert est.pinned()[p][0] == (name == "command_delay")  # some timing: > 0
+    notes = search_notes(found)
+    assert any(n.startswith("servo_lag: traded with command_delay on these samples") for n in notes)
