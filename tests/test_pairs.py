@@ -137,3 +137,27 @@ def test_a_delay_beside_a_servo_lag_has_the_profile_interval_of_the_pair():
         assert est.pinned()[p][0] == (name == "command_delay")  # some timing: > 0
     notes = search_notes(found)
     assert any(n.startswith("servo_lag: traded with command_delay on these samples") for n in notes)
+
+
+def test_a_model_whose_effect_predicts_with_other_coefficients_is_schema_3(tmp_path):
+    """A reader of schema 2 would predict with the physical parameters: such a file is
+    written as omavctl.model/3 (refused there as newer), read back with its
+    coefficients; a model without them stays omavctl.model/2."""
+    from conftest import rebuilt
+    from test_model import make_model
+
+    from omavctl.learn.model_file import load_model, save_model
+
+    model = make_model(default_vehicle(), features="wrench+rate", effects=True)
+    est = model.effects["rotational_drag"]
+    fitted = EffectEstimate(est.name, est.values, est.stderr, fitted=0.7 * est.theta)
+    path = tmp_path / "m.npz"
+    save_model(path, rebuilt(model, effects={"rotational_drag": fitted}))
+    with np.load(path, allow_pickle=False) as npz:
+        assert str(npz["schema"]) == "omavctl.model/3"
+    back = load_model(path).effects["rotational_drag"]
+    np.testing.assert_allclose(back.theta, 0.7 * est.theta)
+    np.testing.assert_allclose(back.values["D"], est.values["D"])
+    save_model(path, model)
+    with np.load(path, allow_pickle=False) as npz:
+        assert str(npz["schema"]) == "omavctl.model/2"

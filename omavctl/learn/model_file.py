@@ -93,7 +93,14 @@ import numpy as np
 
 from omavctl.base.atomic import atomic_path
 from omavctl.base.errors import ModelError, library_reason
-from omavctl.learn.model import SCHEMA, SCHEMA_NAME, SCHEMA_VERSION, EffectEstimate, ResidualGP
+from omavctl.learn.model import (
+    SCHEMA,
+    SCHEMA_FITTED,
+    SCHEMA_NAME,
+    SCHEMA_VERSION,
+    EffectEstimate,
+    ResidualGP,
+)
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.vehicle import Vehicle
 
@@ -154,8 +161,10 @@ def _check_schema(value: str, path: Path) -> int:
     if m is None or m.group(1) != SCHEMA_NAME:
         raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
     version = int(m.group(2))
-    if version > SCHEMA_VERSION:
-        raise ModelError(f"schema '{value}' is newer than this omavctl supports ({SCHEMA})", path)
+    if version > SCHEMA_VERSION + 1:  # 3: effects with theta_fitted (SCHEMA_FITTED)
+        raise ModelError(
+            f"schema '{value}' is newer than this omavctl supports ({SCHEMA_FITTED})", path
+        )
     if version < 1:
         raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
     return version
