@@ -54,6 +54,9 @@ GRID = 31
 #: The effects whose form is a timing of the wrench (a delay or a lag): each
 #: searched one is checked against the others (:func:`_form_allowance`).
 TIMING_FORMS = tuple(name for name, e in EFFECTS.items() if e.search is not None)
+#: Values of a profile interval's grid (:func:`_profile_se`; half the search's: each
+#: value searches the partner again, and the diagnosis runs it for every candidate).
+PROFILE_GRID = 16
 #: Coordinate-descent sweeps over several searched effects.
 SWEEPS = 2
 #: The linear effect whose regressor is the commanded torque times the unknown gain
@@ -280,10 +283,10 @@ def _profile_se(prob: _Problem, name: str, values: dict[str, float], inflation: 
             )
         return prob.rss(y - sum((prob.exact(q, w) for q, w in found.items()), np.zeros_like(y)))
 
-    grid = np.linspace(lo, hi, GRID)
-    rss = np.empty(GRID)
+    grid = np.linspace(lo, hi, PROFILE_GRID)
+    rss = np.empty(PROFILE_GRID)
     start = int(np.argmin(np.abs(grid - values[name])))
-    for side in (range(start, GRID), range(start - 1, -1, -1)):
+    for side in (range(start, PROFILE_GRID), range(start - 1, -1, -1)):
         found = {o: values[o] for o in others}
         for i in side:
             rss[i] = profile(float(grid[i]))
