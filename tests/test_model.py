@@ -200,9 +200,9 @@ def test_newer_and_unknown_schemas_are_refused(vehicle, tmp_path):
     good = tmp_path / "good.npz"
     save_model(good, make_model(vehicle))
     newer = tmp_path / "newer.npz"
-    _rewrite(good, newer, schema=np.array("omavctl.model/3"))
+    _rewrite(good, newer, schema=np.array("omavctl.model/4"))
     assert _refused(newer) == (
-        f"{newer}: schema 'omavctl.model/3' is newer than this omavctl supports (omavctl.model/2)"
+        f"{newer}: schema 'omavctl.model/4' is newer than this omavctl supports (omavctl.model/3)"
     )
     other = tmp_path / "other.npz"
     _rewrite(good, other, schema=np.array("somebody.gp/1"))

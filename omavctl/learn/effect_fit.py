@@ -25,6 +25,7 @@ from omavctl.learn.effect_search import SearchResult, search_effects
 from omavctl.learn.estimate import GAIN_EFFECT, GAIN_PRIOR_FACTOR
 from omavctl.learn.intervals import hac_covariance, segment_ids
 from omavctl.learn.model import EffectEstimate
+from omavctl.learn.physical import TORQUE_EFFECTS, PhysicalMap, physical_map, to_physical
 from omavctl.learn.signal import ResidualSamples
 from omavctl.learn.validation import cholesky_of_k
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -55,7 +56,10 @@ class EffectFit:
     theta (p,), cov (p, p) (HAC: autocorrelated residuals); estimates by effect
     name; residual_std (3,) per axis after subtracting the effects; explained (3,)
     fraction of residual variance the effects explain per axis; cov_white (p, p)
-    the white-residual covariance ``s^2 (A^T A)^+`` (None when not computed).
+    the white-residual covariance ``s^2 (A^T A)^+`` (None when not computed);
+    physical: how the torque effects' parameters are put in physical units beside
+    an inertia scale (:mod:`omavctl.learn.physical`; None: they already are).
+    ``theta`` and ``cov`` stay the additive model's, which the model predicts with.
     """
 
     theta: np.ndarray
@@ -64,6 +68,7 @@ class EffectFit:
     residual_std: np.ndarray
     explained: np.ndarray
     cov_white: np.ndarray | None = None
+    physical: PhysicalMap | None = None
 
     @property
     def inflation(self) -> np.ndarray:
@@ -117,18 +122,39 @@ def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str])
     fitted = (x @ theta).reshape(n, 3)
     rest = residual - fitted
     cov, cov_white = hac_covariance(x, rest, segment_ids(samples))
-    estimates: dict[str, EffectEstimate] = {}
-    i = 0
-    for name, size in zip(effects, sizes, strict=True):
-        effect = get_effect(name)
-        params = effect.to_parameters(theta[i : i + size], cov[i : i + size, i : i + size])
-        estimates[name] = EffectEstimate(
-            name, {k: v for k, (v, _) in params.items()}, {k: se for k, (_, se) in params.items()}
-        )
-        i += size
+    ctx = next((c for s in samples for c, _ in s.contexts), None)
+    phys = physical_map(x, effects, bool(ctx is not None and ctx.torque_normalised))
     var = residual.var(axis=0)
     explained = np.where(var > 0, 1.0 - rest.var(axis=0) / np.where(var > 0, var, 1.0), 0.0)
-    return EffectFit(theta, cov, estimates, rest.std(axis=0), explained, cov_white)
+    estimates = _estimates(effects, theta, cov, phys)
+    return EffectFit(theta, cov, estimates, rest.std(axis=0), explained, cov_white, phys)
+
+
+def _estimates(
+    names: Sequence[str], theta: np.ndarray, cov: np.ndarray, phys: PhysicalMap | None
+) -> dict[str, EffectEstimate]:
+    """Each effect's estimate from the stacked theta (p,) and covariance (p, p) of the
+    additive model; beside an inertia scale (``phys``) the torque effects' parameters
+    in physical units, their additive coefficients kept as ``fitted``
+    (:mod:`omavctl.learn.physical`)."""
+    theta_p, cov_p = to_physical(theta, cov, phys)
+    moved = phys is not None and theta_p is not theta
+    estimates: dict[str, EffectEstimate] = {}
+    i = 0
+    for name in names:
+        effect = get_effect(name)
+        size = effect.n_theta
+        block = slice(i, i + size)
+        params = effect.to_parameters(theta_p[block], cov_p[block, block])
+        fitted = theta[block].copy() if moved and name in TORQUE_EFFECTS else None
+        estimates[name] = EffectEstimate(
+            name,
+            {k: v for k, (v, _) in params.items()},
+            {k: se for k, (_, se) in params.items()},
+            fitted=fitted,
+        )
+        i += size
+    return estimates
 
 
 #: Prior standard deviation of each effect's estimation parameters in the joint
@@ -249,18 +275,10 @@ def honest_covariance(cov_joint: np.ndarray, first_pass: EffectFit) -> np.ndarra
 def refit_estimates(
     names: Sequence[str], theta: np.ndarray, cov: np.ndarray, old: EffectFit
 ) -> EffectFit:
-    """An :class:`EffectFit` with new parameters (explained variances kept from ``old``)."""
-    estimates: dict[str, EffectEstimate] = {}
-    i = 0
-    for name in names:
-        effect = get_effect(name)
-        size = effect.n_theta
-        params = effect.to_parameters(theta[i : i + size], cov[i : i + size, i : i + size])
-        estimates[name] = EffectEstimate(
-            name, {k: v for k, (v, _) in params.items()}, {k: se for k, (_, se) in params.items()}
-        )
-        i += size
-    return EffectFit(theta, cov, estimates, old.residual_std, old.explained)
+    """An :class:`EffectFit` with new parameters (explained variances and the physical
+    map kept from ``old``)."""
+    estimates = _estimates(names, theta, cov, old.physical)
+    return EffectFit(theta, cov, estimates, old.residual_std, old.explained, None, old.physical)
 
 
 def search_step(

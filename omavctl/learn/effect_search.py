@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from omavctl.learn.intervals import hac_covariance, segment_ids
+from omavctl.learn.intervals import Z95, hac_covariance, segment_ids
 from omavctl.learn.signal import ResidualSamples
 from omavctl.learn.validation import cholesky_of_k
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -54,6 +54,9 @@ GRID = 31
 #: The effects whose form is a timing of the wrench (a delay or a lag): each
 #: searched one is checked against the others (:func:`_form_allowance`).
 TIMING_FORMS = tuple(name for name, e in EFFECTS.items() if e.search is not None)
+#: Values of a profile interval's grid (:func:`_profile_se`; half the search's: each
+#: value searches the partner again, and the diagnosis runs it for every candidate).
+PROFILE_GRID = 16
 #: Coordinate-descent sweeps over several searched effects.
 SWEEPS = 2
 #: The linear effect whose regressor is the commanded torque times the unknown gain
@@ -69,7 +72,10 @@ class SearchResult:
     wrong) and ``form_allowance`` the standard-error share it added (see
     :func:`_form_allowance`); ``coupled`` the value found with the torque gain on
     the timed torque (None without a gain) and ``gain_allowance`` the share its
-    distance added (:func:`_coupled_search`)."""
+    distance added (:func:`_coupled_search`); ``traded`` the other searched effects
+    whose re-search at each grid value widened the standard error to its profile
+    interval's (:func:`_profile_se`: the two trade on these samples), None when the
+    profile did not widen it by half."""
 
     name: str
     value: float
@@ -80,6 +86,7 @@ class SearchResult:
     form_allowance: float = 0.0
     coupled: float | None = None
     gain_allowance: float = 0.0
+    traded: str | None = None
 
 
 class _Problem:
@@ -142,12 +149,14 @@ class _Problem:
         return float(b @ b)
 
 
-def _refine(f: object, lo: float, hi: float, start: float, width: float) -> float:
+def _refine(
+    f: object, lo: float, hi: float, start: float, width: float, tol: float = 2e-5
+) -> float:
     """Bounded scalar minimum of f near ``start`` (within ``width`` on each side)."""
     a, b = max(lo, start - width), min(hi, start + width)
     if b - a <= 0:
         return start
-    res = minimize_scalar(f, bounds=(a, b), method="bounded", options={"xatol": 2e-5})
+    res = minimize_scalar(f, bounds=(a, b), method="bounded", options={"xatol": tol})
     return float(res.x)
 
 
@@ -245,6 +254,51 @@ def _gain_share(coupled: float, value: float) -> float:
     return abs(coupled - value) / math.sqrt(2.0)
 
 
+def _profile_se(prob: _Problem, name: str, values: dict[str, float], inflation: float) -> float:
+    """The standard error of ``name``'s profile interval beside other searched effects:
+    at each grid value the others searched again (and the linear effects refitted),
+    the interval every value whose extra sum of squares is below ``Z95^2`` times the
+    residual variance (times ``inflation``, the autocorrelation's); the larger distance
+    from ``values[name]`` to its ends, over 1.96. A delay beside a servo lag trades
+    along a curved valley that the linearised sandwich does not see."""
+    others = [o for o in values if o != name]
+    lo, hi = get_effect(name).search  # type: ignore[misc]
+
+    found = {o: values[o] for o in others}
+
+    def profile(v: float) -> float:
+        # the others from where the last grid value left them (the grid is walked
+        # outwards from the optimum), refined within a fifth of their range
+        y = prob.residual - prob.exact(name, v)
+        for o in others:
+            rest = y - sum((prob.exact(q, w) for q, w in found.items() if q != o), np.zeros_like(y))
+            a, b = get_effect(o).search  # type: ignore[misc]
+            found[o] = _refine(
+                lambda w, r=rest, o=o: prob.rss(r - prob.exact(o, w)),
+                a,
+                b,
+                found[o],
+                (b - a) / 5,
+                1e-3 * (b - a),
+            )
+        return prob.rss(y - sum((prob.exact(q, w) for q, w in found.items()), np.zeros_like(y)))
+
+    grid = np.linspace(lo, hi, PROFILE_GRID)
+    rss = np.empty(PROFILE_GRID)
+    start = int(np.argmin(np.abs(grid - values[name])))
+    for side in (range(start, PROFILE_GRID), range(start - 1, -1, -1)):
+        found = {o: values[o] for o in others}
+        for i in side:
+            rss[i] = profile(float(grid[i]))
+    found = {o: values[o] for o in others}
+    best = min(float(rss.min()), profile(values[name]))
+    dof = max(prob.residual.size - prob.x.shape[2] - len(values), 1)
+    inside = grid[rss - best <= Z95**2 * best / dof * max(inflation, 1.0)]
+    if inside.size == 0:
+        return 0.0
+    return max(values[name] - float(inside.min()), float(inside.max()) - values[name]) / Z95
+
+
 def search_effects(
     samples: Sequence[ResidualSamples], searched: Sequence[str], linear: Sequence[str] = ()
 ) -> dict[str, SearchResult]:
@@ -270,6 +324,12 @@ def search_effects(
     for name in searched:
         base = base_without(name)
         se, inflation = _sandwich(prob, name, base, values[name])
+        traded = None
+        if len(searched) > 1:
+            profile = _profile_se(prob, name, values, inflation)
+            if profile > 1.5 * se:
+                traded = ", ".join(o for o in searched if o != name)
+            se = max(se, profile)
         better, delta = _form_allowance(prob, name, base, values[name], searched)
         coupled = _coupled_search(prob, name, base)
         shift = 0.0 if coupled is None else _gain_share(coupled, values[name])
@@ -286,6 +346,7 @@ def search_effects(
             delta,
             coupled,
             shift,
+            traded,
         )
     return out
 
@@ -396,5 +457,6 @@ def _curvature_results(
             first.form_allowance,
             first.coupled,
             max(shift, first.gain_allowance),
+            first.traded,
         )
     return out

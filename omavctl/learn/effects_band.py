@@ -131,12 +131,17 @@ def _independent(model: Any, samples: Any) -> np.ndarray:
 def effect_residual(samples: Any, est: EffectEstimate, values: dict[str, np.ndarray]) -> np.ndarray:
     """Residual (n, 3) of one fitted effect at parameter ``values`` on a log's samples.
 
-    Linear effects through their held regressors; effects estimated by a 1-D
-    search (lags, delay: :attr:`Effect.search`) through their exact form.
+    Linear effects through their held regressors (at ``values`` moved from the
+    estimate's, the coefficients the model predicts with moved as much); effects
+    estimated by a 1-D search (lags, delay: :attr:`Effect.search`) through their
+    exact form.
     """
     effect = est.effect
     if effect.search is not None:
         return samples.exact(est.name, float(values[effect.parameters[0].name][0]))
     if est.name not in samples.regressors:
         raise ValueError(f"samples lack the regressor of effect '{est.name}'")
-    return samples.regressors[est.name] @ effect.to_theta(values)
+    theta = est.theta
+    if values is not est.values:
+        theta = theta + effect.to_theta(values) - effect.to_theta(est.values)
+    return samples.regressors[est.name] @ theta

@@ -32,13 +32,18 @@ class EffectEstimate:
     ``values[p]`` and ``stderr[p]`` have shape (size,) per parameter name ``p``
     of the effect, in the registry's units. ``stderr_method``: how the standard
     errors were obtained: ``"hac"`` (autocorrelation-robust, model schema 2 on)
-    or ``"white"`` (white residuals, optimistic: files of schema 1).
+    or ``"white"`` (white residuals, optimistic: files of schema 1). ``fitted``:
+    the regression coefficients (p,) the model predicts with, where they differ
+    from the parameters' (a torque effect fitted beside ``inertia_error``: the
+    parameters are physical, the coefficients see the nominal inertia,
+    :mod:`omavctl.learn.physical`); None: ``to_theta(values)``.
     """
 
     name: str
     values: dict[str, np.ndarray]
     stderr: dict[str, np.ndarray]
     stderr_method: str = "hac"
+    fitted: np.ndarray | None = None
 
     def interval95(self) -> dict[str, np.ndarray]:
         """95 % interval (size, 2) per parameter: value -/+ 1.96 standard errors
@@ -61,7 +66,9 @@ class EffectEstimate:
 
     @property
     def theta(self) -> np.ndarray:
-        """Regression coefficients (p,) of the effect's regressor."""
+        """Regression coefficients (p,) of the effect's regressor: ``fitted`` when set."""
+        if self.fitted is not None:
+            return np.asarray(self.fitted, float)
         return self.effect.to_theta(self.values)
 
     @property
@@ -69,7 +76,7 @@ class EffectEstimate:
         """Standard errors (p,) of :attr:`theta`: each parameter moved by its standard
         error through ``to_theta`` (exact where theta is the parameter); NaN when a
         parameter's is not finite."""
-        base = self.theta
+        base = self.effect.to_theta(self.values)
         var = np.zeros_like(base)
         for name, se in self.stderr.items():
             for j in range(np.size(se)):
@@ -85,7 +92,8 @@ class EffectEstimate:
         """Values, standard errors (``P_stderr``), 95 % intervals (``P_ci95``, [low,
         high] each) and whether each is pinned down (``P_pinned``); what is not finite
         (a parameter the data cannot determine) is null: JSON never holds NaN or
-        Infinity. ``stderr_method`` says how the errors were obtained."""
+        Infinity. ``stderr_method`` says how the errors were obtained; ``theta_fitted``
+        the coefficients the model predicts with, when set."""
         out: dict[str, Any] = {"stderr_method": self.stderr_method}
         intervals, pinned = self.interval95(), self.pinned()
         for p in self.effect.parameters:
@@ -97,4 +105,6 @@ class EffectEstimate:
                 [float(x) if math.isfinite(x) else None for x in row] for row in intervals[p.name]
             ]
             out[f"{p.name}_pinned"] = [bool(x) for x in pinned[p.name]]
+        if self.fitted is not None:
+            out["theta_fitted"] = [float(x) for x in self.fitted]
         return out

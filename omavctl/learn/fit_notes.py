@@ -162,6 +162,12 @@ def search_notes(found: Mapping[str, SearchResult]) -> list[str]:
                 "the lag and the gain trade on these samples, and its standard error "
                 f"allows {r.gain_allowance * 1e3:.1f} ms for it"
             )
+        if r.traded is not None:
+            notes.append(
+                f"{r.name}: traded with {r.traded} on these samples (searched again at "
+                f"each {p.name}, the fit changes little): its standard error is its profile "
+                "interval's, and the two cannot be pinned down separately from this flight"
+            )
         if r.at_bound:
             lo, hi = get_effect(r.name).search  # type: ignore[misc]
             notes.append(

@@ -365,7 +365,7 @@ def joint_step(
     theta_used = np.tile(eff.theta, (train.x.shape[0], 1))
     if opts.prior_model is not None:
         theta_used[: train.n_prior] = np.concatenate(
-            [get_effect(nm).to_theta(opts.prior_model.effects[nm].values) for nm in names]
+            [opts.prior_model.effects[nm].theta for nm in names]
         )
     x_tr = np.concatenate([train.regressors[nm] for nm in names], axis=-1)
     y_raw = train.y + np.einsum("nap,np->na", x_tr, theta_used)

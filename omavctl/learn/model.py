@@ -42,6 +42,9 @@ __all__ = ["SCHEMA", "EffectEstimate", "ResidualGP"]
 SCHEMA_NAME = "omavctl.model"
 SCHEMA_VERSION = 2
 SCHEMA = f"{SCHEMA_NAME}/{SCHEMA_VERSION}"
+#: Written instead when an effect predicts with coefficients other than its parameters'
+#: (``EffectEstimate.fitted``): a reader of version 2 would predict with the parameters.
+SCHEMA_FITTED = f"{SCHEMA_NAME}/3"
 
 #: Query rows per block in predictions (bounds the (B, n) kernel matrix).
 _CHUNK = 4096
@@ -450,6 +453,10 @@ class ResidualGP:
             a_mat += h.T @ cho_solve((self._chol[a], True), h)
         return np.asarray(np.linalg.inv(a_mat))
 
+    @property
+    def _fitted(self) -> bool:
+        return any(est.fitted is not None for est in self.effects.values())
+
     def effects_samples(self, samples: Any) -> np.ndarray:
         """Residual (n, 3) the fitted effects cause on a log's samples (held).
 
@@ -466,7 +473,7 @@ class ResidualGP:
         """The file's arrays by key (:mod:`omavctl.learn.model_file` lists them)."""
         effects = {name: est.to_json() for name, est in sorted(self.effects.items())}
         return {
-            "schema": np.array(SCHEMA),
+            "schema": np.array(SCHEMA_FITTED if self._fitted else SCHEMA),
             "features": np.array(self.features),
             "input_names": np.array(self.input_names),
             "train_inputs": self.inputs,

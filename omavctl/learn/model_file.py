@@ -49,7 +49,11 @@ effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..],
                                "stderr_method": "hac"}}``: values, standard
                                errors, 95 % intervals (value -/+ 1.96 standard
                                errors; null where not finite), whether each
-                               interval pins the parameter down
+                               interval pins the parameter down; optional
+                               ``theta_fitted``: the coefficients the model
+                               predicts with where they differ from the
+                               parameters' (a torque effect beside
+                               ``inertia_error``, physical parameters)
 vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
 provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
                                GP fitting settings, seed, omavctl version
@@ -89,7 +93,14 @@ import numpy as np
 
 from omavctl.base.atomic import atomic_path
 from omavctl.base.errors import ModelError, library_reason
-from omavctl.learn.model import SCHEMA, SCHEMA_NAME, SCHEMA_VERSION, EffectEstimate, ResidualGP
+from omavctl.learn.model import (
+    SCHEMA,
+    SCHEMA_FITTED,
+    SCHEMA_NAME,
+    SCHEMA_VERSION,
+    EffectEstimate,
+    ResidualGP,
+)
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.vehicle import Vehicle
 
@@ -150,8 +161,10 @@ def _check_schema(value: str, path: Path) -> int:
     if m is None or m.group(1) != SCHEMA_NAME:
         raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
     version = int(m.group(2))
-    if version > SCHEMA_VERSION:
-        raise ModelError(f"schema '{value}' is newer than this omavctl supports ({SCHEMA})", path)
+    if version > SCHEMA_VERSION + 1:  # 3: effects with theta_fitted (SCHEMA_FITTED)
+        raise ModelError(
+            f"schema '{value}' is newer than this omavctl supports ({SCHEMA_FITTED})", path
+        )
     if version < 1:
         raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
     return version
@@ -288,7 +301,24 @@ def _effects_from_json(tree: Any, path: Path, version: int) -> dict[str, EffectE
                 f"(known: {', '.join(STDERR_METHODS)})",
                 path,
             )
-        out[name] = EffectEstimate(name, values, stderr, method)
+        out[name] = EffectEstimate(name, values, stderr, method, _fitted(params, effect, path))
+    return out
+
+
+def _fitted(params: Any, effect: Any, path: Path) -> np.ndarray | None:
+    """An effect's optional ``theta_fitted`` (the coefficients the model predicts with,
+    :class:`EffectEstimate`): None when absent (files before it), refused unless
+    ``n_theta`` finite numbers."""
+    if "theta_fitted" not in params:
+        return None
+    try:
+        out = np.asarray(params["theta_fitted"], dtype=float).reshape(effect.n_theta)
+    except (TypeError, ValueError):
+        out = np.full(1, np.nan)
+    if out.size != effect.n_theta or not np.all(np.abs(out) <= MAX_MAGNITUDE):
+        raise ModelError(
+            f"effect '{effect.name}': theta_fitted is not {effect.n_theta} finite number(s)", path
+        )
     return out
 
 
