@@ -35,7 +35,7 @@ ModelOut = Annotated[
         "--out",
         "-o",
         metavar="MODEL.npz",
-        help="Output model file (.npz, schema omavctl.model/2).",
+        help="Output model file (.npz, schema omavctl.model/2, or /3 with physical-unit pairs).",
     ),
 ]
 Effects = Annotated[
