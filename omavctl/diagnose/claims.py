@@ -430,8 +430,11 @@ def large_cut_step(
     """The held-out test of a learned effect whose gain is too uneven over the flight
     for the per-block t of :func:`omavctl.diagnose.joint.learned_step` (>= 4): its
     parameters estimated from the fit flight's training points by least squares, as
-    there (``regressor`` (n, 3, p) and ``exact`` on the held-out samples), it passes
-    when it is plausible, its part is at least the claim ``floor``, it removes at least
+    there, but within their plausible range (:data:`omavctl.diagnose.scoring.THETA_RANGE`,
+    as the ranking that put it in the pool fits them: a drag of 0.8 N m s^2 came out at
+    1.14 on one axis of a steps fit flight, over the range's 1), with ``regressor`` (n,
+    3, p) and ``exact`` on the held-out samples, it passes when its part is at least the
+    claim ``floor``, it removes at least
     :data:`LARGE_CUT` of the held-out physics-only error ``physics`` (n, 3), and each 2 s
     block's error falls by a consistent fraction: the mean over blocks of -log(after /
     before) at least :data:`omavctl.diagnose.joint.MIN_HAC_T` (2.50) of its standard
@@ -445,9 +448,12 @@ def large_cut_step(
     train = model.train_regressors.get(name)
     if train is None or model.n_train == 0 or not (physics**2).sum() > 0:
         return None
+    from scipy.optimize import lsq_linear
+
     k, _, p = train.shape
-    theta, *_ = np.linalg.lstsq(train.reshape(3 * k, p), model.targets.reshape(3 * k), rcond=None)
     lo, hi = get_effect(name).theta_range
+    a, b = train.reshape(3 * k, p), model.targets.reshape(3 * k)
+    theta = np.asarray(lsq_linear(a, b, bounds=(lo, hi), method="bvls").x)
     own = regressor @ theta if exact is None else exact(float(theta[0]))
     before, after = (physics**2).sum(axis=1), ((physics - own) ** 2).sum(axis=1)
     ub = np.unique(blocks)
@@ -459,8 +465,7 @@ def large_cut_step(
     log_t = float(ratio.mean() / se) if se > 0 else float(np.inf if ratio.mean() > 0 else 0.0)
     share = 1.0 - float(after.sum() / before.sum())
     rms = float(np.sqrt((own**2).mean()))
-    plausible = bool(np.all((theta >= lo - 1e-12) & (theta <= hi + 1e-12)))
-    if not (plausible and rms >= floor and share >= LARGE_CUT and log_t >= MIN_HAC_T):
+    if not (rms >= floor and share >= LARGE_CUT and log_t >= MIN_HAC_T):
         return None
     gains = b0 - b1
     se_gain = gains.std(ddof=1) / np.sqrt(gains.size) if gains.size >= 3 else np.inf
