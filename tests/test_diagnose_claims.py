@@ -11,14 +11,16 @@ import numpy as np
 import pytest
 
 from omavctl.diagnose.claims import (
+    LARGE_CUT,
     claimed_axes,
     excludes_null,
     fit_flight_holds_null,
     guard_claims,
+    large_cut_step,
     learned_claim,
     material_axes,
 )
-from omavctl.diagnose.joint import MIN_SHARE, learned_step
+from omavctl.diagnose.joint import MIN_BLOCK_T, MIN_HAC_T, MIN_SHARE, learned_step
 from omavctl.diagnose.verdict import verdict
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
@@ -101,6 +103,73 @@ def test_a_learned_drag_is_tested_on_the_held_out_flight_with_the_fit_flights_es
     assert found is not None and found[0].name == "rotational_drag"
     wide = {**entry, "estimate": {"D_ci95": [[-0.01, 0.03]] * 3}}
     assert learned_claim([wide], [], model, physics, regs, blocks, FLOOR) is None
+
+
+def _steps_case(seed: int = 0):
+    """A drag learned on the fit flight, held out on a steps flight: its regressor is
+    large in the transitions (2 of the 10 blocks) and 0.15 of that between them."""
+    truth = {"rotational_drag": np.array([0.05, 0.04, 0.03]), "com_offset": None}
+    model, physics, regs, blocks = _case(truth, seed=seed)
+    drag = regs["rotational_drag"]
+    held = drag * np.where(blocks % 5 == 0, 1.0, 0.15)[:, None, None]
+    physics = physics + (held - drag) @ truth["rotational_drag"]
+    return truth, model, physics, {**regs, "rotational_drag": held}, blocks
+
+
+def test_a_learned_drag_with_a_large_uneven_cut_is_claimed_on_that_cut():
+    """The per-block t of the gain stays under 4 when two transitions hold most of the
+    error, although every block gets better: the large cut names the drag (with the
+    fit flight's estimate); what the vehicle lacks, or a cut under half, is not named."""
+    truth, model, physics, regs, blocks = _steps_case()
+    drag = regs["rotational_drag"]
+    assert learned_step(model, "rotational_drag", physics, drag, blocks, FLOOR) is None
+    step = large_cut_step(model, "rotational_drag", physics, drag, blocks, FLOOR)
+    assert step is not None and step.share >= LARGE_CUT and step.block_t < MIN_BLOCK_T
+    assert step.log_ratio_t >= MIN_HAC_T and (step.blocks_better, step.blocks) == (10, 10)
+    assert step.theta == pytest.approx(truth["rotational_drag"], rel=0.05)
+    assert large_cut_step(model, "com_offset", physics, regs["com_offset"], blocks, FLOOR) is None
+    entry = {
+        "name": "rotational_drag",
+        "missing": True,
+        "explained_variance_per_axis": {"x": 0.6, "y": 0.5, "z": 0.4},
+        "estimate": {"D_ci95": [[0.04, 0.06], [0.03, 0.05], [0.02, 0.04]]},
+    }
+    found = learned_claim([entry], [], model, physics, regs, blocks, FLOOR)
+    assert found is not None and found[0].name == "rotational_drag"
+    assert found[0].to_json()["log_ratio_t"] == step.log_ratio_t
+    # beside twice its size of error that no candidate explains, in every block alike, it
+    # removes a third of each block's error (a consistent fraction), under half: no claim
+    part = drag @ truth["rotational_drag"]
+    beside = physics + 2.0 * np.cos(np.arange(blocks.size) / 5.0)[:, None] * np.abs(part)
+    assert large_cut_step(model, "rotational_drag", beside, drag, blocks, FLOOR) is None
+
+
+def test_a_claim_on_its_large_cut_says_what_it_rests_on():
+    diag = {
+        "missing": [],
+        "learned_claims": ["rotational_drag"],
+        "learned_steps": [
+            {
+                "name": "rotational_drag",
+                "share": 0.56,
+                "block_t": 2.09,
+                "log_ratio_t": 2.87,
+                "blocks_better": 8,
+                "blocks": 10,
+                "ambiguous_with": ["inertia_error"],
+            }
+        ],
+    }
+    (head, *_) = verdict(_tree(diag))
+    assert (
+        "Its gain is uneven over the flight (t 2.1 over its 2 s blocks, under 4), but it "
+        "makes 8 of 10 blocks better by a consistent fraction (t 2.9) and removes at least "
+        "half of the error: claimed on that large cut, for the next fit to test. The data "
+        "do not tell it from inertia_error: plan --objective effects designs a flight that "
+        "does."
+    ) in head.text
+    del diag["learned_steps"][0]["log_ratio_t"]  # a claim on the per-block t says none
+    assert "large cut" not in verdict(_tree(diag))[0].text
 
 
 def _tree(diag):

@@ -10,7 +10,13 @@ from typing import Any
 
 from omavctl.diagnose.estimate_text import estimate_sentence
 
-__all__ = ["claim_estimate", "learned_claim_text", "not_pinned_names", "not_pinned_text"]
+__all__ = [
+    "claim_estimate",
+    "large_cut_sentence",
+    "learned_claim_text",
+    "not_pinned_names",
+    "not_pinned_text",
+]
 
 
 def _num(v: Any) -> float | None:
@@ -106,6 +112,29 @@ def claim_estimate(diag: Mapping[str, Any], name: str) -> Mapping[str, Any]:
     return learned
 
 
+def large_cut_sentence(step: Mapping[str, Any]) -> str:
+    """What a learned claim accepted on its large cut (a learned step with
+    ``log_ratio_t``, :func:`omavctl.diagnose.claims.large_cut_step`) rests on, and the
+    look-alikes the data do not tell from it; '' for any other step."""
+    log_t, block_t = _num(step.get("log_ratio_t")), _num(step.get("block_t"))
+    better, blocks = _num(step.get("blocks_better")), _num(step.get("blocks"))
+    if log_t is None or better is None or blocks is None:
+        return ""
+    uneven = f" (t {block_t:.1f} over its 2 s blocks, under 4)" if block_t is not None else ""
+    text = (
+        f" Its gain is uneven over the flight{uneven}, but it makes {better:.0f} of "
+        f"{blocks:.0f} blocks better by a consistent fraction (t {log_t:.1f}) and removes at "
+        "least half of the error: claimed on that large cut, for the next fit to test."
+    )
+    alike = [str(n) for n in step.get("ambiguous_with") or []]
+    if alike:
+        text += (
+            f" The data do not tell it from {', '.join(alike)}: plan --objective effects "
+            "designs a flight that does."
+        )
+    return text
+
+
 def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
     """The sentence of an effect the GP learned that the held-out flight confirms,
     '' when there is none: what it explains of the nominal residual, what its
@@ -131,6 +160,7 @@ def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
             f"removes {_pct(share)} of the squared physics-only error {where}"
         )
     text += "."
+    text += large_cut_sentence(step)
     text += estimate_sentence(step)
     return text + (
         " What the GP learned of it holds only where the fit flight went; fitted as a "

@@ -19,7 +19,13 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.diagnose.claims import Guarded, claimed_axes, guard_claims, learned_claim
+from omavctl.diagnose.claims import (
+    LARGE_CUT_KEYS,
+    Guarded,
+    claimed_axes,
+    guard_claims,
+    learned_claim,
+)
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
 from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.joint_timing import with_timing_rivals
@@ -71,7 +77,9 @@ METHOD: dict[str, Any] = {
     "lag or delay that passed its joint step",
     "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
     "interval excludes its null and, estimated from the training points by least squares, "
-    "it passes the joint test on the held-out physics-only error (learned_claims)",
+    "it passes the joint test on the held-out physics-only error, or fails only its "
+    "per-block t and removes at least half of that error by a consistent fraction in every "
+    "block (large cut) (learned_claims)",
     "learned_estimate": ESTIMATE_METHOD,
 }
 
@@ -234,9 +242,11 @@ def diagnose(
 
 def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:
     """A learned claim's JSON: its ranking entry (what the physics-only residual shows,
-    the estimate, the look-alikes) with the held-out test's numbers."""
+    the estimate, the look-alikes) with the held-out test's numbers (and, accepted on
+    its large cut, :class:`omavctl.diagnose.claims.LargeCutStep`'s)."""
     test = step.to_json()
-    return {**entry, **{k: test[k] for k in ("share", "share_of_total", "block_t")}}
+    keys = ("share", "share_of_total", "block_t", *LARGE_CUT_KEYS)
+    return {**entry, **{k: test[k] for k in keys if k in test}}
 
 
 def _learned_pool(
