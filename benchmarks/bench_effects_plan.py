@@ -28,6 +28,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,6 +52,20 @@ def omavctl(*args: str) -> dict:
     done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{done.stdout}\n{done.stderr}")
+    return json.loads(done.stdout)
+
+
+def omavctl_in_process(*args: str) -> dict:
+    """``omavctl``'s JSON as :func:`omavctl` returns it, run in this process (typer's
+    test runner): the same commands and numbers without a Python start per command
+    (about 1.3 CPU seconds each, 11 a seed; tests/test_plan_effects.py uses it)."""
+    from typer.testing import CliRunner
+
+    from omavctl.cli import app
+
+    done = CliRunner().invoke(app, [*args, "--json", "-q"])
+    if done.exit_code != 0:
+        raise RuntimeError(f"omavctl {' '.join(args)} failed:\n{done.output}")
     return json.loads(done.stdout)
 
 
@@ -86,12 +101,15 @@ def run_case(
     sims: int = 4,
     amplitude: float = AMPLITUDE,
     ideal: bool = False,
+    run: Callable[..., dict] | None = None,
 ) -> dict:
     """One seed of the benchmark (module docstring) in ``workdir``; its numbers.
 
     ``ideal``: actuators without imperfections (no lags, interference, spread,
-    backlash), so that the hidden delay is the plant's only delay.
+    backlash), so that the hidden delay is the plant's only delay. ``run``: how each
+    command runs (default :func:`omavctl`, a child process per command).
     """
+    command = run or omavctl
     w = Path(workdir)
     w.mkdir(parents=True, exist_ok=True)
     truth = w / "truth.yaml"
@@ -100,7 +118,7 @@ def run_case(
         + ("ideal: true                # actuators without imperfections\n" if ideal else "")
     )
     task, first = w / "fig8.csv", w / "first.csv"
-    omavctl(
+    command(
         "task",
         "fig8",
         "--roll",
@@ -114,7 +132,7 @@ def run_case(
         "--out",
         str(task),
     )
-    omavctl(
+    command(
         "simulate",
         "--reference",
         str(task),
@@ -126,7 +144,7 @@ def run_case(
         str(first),
     )
     model = w / "first.npz"
-    before = omavctl(
+    before = command(
         "fit", str(first), "--effects", EFFECTS, "--seed", str(seed), "--out", str(model)
     )
     plan_args = [
@@ -154,7 +172,7 @@ def run_case(
             # picked the effects plan's candidate: standard errors 0.207 both)
             extra += ["--tilt-margin", "90"] if kind == "variance" else []
             t0 = time.perf_counter()
-            planned = omavctl(
+            planned = command(
                 "plan",
                 *plan_args,
                 "--objective",
@@ -171,7 +189,7 @@ def run_case(
                 "expected": planned.get("effects"),
             }
         second = w / f"second-{kind}.csv"
-        omavctl(
+        command(
             "simulate",
             "--reference",
             str(reference),
@@ -182,7 +200,7 @@ def run_case(
             "--out",
             str(second),
         )
-        refit = omavctl(
+        refit = command(
             "fit",
             str(first),
             str(second),

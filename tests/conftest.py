@@ -2,14 +2,27 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
+import scipy.linalg  # noqa: F401  (loads SciPy's own OpenBLAS, limited below)
+from threadpoolctl import threadpool_limits
 
 from omavctl.learn.model import ResidualGP
 from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.truth import truth_from_tree
 from omavctl.vehicle import Vehicle, default_vehicle
+
+#: One BLAS thread per test process. `make test` runs two pytest workers on CI's two
+#: cores; OpenBLAS's default of one thread per core made four busy threads fight for two
+#: cores (four of the slowest files on two workers: 307 -> 258 CPU seconds,
+#: docs/testing.md). NumPy's and SciPy's OpenBLAS are both loaded here; the `omavctl`
+#: processes that tests start inherit the variables.
+BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
 
 NO_NOISE = {"gyro": 0.0, "attitude": 0.0, "position": 0.0, "velocity": 0.0}
 

@@ -8,6 +8,7 @@ another reference's sha256). Temporary files a kill leaves are hidden and never 
 from __future__ import annotations
 
 import hashlib
+import os
 import random
 import shutil
 import signal
@@ -17,8 +18,10 @@ import time
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
 
 from omavctl.base.errors import OmavctlError
+from omavctl.cli import app
 from omavctl.diagnose.evalio import load_evaluation
 
 try:  # tests/ as a package or as a rootdir on sys.path
@@ -72,17 +75,29 @@ def _run(argv: list[str], cwd: Path) -> float:
     return time.monotonic() - start
 
 
+def _run_here(argv: list[str], cwd: Path) -> None:
+    """``omavctl ARGV`` in this process (typer's test runner), from ``cwd``: the inputs
+    are made as the child processes would make them, without a Python start each."""
+    before = Path.cwd()
+    os.chdir(cwd)
+    try:
+        result = CliRunner().invoke(app, argv)
+    finally:
+        os.chdir(before)
+    assert result.exit_code == 0, result.output
+
+
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("kill9")
-    _run(
+    _run_here(
         ["task", "fig8", "--duration", "6", "--period", "3", "--ramp", "1", "--out", "task.csv"], d
     )
-    _run(["simulate", "-r", "task.csv", "--seed", "1", "--out", "log.csv", "-q"], d)
-    _run(["fit", "log.csv", "--out", "m.npz", *FIT], d)
+    _run_here(["simulate", "-r", "task.csv", "--seed", "1", "--out", "log.csv", "-q"], d)
+    _run_here(["fit", "log.csv", "--out", "m.npz", *FIT], d)
     for name, window in (("a", "0:4"), ("b", "1:5")):
-        _run(["evaluate", "log.csv", "--model", "m.npz", "--time-window", window, "-q",
-              "--out", f"{name}.json"], d)  # fmt: skip
+        _run_here(["evaluate", "log.csv", "--model", "m.npz", "--time-window", window, "-q",
+                   "--out", f"{name}.json"], d)  # fmt: skip
     return d
 
 
