@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from omavctl.cli import app
 from omavctl.learn.fit import fit_model
-from omavctl.learn.model import SCHEMA
+from omavctl.learn.model import SCHEMA_FITTED
 from omavctl.learn.model_file import load_model, save_model
 from omavctl.logs import align
 from omavctl.planning.gp import GPAxes, PathwiseSamples, posterior_variance_with_data
@@ -139,7 +139,7 @@ def test_cli_plan_refuses_bad_inputs(setup, tmp_path):
     other = tmp_path / "other.npz"
     with np.load(model_path, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
-    name, version = SCHEMA.rsplit("/", 1)
+    name, version = SCHEMA_FITTED.rsplit("/", 1)  # the newest schema this omavctl reads
     newer = f"{name}/{int(version) + 1}"
     arrays["schema"] = np.array(newer)
     np.savez(other, **arrays)
@@ -151,7 +151,7 @@ def test_cli_plan_refuses_bad_inputs(setup, tmp_path):
     assert _one_error_line(r).startswith(f"error: {nonuniform}: non-uniform time grid")
     r = runner.invoke(app, [*base, "--task", str(task_path), "--model", str(other)])
     assert _one_error_line(r) == (
-        f"error: {other}: schema '{newer}' is newer than this omavctl supports ({SCHEMA})"
+        f"error: {other}: schema '{newer}' is newer than this omavctl supports ({SCHEMA_FITTED})"
     )
     assert not out.exists()
 
