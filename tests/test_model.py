@@ -207,7 +207,7 @@ def test_newer_and_unknown_schemas_are_refused(vehicle, tmp_path):
     other = tmp_path / "other.npz"
     _rewrite(good, other, schema=np.array("somebody.gp/1"))
     assert _refused(other) == (
-        f"{other}: unknown schema 'somebody.gp/1' (this omavctl reads omavctl.model/2)"
+        f"{other}: unknown schema 'somebody.gp/1' (this omavctl reads omavctl.model/1 to /3)"
     )
 
 

@@ -94,7 +94,6 @@ import numpy as np
 from omavctl.base.atomic import atomic_path
 from omavctl.base.errors import ModelError, library_reason
 from omavctl.learn.model import (
-    SCHEMA,
     SCHEMA_FITTED,
     SCHEMA_NAME,
     SCHEMA_VERSION,
@@ -157,16 +156,17 @@ def save_model(path: str | Path, model: ResidualGP) -> None:
 
 
 def _check_schema(value: str, path: Path) -> int:
+    reads = f"this omavctl reads {SCHEMA_NAME}/1 to /3"
     m = re.fullmatch(r"(.+)/(\d+)", value)
     if m is None or m.group(1) != SCHEMA_NAME:
-        raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
+        raise ModelError(f"unknown schema '{value}' ({reads})", path)
     version = int(m.group(2))
     if version > SCHEMA_VERSION + 1:  # 3: effects with theta_fitted (SCHEMA_FITTED)
         raise ModelError(
             f"schema '{value}' is newer than this omavctl supports ({SCHEMA_FITTED})", path
         )
     if version < 1:
-        raise ModelError(f"unknown schema '{value}' (this omavctl reads {SCHEMA})", path)
+        raise ModelError(f"unknown schema '{value}' ({reads})", path)
     return version
 
 
