@@ -33,7 +33,7 @@ import numpy as np
 
 from omavctl.diagnose.estimate_text import AXIS_CLAIM
 from omavctl.diagnose.estimates import SecondStage, estimate_together
-from omavctl.diagnose.joint import MIN_HAC_T, JointStep, learned_step
+from omavctl.diagnose.joint import MIN_HAC_T, JointStep, block_sums, block_t, learned_step
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.intervals import interval95, physical_bound
 from omavctl.learn.model import ResidualGP
@@ -456,9 +456,7 @@ def large_cut_step(
     theta = np.asarray(lsq_linear(a, b, bounds=(lo, hi), method="bvls").x)
     own = regressor @ theta if exact is None else exact(float(theta[0]))
     before, after = (physics**2).sum(axis=1), ((physics - own) ** 2).sum(axis=1)
-    ub = np.unique(blocks)
-    b0 = np.array([before[blocks == b].sum() for b in ub])
-    b1 = np.array([after[blocks == b].sum() for b in ub])
+    b0, b1 = block_sums(before, blocks), block_sums(after, blocks)
     keep = b0 > 0
     ratio = -np.log(np.maximum(b1[keep], 1e-300) / b0[keep])
     se = ratio.std(ddof=1) / np.sqrt(ratio.size) if ratio.size >= 3 else np.inf
@@ -467,16 +465,14 @@ def large_cut_step(
     rms = float(np.sqrt((own**2).mean()))
     if not (rms >= floor and share >= LARGE_CUT and log_t >= MIN_HAC_T):
         return None
-    gains = b0 - b1
-    se_gain = gains.std(ddof=1) / np.sqrt(gains.size) if gains.size >= 3 else np.inf
     return LargeCutStep(
         name=name,
         share=share,
         share_of_total=share,
         contribution_rms=rms,
-        block_t=float(gains.mean() / se_gain) if se_gain > 0 else 0.0,
+        block_t=min(block_t(before, after, blocks), 1e6),
         theta=theta,
         log_ratio_t=min(log_t, 1e6),
-        blocks_better=int((gains > 0).sum()),
-        blocks=int(ub.size),
+        blocks_better=int((b0 > b1).sum()),
+        blocks=int(b0.size),
     )

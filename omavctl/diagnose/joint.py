@@ -78,6 +78,8 @@ __all__ = [
     "MIN_SHARE_OF_TOTAL",
     "Z95",
     "JointStep",
+    "block_sums",
+    "block_t",
     "joint_selection",
     "learned_step",
     "part_high",
@@ -217,10 +219,16 @@ def _plausible(name: str, theta: np.ndarray) -> bool:
     return bool(np.all((theta >= lo - 1e-12) & (theta <= hi + 1e-12)))
 
 
-def _block_t(before: np.ndarray, after: np.ndarray, blocks: np.ndarray) -> float:
+def block_sums(values: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    """Sum of ``values`` (n,) over each time block ``blocks`` (n,), in the blocks'
+    sorted order (n_blocks,)."""
+    ub, inv = np.unique(blocks, return_inverse=True)
+    return np.bincount(inv.ravel(), weights=values, minlength=ub.size)
+
+
+def block_t(before: np.ndarray, after: np.ndarray, blocks: np.ndarray) -> float:
     """Mean over blocks of the drop in the sum of squares, over its standard error."""
-    ub = np.unique(blocks)
-    gains = np.array([float(before[blocks == b].sum() - after[blocks == b].sum()) for b in ub])
+    gains = block_sums(before, blocks) - block_sums(after, blocks)
     if gains.size < 3:
         return float("inf") if gains.sum() > 0 else 0.0
     se = gains.std(ddof=1) / np.sqrt(gains.size)
@@ -254,7 +262,7 @@ def _trial(
     return _Trial(
         name=name,
         gain=float(sq_before.sum() - sq_after.sum()),
-        block_t=_block_t(sq_before, sq_after, blocks),
+        block_t=block_t(sq_before, sq_after, blocks),
         contribution_rms=float(np.sqrt((own**2).mean())),
         plausible=all(_plausible(n, t) for n, t in thetas.items()),
         thetas=thetas,
@@ -390,7 +398,7 @@ def learned_step(
     trial = _Trial(
         name=name,
         gain=float(sq_before.sum() - sq_after.sum()),
-        block_t=_block_t(sq_before, sq_after, blocks),
+        block_t=block_t(sq_before, sq_after, blocks),
         contribution_rms=float(np.sqrt((own**2).mean())),
         plausible=_plausible(name, theta),
         thetas={name: theta},
