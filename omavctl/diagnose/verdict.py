@@ -78,7 +78,10 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         structure = _structure(diag.get("unexplained"))
         if structure:
             text += f" Some structure remains that no registered effect explains: {structure}."
-        return Line("missing", text, command=test if isinstance(test, str) and test else None)
+        # nothing is claimed: the command only tests the effect ("Test it with", and
+        # ``test`` in the JSON), it does not add a missing one
+        cmd = test if isinstance(test, str) and test else None
+        return Line("missing", text, command=cmd, test=cmd is not None)
     top = entries.get(missing[0], {})
     ev = _num(top.get("explained_variance"))
     per_axis = top.get("explained_variance_per_axis") or {}
