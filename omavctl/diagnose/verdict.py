@@ -22,7 +22,7 @@ from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
-from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained
+from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained, replaced_text
 from omavctl.diagnose.verdict_lines import (
     AXES,
     COVERAGE_MIN,
@@ -108,6 +108,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
                 f" (the model's GP has absorbed it: it explains {_pct(ev)} of the model's "
                 "remaining error)"
             )
+        if clause := replaced_text(diag, missing[0]):
+            text += f"; {clause}"
         claimed = None
     elif ev is not None:
         text += f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"

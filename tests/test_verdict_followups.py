@@ -1,0 +1,123 @@
+"""Verdict sentences a user read as unclear or said twice (session 14's follow-ups): a
+claim that took a held-back lag's joint step says whose share it quotes, and a worse
+axis whose fitted parameter disagrees with the evaluated log says it in one sentence
+with the part that rose."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from omavctl.diagnose.change import change_lines, scores_of_files
+from omavctl.diagnose.verdict import verdict
+
+RIVAL = (
+    "command_delay's share is that of the joint step motor_lag passed first: a lag and a "
+    "delay look alike to first order, both passed it, and estimated exactly on this flight "
+    "motor_lag could not be pinned down while command_delay was, so command_delay takes "
+    "its place"
+)
+
+
+def _rival_tree(missing: list[str]) -> dict[str, Any]:
+    """report6 draw 61's second round, cut down: the joint step accepted motor_lag beside
+    rotor_interference, the guard held the lag back and kept command_delay, its rival."""
+    return {
+        "models": [{"name": "m.npz", "effects": {"com_offset": {}}}],
+        "metrics": {"model": {"rmse": {"x": 0.5, "y": 0.5, "z": 0.1}}},
+        "diagnosis": {
+            "method": {"min_explained_variance": 0.15},
+            "missing": missing,
+            "missing_effects": [
+                {"name": "rotor_interference", "explained_variance": 0.55},
+                {"name": "command_delay", "explained_variance": 0.02},
+            ],
+            "joint_steps": [
+                {"name": "rotor_interference", "share": 0.737, "share_of_total": 0.737},
+                {
+                    "name": "motor_lag",
+                    "share": 0.174,
+                    "share_of_total": 0.0457,
+                    "timing_rivals": ["command_delay"],
+                },
+            ],
+            "fit_command": "omavctl fit f.bag --effects rotor_interference,command_delay",
+            "unexplained": [],
+        },
+    }
+
+
+def test_a_claim_that_took_a_held_back_lags_joint_step_says_whose_share_it_is():
+    """It said only "(the fit command adds them together)": the step's shares were
+    looked up by name, and the claim's name is not the step's."""
+    text = verdict(_rival_tree(["rotor_interference", "command_delay"]))[0].text
+    assert (
+        "Also: command_delay (the fit command adds them together: estimated jointly from the "
+        "fit flight as fit --effects would, they remove 78 % of the squared physics-only error "
+        f"on held-out data, rotor_interference 74 %, command_delay 5 %; {RIVAL})."
+    ) in text
+    # the claim alone: the joint share of the step it took, and why it is that step's
+    alone = verdict(_rival_tree(["command_delay"]))[0].text
+    assert alone.startswith(
+        "Missing: command_delay — estimated from the fit flight as fit --effects would, it "
+        "removes 17 % of the squared physics-only error on held-out data (the model's GP has "
+        f"absorbed it: it explains 2 % of the model's remaining error); {RIVAL}."
+    )
+    # a step claimed under its own name says nothing of the sort
+    own = _rival_tree(["rotor_interference", "motor_lag"])
+    assert "share is that of" not in verdict(own)[0].text
+    assert "motor_lag 5 %)." in verdict(own)[0].text
+
+
+def _file(rmse: dict[str, float], physics: dict[str, float], effects: dict[str, Any]) -> dict:
+    return {
+        "models": [{"name": "m.npz", "effects": effects}],
+        "metrics": {
+            "nominal": {"rmse": {"x": 0.3, "y": 0.3, "z": 0.1}},
+            "effects": {"rmse": physics},
+            "model": {"rmse": rmse},
+        },
+        "diagnosis": {
+            "method": {"measurement_noise_std": 0.001},
+            "missing": ["rotational_drag"],
+            "missing_effects": [
+                {
+                    "name": "rotational_drag",
+                    "explained_variance": 0.5,
+                    "explained_variance_per_axis": {"x": 0.5, "y": 0.9, "z": 0.2},
+                    "parameters": {"D": [0.05, 0.05, 0.002], "D_stderr": [0.002, 0.002, 0.001]},
+                }
+            ],
+        },
+    }
+
+
+def test_a_misfitted_parameter_and_the_part_that_rose_are_one_sentence():
+    """The worse axis said the parameter's misfit, then "; the physics-only error ...:
+    the refitted effects made z worse, not the GP" as a second finding (or, where the GP
+    rose, "not the effects" right after blaming the effect's estimate)."""
+    drag = {"rotational_drag": {"D": [0.05, 0.05, 0.036], "D_stderr": [0.002, 0.002, 0.005]}}
+    before = _file({"x": 0.1, "y": 0.2, "z": 0.04}, {"x": 0.3, "y": 0.3, "z": 0.05}, {})
+    misfit = (
+        "D_z is 0.036 ± 0.005 as fitted on the fit flight but 0.002 ± 0.001 from the "
+        "evaluated log, 6.7 standard errors apart: the fit flight did not pin it down (fit on "
+        "both logs, or plan a flight with plan --objective effects)"
+    )
+    # the physics-only error rose with the model's: the parameter is the cause
+    after = _file({"x": 0.06, "y": 0.1, "z": 0.05}, {"x": 0.1, "y": 0.1, "z": 0.0625}, drag)
+    line = change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[1]
+    assert line.text == (
+        "Axis z got worse (+25.0 %): the refitted effects made z worse, not the GP (the "
+        "physics-only error on z rose 0.05 → 0.0625 rad/s² (+25.0 %) and the model's error "
+        f"relative to it went 0.80× → 0.80×), since {misfit}."
+    )
+    # the physics-only error fell, the GP's part rose: the misfit is a by-the-way
+    gp = copy.deepcopy(after)
+    gp["metrics"]["effects"]["rmse"]["z"] = 0.045
+    line = change_lines(scores_of_files([(before, "a.json"), (gp, "b.json")]))[1]
+    assert line.text.startswith(
+        "Axis z got worse (+25.0 %): the refitted GP made z worse, not the effects (the "
+        "physics-only error on z fell 0.05 → 0.045 rad/s² (−10.0 %) and the model's error "
+        "relative to it went 0.80× → 1.11×), though D_z is 0.036 ± 0.005"
+    )
+    assert line.text.count("made z worse") == 1
