@@ -103,8 +103,8 @@ def _worse_reason(
                 )
             misfit += _disagreement(key, axis, v, se, held, i)
     part = _which_part(before, after, axis)
-    if misfit:  # the effect's own estimate is off: that is the reason, not the GP
-        return "; ".join([*misfit, *([part[1]] if part else [])])
+    if misfit:  # the effect's own estimate is off: one sentence with the parts' numbers
+        return _misfit_reason(misfit, part, axis)
     noise = _num(get_path(before.tree, "diagnosis", "method", "measurement_noise_std"))
     r0, r1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
     if noise and r0 is not None and r1 is not None and max(r0, r1) < 3 * noise:
@@ -121,12 +121,29 @@ def _worse_reason(
     return f"{'; '.join(reasons)}: the change comes from the refitted GP, not from the effect"
 
 
-def _which_part(before: ModelScore, after: ModelScore, axis: str) -> tuple[str, str] | None:
+def _misfit_reason(misfit: Sequence[str], part: tuple[str, str, str] | None, axis: str) -> str:
+    """Why ``axis`` got worse when an added effect's fitted parameter disagrees with the
+    evaluated log (``misfit``), with which part rose (:func:`_which_part`) in the same
+    sentence: the parameter is the cause when the physics-only error rose, a
+    by-the-way when the refitted GP made the axis worse (it was said twice before, the
+    second time as if it were another finding)."""
+    said = "; ".join(misfit)
+    if part is None:
+        return said
+    kind, _, numbers = part
+    if kind == "physics":
+        return f"the refitted effects made {axis} worse, not the GP ({numbers}), since {said}"
+    if kind == "gp":
+        return f"the refitted GP made {axis} worse, not the effects ({numbers}), though {said}"
+    return f"both the refitted effects and the GP made {axis} worse ({numbers}); {said}"
+
+
+def _which_part(before: ModelScore, after: ModelScore, axis: str) -> tuple[str, str, str] | None:
     """Which part of the model made ``axis`` worse, from the physics-only error on the
     same flight: the model's error is the physics-only error times the model's error
     relative to it (the GP's part), so the rise splits into the two factors' rises (on
-    a log scale). ("physics" | "gp" | "both", the sentence), None when a file lacks the
-    physics-only error."""
+    a log scale). ("physics" | "gp" | "both", the sentence, its numbers alone), None
+    when a file lacks the physics-only error."""
     p0, p1 = _num(before.physics.get(axis)), _num(after.physics.get(axis))
     m0, m1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
     if not (p0 and p1 and m0 and m1) or min(p0, p1, m0, m1) <= 0 or m1 <= m0:
@@ -137,11 +154,12 @@ def _which_part(before: ModelScore, after: ModelScore, axis: str) -> tuple[str, 
     phys = f"the physics-only error on {axis} {verb} {p0:.3g} → {p1:.3g} rad/s²"
     phys += f" ({_signed(p1 / p0 - 1)})"
     gp = f"the model's error relative to it went {g0:.2f}× → {g1:.2f}×"
+    numbers = f"{phys} and {gp}"
     if share >= 2 / 3:
-        return "physics", f"{phys} and {gp}: the refitted effects made {axis} worse, not the GP"
+        return "physics", f"{numbers}: the refitted effects made {axis} worse, not the GP", numbers
     if share <= 1 / 3:
-        return "gp", f"{phys} and {gp}: the refitted GP made {axis} worse, not the effects"
-    return "both", f"{phys} and {gp}: both the refitted effects and the GP made {axis} worse"
+        return "gp", f"{numbers}: the refitted GP made {axis} worse, not the effects", numbers
+    return "both", f"{numbers}: both the refitted effects and the GP made {axis} worse", numbers
 
 
 def ordered(first: ModelScore, last: ModelScore) -> tuple[ModelScore, ModelScore]:
