@@ -121,3 +121,26 @@ def test_a_misfitted_parameter_and_the_part_that_rose_are_one_sentence():
         "relative to it went 0.80× → 1.11×), though D_z is 0.036 ± 0.005"
     )
     assert line.text.count("made z worse") == 1
+
+
+def test_a_change_between_evaluations_of_different_samples_says_so():
+    """A new user's report of an evaluation on one log and one on two logs read "With
+    rotor_interference added: the model error falls by 53.4 %": the nominal errors,
+    which do not depend on the model, showed the samples differed; the line says so."""
+    before = _file({"x": 0.2, "y": 0.3, "z": 0.07}, {"x": 0.3, "y": 0.4, "z": 0.08}, {})
+    after = _file({"x": 0.1, "y": 0.15, "z": 0.05}, {"x": 0.2, "y": 0.3, "z": 0.06}, {"a": {}})
+    same = change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text
+    assert same == (
+        "With a added (a.json → b.json): the model error falls by 47.4 % (sum over axes) — "
+        "x −50.0 %, y −50.0 %, z −28.6 %."
+    )
+    after["metrics"]["nominal"]["rmse"] = {"x": 0.933, "y": 1.08, "z": 0.142}
+    other = change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text
+    assert other == same[:-1] + (
+        "; but not on the same samples (the nominal model's error differs: x 0.3 → 0.933, "
+        "y 0.3 → 1.08, z 0.1 → 0.142 rad/s²), so this compares the flights as much as the "
+        "models: evaluate both models on one flight (evaluate LOG --model A --model B) to "
+        "compare them."
+    )
+    del after["metrics"]["nominal"]  # an older file without it: nothing to go by
+    assert change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text == same

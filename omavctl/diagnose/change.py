@@ -204,8 +204,8 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
         text = f"{what}: the model error {verb} by {abs(100 * mean):.1f} % (sum over axes)"
     else:
         text = f"{what}: model error"
-    text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items()) + "."
-    lines = [Line("change", text)]
+    text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items())
+    lines = [Line("change", text + _other_samples(before, after) + ".")]
     for a, c in changes.items():
         if c > 0.02:
             lines.append(
@@ -216,6 +216,24 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
                 )
             )
     return lines
+
+
+def _other_samples(before: ModelScore, after: ModelScore) -> str:
+    """'' when both scores are of the same samples or a file lacks the nominal error;
+    else the words that say the change mixes two flights with two models (a new user's
+    report of an evaluation on one log and one on two said "the model error falls by
+    53.4 %" as if the effect had done it)."""
+    n0 = get_path(before.tree, "metrics", "nominal", "rmse", default={}) or {}
+    n1 = get_path(after.tree, "metrics", "nominal", "rmse", default={}) or {}
+    pairs = [(a, _num(n0.get(a)), _num(n1.get(a))) for a in AXES]
+    if any(v0 is None or v1 is None for _, v0, v1 in pairs) or _same_flight(before, after):
+        return ""
+    nominal = ", ".join(f"{a} {v0:.3g} → {v1:.3g}" for a, v0, v1 in pairs)
+    return (
+        f"; but not on the same samples (the nominal model's error differs: {nominal} "
+        "rad/s²), so this compares the flights as much as the models: evaluate both models "
+        "on one flight (evaluate LOG --model A --model B) to compare them"
+    )
 
 
 def _same_flight(before: ModelScore, after: ModelScore) -> bool:
