@@ -144,3 +144,40 @@ def test_a_change_between_evaluations_of_different_samples_says_so():
     )
     del after["metrics"]["nominal"]  # an older file without it: nothing to go by
     assert change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text == same
+
+
+def test_a_fall_measured_after_an_effect_held_back_names_why_it_was_held_back():
+    """`evaluate --model gp.npz --model gp-ri.npz` (a new user's trial): "although this
+    model's diagnosis claimed nothing missing (rotor_interference: it passed its tests but
+    another was preferred)" when the diagnosis had held it back as not pinned down."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    def metrics(rmse: float) -> dict[str, Any]:
+        return {
+            "nominal": {"rmse": {a: 0.3 for a in "xyz"}},
+            "model": {"rmse": {a: rmse for a in "xyz"}},
+        }
+
+    tree = {
+        "models": [
+            {"name": "gp.npz", "effects": {}},
+            {"name": "gp-ri.npz", "effects": {"rotor_interference": {}}},
+        ],
+        "metrics": metrics(0.2),
+        "metrics_by_model": [metrics(0.2), metrics(0.1)],
+        "diagnosis": {
+            "method": {"min_explained_variance": 0.15, "min_t_value": 4.0},
+            "missing": [],
+            "missing_effects": [
+                {"name": "rotor_interference", "explained_variance": 0.23, "t_value": 14.5}
+            ],
+            "not_pinned": [{"name": "rotor_interference", "estimate": {}, "axes": ["x", "y"]}],
+            "unexplained": [],
+        },
+    }
+    assert verdict_of_models(tree)[0].text == (
+        "Missing: rotor_interference, measured — with it added (gp-ri.npz) the model error on "
+        "the same flight falls by 50.0 % (sum over axes), although this model's diagnosis "
+        "claimed nothing missing (rotor_interference: estimated on this flight as fit would, "
+        "its 95 % interval did not exclude the value at which it is absent: not pinned down)."
+    )

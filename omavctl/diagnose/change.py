@@ -14,6 +14,7 @@ from dataclasses import replace
 from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.claim_text import not_pinned_names
 from omavctl.diagnose.verdict import verdict
 from omavctl.diagnose.verdict_lines import AXES, Line, ModelScore, _pct, _signed, get_path
 
@@ -278,6 +279,11 @@ def _why_missed(tree: Mapping[str, Any], name: str) -> str:
         failed.append("its estimate sat at a bound of its plausible range")
     if refit is not None and refit <= 0:
         failed.append(f"fitted as fit --effects would fit it, it explained {100 * refit:.0f} %")
+    if name in not_pinned_names(diag):
+        failed.append(
+            "estimated on this flight as fit would, its 95 % interval did not exclude the "
+            "value at which it is absent: not pinned down"
+        )
     return "; ".join(failed) if failed else "it passed its tests but another was preferred"
 
 
