@@ -181,3 +181,30 @@ def test_a_fall_measured_after_an_effect_held_back_names_why_it_was_held_back():
         "claimed nothing missing (rotor_interference: estimated on this flight as fit would, "
         "its 95 % interval did not exclude the value at which it is absent: not pinned down)."
     )
+
+
+def test_a_worst_segment_barely_above_the_flights_error_is_not_called_a_failure():
+    """`Fails most at 1.8–2.8 s of d2.bag: y error 0.337 rad/s² RMS, 1.1× its overall`
+    (a new user's wobble flight) sent them looking at a second that is like the rest."""
+    seg = {
+        "log": "d2.bag",
+        "start": 1.8,
+        "end": 2.8,
+        "rmse": {"x": 0.2, "y": 0.337, "z": 0.07},
+        "attitude_deg": [1.0, 1.0, 0.0],
+        "rate": [0.4, 0.1, 0.0],
+    }
+    tree = {
+        "metrics": {"model": {"rmse": {"x": 0.205, "y": 0.298, "z": 0.074}}},
+        "worst_segments": [seg],
+        "diagnosis": {"missing": [], "missing_effects": [], "unexplained": []},
+    }
+    (line,) = [ln for ln in verdict(tree) if ln.key == "fails"]
+    assert line.text == (
+        "No part of the flight stands out: the worst segment, 1.8–2.8 s of d2.bag (near "
+        "level, rolling at 0.40 rad/s), has a y error of 0.337 rad/s² RMS, only 1.1× its "
+        "overall."
+    )
+    tree["metrics"]["model"]["rmse"]["y"] = 0.2  # 1.7×: it stands out
+    (line,) = [ln for ln in verdict(tree) if ln.key == "fails"]
+    assert line.text.startswith("Fails most at 1.8–2.8 s of d2.bag: y error 0.337 rad/s² RMS")
