@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import shlex
+import shutil
 import subprocess
 import time
 from pathlib import Path
@@ -138,6 +139,13 @@ def simulate(
             simulator_argv(simulator, ref, "truth.yaml", f["log"], f["seed"]), d, f["log"], log
         )
         return
+    # the draw's own log from an earlier run: simulate replaces only a log that bears
+    # omavctl's mark, which logs an older omavctl wrote lack
+    own = d / f["log"]
+    if own.is_dir():
+        shutil.rmtree(own)
+    elif own.exists():
+        own.unlink()
     omavctl(
         ["simulate", "--reference", ref, "--truth", "truth.yaml", "--seed", str(f["seed"]),
          "--out", f["log"]],

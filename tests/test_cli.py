@@ -170,6 +170,51 @@ def test_simulate_output_directory_missing(task_csv, tmp_path):
     assert _error_line(result) == f"error: {out.parent}: output directory does not exist"
 
 
+def test_simulate_replaces_its_own_log_and_never_another_file(task_csv, tmp_path):
+    """``simulate --out`` used to overwrite whatever was there, a user's flight log
+    too: it now replaces only a log omavctl wrote (as ``task`` and ``plan`` replace
+    only a trajectory CSV), refusing anything else in one line, untouched."""
+    import shutil
+
+    import yaml
+
+    short = tmp_path / "short.csv"  # a 1 s flight: eight of them fly in a few seconds
+    task = ["task", "fig8", "--duration", "1", "--ramp", "0.25", "--out", str(short), "-q"]
+    assert runner.invoke(app, task).exit_code == 0
+
+    def sim(out, seed: str = "1"):
+        return runner.invoke(app, ["simulate", "-r", str(short), "--seed", seed, "-o", str(out)])
+
+    for name in ("own.csv", "own.bag", "own.mcap", "own"):  # its own output: replaced
+        assert sim(tmp_path / name).exit_code == 0
+        result = sim(tmp_path / name, "2")
+        assert result.exit_code == 0, result.output
+    # a ROS 2 bag a recorder wrote (no omavctl mark in its metadata), a trajectory CSV,
+    # a ROS 1 bag and an MCAP file omavctl did not write, and a user's directory
+    recorded = tmp_path / "recorded"
+    shutil.copytree(tmp_path / "own", recorded)
+    meta = yaml.safe_load((recorded / "metadata.yaml").read_text())
+    meta["rosbag2_bagfile_information"]["custom_data"] = None
+    (recorded / "metadata.yaml").write_text(yaml.safe_dump(meta))
+    reference = tmp_path / "reference.csv"
+    shutil.copy(task_csv, reference)
+    (tmp_path / "other.bag").write_bytes(b"#ROSBAG V2.0\n" + bytes(64))
+    other = (tmp_path / "own.mcap").read_bytes().replace(b"omavctl", b"recordr", 1)
+    (tmp_path / "other.mcap").write_bytes(other)
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "a.txt").write_text("mine")
+    for name in ("recorded", "reference.csv", "other.bag", "other.mcap", "notes"):
+        out = tmp_path / name
+        before = sorted((p.name, p.read_bytes()) for p in [out, *out.rglob("*")] if p.is_file())
+        assert _error_line(sim(out)) == (
+            f"error: {out}: exists and is not a log omavctl simulate wrote; "
+            "choose another name (or remove it)"
+        )
+        assert sorted((p.name, p.read_bytes()) for p in [out, *out.rglob("*")] if p.is_file()) == (
+            before
+        )
+
+
 @pytest.mark.parametrize("name", ["x.txt", "flight.cvs", "log.db3"])
 def test_simulate_unknown_log_kind_is_refused_before_flying(task_csv, tmp_path, name):
     """A mistyped extension is not written as a ROS 2 bag directory of that name."""

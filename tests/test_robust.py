@@ -427,3 +427,23 @@ def test_older_evaluation_with_a_value_of_another_type(work: Path, tmp_path: Pat
         f"error: {old}: not an evaluation JSON this omavctl can read: a key holds a value "
         "of another type"
     )
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["fit", "task.csv", "--out", "t.npz"],
+        ["evaluate", "log.csv", "task.csv", "--model", "m.npz", "--out", "t.json"],
+    ],
+    ids=["fit", "evaluate"],
+)
+def test_a_trajectory_csv_given_as_a_flight_log_says_what_it_is(work: Path, args) -> None:
+    """A new user's `fit fig8.csv` (the task, not a flight of it) said only "missing
+    columns for body_rate: body_rate_x, ...": it now says what the file is and what
+    to do, and nothing is written."""
+    line = _line(args, work)
+    assert line == (
+        "error: task.csv: a trajectory CSV (what task and plan write), not a flight log: fly "
+        "it first (omavctl simulate --reference task.csv --out LOG)"
+    )
+    assert not (work / "t.npz").exists() and not (work / "t.json").exists()

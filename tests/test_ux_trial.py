@@ -191,3 +191,34 @@ def test_an_unpinned_interval_is_worded_by_what_it_holds():
         " [0.81, 1.3]: outside the plausible 0 to 1: not this effect alone, something else "
         "on this axis"
     )
+
+
+def test_report_prints_the_verdicts_commands_as_evaluate_does(tmp_path: Path):
+    """`evaluate` printed each command on a line of its own ("    add it with: ..."),
+    `report` ran it on at the end of the sentence ("... Add it with: omavctl fit ..."):
+    the same verdict in two layouts, the command hard to pick out of the report's."""
+    from rich.console import Console
+
+    from omavctl.cli.report import _render_report
+    from omavctl.diagnose.verdict_lines import Line
+    from omavctl.report.summary import render_evaluation
+
+    cmd = "omavctl fit f.bag --effects rotor_interference --out m+r.npz"
+    line = Line("missing", "Nothing claimed as missing.", "e.json", cmd, test=True)
+    ev = SimpleNamespace(label="e.json", model_rmse={"x": 1.0, "y": 2.0, "z": 3.0},
+                         missing=[], fit_command=None)  # fmt: skip
+    summary = SimpleNamespace(verdict=[line], evaluations=[ev], fmt="md", figures=0)
+    con = Console(record=True, width=200)
+    _render_report(con, summary, tmp_path / "r.md")
+    text = con.export_text()
+    assert f"  e.json: Nothing claimed as missing.\n    test it with: {cmd}\n" in text
+    tree = {
+        "diagnosis": {
+            "missing": [],
+            "not_pinned": [{"name": "rotor_interference", "estimate": {}, "axes": None}],
+            "effect_commands": {"rotor_interference": cmd},
+        }
+    }
+    con = Console(record=True, width=400)
+    render_evaluation(con, tree, {})
+    assert f"\n    test it with: {cmd}\n" in con.export_text()

@@ -494,3 +494,48 @@ def test_a_learned_effect_the_flight_does_not_confirm_is_offered_as_a_test():
         "Test it with: omavctl fit f.bag --effects com_offset --out m+c.npz"
     )
     assert "test it with: omavctl fit f.bag --effects com_offset" in _terminal(tree)
+
+
+def test_nothing_claimed_offers_its_command_as_a_test_not_as_an_addition():
+    """A new user's first verdict (fit with defaults on the omav, judged on a wobble):
+    "Nothing claimed as missing. Not claimed: rotor_interference ..." was followed by
+    "add it with:" and ``"test": false``, contradicting the sentence. Each way nothing
+    is claimed (not pinned down, below the claim floor, held back by the refit test)
+    offers its command as a test, in the terminal, the JSON and the report."""
+    from omavctl.report.summary import evaluation_json
+
+    cmd = "omavctl fit f.bag --effects rotor_interference"
+    unpinned = _nothing_missing()
+    unpinned["diagnosis"]["not_pinned"] = [
+        {
+            "name": "rotor_interference",
+            "units": {"rotor_rotor": "1"},
+            "estimate": {"rotor_rotor": 0.25, "rotor_rotor_ci95": [0.0, 0.53]},
+            "axes": None,
+        }
+    ]
+    unpinned["diagnosis"]["effect_commands"] = {"rotor_interference": cmd}
+    below = _nothing_missing()
+    below["diagnosis"]["method"]["min_contribution_rms"] = 0.09
+    below["diagnosis"].update(below_noise="rotor_interference", test_command=cmd)
+    below["diagnosis"]["missing_effects"] = [
+        {"name": "rotor_interference", "explained_variance": 0.3, "contribution_rms": 0.05}
+    ]
+    refit = _nothing_missing()
+    refit["diagnosis"].update(refit_rejected="rotor_interference")
+    refit["diagnosis"]["effect_commands"] = {"rotor_interference": cmd}
+    refit["diagnosis"]["missing_effects"] = [
+        {"name": "rotor_interference", "explained_variance": 0.3, "refit_explained_variance": -0.2}
+    ]
+    for tree in (unpinned, below, refit):
+        first = verdict(tree)[0]
+        assert first.text.startswith("Nothing claimed as missing")
+        assert (first.command, first.test) == (cmd, True)
+        assert first.plain().endswith(f" Test it with: {cmd}")
+        assert f"    test it with: {cmd}" in _terminal(tree)
+        assert "add it with" not in _terminal(tree)
+        (line,) = [v for v in evaluation_json(tree, {})["verdict"] if v["key"] == "missing"]
+        assert (line["command"], line["test"]) == (cmd, True)
+    # nothing near a claim: no command, so nothing to test
+    plain = verdict(_nothing_missing())[0]
+    assert (plain.command, plain.test) == (None, False)

@@ -70,8 +70,10 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
     from rich.text import Text
 
     con.print(Text("verdict", style="bold"))
-    for line in summary.verdict:
-        con.print(Text(f"  {line.plain()}"))
+    for line in summary.verdict:  # as evaluate prints it: the command on a line of its own
+        con.print(Text(f"  {line.who}: {line.text}" if line.who else f"  {line.text}"))
+        if line.command:
+            con.print(Text(f"    {line.add_words.lower()}: {line.command}"))
     table = Table(title="model RMSE per axis, rad/s^2", title_justify="left")
     table.add_column("evaluation")
     for axis in "xyz":

@@ -20,7 +20,9 @@ LogOut = Annotated[
         "-o",
         metavar="LOG",
         help="Output log; its kind follows the name: a directory (no suffix) -> ROS 2 bag "
-        "(mcap storage), .bag -> ROS 1 bag, .mcap -> standalone MCAP, .csv -> wide CSV.",
+        "(mcap storage), .bag -> ROS 1 bag, .mcap -> standalone MCAP, .csv -> wide CSV. "
+        "An existing LOG is replaced only when omavctl wrote it (never a recorded flight "
+        "or another file).",
     ),
 ]
 Truth = Annotated[

@@ -14,6 +14,7 @@ from dataclasses import replace
 from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.claim_text import not_pinned_names
 from omavctl.diagnose.verdict import verdict
 from omavctl.diagnose.verdict_lines import AXES, Line, ModelScore, _pct, _signed, get_path
 
@@ -103,8 +104,8 @@ def _worse_reason(
                 )
             misfit += _disagreement(key, axis, v, se, held, i)
     part = _which_part(before, after, axis)
-    if misfit:  # the effect's own estimate is off: that is the reason, not the GP
-        return "; ".join([*misfit, *([part[1]] if part else [])])
+    if misfit:  # the effect's own estimate is off: one sentence with the parts' numbers
+        return _misfit_reason(misfit, part, axis)
     noise = _num(get_path(before.tree, "diagnosis", "method", "measurement_noise_std"))
     r0, r1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
     if noise and r0 is not None and r1 is not None and max(r0, r1) < 3 * noise:
@@ -121,12 +122,29 @@ def _worse_reason(
     return f"{'; '.join(reasons)}: the change comes from the refitted GP, not from the effect"
 
 
-def _which_part(before: ModelScore, after: ModelScore, axis: str) -> tuple[str, str] | None:
+def _misfit_reason(misfit: Sequence[str], part: tuple[str, str, str] | None, axis: str) -> str:
+    """Why ``axis`` got worse when an added effect's fitted parameter disagrees with the
+    evaluated log (``misfit``), with which part rose (:func:`_which_part`) in the same
+    sentence: the parameter is the cause when the physics-only error rose, a
+    by-the-way when the refitted GP made the axis worse (it was said twice before, the
+    second time as if it were another finding)."""
+    said = "; ".join(misfit)
+    if part is None:
+        return said
+    kind, _, numbers = part
+    if kind == "physics":
+        return f"the refitted effects made {axis} worse, not the GP ({numbers}), since {said}"
+    if kind == "gp":
+        return f"the refitted GP made {axis} worse, not the effects ({numbers}), though {said}"
+    return f"both the refitted effects and the GP made {axis} worse ({numbers}); {said}"
+
+
+def _which_part(before: ModelScore, after: ModelScore, axis: str) -> tuple[str, str, str] | None:
     """Which part of the model made ``axis`` worse, from the physics-only error on the
     same flight: the model's error is the physics-only error times the model's error
     relative to it (the GP's part), so the rise splits into the two factors' rises (on
-    a log scale). ("physics" | "gp" | "both", the sentence), None when a file lacks the
-    physics-only error."""
+    a log scale). ("physics" | "gp" | "both", the sentence, its numbers alone), None
+    when a file lacks the physics-only error."""
     p0, p1 = _num(before.physics.get(axis)), _num(after.physics.get(axis))
     m0, m1 = _num(before.rmse.get(axis)), _num(after.rmse.get(axis))
     if not (p0 and p1 and m0 and m1) or min(p0, p1, m0, m1) <= 0 or m1 <= m0:
@@ -137,11 +155,12 @@ def _which_part(before: ModelScore, after: ModelScore, axis: str) -> tuple[str, 
     phys = f"the physics-only error on {axis} {verb} {p0:.3g} → {p1:.3g} rad/s²"
     phys += f" ({_signed(p1 / p0 - 1)})"
     gp = f"the model's error relative to it went {g0:.2f}× → {g1:.2f}×"
+    numbers = f"{phys} and {gp}"
     if share >= 2 / 3:
-        return "physics", f"{phys} and {gp}: the refitted effects made {axis} worse, not the GP"
+        return "physics", f"{numbers}: the refitted effects made {axis} worse, not the GP", numbers
     if share <= 1 / 3:
-        return "gp", f"{phys} and {gp}: the refitted GP made {axis} worse, not the effects"
-    return "both", f"{phys} and {gp}: both the refitted effects and the GP made {axis} worse"
+        return "gp", f"{numbers}: the refitted GP made {axis} worse, not the effects", numbers
+    return "both", f"{numbers}: both the refitted effects and the GP made {axis} worse", numbers
 
 
 def ordered(first: ModelScore, last: ModelScore) -> tuple[ModelScore, ModelScore]:
@@ -186,8 +205,8 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
         text = f"{what}: the model error {verb} by {abs(100 * mean):.1f} % (sum over axes)"
     else:
         text = f"{what}: model error"
-    text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items()) + "."
-    lines = [Line("change", text)]
+    text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items())
+    lines = [Line("change", text + _other_samples(before, after) + ".")]
     for a, c in changes.items():
         if c > 0.02:
             lines.append(
@@ -198,6 +217,24 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
                 )
             )
     return lines
+
+
+def _other_samples(before: ModelScore, after: ModelScore) -> str:
+    """'' when both scores are of the same samples or a file lacks the nominal error;
+    else the words that say the change mixes two flights with two models (a new user's
+    report of an evaluation on one log and one on two said "the model error falls by
+    53.4 %" as if the effect had done it)."""
+    n0 = get_path(before.tree, "metrics", "nominal", "rmse", default={}) or {}
+    n1 = get_path(after.tree, "metrics", "nominal", "rmse", default={}) or {}
+    pairs = [(a, _num(n0.get(a)), _num(n1.get(a))) for a in AXES]
+    if any(v0 is None or v1 is None for _, v0, v1 in pairs) or _same_flight(before, after):
+        return ""
+    nominal = ", ".join(f"{a} {v0:.3g} → {v1:.3g}" for a, v0, v1 in pairs)
+    return (
+        f"; but not on the same samples (the nominal model's error differs: {nominal} "
+        "rad/s²), so this compares the flights as much as the models: evaluate both models "
+        "on one flight (evaluate LOG --model A --model B) to compare them"
+    )
 
 
 def _same_flight(before: ModelScore, after: ModelScore) -> bool:
@@ -242,6 +279,11 @@ def _why_missed(tree: Mapping[str, Any], name: str) -> str:
         failed.append("its estimate sat at a bound of its plausible range")
     if refit is not None and refit <= 0:
         failed.append(f"fitted as fit --effects would fit it, it explained {100 * refit:.0f} %")
+    if name in not_pinned_names(diag):
+        failed.append(
+            "estimated on this flight as fit would, its 95 % interval did not exclude the "
+            "value at which it is absent: not pinned down"
+        )
     return "; ".join(failed) if failed else "it passed its tests but another was preferred"
 
 

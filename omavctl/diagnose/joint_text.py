@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["joint_share", "joint_text", "min_explained"]
+__all__ = ["joint_share", "joint_text", "min_explained", "replaced_step", "replaced_text"]
 
 
 def _num(v: Any) -> float | None:
@@ -24,26 +24,60 @@ def _entries(diag: Mapping[str, Any], key: str) -> list[Mapping[str, Any]]:
     return [e for e in items if isinstance(e, Mapping)] if isinstance(items, list) else []
 
 
+def replaced_step(diag: Mapping[str, Any], name: str) -> str | None:
+    """The joint step ``name`` took the place of (:mod:`omavctl.diagnose.joint_timing`):
+    a lag or delay the step accepted first, held back by the claims guard and replaced by
+    ``name``, one of its ``timing_rivals``; None when ``name`` is a step of its own."""
+    steps = _entries(diag, "joint_steps")
+    if any(e.get("name") == name for e in steps):
+        return None
+    said = set(map(str, diag.get("missing") or []))
+    for e in steps:
+        held = str(e.get("name"))
+        if name in map(str, e.get("timing_rivals") or []) and held not in said:
+            return held
+    return None
+
+
+def replaced_text(diag: Mapping[str, Any], name: str) -> str:
+    """Why ``name``'s share is another effect's, '' when it is its own: the joint step
+    it answers accepted a look-alike first, which the exact estimate did not pin down."""
+    held = replaced_step(diag, name)
+    if held is None:
+        return ""
+    return (
+        f"{name}'s share is that of the joint step {held} passed first: a lag and a delay "
+        f"look alike to first order, both passed it, and estimated exactly on this flight "
+        f"{held} could not be pinned down while {name} was, so {name} takes its place"
+    )
+
+
 def joint_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
     """How much of the held-out physics-only error the missing effects remove when
     estimated together (``joint_steps``), '' when the joint selection did not name them
-    all; the fit command adds them all at once."""
+    all; the fit command adds them all at once. An effect that took a held-back lag's or
+    delay's step (:func:`replaced_step`) is given that step's share, and says so."""
     steps = {str(e.get("name")): e for e in _entries(diag, "joint_steps")}
-    shares = [_num(steps.get(m, {}).get("share_of_total")) for m in missing]
+    shares = [
+        _num(steps.get(replaced_step(diag, m) or m, {}).get("share_of_total")) for m in missing
+    ]
     if any(v is None for v in shares):
         return " (the fit command adds them together)"
     parts = ", ".join(f"{m} {_pct(v)}" for m, v in zip(missing, shares, strict=True) if v)
+    why = "".join(f"; {clause}" for m in missing if (clause := replaced_text(diag, m)))
     return (
         " (the fit command adds them together: estimated jointly from the fit flight as "
         f"fit --effects would, they remove {_pct(sum(v for v in shares if v))} of the "
-        f"squared physics-only error on held-out data, {parts})"
+        f"squared physics-only error on held-out data, {parts}{why})"
     )
 
 
 def joint_share(diag: Mapping[str, Any], name: str) -> float | None:
-    """``name``'s share of the held-out physics-only error in the joint selection."""
+    """``name``'s share of the held-out physics-only error in the joint selection (the
+    share of the step it took, :func:`replaced_step`)."""
+    step = replaced_step(diag, name) or name
     for e in diag.get("joint_steps") or []:
-        if isinstance(e, Mapping) and e.get("name") == name:
+        if isinstance(e, Mapping) and e.get("name") == step:
             return _num(e.get("share"))
     return None
 

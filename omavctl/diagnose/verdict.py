@@ -22,7 +22,7 @@ from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
-from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained
+from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained, replaced_text
 from omavctl.diagnose.verdict_lines import (
     AXES,
     COVERAGE_MIN,
@@ -78,7 +78,10 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         structure = _structure(diag.get("unexplained"))
         if structure:
             text += f" Some structure remains that no registered effect explains: {structure}."
-        return Line("missing", text, command=test if isinstance(test, str) and test else None)
+        # nothing is claimed: the command only tests the effect ("Test it with", and
+        # ``test`` in the JSON), it does not add a missing one
+        cmd = test if isinstance(test, str) and test else None
+        return Line("missing", text, command=cmd, test=cmd is not None)
     top = entries.get(missing[0], {})
     ev = _num(top.get("explained_variance"))
     per_axis = top.get("explained_variance_per_axis") or {}
@@ -105,6 +108,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
                 f" (the model's GP has absorbed it: it explains {_pct(ev)} of the model's "
                 "remaining error)"
             )
+        if clause := replaced_text(diag, missing[0]):
+            text += f"; {clause}"
         claimed = None
     elif ev is not None:
         text += f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from omavctl.diagnose.activity import fails_text
+from omavctl.diagnose.activity import activity, fails_text
 from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.horizon_findings import open_loop_narrow
 
@@ -25,6 +25,7 @@ __all__ = [
     "COVERAGE_UNDER",
     "ENVELOPE_SHARE",
     "FIRST_FLAGS",
+    "STANDS_OUT",
     "Line",
     "ModelScore",
     "coverage_of",
@@ -112,9 +113,34 @@ def _signed(v: float) -> str:
 
 
 # --------------------------------------------------------------- where/why
+#: Below this ratio of the worst segment's error to the flight's (its worst axis), no
+#: part of the flight stands out: the verdict does not say "Fails most at".
+STANDS_OUT = 1.5
+
+
 def fails_line(tree: Mapping[str, Any]) -> Line | None:
+    """Where the model fails most and what the vehicle was doing there; when the worst
+    segment's error is under :data:`STANDS_OUT` times the flight's, that nothing stands
+    out (a new user read "Fails most at 1.8–2.8 s ..., 1.1× its overall" as a place to
+    look at)."""
     text = fails_text(tree)
-    return Line("fails", text) if text else None
+    if not text:
+        return None
+    seg = (tree.get("worst_segments") or [{}])[0]
+    rmse = seg.get("rmse") or {}
+    vals = {a: v for a in AXES if (v := _num(rmse.get(a))) is not None}
+    overall = get_path(tree, "metrics", "model", "rmse", default={}) or {}
+    axis = max(vals, key=lambda a: vals[a])
+    whole = _num(overall.get(axis)) if isinstance(overall, Mapping) else None
+    start, end = _num(seg.get("start")), _num(seg.get("end"))
+    if not whole or start is None or end is None or vals[axis] >= STANDS_OUT * whole:
+        return Line("fails", text)
+    return Line(
+        "fails",
+        f"No part of the flight stands out: the worst segment, {start:.1f}–{end:.1f} s of "
+        f"{seg.get('log', '?')} ({activity(seg)}), has a {axis} error of {vals[axis]:.3g} "
+        f"rad/s² RMS, only {vals[axis] / whole:.1f}× its overall.",
+    )
 
 
 def coverage_of(metrics: Mapping[str, Any]) -> dict[str, float]:

@@ -20,7 +20,7 @@ from omavctl.base.errors import OmavctlError
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.model_file import check_model_paths, check_vehicle, load_model
 from omavctl.logs import write_log
-from omavctl.logs.write import output_kind
+from omavctl.logs.write import check_log_replaceable, output_kind
 from omavctl.sim.plant import SimulationResult, simulate
 from omavctl.sim.trajectory import Trajectory, read_trajectory
 from omavctl.sim.truth import TruthParameters, load_truth
@@ -72,11 +72,14 @@ def prepare_simulation(
     """Refuse a bad ``out``, read the reference, vehicle, truth and model, check them.
 
     The log's kind follows ``out``'s name (:func:`omavctl.logs.write_log`); a
-    directory is allowed as output when ``out`` has no suffix (a ROS 2 bag).
+    directory is allowed as output when ``out`` has no suffix (a ROS 2 bag). An
+    existing ``out`` is replaced only when it is a log omavctl wrote
+    (:func:`omavctl.logs.write.check_log_replaceable`).
     """
     check_model_paths([model])
     check_outputs([reference, truth, vehicle, model], [out], directory_ok=not out.suffix)
     output_kind(out)  # an unknown extension is refused before the flight is flown
+    check_log_replaceable(out)  # a log simulate wrote may be replaced, no other file
     veh = load_vehicle(vehicle)
     veh.check_flyable("simulate", vehicle)
     ref = read_trajectory(reference)

@@ -17,6 +17,7 @@ from omavctl.base.atomic import check_outputs
 from omavctl.learn.fit import FitResult, Progress, fit_model
 from omavctl.learn.model_file import check_model_paths, save_model
 from omavctl.logs import parse_time_window
+from omavctl.sim.trajectory import refuse_as_logs
 from omavctl.vehicle import Vehicle, load_vehicle
 
 __all__ = ["FitJob", "effect_names", "prepare_fit"]
@@ -86,6 +87,7 @@ def prepare_fit(
     ``--time-window``, :func:`omavctl.logs.parse_time_window`) and read the vehicle."""
     check_model_paths([prior])
     check_outputs([*logs, vehicle, prior], [out])
+    refuse_as_logs(list(logs))
     window = parse_time_window(time_window) if time_window else None
     veh = load_vehicle(vehicle)
     return FitJob(

@@ -30,10 +30,14 @@ from omavctl.base.errors import LogError
 from omavctl.logs.contract import TOPIC_FRAMES, TOPIC_MSGTYPES, TOPIC_SIGNALS, merge_topics
 from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog
 
-__all__ = ["output_kind", "write_log"]
+__all__ = ["check_log_replaceable", "output_kind", "write_log"]
 
 
 _KINDS = {".csv": "csv", ".bag": "ros1", ".mcap": "mcap"}
+#: Who wrote a log, as the logs this module writes say it: the ROS 2 bag's
+#: ``custom_data`` entry, the ROS 1 bag's caller id on every connection, the MCAP
+#: header's library (``omavctl <version>``).
+WRITER = "omavctl"
 
 
 def output_kind(path: Path) -> str:
@@ -173,7 +177,10 @@ def _write_ros1(tmp: Path, raw: RawLog, names: Mapping[str, str]) -> None:
     topics = _build_topics(raw, names, store)
     data = [[store.serialize_ros1(m, t.msgtype) for m in t.msgs] for t in topics]
     with Writer(tmp) as writer:
-        conns = [writer.add_connection(t.name, t.msgtype, typestore=store) for t in topics]
+        conns = [
+            writer.add_connection(t.name, t.msgtype, typestore=store, callerid=f"/{WRITER}")
+            for t in topics
+        ]
         for i, j in zip(*_time_order(topics), strict=True):
             writer.write(conns[i], int(topics[i].stamps_ns[j]), data[i][j])
 
@@ -186,6 +193,7 @@ def _write_ros2(tmp: Path, raw: RawLog, names: Mapping[str, str]) -> None:
     topics = _build_topics(raw, names, store)
     data = [[store.serialize_cdr(m, t.msgtype) for m in t.msgs] for t in topics]
     with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        writer.set_custom_data("written_by", WRITER)
         conns = [writer.add_connection(t.name, t.msgtype, typestore=store) for t in topics]
         for i, j in zip(*_time_order(topics), strict=True):
             writer.write(conns[i], int(topics[i].stamps_ns[j]), data[i][j])
@@ -202,7 +210,7 @@ def _write_mcap(tmp: Path, raw: RawLog, names: Mapping[str, str]) -> None:
     data = [[bytes(store.serialize_cdr(m, t.msgtype)) for m in t.msgs] for t in topics]
     with tmp.open("wb") as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
-        writer.start(profile="ros2", library=f"omavctl {__version__}")
+        writer.start(profile="ros2", library=f"{WRITER} {__version__}")
         schemas: dict[str, int] = {}
         channels = []
         for t in topics:
@@ -261,3 +269,102 @@ def write_log(path: str | Path, raw: RawLog, topics: Mapping[str, str] | None = 
             )
         with atomic_dir(p) as tmp:
             _write_ros2(tmp, raw, names)
+
+
+def check_log_replaceable(path: str | Path) -> None:
+    """Refuse an existing ``path`` that is not a log omavctl wrote (``simulate``'s
+    output may replace its own earlier log, never a flight log or another file the
+    user keeps under that name): a ROS 2 bag or ROS 1 bag without omavctl's mark,
+    an MCAP file another library wrote, a CSV whose header is not the wide layout
+    :func:`write_log` writes. A missing path, an empty file or an empty directory
+    passes; so does a path that cannot be read (the writer says what is wrong).
+
+    Raises:
+        LogError: ``<path>: exists and is not a log omavctl simulate wrote; ...``.
+    """
+    p = Path(path)
+    try:
+        if not p.exists() or (p.is_dir() and not any(p.iterdir())):
+            return
+        if p.is_file() and p.stat().st_size == 0:
+            return
+        ours = _written_here(p)
+    except OSError:
+        return
+    if not ours:
+        raise LogError(
+            "exists and is not a log omavctl simulate wrote; choose another name (or remove it)",
+            p,
+        )
+
+
+def _written_here(p: Path) -> bool:
+    """Whether the existing, non-empty ``p`` bears the mark of :func:`write_log`."""
+    import yaml
+
+    if p.is_dir():
+        meta = p / "metadata.yaml"
+        if not meta.is_file():
+            return False
+        try:
+            tree = yaml.safe_load(meta.read_text(encoding="utf-8", errors="replace"))
+        except yaml.YAMLError:
+            return False
+        info = tree.get("rosbag2_bagfile_information") if isinstance(tree, dict) else None
+        custom = info.get("custom_data") if isinstance(info, dict) else None
+        return isinstance(custom, dict) and custom.get("written_by") == WRITER
+    kind = p.suffix.lower()
+    if kind == ".mcap":
+        return _mcap_library(p).split(" ")[0] == WRITER
+    if kind == ".bag":
+        return _ros1_callers(p) == {f"/{WRITER}"}
+    if kind == ".csv":
+        return _wide_csv_header(p)
+    return False
+
+
+def _mcap_library(p: Path) -> str:
+    """The ``library`` of an MCAP file's header record ('' when it has none)."""
+    with p.open("rb") as fh:
+        head = fh.read(4096)
+    # magic (8 bytes), opcode 0x01, record length (8), profile and library strings
+    if len(head) < 17 or head[:5] != b"\x89MCAP" or head[8] != 0x01:
+        return ""
+    at = 17
+    for field in range(2):
+        if len(head) < at + 4:
+            return ""
+        n = int.from_bytes(head[at : at + 4], "little")
+        if field == 1:
+            return head[at + 4 : at + 4 + n].decode("utf-8", "replace")
+        at += 4 + n
+    return ""
+
+
+def _ros1_callers(p: Path) -> set[str]:
+    """The caller ids of a ROS 1 bag's connections (empty when it cannot be read)."""
+    from rosbags.rosbag1 import Reader
+
+    try:
+        with Reader(p) as reader:
+            return {str(getattr(c.ext, "callerid", None)) for c in reader.connections}
+    except Exception:  # any unreadable bag is not one omavctl wrote
+        return set()
+
+
+def _wide_csv_header(p: Path) -> bool:
+    """Whether the CSV's first line is ``t`` and whole column groups of the contract's
+    roles in the order :func:`omavctl.logs.csvlog.write_csv` writes them."""
+    from omavctl.logs.csvlog import csv_columns
+
+    with p.open("rb") as fh:
+        first = fh.readline(1 << 16).decode("utf-8", "replace").strip()
+    names = [h.strip() for h in first.split(",")]
+    if names[:1] != ["t"]:
+        return False
+    at = 1
+    for role in ROLE_COLUMNS:
+        cols = csv_columns(role)
+        if names[at : at + len(cols)] == cols:
+            at += len(cols)
+    return at == len(names) > 1

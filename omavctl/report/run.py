@@ -21,6 +21,7 @@ from omavctl.learn.model_file import check_model_paths
 from omavctl.logs import parse_time_window
 from omavctl.report.evaluation import ReportSummary, write_report
 from omavctl.report.series_mcap import mcap_path, write_series_mcap
+from omavctl.sim.trajectory import refuse_as_logs
 
 __all__ = ["EvaluationRun", "default_evaluation_path", "run_evaluation", "run_report"]
 
@@ -64,6 +65,7 @@ def run_evaluation(
     assert out is not None
     mcap_out = mcap if mcap is not None else mcap_path(out)
     check_outputs([*logs, *models], [out, series_path(out), mcap_out])
+    refuse_as_logs(list(logs))
     result = evaluate(
         models, logs, time_window=window, horizons=spans, horizon_stride=horizon_stride
     )

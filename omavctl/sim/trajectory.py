@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from omavctl.base.atomic import write_text_atomic
-from omavctl.base.errors import TrajectoryError
+from omavctl.base.errors import LogError, TrajectoryError
 
 __all__ = [
     "COLUMNS",
@@ -24,6 +24,7 @@ __all__ = [
     "Trajectory",
     "check_replaceable",
     "read_trajectory",
+    "refuse_as_logs",
     "write_trajectory",
 ]
 
@@ -188,23 +189,43 @@ def format_trajectory(traj: Trajectory) -> str:
     return buf.getvalue()
 
 
+def _is_trajectory(p: Path) -> bool | None:
+    """Whether the existing, non-empty file ``p`` starts with this module's header;
+    None when it is not a non-empty file or cannot be read."""
+    try:
+        if not p.is_file() or p.stat().st_size == 0:
+            return None
+        with p.open("rb") as fh:
+            first = fh.readline(4096).decode("utf-8", "replace")
+    except OSError:
+        return None
+    return [h.strip() for h in first.strip().split(",")] == COLUMNS
+
+
 def check_replaceable(path: str | Path) -> None:
     """Refuse an existing, non-empty file at ``path`` that is not a trajectory CSV (its
     first line not this module's header): ``task`` and ``plan`` replace a trajectory
     (their own earlier output), never a flight log or another file the user keeps
     under that name."""
     p = Path(path)
-    try:
-        if not p.is_file() or p.stat().st_size == 0:
-            return
-        with p.open("rb") as fh:
-            first = fh.readline(4096).decode("utf-8", "replace")
-    except OSError:
-        return  # the writer says what is wrong with the path
-    if [h.strip() for h in first.strip().split(",")] != COLUMNS:
+    if _is_trajectory(p) is False:
         raise TrajectoryError(
             "exists and is not a trajectory CSV; choose another name (or remove it)", p
         )
+
+
+def refuse_as_logs(paths: list[Path]) -> None:
+    """Refuse a trajectory CSV given where a flight log belongs (``fit``, ``evaluate``):
+    a new user's ``fit fig8.csv`` said only that the body-rate columns were missing."""
+    import shlex
+
+    for p in paths:
+        if _is_trajectory(Path(p)):
+            raise LogError(
+                "a trajectory CSV (what task and plan write), not a flight log: fly it "
+                f"first (omavctl simulate --reference {shlex.quote(str(p))} --out LOG)",
+                p,
+            )
 
 
 def write_trajectory(path: str | Path, traj: Trajectory) -> None:

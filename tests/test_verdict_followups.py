@@ -1,0 +1,210 @@
+"""Verdict sentences a user read as unclear or said twice (session 14's follow-ups): a
+claim that took a held-back lag's joint step says whose share it quotes, and a worse
+axis whose fitted parameter disagrees with the evaluated log says it in one sentence
+with the part that rose."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from omavctl.diagnose.change import change_lines, scores_of_files
+from omavctl.diagnose.verdict import verdict
+
+RIVAL = (
+    "command_delay's share is that of the joint step motor_lag passed first: a lag and a "
+    "delay look alike to first order, both passed it, and estimated exactly on this flight "
+    "motor_lag could not be pinned down while command_delay was, so command_delay takes "
+    "its place"
+)
+
+
+def _rival_tree(missing: list[str]) -> dict[str, Any]:
+    """report6 draw 61's second round, cut down: the joint step accepted motor_lag beside
+    rotor_interference, the guard held the lag back and kept command_delay, its rival."""
+    return {
+        "models": [{"name": "m.npz", "effects": {"com_offset": {}}}],
+        "metrics": {"model": {"rmse": {"x": 0.5, "y": 0.5, "z": 0.1}}},
+        "diagnosis": {
+            "method": {"min_explained_variance": 0.15},
+            "missing": missing,
+            "missing_effects": [
+                {"name": "rotor_interference", "explained_variance": 0.55},
+                {"name": "command_delay", "explained_variance": 0.02},
+            ],
+            "joint_steps": [
+                {"name": "rotor_interference", "share": 0.737, "share_of_total": 0.737},
+                {
+                    "name": "motor_lag",
+                    "share": 0.174,
+                    "share_of_total": 0.0457,
+                    "timing_rivals": ["command_delay"],
+                },
+            ],
+            "fit_command": "omavctl fit f.bag --effects rotor_interference,command_delay",
+            "unexplained": [],
+        },
+    }
+
+
+def test_a_claim_that_took_a_held_back_lags_joint_step_says_whose_share_it_is():
+    """It said only "(the fit command adds them together)": the step's shares were
+    looked up by name, and the claim's name is not the step's."""
+    text = verdict(_rival_tree(["rotor_interference", "command_delay"]))[0].text
+    assert (
+        "Also: command_delay (the fit command adds them together: estimated jointly from the "
+        "fit flight as fit --effects would, they remove 78 % of the squared physics-only error "
+        f"on held-out data, rotor_interference 74 %, command_delay 5 %; {RIVAL})."
+    ) in text
+    # the claim alone: the joint share of the step it took, and why it is that step's
+    alone = verdict(_rival_tree(["command_delay"]))[0].text
+    assert alone.startswith(
+        "Missing: command_delay — estimated from the fit flight as fit --effects would, it "
+        "removes 17 % of the squared physics-only error on held-out data (the model's GP has "
+        f"absorbed it: it explains 2 % of the model's remaining error); {RIVAL}."
+    )
+    # a step claimed under its own name says nothing of the sort
+    own = _rival_tree(["rotor_interference", "motor_lag"])
+    assert "share is that of" not in verdict(own)[0].text
+    assert "motor_lag 5 %)." in verdict(own)[0].text
+
+
+def _file(rmse: dict[str, float], physics: dict[str, float], effects: dict[str, Any]) -> dict:
+    return {
+        "models": [{"name": "m.npz", "effects": effects}],
+        "metrics": {
+            "nominal": {"rmse": {"x": 0.3, "y": 0.3, "z": 0.1}},
+            "effects": {"rmse": physics},
+            "model": {"rmse": rmse},
+        },
+        "diagnosis": {
+            "method": {"measurement_noise_std": 0.001},
+            "missing": ["rotational_drag"],
+            "missing_effects": [
+                {
+                    "name": "rotational_drag",
+                    "explained_variance": 0.5,
+                    "explained_variance_per_axis": {"x": 0.5, "y": 0.9, "z": 0.2},
+                    "parameters": {"D": [0.05, 0.05, 0.002], "D_stderr": [0.002, 0.002, 0.001]},
+                }
+            ],
+        },
+    }
+
+
+def test_a_misfitted_parameter_and_the_part_that_rose_are_one_sentence():
+    """The worse axis said the parameter's misfit, then "; the physics-only error ...:
+    the refitted effects made z worse, not the GP" as a second finding (or, where the GP
+    rose, "not the effects" right after blaming the effect's estimate)."""
+    drag = {"rotational_drag": {"D": [0.05, 0.05, 0.036], "D_stderr": [0.002, 0.002, 0.005]}}
+    before = _file({"x": 0.1, "y": 0.2, "z": 0.04}, {"x": 0.3, "y": 0.3, "z": 0.05}, {})
+    misfit = (
+        "D_z is 0.036 ± 0.005 as fitted on the fit flight but 0.002 ± 0.001 from the "
+        "evaluated log, 6.7 standard errors apart: the fit flight did not pin it down (fit on "
+        "both logs, or plan a flight with plan --objective effects)"
+    )
+    # the physics-only error rose with the model's: the parameter is the cause
+    after = _file({"x": 0.06, "y": 0.1, "z": 0.05}, {"x": 0.1, "y": 0.1, "z": 0.0625}, drag)
+    line = change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[1]
+    assert line.text == (
+        "Axis z got worse (+25.0 %): the refitted effects made z worse, not the GP (the "
+        "physics-only error on z rose 0.05 → 0.0625 rad/s² (+25.0 %) and the model's error "
+        f"relative to it went 0.80× → 0.80×), since {misfit}."
+    )
+    # the physics-only error fell, the GP's part rose: the misfit is a by-the-way
+    gp = copy.deepcopy(after)
+    gp["metrics"]["effects"]["rmse"]["z"] = 0.045
+    line = change_lines(scores_of_files([(before, "a.json"), (gp, "b.json")]))[1]
+    assert line.text.startswith(
+        "Axis z got worse (+25.0 %): the refitted GP made z worse, not the effects (the "
+        "physics-only error on z fell 0.05 → 0.045 rad/s² (−10.0 %) and the model's error "
+        "relative to it went 0.80× → 1.11×), though D_z is 0.036 ± 0.005"
+    )
+    assert line.text.count("made z worse") == 1
+
+
+def test_a_change_between_evaluations_of_different_samples_says_so():
+    """A new user's report of an evaluation on one log and one on two logs read "With
+    rotor_interference added: the model error falls by 53.4 %": the nominal errors,
+    which do not depend on the model, showed the samples differed; the line says so."""
+    before = _file({"x": 0.2, "y": 0.3, "z": 0.07}, {"x": 0.3, "y": 0.4, "z": 0.08}, {})
+    after = _file({"x": 0.1, "y": 0.15, "z": 0.05}, {"x": 0.2, "y": 0.3, "z": 0.06}, {"a": {}})
+    same = change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text
+    assert same == (
+        "With a added (a.json → b.json): the model error falls by 47.4 % (sum over axes) — "
+        "x −50.0 %, y −50.0 %, z −28.6 %."
+    )
+    after["metrics"]["nominal"]["rmse"] = {"x": 0.933, "y": 1.08, "z": 0.142}
+    other = change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text
+    assert other == same[:-1] + (
+        "; but not on the same samples (the nominal model's error differs: x 0.3 → 0.933, "
+        "y 0.3 → 1.08, z 0.1 → 0.142 rad/s²), so this compares the flights as much as the "
+        "models: evaluate both models on one flight (evaluate LOG --model A --model B) to "
+        "compare them."
+    )
+    del after["metrics"]["nominal"]  # an older file without it: nothing to go by
+    assert change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text == same
+
+
+def test_a_fall_measured_after_an_effect_held_back_names_why_it_was_held_back():
+    """`evaluate --model gp.npz --model gp-ri.npz` (a new user's trial): "although this
+    model's diagnosis claimed nothing missing (rotor_interference: it passed its tests but
+    another was preferred)" when the diagnosis had held it back as not pinned down."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    def metrics(rmse: float) -> dict[str, Any]:
+        return {
+            "nominal": {"rmse": {a: 0.3 for a in "xyz"}},
+            "model": {"rmse": {a: rmse for a in "xyz"}},
+        }
+
+    tree = {
+        "models": [
+            {"name": "gp.npz", "effects": {}},
+            {"name": "gp-ri.npz", "effects": {"rotor_interference": {}}},
+        ],
+        "metrics": metrics(0.2),
+        "metrics_by_model": [metrics(0.2), metrics(0.1)],
+        "diagnosis": {
+            "method": {"min_explained_variance": 0.15, "min_t_value": 4.0},
+            "missing": [],
+            "missing_effects": [
+                {"name": "rotor_interference", "explained_variance": 0.23, "t_value": 14.5}
+            ],
+            "not_pinned": [{"name": "rotor_interference", "estimate": {}, "axes": ["x", "y"]}],
+            "unexplained": [],
+        },
+    }
+    assert verdict_of_models(tree)[0].text == (
+        "Missing: rotor_interference, measured — with it added (gp-ri.npz) the model error on "
+        "the same flight falls by 50.0 % (sum over axes), although this model's diagnosis "
+        "claimed nothing missing (rotor_interference: estimated on this flight as fit would, "
+        "its 95 % interval did not exclude the value at which it is absent: not pinned down)."
+    )
+
+
+def test_a_worst_segment_barely_above_the_flights_error_is_not_called_a_failure():
+    """`Fails most at 1.8–2.8 s of d2.bag: y error 0.337 rad/s² RMS, 1.1× its overall`
+    (a new user's wobble flight) sent them looking at a second that is like the rest."""
+    seg = {
+        "log": "d2.bag",
+        "start": 1.8,
+        "end": 2.8,
+        "rmse": {"x": 0.2, "y": 0.337, "z": 0.07},
+        "attitude_deg": [1.0, 1.0, 0.0],
+        "rate": [0.4, 0.1, 0.0],
+    }
+    tree = {
+        "metrics": {"model": {"rmse": {"x": 0.205, "y": 0.298, "z": 0.074}}},
+        "worst_segments": [seg],
+        "diagnosis": {"missing": [], "missing_effects": [], "unexplained": []},
+    }
+    (line,) = [ln for ln in verdict(tree) if ln.key == "fails"]
+    assert line.text == (
+        "No part of the flight stands out: the worst segment, 1.8–2.8 s of d2.bag (near "
+        "level, rolling at 0.40 rad/s), has a y error of 0.337 rad/s² RMS, only 1.1× its "
+        "overall."
+    )
+    tree["metrics"]["model"]["rmse"]["y"] = 0.2  # 1.7×: it stands out
+    (line,) = [ln for ln in verdict(tree) if ln.key == "fails"]
+    assert line.text.startswith("Fails most at 1.8–2.8 s of d2.bag: y error 0.337 rad/s² RMS")
