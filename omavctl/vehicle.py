@@ -90,6 +90,7 @@ EFFECT_NAMES = (
     "thrust_curve",
     "motor_loss",
     "battery_sag",
+    "drag_moment",
 )
 
 #: Top-level keys whose value replaces the default's instead of being merged.

@@ -626,7 +626,7 @@ SMALL_MAP: dict[str, Any] = {
             "unknown key 'columns.gyro': expected a role (time, body_rate, attitude, position, "
             "velocity, force_command, torque_command, desired_acceleration, "
             "desired_linear_acceleration, reference_position, reference_attitude, tilt, rotor, "
-            "motor_command, battery_voltage) "
+            "motor_command, battery_voltage, specific_force) "
             "or a wide-CSV column such as body_rate_x",
         ),
         (

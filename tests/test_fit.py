@@ -369,7 +369,7 @@ def test_bad_input_is_one_clear_line_and_no_output(flights, tmp_path, kind, make
         (
             ["--effects", "wind"],
             "error: unknown effect 'wind' (known: battery_sag, com_offset, command_delay, "
-            "gyro_bias, inertia_error, motor_lag, motor_loss, rotational_drag, "
+            "drag_moment, gyro_bias, inertia_error, motor_lag, motor_loss, rotational_drag, "
             "rotor_interference, servo_lag, thrust_curve)",
         ),
         (

@@ -14,6 +14,7 @@ from rich.console import Console
 from omavctl.logs import (
     DEFAULT_TOPICS,
     ROLE_COLUMNS,
+    ROLE_TOPIC,
     FlightLog,
     RawLog,
     RawSeries,
@@ -54,7 +55,7 @@ def make_raw(duration: float = DURATION, t0: float = T0) -> RawLog:
     for i, (role, cols) in enumerate(ROLE_COLUMNS.items()):
         if role == "motor_command":  # no bag topic carries it
             continue
-        t = t200 if role == "body_rate" else t100
+        t = t200 if ROLE_TOPIC[role] == "imu" else t100  # gyro and accelerometer
         values = _wave(t, len(cols), seed=i)
         if role in ANGLES:
             values[:, :2] *= 0.15  # roll, pitch within +-0.9 rad

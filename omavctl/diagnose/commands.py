@@ -93,6 +93,7 @@ SHOWN_BY = {
     "thrust_curve": "a wide range of throttle",
     "motor_loss": "throttle changes, in yaw too (a weak motor also unbalances the yaw moment)",
     "battery_sag": "varied throttle over a long stretch of the battery",
+    "drag_moment": "changes of horizontal speed (the rotors' drag follows the velocity)",
 }
 
 

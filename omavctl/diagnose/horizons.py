@@ -28,7 +28,9 @@ k less the start's (2 for independent samples; exact through the interpolation
 weights for a gyro recorded more slowly than the grid,
 :mod:`omavctl.learn.recorded_noise`), ``s_j`` the std of the
 model's residual function at step j (GP latent variance + the effects'
-parameter variance, at the logged inputs) and ``s_p^2`` the GP's noise
+parameter variance, at the logged inputs, plus, for an effect of a measured force
+held at the window's start, how far that term moves in j steps on the log,
+:func:`~omavctl.learn.rollout_residual.held_spread`) and ``s_p^2`` the GP's noise
 variance less what the rate noise puts into the Savitzky-Golay derivative
 (motion the model cannot predict, integrated as a random walk times ``g_k``: how
 much faster the residual the model leaves added up over k steps on the fit
@@ -57,6 +59,7 @@ from omavctl.learn.rollout_residual import (
     Windows,
     function_std,
     gather,
+    held_spread,
     per_sample,
     residual_function,
     window_starts,
@@ -168,6 +171,9 @@ def _naive(win: Windows) -> _Run:
 def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: float) -> np.ndarray:
     """Std (W, K + 1, 3) of the full model's body-rate error (module docstring)."""
     s_fun = per_sample(win, samples, [function_std(m, s) for s in samples])
+    held = held_spread(m, win, samples)  # a measured force held at the window's start
+    if held is not None:
+        s_fun = s_fun + held
     drift = np.zeros_like(s_fun)
     drift[:, 1:] = dt * np.cumsum(s_fun[:, :-1], axis=1)
     # the white residual the body rate integrates: the GP's noise variance less what the

@@ -40,6 +40,7 @@ __all__ = [
     "Windows",
     "function_std",
     "gather",
+    "held_spread",
     "per_sample",
     "residual_function",
     "window_starts",
@@ -239,16 +240,53 @@ def _with_effects(m: ResidualGP, names: Sequence[str]) -> ResidualGP | None:
 def _split_effects(m: ResidualGP, win: Windows) -> tuple[ResidualGP | None, ResidualGP | None]:
     """The model's effects that do not depend on the body rate (evaluated once per
     sample: the rotor interference's allocation is costly) and those that do (per
-    step), found by moving the body rate of a few windows' starts."""
+    step), found by moving the body rate of a few windows' starts; those of a measured
+    state (:func:`_held`) are in neither."""
     u, omega = win.u[:8, 0], win.omega[:8, 0]
     static: list[str] = []
     moving: list[str] = []
-    for name in (n for n, est in m.effects.items() if est.effect.search is None):
+    linear = (n for n, e in m.effects.items() if e.effect.search is None)
+    for name in (n for n in linear if not m.effects[n].effect.measured_state):
         sub = _with_effects(m, [name])
         assert sub is not None
         same = np.array_equal(sub.effects_mean(u, omega), sub.effects_mean(u, omega + 0.37))
         (static if same else moving).append(name)
     return _with_effects(m, static), _with_effects(m, moving)
+
+
+#: effects of a measured state the rollout does not predict (``Effect.measured_state``: the
+#: accelerometer's force) are held at each window's start, what an open-loop prediction
+#: may know; False: read from the log along the window (an oracle, for benchmarks)
+HOLD_MEASURED = True
+
+
+def _held(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]) -> np.ndarray | None:
+    """Residual (W, 1, 3) of the model's measured-state effects at each window's start
+    (W, K + 1, 3 along the window when :data:`HOLD_MEASURED` is False); None for none."""
+    sub = _with_effects(m, [n for n, e in m.effects.items() if e.effect.measured_state])
+    if sub is None:
+        return None
+    out = per_sample(win, samples, [_static_effects(sub, s) for s in samples])
+    return out[:, :1] if HOLD_MEASURED else out
+
+
+def held_spread(
+    m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]
+) -> np.ndarray | None:
+    """Std (W, K + 1, 3) of how far the measured-state effects' residual moves from its
+    value at a window's start after k steps: ``sqrt(mean (g_k - g_0)^2)`` over the windows
+    of the same log (a statistic of the log's measured force, as its rate noise is), the
+    error a rollout that holds it (:data:`HOLD_MEASURED`) makes; None when none is held."""
+    sub = _with_effects(m, [n for n, e in m.effects.items() if e.effect.measured_state])
+    if sub is None or not HOLD_MEASURED or win.count == 0:
+        return None
+    series = per_sample(win, samples, [_static_effects(sub, s) for s in samples])
+    moved = (series - series[:, :1]) ** 2
+    out = np.empty_like(series)
+    for i in np.unique(win.log):
+        sel = win.log == i
+        out[sel] = np.sqrt(moved[sel].mean(axis=0))
+    return out
 
 
 def _rolled_mean(m: ResidualGP) -> Any:
@@ -281,6 +319,9 @@ def residual_function(
         ]
     gp_rolled = _rolled_mean(m) if with_gp and uses_rate else None
     base = per_sample(win, samples, fixed)
+    held = _held(m, win, samples)
+    if held is not None:
+        base = base + held
     u_now = None if moving is None else per_sample(win, samples, [_commands(m, s) for s in samples])
 
     def residual(k: int, omega: np.ndarray) -> np.ndarray:

@@ -406,6 +406,7 @@ def _add_segment(
             fixed_rotors=vehicle.motors is not None and not vehicle.motors.tilting,
             motor=motor_signals(flight, vehicle, slice(a, b)),
             **_battery(flight, slice(a, b)),
+            measured_force=_measured_force(flight, vehicle.mass, slice(a, b)),
         )
         for e in eff:
             parts.regressors[e.name].append(sg.hold(e.regressor(ctx))[keep])
@@ -422,6 +423,15 @@ def _battery(flight: FlightLog, rows: slice) -> dict[str, Any]:
     v = flight.signals["battery_voltage"][:, 0]
     ref = float(np.median(v[flight.valid])) if flight.valid.any() else float(np.median(v))
     return {"battery_voltage": v[rows], "battery_reference": ref}
+
+
+def _measured_force(flight: FlightLog, mass: float, rows: slice) -> np.ndarray | None:
+    """``mass`` times the specific force (n, 3) N over ``rows``, less its median over the
+    flight's valid samples (the accelerometer's offset); None without an accelerometer."""
+    if not flight.has("specific_force"):
+        return None
+    a = flight.signals["specific_force"]
+    return mass * (a[rows] - np.median(a[flight.valid] if flight.valid.any() else a, axis=0))
 
 
 def _cat(chunks: list[np.ndarray], tail: tuple[int, ...]) -> np.ndarray:

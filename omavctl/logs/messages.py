@@ -28,8 +28,9 @@ __all__ = ["ROW_EXTRACTORS", "MessageBuilder", "rows_to_signals"]
 
 
 def _imu_row(m: Any) -> tuple[Any, ...]:
-    s, w = m.header.stamp, m.angular_velocity
-    return (s.sec, s.nanosec, w.x, w.y, w.z)
+    s, w, a = m.header.stamp, m.angular_velocity, m.linear_acceleration
+    provided = float(m.linear_acceleration_covariance[0]) >= 0.0  # REP 145: -1 = not provided
+    return (s.sec, s.nanosec, w.x, w.y, w.z, a.x, a.y, a.z, provided)
 
 
 def _odometry_row(m: Any) -> tuple[Any, ...]:
@@ -150,6 +151,8 @@ def rows_to_signals(
     stamps = a[:, 0].astype(np.int64) * 1_000_000_000 + a[:, 1].astype(np.int64)
     if topic_role == "imu":
         signals = {"body_rate": a[:, 2:5]}
+        if a.shape[1] > 8 and np.all(a[:, 8] > 0):  # every message has an accelerometer
+            signals["specific_force"] = a[:, 5:8]
     elif topic_role == "odometry":
         signals = {"attitude": _attitude(a[:, 2:6]), "position": a[:, 6:9], "velocity": a[:, 9:12]}
     elif topic_role == "wrench_command":
@@ -209,10 +212,18 @@ class MessageBuilder:
         q = quaternion_from_euler(rpy)
         return [self.Quaternion(x=x, y=y, z=z, w=w) for x, y, z, w in q.tolist()]
 
-    def imu(self, headers: list[Any], body_rate: np.ndarray) -> list[Any]:
+    def imu(
+        self, headers: list[Any], body_rate: np.ndarray, specific_force: np.ndarray | None = None
+    ) -> list[Any]:
+        """Imu messages; ``linear_acceleration`` is the specific force (n, 3) m/s^2 when
+        given, else zeros marked "not provided" (covariance[0] = -1, REP 145)."""
         imu = self.types["sensor_msgs/msg/Imu"]
         identity = self.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
-        zero = self.Vector3(x=0.0, y=0.0, z=0.0)
+        if specific_force is None:
+            linear = [self.Vector3(x=0.0, y=0.0, z=0.0)] * len(headers)
+            cov = self.no_estimate9
+        else:
+            linear, cov = self._vec3(specific_force), self.zeros9
         return [
             imu(
                 header=h,
@@ -220,10 +231,10 @@ class MessageBuilder:
                 orientation_covariance=self.no_estimate9,
                 angular_velocity=w,
                 angular_velocity_covariance=self.zeros9,
-                linear_acceleration=zero,
-                linear_acceleration_covariance=self.no_estimate9,
+                linear_acceleration=a,
+                linear_acceleration_covariance=cov,
             )
-            for h, w in zip(headers, self._vec3(body_rate), strict=True)
+            for h, w, a in zip(headers, self._vec3(body_rate), linear, strict=True)
         ]
 
     def odometry(

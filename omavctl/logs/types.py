@@ -74,6 +74,9 @@ ROLE_COLUMNS: dict[str, tuple[str, ...]] = {
     "motor_command": tuple(str(i) for i in range(MOTOR_OUTPUTS)),
     # the battery's voltage, V (the ``battery_sag`` effect); one column
     "battery_voltage": ("v",),
+    # the accelerometer: specific force (non-gravitational force per mass), m/s^2,
+    # body (the ``drag_moment`` effect)
+    "specific_force": XYZ,
 }
 
 #: Which topic role (vehicle ``topics:`` key) carries each signal role.
@@ -92,6 +95,7 @@ ROLE_TOPIC: dict[str, str] = {
     "rotor": "actuators",
     "motor_command": "motor_outputs",  # CSV and ULog column maps only (no bag topic)
     "battery_voltage": "battery",  # sensor_msgs/BatteryState.voltage on /omav/battery
+    "specific_force": "imu",  # sensor_msgs/Imu.linear_acceleration (when its covariance[0] >= 0)
 }
 
 #: Angle roles: unwrapped before interpolation, wrapped to (-pi, pi] after.

@@ -72,6 +72,9 @@ PX4_COLUMNS: tuple[tuple[str, dict[str, str], bool], ...] = (
     ("torque_command", _xyz("actuator_controls_0.control"), False),
     ("force_command", {"z": "vehicle_thrust_setpoint.xyz[2]"}, False),
     ("force_command", {"z": "actuator_controls_0.control[3]"}, False),
+    # the accelerometer's specific force (gravity included, m/s^2 FRD): drag_moment
+    ("specific_force", _xyz("vehicle_acceleration.xyz"), False),
+    ("specific_force", _xyz("sensor_combined.accelerometer_m_s2"), False),
 )
 
 
@@ -79,6 +82,8 @@ PX4_COLUMNS: tuple[tuple[str, dict[str, str], bool], ...] = (
 #: (PX4's uORB message definitions; instance N > 0 of a topic shares them).
 ULOG_UNITS = {
     "sensor_combined.gyro_rad": "rad/s FRD",
+    "sensor_combined.accelerometer_m_s2": "m/s^2 FRD (specific force)",
+    "vehicle_acceleration.xyz": "m/s^2 FRD (specific force)",
     "vehicle_angular_velocity.xyz": "rad/s FRD",
     "vehicle_attitude.q": "quaternion FRD/NED",
     "actuator_controls_0.control": "normalised -1..1 (control[3] thrust 0..1)",

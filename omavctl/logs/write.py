@@ -137,7 +137,7 @@ def _build_topics(raw: RawLog, names: Mapping[str, str], typestore: Any) -> list
 
         headers = builder.headers(stamps_ns, TOPIC_FRAMES[topic_role])
         if topic_role == "imu":
-            msgs = builder.imu(headers, get("body_rate"))
+            msgs = builder.imu(headers, get("body_rate"), _values_at(raw, "specific_force", stamps))
         elif topic_role == "odometry":
             msgs = builder.odometry(
                 headers, get("attitude"), get("position"), get("velocity"), get("body_rate")

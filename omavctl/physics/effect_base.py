@@ -90,6 +90,10 @@ class EffectContext:
     (:class:`MotorSignals`), else None (the motor-level effects are then not
     excited). ``battery_voltage`` (N,) V and ``battery_reference`` V (the log's
     median voltage) when the log maps ``battery_voltage``, else None.
+    ``measured_force`` (N, 3) N: the body force the accelerometer measures (the
+    vehicle's mass times the ``specific_force`` role, less its median over the log's
+    valid samples: the accelerometer's calibration offset) when the log maps
+    ``specific_force``, else None.
     """
 
     omega: np.ndarray
@@ -105,6 +109,7 @@ class EffectContext:
     motor: MotorSignals | None = None
     battery_voltage: np.ndarray | None = None
     battery_reference: float = 0.0
+    measured_force: np.ndarray | None = None
 
     @property
     def inertia_inv(self) -> np.ndarray:
@@ -158,6 +163,10 @@ class Effect(ABC):
     #: log's rotor speeds (``preset: omav-rotors``), not with the default vehicle the
     #: scorecard's loop uses.
     simulated: ClassVar[bool] = True
+    #: Whether its regressor reads a measured state the angular rollout does not predict
+    #: (the accelerometer's force): an open-loop rollout holds it at the window's start
+    #: (:mod:`omavctl.learn.rollout_residual`) instead of reading the window's future.
+    measured_state: ClassVar[bool] = False
 
     # --- estimation --------------------------------------------------------
     @property

@@ -164,6 +164,51 @@ class GyroBias(Effect):
         return params["b"]
 
 
+class DragMoment(Effect):
+    """Moment of the force the accelerometer measures, acting ``h`` above the centre of mass.
+
+    A moving multirotor's rotors feel a horizontal drag (and their blades flap
+    with it) at the rotor plane, above the centre of mass; the accelerometer
+    measures that force (gravity is not a specific force). With ``f = m a_meas``
+    (N; ``a_meas`` the ``specific_force`` role less its median over the log, the
+    accelerometer's offset) the torque is ``tau = h e_z x f = h (-f_y, f_x, 0)``;
+    residual ``I^-1 tau``; ``h`` in m (in the torque command's unit per N when it is
+    normalised). ``com_offset``'s ``r_z`` on the measured, not the commanded, force.
+    Identifiable from roll and pitch accelerations when the lateral measured force
+    varies (a multirotor flying about); needs a log with an accelerometer. An
+    open-loop rollout holds the force at the window's start (``measured_state``).
+    """
+
+    name = "drag_moment"
+    summary = "moment h e_z x f of the measured (accelerometer) force"
+    parameters = (Parameter("h", 1, "m", "height above the centre of mass it acts at"),)
+    prior_std = 0.05  # m
+    theta_range = (-0.2, 0.2)
+    simulated = False  # the plant logs no accelerometer
+    measured_state = True
+    look_alikes = "a lateral drag at the rotor plane and the blades' flapping alike"
+
+    def unavailable(self, ctx: EffectContext) -> str | None:
+        if ctx.measured_force is None:
+            return (
+                f"{self.name} needs the accelerometer: map the log's specific force "
+                "(m/s^2, body) as the specific_force role (docs/logs.md)"
+            )
+        return None
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        if ctx.measured_force is None:
+            return np.zeros((ctx.omega.shape[0], 3, 1))
+        f = ctx.measured_force
+        tau = np.stack([-f[:, 1], f[:, 0], np.zeros_like(f[:, 0])], axis=-1)
+        return (tau @ ctx.inertia_inv.T)[:, :, None]
+
+    def body_torque(self, params, omega, force):
+        f = np.asarray(force, dtype=float)
+        h = float(params["h"][0])
+        return h * np.stack([-f[..., 1], f[..., 0], np.zeros_like(f[..., 0])], axis=-1)
+
+
 #: All registered effects by name; CLI choices are derived from this.
 EFFECTS: dict[str, Effect] = {
     e.name: e
@@ -179,6 +224,7 @@ EFFECTS: dict[str, Effect] = {
         ThrustCurve(),
         MotorLoss(),
         BatterySag(),
+        DragMoment(),
     )
 }
 if tuple(EFFECTS) != EFFECT_NAMES:  # the description's names and the registry agree
