@@ -131,8 +131,10 @@ scorecard2: $(STAMP)
 # the planned second flight against the task flown again, one random candidate of
 # the same pool and the best flown candidate (oracle): refit, held-out error and
 # closed-loop tracking (docs/informative.md). Defaults: 6 effect sets x 2 seeds, 50
-# candidates, 3 further pool candidates flown: 12 draws of about 12 min wall-clock
-# each, two at a time (measured: 6-12 min with three at a time on 2 busy cores).
+# candidates, 3 further pool candidates flown: 12 draws, two at a time, their steps
+# in 2 worker processes (--workers); about 2 min of CPU a draw (estimated from one
+# measured draw of --candidates 30 --pool-extra 0: 82 s of CPU, 4 min wall-clock on
+# 2 busy cores; docs/informative.md, "The cost of a draw").
 # Draws are cached in the workdir. docs/informative.md was made with
 # INFORMATIVE_ARGS='--seeds 3 --also drag:4 inertia:4 delay:4 --pool-extra 2' (5 of
 # its 9 draws ran with --pool-extra 0: the page counts them).

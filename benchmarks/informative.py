@@ -1,11 +1,14 @@
 """Does the planned flight teach the model more than flying the task again or a random one?
 
 Run: python benchmarks/informative.py [--workdir DIR] [--effects drag delay ...]
-[--seeds 1 2] [--candidates 50] [--jobs 2] [--out docs/informative.md]
+[--seeds 1 2] [--candidates 50] [--jobs 2] [--workers 2] [--out docs/informative.md]
 (``make informative`` runs the defaults and writes docs/informative.md).
 
 Per draw (a hidden effect set of :data:`EFFECT_SETS` x a seed s), every step the
-``omavctl`` command a user would run:
+``omavctl`` command a user would run, run by the command-line application in worker
+processes that stay up (``--workers`` at once; the steps that do not need each other's
+outputs run at once), and of ``evaluate`` only the metrics the benchmark reads
+(:mod:`benchmarks.informative_calls`: the same numbers, a fraction of the time):
 
 1. truth: the default omav's actuator imperfections plus the hidden effect(s);
    task: the figure-8 (26 deg, 8 s period, ``--duration`` s);
@@ -23,7 +26,7 @@ Per draw (a hidden effect set of :data:`EFFECT_SETS` x a seed s), every step the
    so that the best of all flown candidates by realised error is the oracle (a lower
    bound of the room the selection has); with ``--with-effects`` also
    ``plan --objective effects``;
-5. ``fit FIRST SECOND`` -> refitted model; ``evaluate --json`` on held-out flights:
+5. ``fit FIRST SECOND`` -> refitted model; ``evaluate``'s RMSE on held-out flights:
    the task flown once more (noise seed 200 + s) and the region's flights, a faster
    figure-8 (20/30 deg, 6 s) and a wobble (15 deg); RMSE = mean over the axes;
 6. closed loop: ``simulate --model`` flies the task with the refitted model in the
@@ -42,8 +45,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -51,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.informative_calls import cost, heldout, omavctl, start, stop
 from benchmarks.informative_kept import add_kept, read_scores
 from benchmarks.informative_md import markdown
 from omavctl.planning.candidates import deviated_references
@@ -78,19 +80,9 @@ MARKER = "<!-- reading of the numbers above, by hand: kept when the page is rege
 TASK = ["fig8", "--roll", "26", "--pitch", "26", "--period", "8"]
 
 
-def omavctl(*args: str) -> dict:
-    """Run ``omavctl ARGS --json -q`` in a child process; its JSON object."""
-    cmd = [sys.executable, "-m", "omavctl", *args, "--json", "-q"]
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
-    if done.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed:\n{done.stdout}\n{done.stderr}")
-    return json.loads(done.stdout)
-
-
-def _rmse(evaluation: dict) -> float:
-    """Mean over the axes of the (first) model's RMSE in ``evaluate --json``, rad/s^2."""
-    return float(np.mean(list(evaluation["models"][0]["rmse"].values())))
+def _rmse(rmse: dict[str, float]) -> float:
+    """Mean over the axes of a model's RMSE per axis (``evaluate``'s), rad/s^2."""
+    return float(np.mean(list(rmse.values())))
 
 
 def _setup(w: Path, effects: dict[str, str], seed: int, duration: float) -> dict[str, Path]:
@@ -105,12 +97,22 @@ def _setup(w: Path, effects: dict[str, str], seed: int, duration: float) -> dict
     for name, args in REGION.items():
         held[name] = w / f"{name}.csv"
         omavctl("task", *args, *dur, "--out", str(held[name]))
+    flights = []
     for i, (name, ref) in enumerate(held.items()):
         paths[f"held-{name}"] = w / f"held-{name}-flight.csv"
-        _fly(ref, truth, 200 + seed + i, paths[f"held-{name}"])
+        flights.append((ref, truth, 200 + seed + i, paths[f"held-{name}"]))
     paths["first"] = w / "first-flight.csv"
-    _fly(paths["task"], truth, seed, paths["first"])
+    flights.append((paths["task"], truth, seed, paths["first"]))
+    _together([(_fly, *f) for f in flights])
     return paths
+
+
+def _together(calls: list[tuple]) -> list:
+    """``fn(*args)`` for every ``(fn, *args)`` of ``calls`` at once (each waits for a
+    worker process: :mod:`benchmarks.informative_calls`); their results in order."""
+    with ThreadPoolExecutor(max(len(calls), 1)) as ex:
+        futures = [ex.submit(fn, *args) for fn, *args in calls]
+        return [f.result() for f in futures]
 
 
 def _fly(reference: Path, truth: Path, seed: int, out: Path, model: Path | None = None) -> None:
@@ -121,19 +123,17 @@ def _fly(reference: Path, truth: Path, seed: int, out: Path, model: Path | None 
 
 
 def _judge(model: Path, paths: dict[str, Path], seed: int, w: Path, tag: str) -> dict:
-    """Held-out RMSE per flight and closed-loop tracking of the task with ``model``."""
-    out: dict = {}
-    for name in ("task", *REGION):
-        ev = omavctl(
-            "evaluate", str(paths[f"held-{name}"]), "--model", str(model),
-            "--out", str(w / f"eval-{tag}-{name}.json"),
-        )  # fmt: skip
-        out[name] = _rmse(ev)
-    out["region"] = float(np.mean([out[name] for name in REGION]))
+    """Held-out RMSE per flight and closed-loop tracking of the task with ``model``
+    (``evaluate``'s numbers: :func:`benchmarks.informative_calls.heldout`)."""
+    names = ("task", *REGION)
     track = w / f"track-{tag}.csv"
-    _fly(paths["task"], paths["truth"], 300 + seed, track, model)
-    ev = omavctl("evaluate", str(track), "--model", str(model), "--out", str(w / f"et-{tag}.json"))
-    out["tracking"] = float(ev["tracking"]["mean"])
+    calls = [(heldout, model, paths[f"held-{name}"]) for name in names]
+    *errors, _ = _together(
+        [*calls, (_fly, paths["task"], paths["truth"], 300 + seed, track, model)]
+    )
+    out: dict = {name: _rmse(e["rmse"]) for name, e in zip(names, errors, strict=True)}
+    out["region"] = float(np.mean([out[name] for name in REGION]))
+    out["tracking"] = float(heldout(model, track)["tracking"]["mean"])
     return out
 
 
@@ -181,18 +181,19 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
     done = w / "result.json"
     if done.is_file():
         return json.loads(done.read_text())
-    start = time.perf_counter()
+    began = time.perf_counter()
     w.mkdir(parents=True, exist_ok=True)
     paths = _setup(w, EFFECT_SETS[name], seed, cfg.duration)
     paths["model"] = w / "first.npz"
     omavctl("fit", str(paths["first"]), "--seed", str(seed), "--out", str(paths["model"]))
-    res: dict = {
-        "effects": name,
-        "seed": seed,
-        "first": _judge(paths["model"], paths, seed, w, "first"),
-    }
-    planned = _plan(paths, w, seed, cfg, "variance")
-    paper = _plan(paths, w, seed, cfg, "variance", "-task")
+    first, planned, paper = _together(
+        [
+            (_judge, paths["model"], paths, seed, w, "first"),
+            (_plan, paths, w, seed, cfg, "variance"),
+            (_plan, paths, w, seed, cfg, "variance", "-task"),
+        ]
+    )
+    res: dict = {"effects": name, "seed": seed, "first": first}
     _, cost = read_scores(w / "scores-variance.csv")
     _, cost_paper = read_scores(w / "scores-variance-task.csv")
     feasible = np.flatnonzero(np.isfinite(cost))
@@ -200,14 +201,14 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
     drawn = [int(k) for k in rng.permutation(feasible)[: 1 + cfg.pool_extra]]
     best, best_paper = int(planned["best"]), int(paper["best"])
     refs = _pool(w, paths["task"], sorted({best, best_paper, *drawn}), w / "scores-variance.csv")
-    res["task_again"] = _second(paths["task"], paths, seed, w, "task")
+    again, *seconds = _together(
+        [(_second, paths["task"], paths, seed, w, "task")]
+        + [(_second, ref, paths, seed, w, f"cand-{k}") for k, ref in refs.items()]
+    )
+    res["task_again"] = again
     res["pool"] = {
-        str(k): {
-            **_second(ref, paths, seed, w, f"cand-{k}"),
-            "cost": float(cost[k]),
-            "cost_task_region": float(cost_paper[k]),
-        }
-        for k, ref in refs.items()
+        str(k): {**second, "cost": float(cost[k]), "cost_task_region": float(cost_paper[k])}
+        for k, second in zip(refs, seconds, strict=True)
     }
     res.update(best=best, random=drawn[0], task_cost=float(planned["task_cost"]))
     res.update(best_task_region=best_paper, task_cost_task_region=float(paper["task_cost"]))
@@ -215,7 +216,7 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
     if cfg.with_effects:
         _plan(paths, w, seed, cfg, "effects")
         res["effects_plan"] = _second(w / "plan-effects.csv", paths, seed, w, "effects")
-    res["seconds"] = time.perf_counter() - start
+    res["seconds"] = time.perf_counter() - began
     done.write_text(json.dumps(res, indent=1))
     return res
 
@@ -234,6 +235,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="the second plan each draw flies: --region task, or the default "
                     "region without the tilt margin (--tilt-margin 90)")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=2, help="draws run at once")
+    ap.add_argument("--workers", type=int, default=2,
+                    help="worker processes: the steps (flights, fits, plans, evaluations) "
+                    "of all draws that run at once, one BLAS thread each")  # fmt: skip
     ap.add_argument("--out", type=Path, default=None, help="Markdown results (docs/informative.md)")
     ap.add_argument("--also", nargs="*", default=[], metavar="EFFECTS:SEED",
                     help="further draws beyond --effects x --seeds, e.g. drag:2")  # fmt: skip
@@ -246,14 +250,20 @@ def main(argv: list[str] | None = None) -> int:
                 f"--also {item}: expected EFFECTS:SEED with EFFECTS one of {list(EFFECT_SETS)}"
             )
         draws.append((name, int(seed)))
-    start = time.perf_counter()
-    with ThreadPoolExecutor(cfg.jobs) as ex:
-        futures = [ex.submit(run_draw, cfg.workdir / f"{n}-s{s}", n, s, cfg) for n, s in draws]
-        results = [f.result() for f in futures]
+    began = time.perf_counter()
+    start(cfg.workers)
+    try:
+        with ThreadPoolExecutor(cfg.jobs) as ex:
+            futures = [ex.submit(run_draw, cfg.workdir / f"{n}-s{s}", n, s, cfg) for n, s in draws]
+            results = [f.result() for f in futures]
+    finally:
+        stop()
+    for kind, (n, cpu, wall) in sorted(cost().items(), key=lambda kv: -kv[1][1]):
+        print(f"{kind:18s} {n:4.0f} steps  CPU {cpu:7.1f} s  wall {wall:7.1f} s", file=sys.stderr)
     results = [
         add_kept(cfg.workdir / f"{n}-s{s}", r) for (n, s), r in zip(draws, results, strict=True)
     ]
-    text = markdown(results, vars(cfg), time.perf_counter() - start, argv or sys.argv[1:])
+    text = markdown(results, vars(cfg), time.perf_counter() - began, argv or sys.argv[1:])
     print(text)
     if cfg.out is not None:
         old = cfg.out.read_text() if cfg.out.is_file() else ""

@@ -1,4 +1,5 @@
-"""The statistics of benchmarks/informative.py on synthetic inputs (milliseconds)."""
+"""The statistics of benchmarks/informative.py on synthetic inputs (milliseconds), and
+its held-out errors against evaluate's on a short flight (seconds)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from benchmarks import informative_calls as calls
 from benchmarks.informative_md import comparisons, correlation, oracle
 from benchmarks.informative_stats import gain, mean_interval, spearman
+from omavctl.diagnose.evaluate import evaluate
+from omavctl.learn.fit import fit_model
+from omavctl.learn.model_file import save_model
+from omavctl.logs import write_log
+from tests.conftest import fly
 
 
 def test_gain_is_the_share_of_the_baseline_error_removed() -> None:
@@ -263,3 +270,24 @@ def test_tilt_analysis_bins_by_extra_tilt_and_compares_within_the_margin(tmp_pat
     assert before.startswith("planned vs the random candidate, region: -28.6 % (one draw")
     # after: the pick (1) against the mean of 4 and 5 (1.3): 23.1 %, the oracle's too
     assert after.startswith("margin 10: its pick vs a random candidate within it, region: +23.1 %")
+
+
+def test_heldout_is_what_evaluate_reports(tmp_path, vehicle, short_fig8) -> None:
+    """The benchmark's held-out errors (a worker process, evaluate without the diagnosis
+    and the horizons) are evaluate's own numbers, to the bit: the RMSE per axis of the
+    model and the closed-loop tracking (docs/informative.md, "The cost of a draw")."""
+    truth = {"effects": {"rotational_drag": {"D": [0.05, 0.05, 0.03]}}}
+    logs = [tmp_path / "fit.csv", tmp_path / "held.csv"]
+    for seed, log in enumerate(logs):
+        write_log(log, fly(vehicle, short_fig8, truth, seed=seed).log)
+    model = tmp_path / "m.npz"
+    save_model(model, fit_model([logs[0]], vehicle, points=40, restarts=0).model)
+    full = evaluate([model], [logs[1]]).tree
+    assert full["diagnosis"] is not None and full["horizons"] is not None
+    try:
+        got = calls.heldout(model, logs[1])
+    finally:
+        calls.stop()
+    assert got["rmse"] == full["metrics"]["model"]["rmse"]
+    assert got["tracking"] == full["tracking"] and got["tracking"]["mean"] > 0
+    assert calls.cost()["evaluate"][0] >= 1

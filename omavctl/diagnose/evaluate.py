@@ -337,8 +337,8 @@ def _tracking(
 
 def _diagnosis(
     samples: Sequence[ResidualSamples],
-    model: ResidualGP,
-    model_path: str,
+    models: Sequence[ResidualGP],
+    mpaths: Sequence[str],
     series: dict[str, np.ndarray],
     features: dict[str, np.ndarray],
     sg: SavitzkyGolay,
@@ -346,7 +346,9 @@ def _diagnosis(
     """The first model's ``diagnosis`` with its ``fit_command``; adds the fitted
     part of the model's error of the named effects (or the top candidate) to
     ``series`` as ``contribution_<name>`` (n, 3) rad/s², the quantity the diagnosis
-    scores, for the report's effect-signature figures."""
+    scores, for the report's effect-signature figures. No fit that a given model
+    (a later one of ``models``, at ``mpaths``) makes moot."""
+    model, model_path = models[0], mpaths[0]
     parts: dict[str, np.ndarray] = {}
     diagnosis = diagnose(samples, model, series["mean_0"], series["std_0"], features, sg, parts)
     shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
@@ -361,6 +363,7 @@ def _diagnosis(
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
     diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
+    withhold_given(diagnosis, models, mpaths)
     return diagnosis
 
 
@@ -402,12 +405,14 @@ def evaluate(
     progress: Progress | None = None,
     horizons: Sequence[float] = DEFAULT_HORIZONS,
     horizon_stride: int = 1,
+    with_diagnosis: bool = True,
 ) -> EvalResult:
     """Evaluate one or more models on one or more logs (see module docstring).
 
     ``horizons`` (s) and ``horizon_stride`` (samples between starts): the open-loop
     prediction table (:func:`omavctl.diagnose.horizons.horizon_table`); no
-    horizons: none.
+    horizons: none. ``with_diagnosis`` False: ``diagnosis`` None, for callers that read
+    only the metrics and tracking, which it does not change (benchmarks/informative.py).
 
     The diagnosis, worst segments and binned errors are of the first model;
     the series (n samples over all logs) are those of :func:`_measured_series`,
@@ -433,8 +438,9 @@ def evaluate(
     per_model = _predict_models(models, mpaths, samples, series, log_names, progress)
     features = _features(series)
     tracking = _tracking(samples, series)
-    diagnosis = _diagnosis(samples, model, mpaths[0], series, features, sg)
-    withhold_given(diagnosis, models, mpaths)  # no fit that a given model makes moot
+    diagnosis = (
+        _diagnosis(samples, models, mpaths, series, features, sg) if with_diagnosis else None
+    )
     torque_units_known = not model.vehicle.torque_normalised  # command_units.torque
     envelope = _envelope(model, samples, series)
     tree = {

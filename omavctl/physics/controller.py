@@ -79,25 +79,36 @@ def invert_residual(
     omega (B, 3) is the measured body rate the model is evaluated at; du (B, 6)
     the command's recent rate of change (held fixed during the solve).
     Newton's method with a forward-difference Jacobian of ``mu``; rows that
-    have converged are not updated further.
+    have converged are not updated further. Each step asks the model once, for
+    the point and its three forward steps together (4B rows: a model's mean at a
+    row depends on that row alone), not four times: ``simulate --model`` spent most
+    of its time in the model's per-call overhead (docs/informative.md, "The cost of
+    a draw").
     """
 
-    def mean(u: np.ndarray) -> np.ndarray:
-        # models that do not use the command's rate take (u, omega) only
-        return model.mean(u, omega) if du is None else model.mean(u, omega, du)
+    def mean(u: np.ndarray, copies: int = 1) -> np.ndarray:
+        # u (copies * B, 6): omega and du repeated for each copy; models that do not
+        # use the command's rate take (u, omega) only
+        om = None if omega is None else np.concatenate([omega] * copies)
+        if du is None:
+            return model.mean(u, om)
+        return model.mean(u, om, np.concatenate([du] * copies))
 
     x = target - mean(np.concatenate([u_force, target], axis=-1))
     for _ in range(iterations):
         u = np.concatenate([u_force, x], axis=-1)
-        mu = mean(u)
+        # the point and its forward steps in torque j = 0, 1, 2: rows (4, B, 6)
+        stacked = np.repeat(u[None], 4, axis=0)
+        for j in range(3):
+            stacked[1 + j, ..., 3 + j] += step
+        means = mean(stacked.reshape(-1, u.shape[-1]), 4).reshape(4, *x.shape)
+        mu = means[0]
         r = x + mu - target
         if np.max(np.abs(r)) < tol:
             break
         jac = np.empty((*x.shape, 3))
         for j in range(3):
-            up = u.copy()
-            up[..., 3 + j] += step
-            jac[..., :, j] = (mean(up) - mu) / step
+            jac[..., :, j] = (means[1 + j] - mu) / step
         jac += np.eye(3)
         x = x - np.linalg.solve(jac, r[..., None])[..., 0]
     return x
