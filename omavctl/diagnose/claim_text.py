@@ -11,6 +11,7 @@ from typing import Any
 from omavctl.diagnose.estimate_text import estimate_sentence
 
 __all__ = [
+    "beside_lag_sentence",
     "claim_estimate",
     "large_cut_sentence",
     "learned_claim_text",
@@ -57,6 +58,41 @@ def _bound_words(name: str) -> str:
     return f"its physical bound {min(bounds):g}" if bounds else "its physical bound"
 
 
+def beside_lag_sentence(name: str, lag: Mapping[str, Any]) -> str:
+    """' Not claimed: inertia_error, which this flight cannot tell from the motor lag's
+    time constant: ...' for a claim :mod:`omavctl.diagnose.joint_lag` held back."""
+    which = str(lag.get("lag", "the lag"))
+    value, share = _num(lag.get("value")), _num(lag.get("share"))
+    part, floor = _num(lag.get("part")), _num(lag.get("floor"))
+    at = f" at {1000 * value:.1f} ms" if value is not None else ""
+    cut = f" removes {_pct(share)} of what is left" if share is not None else " adds nothing"
+    if part is not None and floor:
+        cut += f", a part {part / floor:.2f}x the claim floor"
+    values = lag.get("values")
+    there = ""
+    if isinstance(values, Mapping):
+        there = "; ".join(
+            f"{k} = {', '.join(f'{x:.3g}' for x in v)}"
+            for k, v in values.items()
+            if isinstance(v, list) and all(_num(x) is not None for x in v)
+        )
+        there = f" (fitted so: {there})" if there else ""
+    said = (
+        f" Not claimed: {name}, which this flight does not tell from {which}: with {which}'s "
+        f"exact form{at} and the default look-alikes, {name}{cut}{there}, short of a claim's "
+        "bars (15 % of what is left and a part at the claim floor)"
+    )
+    instead = lag.get("claimed_instead")
+    if instead is True:
+        return f"{said}; {which}, which every rotorcraft's motors have, is claimed in its place."
+    if instead is False:
+        return f"{said}; {which} cannot be pinned down in its place either."
+    return (
+        f"{said}: a lag estimated too short leaves a loss of gain and phase that {name} "
+        f"absorbs. Fit {which} first; judge {name} on the next flight."
+    )
+
+
 def not_pinned_text(diag: Mapping[str, Any]) -> str:
     """' Not claimed: inertia_error, which cannot be pinned down from this flight: ...'
     for every claim held back ('' when none was), with the interval that holds the
@@ -78,6 +114,10 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
                 f"95 % interval does not exclude {_null_words(name)} (the value at which it "
                 f"is absent) on the side this flight puts it.{there}{said}"
             )
+            continue
+        lag = e.get("beside_lag")
+        if isinstance(lag, Mapping):
+            out += beside_lag_sentence(name, lag) + said
             continue
         beyond = e.get("not_physical")
         if isinstance(beyond, list) and beyond:

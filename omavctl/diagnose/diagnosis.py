@@ -15,6 +15,7 @@ command that adds the top missing effect.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -28,6 +29,7 @@ from omavctl.diagnose.claims import (
 )
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
 from omavctl.diagnose.joint import JointStep, joint_selection
+from omavctl.diagnose.joint_lag import beside_lag
 from omavctl.diagnose.joint_timing import with_timing_rivals
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
@@ -205,6 +207,7 @@ def diagnose(
         lambda rem, pool: score_effects(rem, pool, blocks, model_std, floor, refit),
         (floor, stage),
     )
+    guarded = _lag_checked(samples, model, physics, guarded, (accepted, missing, floor), stage)
     unexplained = unexplained_structure(after, features, sg.dt)
     names = guarded.kept
     estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned], stage)
@@ -382,6 +385,20 @@ def _select_guarded(
             break
     guarded.held_back = held
     return accepted, after, guarded
+
+
+def _lag_checked(
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    physics: np.ndarray,
+    guarded: Guarded,
+    ranking: tuple[Sequence[dict[str, Any]], list[EffectScore], float],
+    stage: SecondStage,
+) -> Guarded:
+    """:func:`omavctl.diagnose.joint_lag.beside_lag` on the held-out physics-only error
+    ``physics`` (n, 3); ``ranking`` as :func:`_guard`'s."""
+    again = partial(_guard, samples, model, ranking=ranking, stage=stage)
+    return beside_lag(samples, model, physics, guarded, ranking[2], again)
 
 
 def one_at_a_time(guard: Callable[[list[str]], Guarded], names: list[str]) -> Guarded:
