@@ -37,6 +37,7 @@ from omavctl.diagnose.scoring import (
     EffectScore,
     score_effects,
 )
+from omavctl.diagnose.timing_beside import timing_beside_look_alikes
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -196,6 +197,8 @@ def diagnose(
     physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
     raw = candidates_raw(regs, model)
     joint = joint_selection(model, physics, raw, blocks, floor)
+    taken = [j.name for j in joint] + [s.name for s in missing if s.missing]
+    joint[:0] = timing_beside_look_alikes(samples, model, physics, raw, taken, floor, blocks, sg.dt)
     # fit's second stage (a GP fitted to these samples) for every estimate quoted
     stage = SecondStage(samples, model, sg)
     accepted, after, guarded = _select_guarded(
