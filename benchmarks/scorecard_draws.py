@@ -182,7 +182,9 @@ def _families(split: dict[str, Any], rng: np.random.Generator) -> list[str]:
     if split["held_back"] is None:
         return [str(x) for x in rng.choice(pool, 2, replace=False)]
     pair = [split["held_back"], str(rng.choice(pool))]
-    return pair if rng.random() < 0.5 else pair[::-1]
+    first = rng.random() < 0.5
+    # a split may fly the held-back family always as the fit flight (own-steps)
+    return pair if first or split.get("held_back_fits") else pair[::-1]
 
 
 def truth_tree(

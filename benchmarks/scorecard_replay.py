@@ -58,6 +58,16 @@ OWN_SPLIT = {
         "held_back": "steps",
         "version": 2,
     },
+    # issue 26 "steps" (session 14): a steps fit flight judged on a figure-8 or a planned
+    # flight, lags, delays and a drag hidden (or nothing); seeds of no other split
+    "own-steps": {
+        "seed_base": 9_100_000,
+        "families": ("fig8", "planned"),
+        "held_back": "steps",
+        "held_back_fits": True,
+        "effects": ("command_delay", "motor_lag", "servo_lag", "rotational_drag"),
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 

@@ -50,7 +50,8 @@ def draw_spec_v2(split_name: str, split: dict[str, Any], index: int, effects: li
     seed = split["seed_base"] + index
     rng = np.random.default_rng([seed, 0x5C2])
     n_hidden = int(rng.choice([0, 1, 2], p=[0.2, 0.5, 0.3]))
-    names = sorted(str(x) for x in rng.choice(sorted(effects), n_hidden, replace=False))
+    pool = sorted(split.get("effects", effects))  # a split may draw from fewer effects
+    names = sorted(str(x) for x in rng.choice(pool, n_hidden, replace=False))
     fams = _families(split, rng)
     timing = str(rng.choice(sorted(TIMINGS)))
     noise = float(rng.uniform(0.5, 2.0))

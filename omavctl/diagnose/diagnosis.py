@@ -7,9 +7,8 @@ missing one is accepted, what it explains removed and the others rescored
 an input or state feature, a spectral peak) is reported as unexplained. The
 same ranking on the nominal residual says what the GP (with the effects) has
 learned, in physical terms; each learned effect's ``estimate`` is made as
-``fit --effects`` would make it (:mod:`omavctl.diagnose.estimates`), so that
-the two agree. :func:`fit_command` is the ``omavctl fit``
-command that adds the top missing effect.
+``fit --effects`` would make it (:mod:`omavctl.diagnose.estimates`), so that the
+two agree. :func:`fit_command` is the command that adds the top missing effect.
 """
 
 from __future__ import annotations
@@ -39,6 +38,7 @@ from omavctl.diagnose.scoring import (
     EffectScore,
     score_effects,
 )
+from omavctl.diagnose.timing_beside import timing_beside_look_alikes
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -198,6 +198,8 @@ def diagnose(
     physics = residual - np.concatenate([model.effects_samples(s) for s in samples])
     raw = candidates_raw(regs, model)
     joint = joint_selection(model, physics, raw, blocks, floor)
+    taken = [j.name for j in joint] + [s.name for s in missing if s.missing]
+    joint[:0] = timing_beside_look_alikes(samples, model, physics, raw, taken, floor, blocks, sg.dt)
     # fit's second stage (a GP fitted to these samples) for every estimate quoted
     stage = SecondStage(samples, model, sg)
     accepted, after, guarded = _select_guarded(
@@ -395,8 +397,7 @@ def _lag_checked(
     ranking: tuple[Sequence[dict[str, Any]], list[EffectScore], float],
     stage: SecondStage,
 ) -> Guarded:
-    """:func:`omavctl.diagnose.joint_lag.beside_lag` on the held-out physics-only error
-    ``physics`` (n, 3); ``ranking`` as :func:`_guard`'s."""
+    """:func:`.joint_lag.beside_lag` on the physics-only error (n, 3); ``ranking`` as _guard's."""
     again = partial(_guard, samples, model, ranking=ranking, stage=stage)
     return beside_lag(samples, model, physics, guarded, ranking[2], again)
 

@@ -469,7 +469,11 @@ def evaluate(
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
         "flags": training_data_flags(model, logs_json, time_window)
-        + quality_flags(per_model[0]["metrics"], excluded)
+        + quality_flags(
+            per_model[0]["metrics"],
+            excluded,
+            [*diagnosis["missing"], *diagnosis.get("learned_claims", [])],
+        )
         + envelope_flags(envelope),
         "envelope": envelope,
         "horizons": horizon_table(models, samples, grids, rate, horizons, horizon_stride)

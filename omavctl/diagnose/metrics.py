@@ -151,14 +151,15 @@ def binned_errors(
 
 
 def quality_flags(
-    metrics: dict[str, Any], excluded: Sequence[dict[str, Any]]
+    metrics: dict[str, Any], excluded: Sequence[dict[str, Any]], claims: Sequence[str] = ()
 ) -> list[dict[str, Any]]:
     """What a reader must know before trusting the model on these logs.
 
     ``overconfident``: 2-sigma coverage below :data:`MIN_COVERAGE` on an axis;
     ``worse_than_physics``: the model's RMSE above :data:`MAX_RATIO` x that of
     nominal + effects (the GP hurts); ``no_better_than_zero``: the model's RMSE not
-    below the RMS of the measured angular acceleration (``metrics.zero``);
+    below the RMS of the measured angular acceleration (``metrics.zero``; its advice
+    names the diagnosis's ``claims`` first, :func:`_zero_advice`);
     ``out_of_control``: samples excluded.
     """
     flags: list[dict[str, Any]] = []
@@ -173,8 +174,7 @@ def quality_flags(
                     "message": f"axis {a}: the model's error "
                     f"({metrics['model']['rmse'][a]:.3g} rad/s² RMS) is not below the "
                     f"angular acceleration itself ({zero:.3g}): predicting none would do "
-                    "as well; check the command's gain, sign and frame, and whether the "
-                    "flight moves the vehicle enough for its commands to show",
+                    f"as well; {_zero_advice(claims)}",
                 }
             )
         cov = metrics["model"]["coverage_2sigma"][a]
@@ -212,6 +212,25 @@ def quality_flags(
             }
         )
     return flags
+
+
+def _zero_advice(claims: Sequence[str]) -> str:
+    """What to do about a model no better than predicting no acceleration. With effects
+    the diagnosis claims, adding them comes first: on a flight whose angular
+    acceleration is small on an axis (a figure-8's roll), a missing effect alone can
+    exceed it (report6 draw 28: a default thrust spread's CoM offset and a hidden 50 ms
+    delay left x at 1.15 rad/s² RMS against a 0.40 signal), while a wrong gain, sign or
+    frame of the command is what is left when nothing explains the error."""
+    frame = (
+        "check the command's gain, sign and frame, and whether the flight moves the "
+        "vehicle enough for its commands to show"
+    )
+    if not claims:
+        return frame
+    return (
+        f"the diagnosis names what the physics lacks ({', '.join(claims)}): add it "
+        f"first; if the error stays, {frame}"
+    )
 
 
 #: Training ranges beyond which (or an input constant in training that varies) model
