@@ -469,11 +469,7 @@ def evaluate(
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
         "flags": training_data_flags(model, logs_json, time_window)
-        + quality_flags(
-            per_model[0]["metrics"],
-            excluded,
-            [*diagnosis["missing"], *diagnosis.get("learned_claims", [])],
-        )
+        + quality_flags(per_model[0]["metrics"], excluded, _claimed(diagnosis))
         + envelope_flags(envelope),
         "envelope": envelope,
         "horizons": horizon_table(models, samples, grids, rate, horizons, horizon_stride)
@@ -481,6 +477,13 @@ def evaluate(
         else None,
     }
     return EvalResult(tree=tree, series=series)
+
+
+def _claimed(diagnosis: dict[str, Any] | None) -> list[str]:
+    """The effects the diagnosis claims (missing, then learned); none without one."""
+    if diagnosis is None:
+        return []
+    return [*diagnosis["missing"], *diagnosis.get("learned_claims", [])]
 
 
 def _envelope(
