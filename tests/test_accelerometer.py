@@ -166,3 +166,27 @@ def test_a_rollout_holds_the_measured_force_at_the_window_start(tmp_path, monkey
     oracle = residual_function(m, win, [s], True)
     np.testing.assert_allclose(oracle(10, win.omega[:, 10])[:, 0], per_step * at[:, 10])
     assert held_spread(m, win, [s]) is None
+
+
+def test_evaluate_refuses_a_drag_moment_model_on_a_log_without_an_accelerometer(
+    tmp_path, vehicle, short_fig8
+) -> None:
+    """A model whose effect needs a signal the evaluated log lacks is refused in one line
+    naming the log (before, the effect's regressor was zeros there and the model was
+    scored as if it had no such effect); the same model on a log with it is evaluated."""
+    from omavctl.diagnose.evaluate import evaluate
+    from omavctl.learn.model_file import save_model
+    from omavctl.logs import write_log
+    from tests.conftest import fly
+
+    log = tmp_path / "held.csv"
+    write_log(log, fly(vehicle, short_fig8, {"effects": {}}, seed=0).log)
+    est = EffectEstimate("drag_moment", {"h": np.array([0.01])}, {"h": np.zeros(1)})
+    model = tmp_path / "m.npz"
+    save_model(model, _model(vehicle, {"drag_moment": est}))
+    with pytest.raises(LogError) as err:
+        evaluate([model], [log], horizons=())
+    assert str(err.value) == (
+        f"{log}: drag_moment needs the accelerometer: map the log's specific force "
+        "(m/s^2, body) as the specific_force role (docs/logs.md)"
+    )

@@ -49,6 +49,7 @@ from omavctl.diagnose.metrics import (
     worst_segments,
 )
 from omavctl.learn.control_loss import flight_control_loss
+from omavctl.learn.effect_fit import check_available
 from omavctl.learn.flights import body_rate_rate, sha256_of
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.recorded_noise import recorded_noise
@@ -433,6 +434,7 @@ def evaluate(
     samples, grids, logs_json, excluded = _read_logs(
         log_paths, model.vehicle, rate, sg, time_window, progress
     )
+    check_available(samples, sorted({name for m in models for name in m.effects}))
     log_names = [str(lj["name"]) for lj in logs_json]
     series = _measured_series(samples, grids)
     per_model = _predict_models(models, mpaths, samples, series, log_names, progress)
