@@ -23,15 +23,9 @@ from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import EFFECTS, EffectContext
 from omavctl.vehicle import load_vehicle
 from tests.test_horizons import _model
+from tests.test_readers import BF, CF, needs_real
 
 EXAMPLES = Path(__file__).parents[1] / "examples"
-REAL = Path(__file__).parents[2] / "shared/data/real"
-CF = REAL / "arpl_crazyflie"
-BF = REAL / "betaflight_cs110"
-needs_real = pytest.mark.skipif(
-    not (CF / "log15").exists() or not (BF / "better_tune.csv.gz").exists(),
-    reason=f"shared real logs not available at {REAL}",
-)
 G = 9.80665
 
 

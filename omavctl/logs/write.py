@@ -324,21 +324,14 @@ def _written_here(p: Path) -> bool:
 
 
 def _mcap_library(p: Path) -> str:
-    """The ``library`` of an MCAP file's header record ('' when it has none)."""
-    with p.open("rb") as fh:
-        head = fh.read(4096)
-    # magic (8 bytes), opcode 0x01, record length (8), profile and library strings
-    if len(head) < 17 or head[:5] != b"\x89MCAP" or head[8] != 0x01:
+    """The ``library`` of an MCAP file's header record ('' when it cannot be read)."""
+    from mcap.reader import make_reader
+
+    try:
+        with p.open("rb") as fh:
+            return str(make_reader(fh).get_header().library)
+    except Exception:  # any unreadable file is not one omavctl wrote
         return ""
-    at = 17
-    for field in range(2):
-        if len(head) < at + 4:
-            return ""
-        n = int.from_bytes(head[at : at + 4], "little")
-        if field == 1:
-            return head[at + 4 : at + 4 + n].decode("utf-8", "replace")
-        at += 4 + n
-    return ""
 
 
 def _ros1_callers(p: Path) -> set[str]:
