@@ -1,5 +1,5 @@
 """Claims held back together are held back one at a time, the last-ranked first
-(omavctl/diagnose/diagnosis.py, ``one_at_a_time``): two look-alikes estimated together
+(omavctl/diagnose/selection.py, ``one_at_a_time``): two look-alikes estimated together
 can each have an interval that holds its null while the better one alone is pinned
 down."""
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from omavctl.diagnose.claims import Guarded
-from omavctl.diagnose.diagnosis import one_at_a_time
+from omavctl.diagnose.selection import one_at_a_time
 
 Z95 = 1.959963984540054
 

@@ -1,7 +1,7 @@
 """What keeps a hidden effect from being claimed when the verdict would say "Nothing
 missing" (issue 26): the ranking's plausibility at a range's outer bound
 (omavctl/diagnose/scoring.py: an estimate at a plausibility limit is implausible, one at
-a physical limit is not) and a claim the guard holds back alone (diagnosis.py: the
+a physical limit is not) and a claim the guard holds back alone (selection.py: the
 selection is made again without it)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from omavctl.diagnose import diagnosis
+from omavctl.diagnose import selection
 from omavctl.diagnose.claims import Guarded
 from omavctl.diagnose.scoring import PHYSICAL_LIMIT, EffectScore, score_effects
 from omavctl.physics.effects import get_effect
@@ -67,7 +67,7 @@ def _score(name: str, missing: bool, contribution: np.ndarray) -> EffectScore:
 
 
 def _selection(monkeypatch: pytest.MonkeyPatch, first: list[str], held: str):
-    """The claims of the guarded selection (diagnosis._select_guarded) when the ranking
+    """The claims of the guarded selection (selection.select_guarded) when the ranking
     holds ``first`` and a look-alike ``rotor_interference`` that explains the same
     error (missing only while ``com_offset`` is not accepted), and the guard holds
     back ``held`` whenever it is claimed."""
@@ -85,10 +85,10 @@ def _selection(monkeypatch: pytest.MonkeyPatch, first: list[str], held: str):
             held_back=[{"name": held}] if held in names else [],
         )
 
-    monkeypatch.setattr(diagnosis, "_guard", guard)
+    monkeypatch.setattr(selection, "_guard", guard)
     candidates = {n: err[:, :, None] for n in [*first, "rotor_interference"]}
     ranking = rescore(err, dict(candidates))
-    return diagnosis._select_guarded([], None, (ranking, err, candidates, []), rescore, (0.1, None))
+    return selection.select_guarded([], None, (ranking, err, candidates, []), rescore, (0.1, None))
 
 
 def test_a_claim_held_back_alone_lets_the_effect_it_displaced_be_judged(monkeypatch):

@@ -34,9 +34,7 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.commands import effect_commands, fit_command, separation
-from omavctl.diagnose.diagnosis import diagnose
-from omavctl.diagnose.given import withhold_given
+from omavctl.diagnose.diagnosis_commands import claimed, diagnosis_with_commands
 from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
 from omavctl.diagnose.metrics import (
@@ -336,38 +334,6 @@ def _tracking(
     return tracking
 
 
-def _diagnosis(
-    samples: Sequence[ResidualSamples],
-    models: Sequence[ResidualGP],
-    mpaths: Sequence[str],
-    series: dict[str, np.ndarray],
-    features: dict[str, np.ndarray],
-    sg: SavitzkyGolay,
-) -> dict[str, Any]:
-    """The first model's ``diagnosis`` with its ``fit_command``; adds the fitted
-    part of the model's error of the named effects (or the top candidate) to
-    ``series`` as ``contribution_<name>`` (n, 3) rad/s², the quantity the diagnosis
-    scores, for the report's effect-signature figures. No fit that a given model
-    (a later one of ``models``, at ``mpaths``) makes moot."""
-    model, model_path = models[0], mpaths[0]
-    parts: dict[str, np.ndarray] = {}
-    diagnosis = diagnose(samples, model, series["mean_0"], series["std_0"], features, sg, parts)
-    shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
-    for name in shown:
-        series[f"contribution_{name}"] = parts[name]
-    # every missing effect, estimated jointly in one fit; else the effect the GP learned
-    # that the held-out flight confirms (learned_claims), so that a loop goes on
-    claimed = diagnosis["missing"] or diagnosis["learned_claims"]
-    diagnosis["fit_command"] = fit_command(model_path, model, claimed) if claimed else None
-    near = diagnosis.get("below_noise")
-    # the fit that tests an effect held back only by the noise floor
-    diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
-    diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
-    diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
-    withhold_given(diagnosis, models, mpaths)
-    return diagnosis
-
-
 def _failures(
     series: dict[str, np.ndarray],
     features: dict[str, np.ndarray],
@@ -441,7 +407,9 @@ def evaluate(
     features = _features(series)
     tracking = _tracking(samples, series)
     diagnosis = (
-        _diagnosis(samples, models, mpaths, series, features, sg) if with_diagnosis else None
+        diagnosis_with_commands(samples, models, mpaths, series, features, sg)
+        if with_diagnosis
+        else None
     )
     torque_units_known = not model.vehicle.torque_normalised  # command_units.torque
     envelope = _envelope(model, samples, series)
@@ -471,7 +439,7 @@ def evaluate(
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
         "flags": training_data_flags(model, logs_json, time_window)
-        + quality_flags(per_model[0]["metrics"], excluded, _claimed(diagnosis))
+        + quality_flags(per_model[0]["metrics"], excluded, claimed(diagnosis))
         + envelope_flags(envelope),
         "envelope": envelope,
         "horizons": horizon_table(models, samples, grids, rate, horizons, horizon_stride)
@@ -479,13 +447,6 @@ def evaluate(
         else None,
     }
     return EvalResult(tree=tree, series=series)
-
-
-def _claimed(diagnosis: dict[str, Any] | None) -> list[str]:
-    """The effects the diagnosis claims (missing, then learned); none without one."""
-    if diagnosis is None:
-        return []
-    return [*diagnosis["missing"], *diagnosis.get("learned_claims", [])]
 
 
 def _envelope(

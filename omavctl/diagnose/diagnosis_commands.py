@@ -1,0 +1,58 @@
+"""The evaluation's ``diagnosis`` (:func:`omavctl.diagnose.diagnosis.diagnose`) with
+the commands a user runs next: the fit that adds the claims, the test of an effect held
+back by the noise floor, each named effect's command and the separating plan.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from omavctl.diagnose.commands import effect_commands, fit_command, separation
+from omavctl.diagnose.diagnosis import diagnose
+from omavctl.diagnose.given import withhold_given
+from omavctl.learn.model import ResidualGP
+from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
+
+__all__ = ["claimed", "diagnosis_with_commands"]
+
+
+def diagnosis_with_commands(
+    samples: Sequence[ResidualSamples],
+    models: Sequence[ResidualGP],
+    mpaths: Sequence[str],
+    series: dict[str, np.ndarray],
+    features: dict[str, np.ndarray],
+    sg: SavitzkyGolay,
+) -> dict[str, Any]:
+    """The first model's ``diagnosis`` with its ``fit_command``; adds the fitted
+    part of the model's error of the named effects (or the top candidate) to
+    ``series`` as ``contribution_<name>`` (n, 3) rad/s², the quantity the diagnosis
+    scores, for the report's effect-signature figures. No fit that a given model
+    (a later one of ``models``, at ``mpaths``) makes moot."""
+    model, model_path = models[0], mpaths[0]
+    parts: dict[str, np.ndarray] = {}
+    diagnosis = diagnose(samples, model, series["mean_0"], series["std_0"], features, sg, parts)
+    shown = list(diagnosis["missing"]) or [e["name"] for e in diagnosis["missing_effects"][:1]]
+    for name in shown:
+        series[f"contribution_{name}"] = parts[name]
+    # every missing effect, estimated jointly in one fit; else the effect the GP learned
+    # that the held-out flight confirms (learned_claims), so that a loop goes on
+    claimed = diagnosis["missing"] or diagnosis["learned_claims"]
+    diagnosis["fit_command"] = fit_command(model_path, model, claimed) if claimed else None
+    near = diagnosis.get("below_noise")
+    # the fit that tests an effect held back only by the noise floor
+    diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
+    diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
+    diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
+    withhold_given(diagnosis, models, mpaths)
+    return diagnosis
+
+
+def claimed(diagnosis: dict[str, Any] | None) -> list[str]:
+    """The effects the diagnosis claims (missing, then learned); none without one."""
+    if diagnosis is None:
+        return []
+    return [*diagnosis["missing"], *diagnosis.get("learned_claims", [])]
