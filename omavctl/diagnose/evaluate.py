@@ -365,6 +365,22 @@ def _failures(
     return {"worst_segments": segments, "binned": binned_errors(err, residual, features)}
 
 
+def _load_models(
+    model_paths: Sequence[str | Path], log_paths: Sequence[str | Path]
+) -> tuple[list[str], list[ResidualGP]]:
+    """The model files read and checked against each other, with their paths."""
+    from omavctl.learn.model_file import load_model
+
+    if not model_paths:
+        raise OmavctlError("give at least one --model")
+    if not log_paths:
+        raise OmavctlError("give at least one log")
+    mpaths = [str(p) for p in model_paths]
+    models = [load_model(p) for p in mpaths]
+    _check_models(models, mpaths)
+    return mpaths, models
+
+
 def evaluate(
     model_paths: Sequence[str | Path],
     log_paths: Sequence[str | Path],
@@ -386,15 +402,7 @@ def evaluate(
     then per model j ``effects_<j>``, ``mean_<j>``, ``std_<j>`` (n, 3), then
     ``desired`` and ``contribution_<name>`` when known.
     """
-    from omavctl.learn.model_file import load_model
-
-    if not model_paths:
-        raise OmavctlError("give at least one --model")
-    if not log_paths:
-        raise OmavctlError("give at least one log")
-    mpaths = [str(p) for p in model_paths]
-    models = [load_model(p) for p in mpaths]
-    _check_models(models, mpaths)
+    mpaths, models = _load_models(model_paths, log_paths)
     model = models[0]
     rate, sg = _grid(model)
     samples, grids, logs_json, excluded = _read_logs(
