@@ -80,9 +80,12 @@ __all__ = [
     "JointStep",
     "block_sums",
     "block_t",
+    "hac_t",
     "joint_selection",
+    "joint_theta",
     "learned_step",
     "part_high",
+    "plausible_theta",
 ]
 
 #: Share of the physics-only error (sum of squares) left before it that an
@@ -167,7 +170,7 @@ class _Trial:
         return self.contribution_rms if self.contribution_high is None else self.contribution_high
 
 
-def _joint_theta(
+def joint_theta(
     model: ResidualGP, names: Sequence[str]
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """theta of each of ``names`` estimated jointly as ``fit --effects`` would from the
@@ -214,7 +217,7 @@ def _both_timing(a: str, b: str) -> bool:
     return get_effect(a).search is not None and get_effect(b).search is not None
 
 
-def _plausible(name: str, theta: np.ndarray) -> bool:
+def plausible_theta(name: str, theta: np.ndarray) -> bool:
     lo, hi = get_effect(name).theta_range
     return bool(np.all((theta >= lo - 1e-12) & (theta <= hi + 1e-12)))
 
@@ -235,7 +238,7 @@ def block_t(before: np.ndarray, after: np.ndarray, blocks: np.ndarray) -> float:
     return float(gains.mean() / se) if se > 0 else (float("inf") if gains.mean() > 0 else 0.0)
 
 
-def _hac_t(before: np.ndarray, after: np.ndarray) -> float:
+def hac_t(before: np.ndarray, after: np.ndarray) -> float:
     """Mean over samples of the drop in the squared error (n,) over its Newey-West
     standard error (Bartlett weights, the intervals' bandwidth rule)."""
     g = (before - after)[:, None]
@@ -255,7 +258,7 @@ def _trial(
     sq_before: np.ndarray,
     blocks: np.ndarray,
 ) -> _Trial:
-    thetas, cov = _joint_theta(model, [*accepted, name])
+    thetas, cov = joint_theta(model, [*accepted, name])
     pred = sum((regressors[n] @ thetas[n] for n in thetas), np.zeros_like(physics))
     sq_after = ((physics - pred) ** 2).sum(axis=1)
     own = regressors[name] @ thetas[name]
@@ -264,7 +267,7 @@ def _trial(
         gain=float(sq_before.sum() - sq_after.sum()),
         block_t=block_t(sq_before, sq_after, blocks),
         contribution_rms=float(np.sqrt((own**2).mean())),
-        plausible=all(_plausible(n, t) for n, t in thetas.items()),
+        plausible=all(plausible_theta(n, t) for n, t in thetas.items()),
         thetas=thetas,
         pred=pred,
         contribution_high=part_high(regressors[name], thetas[name], cov),
@@ -296,7 +299,7 @@ class _Yardstick:
         if self.after_look_alikes is None or t.name in DEFAULT_LOOK_ALIKES:
             return _passes(t, left, self.total, floor)
         sq_after = ((self.physics - t.pred) ** 2).sum(axis=1)
-        return _passes(t, left, self.after_look_alikes, floor, _hac_t(sq_before, sq_after))
+        return _passes(t, left, self.after_look_alikes, floor, hac_t(sq_before, sq_after))
 
     def accepted(self, steps: Sequence[JointStep], pred: np.ndarray) -> None:
         """Rebase after a step while every step so far is a look-alike."""
@@ -376,7 +379,7 @@ def learned_step(
 ) -> JointStep | None:
     """The joint selection's test of one effect the GP learned, with its parameters
     estimated from the model's training points by ordinary least squares (``fit``'s
-    first pass, before the GP: the GLS of :func:`_joint_theta` shrinks what the
+    first pass, before the GP: the GLS of :func:`joint_theta` shrinks what the
     kernel already represents, such as a drag the GP learned from body rates, to
     near zero) and judged on the held-out physics-only error ``physics`` (n, 3);
     ``regressor`` (n, 3, p) on the held-out samples. The step when it passes
@@ -400,7 +403,7 @@ def learned_step(
         gain=float(sq_before.sum() - sq_after.sum()),
         block_t=block_t(sq_before, sq_after, blocks),
         contribution_rms=float(np.sqrt((own**2).mean())),
-        plausible=_plausible(name, theta),
+        plausible=plausible_theta(name, theta),
         thetas={name: theta},
         pred=own,
     )

@@ -48,10 +48,10 @@ from omavctl.diagnose.joint import (
     MIN_HAC_T,
     MIN_SHARE,
     JointStep,
-    _hac_t,
-    _joint_theta,
-    _plausible,
     block_t,
+    hac_t,
+    joint_theta,
+    plausible_theta,
 )
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
@@ -109,14 +109,14 @@ def timing_beside_look_alikes(
         return []
     trials = []
     for name in (n for n in usable if _is_timing(n)):
-        theta = _joint_theta(model, [*alikes, name])[0][name]
-        if not _plausible(name, theta) or float(theta[0]) < dt:
+        theta = joint_theta(model, [*alikes, name])[0][name]
+        if not plausible_theta(name, theta) or float(theta[0]) < dt:
             continue
         own = np.concatenate([s.exact(name, float(theta[0])) for s in samples])
         sq_after = (_without(x, physics - own) ** 2).sum(axis=1)
         gain = left - float(sq_after.sum())
         part = float(np.sqrt((own**2).mean()))
-        if part >= floor and gain >= MIN_SHARE * left and _hac_t(sq_before, sq_after) >= MIN_HAC_T:
+        if part >= floor and gain >= MIN_SHARE * left and hac_t(sq_before, sq_after) >= MIN_HAC_T:
             trials.append((gain, name, theta, part, sq_after))
     if not trials:
         return []
