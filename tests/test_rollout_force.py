@@ -86,9 +86,15 @@ def test_the_drag_is_recovered_from_a_log_and_the_level_bias_is_removed() -> Non
     assert biased < 0.56
 
 
-def test_trailing_mean_reads_the_past_only() -> None:
+def test_trailing_mean_reads_the_past_only_and_not_across_a_gap() -> None:
+    from types import SimpleNamespace
+
+    from omavctl.learn.rollout_residual import _start_mean
+
     x = np.arange(6, dtype=float)[:, None]
     np.testing.assert_allclose(trailing_mean(x, 3)[:, 0], [0, 0.5, 1, 2, 3, 4])
+    s = SimpleNamespace(sg=SimpleNamespace(window=3), index=np.array([0, 1, 2, 7, 8, 9]))
+    np.testing.assert_allclose(_start_mean(x, s)[:, 0], [0, 0.5, 1, 3, 3.5, 4])  # type: ignore[arg-type]
 
 
 def test_a_rollout_predicts_the_force_from_the_rolled_out_attitude(tmp_path) -> None:

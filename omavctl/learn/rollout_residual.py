@@ -306,6 +306,15 @@ def _force_on_log(s: ResidualSamples) -> np.ndarray:
     )  # fmt: skip
 
 
+def _start_mean(force: np.ndarray, s: ResidualSamples) -> np.ndarray:
+    """:func:`trailing_mean` (n, 3) of the force over the Savitzky-Golay window, within
+    each run of consecutive grid samples (not across a gap or a segment edge)."""
+    n = s.sg.window if s.sg else 1
+    cuts = np.flatnonzero(np.diff(s.index) != 1) + 1
+    parts = [trailing_mean(f, n) for f in np.split(force, cuts)]
+    return np.concatenate(parts) if parts else force
+
+
 def _measured(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]) -> _Measured | None:
     """The model's measured-state effects along the windows; None for none."""
     sub = _with_effects(m, [n for n, e in m.effects.items() if e.effect.measured_state])
@@ -318,8 +327,7 @@ def _measured(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]) -
         return got
     v = m.vehicle
     if START_MEAN:
-        n = [s.sg.window if s.sg else 1 for s in samples]
-        means = [trailing_mean(f, k) for f, k in zip(on_log, n, strict=True)]
+        means = [_start_mean(f, s) for f, s in zip(on_log, samples, strict=True)]
         got.start = per_sample(win, samples, means)[:, 0]
     else:
         got.start = got.force[:, 0]
