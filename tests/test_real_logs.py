@@ -375,8 +375,9 @@ def test_a_disarmed_bench_ulog_is_refused_as_no_flight(tmp_path: Path) -> None:
     assert 'force_command: {z: "actuator_controls_0.control[3]", scale: -1.0}' in out
     assert "control_state.{roll,pitch,yaw}_rate" not in out.split("torque_command:")[1]
     assert "frame: FRD  # sensor_combined.accelerometer_m_s2[2] reads -9.6" in out
-    # 249 columns: the terminal lists the suggested map's, --json every one
-    assert "Columns of the suggested map" in out and "and 235 more columns" in out
+    # 249 columns: the terminal lists the suggested map's (the accelerometer's three
+    # among them: the specific_force role), --json every one
+    assert "Columns of the suggested map" in out and "and 232 more columns" in out
     assert "estimator_status.states[0]" not in out.split("suggested column map")[0]
     result = runner.invoke(app, ["inspect", str(ulg), "--json"])
     _ok(result)

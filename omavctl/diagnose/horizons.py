@@ -28,8 +28,9 @@ k less the start's (2 for independent samples; exact through the interpolation
 weights for a gyro recorded more slowly than the grid,
 :mod:`omavctl.learn.recorded_noise`), ``s_j`` the std of the
 model's residual function at step j (GP latent variance + the effects'
-parameter variance, at the logged inputs, plus, for an effect of a measured force
-held at the window's start, how far that term moves in j steps on the log,
+parameter variance, at the logged inputs, plus, for an effect of a measured force,
+what its rollout's prediction errs after j steps on the log: the force held at the
+window's start, or rolled forward by the logged attitude where the log has one,
 :func:`~omavctl.learn.rollout_residual.held_spread`) and ``s_p^2`` the GP's noise
 variance less what the rate noise puts into the Savitzky-Golay derivative
 (motion the model cannot predict, integrated as a random walk times ``g_k``: how
@@ -171,7 +172,7 @@ def _naive(win: Windows) -> _Run:
 def _band(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples], dt: float) -> np.ndarray:
     """Std (W, K + 1, 3) of the full model's body-rate error (module docstring)."""
     s_fun = per_sample(win, samples, [function_std(m, s) for s in samples])
-    held = held_spread(m, win, samples)  # a measured force held at the window's start
+    held = held_spread(m, win, samples)  # what the measured force's prediction errs
     if held is not None:
         s_fun = s_fun + held
     drift = np.zeros_like(s_fun)

@@ -28,11 +28,15 @@ def effect_unit(name: str, unit: str, command_units: Mapping[str, str]) -> str:
     With a normalised torque command, ``N m`` becomes ``[torque unit]`` (as in
     the report); ``com_offset``'s ``r`` (a torque per force) becomes
     ``[torque unit]/N``, ``N m/[force unit]`` or ``[torque unit]/[force unit]``;
+    ``drag_moment``'s ``h`` (a torque per *measured* force, N) ``[torque unit]/N``;
     the lags of effects that act through the commanded wrench (``servo_lag``,
     ``motor_lag``) come out multiplied by the unknown gain: ``s (x torque gain)``.
     """
     torque = command_units.get("torque") == NORMALISED
     force = command_units.get("force") == NORMALISED
+    if name == "drag_moment" and unit == "m" and torque:
+        # a torque per measured force: the accelerometer's, in N whatever the commands' units
+        return "[torque unit]/N"
     if name == "com_offset" and unit == "m" and (torque or force):
         num = "[torque unit]" if torque else "N m"
         return f"{num}/{'[force unit]' if force else 'N'}"

@@ -33,7 +33,16 @@ import numpy as np
 from omavctl.learn.gp_mean import FusedMean
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.recorded_noise import RecordedNoise, independent_noise
+from omavctl.learn.rollout_force import (
+    ForceRollout,
+    force_residual,
+    gravity_offset,
+    lateral_drag,
+    roll_force,
+    trailing_mean,
+)
 from omavctl.learn.signal import ResidualSamples
+from omavctl.physics.open_loop import AttitudeResidual
 
 __all__ = [
     "GridSignals",
@@ -254,38 +263,150 @@ def _split_effects(m: ResidualGP, win: Windows) -> tuple[ResidualGP | None, Resi
     return _with_effects(m, static), _with_effects(m, moving)
 
 
-#: effects of a measured state the rollout does not predict (``Effect.measured_state``: the
-#: accelerometer's force) are held at each window's start, what an open-loop prediction
-#: may know; False: read from the log along the window (an oracle, for benchmarks)
+#: effects of a measured state (``Effect.measured_state``: the accelerometer's force): on a
+#: log with an attitude the lateral force is rolled forward from the window's start by the
+#: rolled-out attitude (:mod:`omavctl.learn.rollout_force`), else held at the start, what
+#: an open-loop prediction may know; False: read from the log along the window (an
+#: oracle, for benchmarks)
 HOLD_MEASURED = True
+#: roll the measured force forward where the log has an attitude (False: hold it there
+#: too, as before session 15; kept for benchmarks/horizons_force.py)
+PREDICT_FORCE = True
+
+
+#: on a log with an attitude, the force a rollout starts from: the mean of the window's
+#: first sample and those of the Savitzky-Golay window before it (the past only: the
+#: accelerometer's vibration does not persist over a window); False: the start's sample
+START_MEAN = True
+
+
+@dataclass
+class _Measured:
+    """The measured-state effects (a sub-model), their residual (W, K + 1, 3) along the
+    windows as the log has it, the median-free force (W, K + 1, 3) N; when the force is
+    rolled forward (else None): the force a rollout starts from (W, 3) N, its residual
+    (W, 3), the gravity offset (W, 2) and the lateral drag d (1/s)."""
+
+    sub: ResidualGP
+    series: np.ndarray
+    force: np.ndarray
+    start: np.ndarray | None = None
+    start_value: np.ndarray | None = None
+    offset: np.ndarray | None = None
+    drag: float | None = None
+
+
+def _force_on_log(s: ResidualSamples) -> np.ndarray:
+    """The median-free measured force (n, 3) N at the samples (zeros without one)."""
+    if not s.contexts:
+        return np.zeros((s.n, 3))
+    return _on_log(
+        s, lambda c: np.zeros((c.omega.shape[0], 3)) if c.measured_force is None
+        else c.measured_force
+    )  # fmt: skip
+
+
+def _start_mean(force: np.ndarray, s: ResidualSamples) -> np.ndarray:
+    """:func:`trailing_mean` (n, 3) of the force over the Savitzky-Golay window, within
+    each run of consecutive grid samples (not across a gap or a segment edge)."""
+    n = s.sg.window if s.sg else 1
+    cuts = np.flatnonzero(np.diff(s.index) != 1) + 1
+    parts = [trailing_mean(f, n) for f in np.split(force, cuts)]
+    return np.concatenate(parts) if parts else force
+
+
+def _measured(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]) -> _Measured | None:
+    """The model's measured-state effects along the windows; None for none."""
+    sub = _with_effects(m, [n for n, e in m.effects.items() if e.effect.measured_state])
+    if sub is None:
+        return None
+    series = per_sample(win, samples, [_static_effects(sub, s) for s in samples])
+    on_log = [_force_on_log(s) for s in samples]
+    got = _Measured(sub, series, per_sample(win, samples, on_log))
+    if not (PREDICT_FORCE and HOLD_MEASURED and win.attitude is not None):
+        return got
+    v = m.vehicle
+    if START_MEAN:
+        means = [_start_mean(f, s) for f, s in zip(on_log, samples, strict=True)]
+        got.start = per_sample(win, samples, means)[:, 0]
+    else:
+        got.start = got.force[:, 0]
+    got.start_value = series[:, 0] + force_residual(sub.effects, got.start - got.force[:, 0],
+                                                    v.inertia_inv)  # fmt: skip
+    got.offset = gravity_offset(win.attitude, win.log)
+    got.drag = lateral_drag(got.force, win.attitude, got.offset, v.mass, 1.0 / v.gains.rate_hz)
+    return got
 
 
 def _held(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]) -> np.ndarray | None:
     """Residual (W, 1, 3) of the model's measured-state effects at each window's start
     (W, K + 1, 3 along the window when :data:`HOLD_MEASURED` is False); None for none."""
-    sub = _with_effects(m, [n for n, e in m.effects.items() if e.effect.measured_state])
-    if sub is None:
+    got = _measured(m, win, samples)
+    if got is None:
         return None
-    out = per_sample(win, samples, [_static_effects(sub, s) for s in samples])
-    return out[:, :1] if HOLD_MEASURED else out
+    return got.series[:, :1] if HOLD_MEASURED else got.series
+
+
+class _PredictedForce:
+    """The measured-state effects' residual (W, 3) as a rollout predicts it: called as
+    ``f(k, eta)`` with the rolled-out attitude eta (W, 3) at step k's midpoint; the
+    first call of a rollout (step 0, before the steps) gives the start's value."""
+
+    def __init__(self, m: ResidualGP, got: _Measured) -> None:
+        assert got.start is not None and got.start_value is not None and got.offset is not None
+        self.m, self.got = m, got
+        self.start, self.value, self.offset = got.start, got.start_value, got.offset
+        self.roll: ForceRollout | None = None
+
+    def __call__(self, k: int, eta: np.ndarray) -> np.ndarray:
+        v = self.m.vehicle
+        if k == 0 and self.roll is None:
+            drag = self.got.drag or 0.0
+            self.roll = ForceRollout(self.start, self.offset, drag, v.mass, 1.0 / v.gains.rate_hz)
+            return self.value
+        assert self.roll is not None
+        df = self.roll.step(eta) - self.start
+        if k == self.got.series.shape[1] - 2:  # the last step: the next rollout starts anew
+            self.roll = None
+        return self.value + force_residual(self.got.sub.effects, df, v.inertia_inv)
+
+
+def predicted_force(m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]) -> Any:
+    """The measured-state effects' residual along the windows as a rollout predicts it
+    from the rolled-out attitude (:class:`_PredictedForce`); None when the model has none
+    or the force is held (no attitude, :data:`PREDICT_FORCE`)."""
+    got = _measured(m, win, samples)
+    if got is None or got.drag is None:
+        return None
+    return _PredictedForce(m, got)
 
 
 def held_spread(
     m: ResidualGP, win: Windows, samples: Sequence[ResidualSamples]
 ) -> np.ndarray | None:
-    """Std (W, K + 1, 3) of how far the measured-state effects' residual moves from its
-    value at a window's start after k steps: ``sqrt(mean (g_k - g_0)^2)`` over the windows
-    of the same log (a statistic of the log's measured force, as its rate noise is), the
-    error a rollout that holds it (:data:`HOLD_MEASURED`) makes; None when none is held."""
-    sub = _with_effects(m, [n for n, e in m.effects.items() if e.effect.measured_state])
-    if sub is None or not HOLD_MEASURED or win.count == 0:
+    """Std (W, K + 1, 3) of the measured-state effects' error in a rollout after k steps:
+    ``sqrt(mean (p_k - g_k)^2)`` over the windows of the same log (a statistic of the
+    log's measured force, as its rate noise is), with ``g_k`` the term on the log and
+    ``p_k`` the rollout's: the start's value held (:data:`HOLD_MEASURED`), or, on a log
+    with an attitude, the force rolled forward by the logged attitude (the error the
+    prediction makes where the attitude is right); None when the log's force is read."""
+    got = _measured(m, win, samples)
+    if got is None or not HOLD_MEASURED or win.count == 0:
         return None
-    series = per_sample(win, samples, [_static_effects(sub, s) for s in samples])
-    moved = (series - series[:, :1]) ** 2
-    out = np.empty_like(series)
+    err = (got.series - got.series[:, :1]) ** 2
+    if got.drag is not None and win.attitude is not None:
+        assert got.start is not None and got.start_value is not None and got.offset is not None
+        v = m.vehicle
+        mid = 0.5 * (win.attitude[:, 1:] + win.attitude[:, :-1])  # steps' midpoints
+        f = roll_force(got.start, got.offset, mid, got.drag, v.mass, 1.0 / v.gains.rate_hz)
+        moved = force_residual(got.sub.effects, f - got.start[:, None], v.inertia_inv)
+        on_log = 0.5 * (got.series[:, 1:] + got.series[:, :-1])
+        err[:, :-1] = (got.start_value[:, None] + moved - on_log) ** 2
+        err[:, -1] = err[:, -2]
+    out = np.empty_like(got.series)
     for i in np.unique(win.log):
         sel = win.log == i
-        out[sel] = np.sqrt(moved[sel].mean(axis=0))
+        out[sel] = np.sqrt(err[sel].mean(axis=0))
     return out
 
 
@@ -319,13 +440,17 @@ def residual_function(
         ]
     gp_rolled = _rolled_mean(m) if with_gp and uses_rate else None
     base = per_sample(win, samples, fixed)
-    held = _held(m, win, samples)
+    predicted = predicted_force(m, win, samples)
+    held = None if predicted is not None else _held(m, win, samples)
     if held is not None:
         base = base + held
     u_now = None if moving is None else per_sample(win, samples, [_commands(m, s) for s in samples])
 
-    def residual(k: int, omega: np.ndarray) -> np.ndarray:
+    def residual(k: int, omega: np.ndarray, eta: np.ndarray | None = None) -> np.ndarray:
         out = base[:, k]
+        if predicted is not None:
+            assert eta is not None
+            out = out + predicted(k, eta)
         if moving is not None:
             assert u_now is not None
             out = out + moving.effects_mean(u_now[:, k], omega)
@@ -333,4 +458,6 @@ def residual_function(
             out = out + weight * gp_rolled(m.gp_inputs(win.u[:, k], omega, win.du[:, k]))
         return out
 
+    if predicted is not None:
+        return AttitudeResidual(residual)
     return residual

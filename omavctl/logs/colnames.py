@@ -72,6 +72,9 @@ _THRUST = {"thrust", "throttle", "thr", "collective", "tho", "thro"}
 _POSITION = {"pos", "position", "lpos"}
 _VELOCITY_ACC = {"v", "vel", "velocity", "acc", "accel", "acceleration", "spd", "speed"}
 _QUAT = {"q", "quat", "quaternion", "orientation"}
+#: accelerometer words (the ``specific_force`` role); not with a velocity word
+_ACCEL = {"acc", "accel", "accelerometer", "acceleration", "accsmooth", "imuacc"}
+_SPEED = {"v", "vel", "velocity", "spd", "speed", "angular"}
 TIME_WORDS = {"time", "timestamp", "stamp", "utime", "timeus", "timestamps"}
 TIME_OK_WORDS = TIME_WORDS | {
     "start",
@@ -240,6 +243,8 @@ def _classify(
             out.append(("body_rate", xyz, 1))
         elif bases & _TORQUE:
             out.append(("torque_command", xyz, 1))
+        elif bases & _ACCEL and not bases & (_SPEED | _CONTROL):
+            out.append(("specific_force", xyz, 1))
         elif bases & _CONTROL and not bases & _OUT_WORDS:
             # actuator-control style: 0..2 roll/pitch/yaw, 3 thrust
             out.append(("torque_command", xyz, 2))
@@ -260,6 +265,8 @@ def _classify(
         out.append(("position", xyz, 0))
     elif bases & _RATE and not bases & _VELOCITY_ACC:
         out.append(("body_rate", xyz, 2))
+    elif bases & _ACCEL and not bases & (_SPEED | _CONTROL):
+        out.append(("specific_force", xyz, 0))
     return out
 
 

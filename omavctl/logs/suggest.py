@@ -13,6 +13,8 @@ heuristics on the column names (no logger is special-cased):
   ``attitude``; ``q0..q3`` / ``qw..qz`` / ``quaternion.*`` -> attitude
   quaternion (``w`` first for numbered components); ``thrust`` / ``throttle``
   -> ``force_command`` z; ``pos``/``position`` x/y/z -> ``position``;
+  ``acc``/``accel``/``accelerometer`` x/y/z (no velocity word) -> ``specific_force``,
+  scaled from g when its median norm is about 1;
   ``time`` / ``timestamp`` / ``t`` -> time, its scale from unit words
   (``us``, ``ms``, ``ns``) or else from the size of its median step;
 - setpoints (``sp``, ``des``, ``ref``, ``target`` ...), biases, variances,
@@ -238,7 +240,8 @@ def suggest_column_map(
         if other_times:
             alternatives["time"] = other_times[:4]
         t0, duration = t.t0, t.duration
-    for role in ("body_rate", "attitude", "torque_command", "force_command", "position"):
+    roles = ("body_rate", "attitude", "torque_command", "force_command", "position")
+    for role in (*roles, "specific_force"):
         cands = found.get(role, [])
         if not cands:
             continue
@@ -262,6 +265,8 @@ def suggest_column_map(
                 note += "; rad assumed (ZYX Euler)"
         elif role == "attitude":
             note += "; quaternion, w first"
+        elif role == "specific_force":
+            scale, note = _accel_scale(scan, cols, note)
         elif role in ("torque_command", "force_command"):
             if max(abs(lo), abs(hi)) <= 1.5:
                 note += "; looks normalised: units unknown"
@@ -292,6 +297,19 @@ def suggest_column_map(
                 "; thrust positive in an FRD log: scale -1 points it along -z, up"
             )
     return Suggestion(columns, comments, alternatives, unrecognised, t0, duration, frame, motors)
+
+
+def _accel_scale(scan: ColumnScan, cols: list[str], note: str) -> tuple[float, str]:
+    """The scale of an accelerometer group (m/s^2 or g, from the median norm of its
+    samples, gravity's 1 g when still) and its note, for ``drag_moment``."""
+    rows = np.column_stack([scan.values[c] for c in cols])
+    norm = float(np.nanmedian(np.linalg.norm(rows, axis=1))) if rows.size else math.nan
+    tail = "; the drag_moment effect (fit --effects drag_moment) reads it"
+    if 0.5 < norm < 2.0:
+        return 9.80665, note + f"; looks like g (median norm {norm:.3g}): scale to m/s^2{tail}"
+    if 5.0 < norm < 15.0:
+        return 1.0, note + f"; m/s^2 assumed (median norm {norm:.3g}){tail}"
+    return 1.0, note + f"; unit unknown (median norm {norm:.3g}): set scale to m/s^2{tail}"
 
 
 def _motor_columns(

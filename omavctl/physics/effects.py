@@ -176,7 +176,9 @@ class DragMoment(Effect):
     normalised). ``com_offset``'s ``r_z`` on the measured, not the commanded, force.
     Identifiable from roll and pitch accelerations when the lateral measured force
     varies (a multirotor flying about); needs a log with an accelerometer. An
-    open-loop rollout holds the force at the window's start (``measured_state``).
+    open-loop rollout (``measured_state``) rolls the lateral force forward from the
+    rolled-out attitude where the log has one (:mod:`omavctl.learn.rollout_force`),
+    else holds it at the window's start.
     """
 
     name = "drag_moment"

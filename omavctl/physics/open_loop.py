@@ -26,10 +26,22 @@ import numpy as np
 
 from omavctl.physics.rigid_body import angular_acceleration, euler_rates
 
-__all__ = ["Residual", "rollout"]
+__all__ = ["AttitudeResidual", "Residual", "rollout"]
 
 #: residual angular acceleration (W, 3) rad/s^2 at step k from the body rates (W, 3)
 Residual = Callable[[int, np.ndarray], np.ndarray]
+
+
+class AttitudeResidual:
+    """A residual that also needs the rolled-out attitude: ``fn(k, omega, eta)`` (W, 3)
+    with eta (W, 3) ZYX Euler rad at the same instant as omega (an effect of the
+    measured force, predicted from gravity's direction in the body)."""
+
+    def __init__(self, fn: Callable[[int, np.ndarray, np.ndarray], np.ndarray]) -> None:
+        self.fn = fn
+
+    def __call__(self, k: int, omega: np.ndarray, eta: np.ndarray) -> np.ndarray:
+        return self.fn(k, omega, eta)
 
 
 def _rk4(
@@ -62,14 +74,15 @@ def rollout(
     inertia: np.ndarray,
     inertia_inv: np.ndarray,
     dt: float,
-    residual: Residual | None = None,
+    residual: Residual | AttitudeResidual | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Integrate W windows of K steps open loop.
 
     omega0, eta0 (W, 3): body rate (rad/s) and ZYX Euler angles (rad) at each
     window's start; torque (W, K, 3): the command held over each step;
     ``residual(k, omega)`` (W, 3): the extra angular acceleration at step k
-    (None: the rigid body alone), called once per step (at its midpoint) and once more at the start.
+    (None: the rigid body alone), called once per step (at its midpoint) and once more at the start;
+    an :class:`AttitudeResidual` gets the attitude at the same instant as a third argument.
     Returns omega and eta (W, K + 1, 3), index 0 the start.
     """
     w_count, k_count, _ = torque.shape
@@ -77,13 +90,20 @@ def rollout(
     eta = np.empty((w_count, k_count + 1, 3))
     omega[:, 0], eta[:, 0] = omega0, eta0
     extra = np.zeros((w_count, 3))
-    if residual is not None:
+    if isinstance(residual, AttitudeResidual):
+        extra = residual(0, omega[:, 0], eta[:, 0])
+    elif residual is not None:
         extra = residual(0, omega[:, 0])
     for k in range(k_count):
         if residual is not None:
             w = omega[:, k]
             start = angular_acceleration(w, torque[:, k], inertia, inertia_inv) + extra
-            extra = residual(k, w + 0.5 * dt * start)
+            mid = w + 0.5 * dt * start
+            if isinstance(residual, AttitudeResidual):
+                e_mid = eta[:, k] + 0.5 * dt * euler_rates(eta[:, k], w)
+                extra = residual(k, mid, e_mid)  # eta at the midpoint too
+            else:
+                extra = residual(k, mid)
         omega[:, k + 1], eta[:, k + 1] = _rk4(
             omega[:, k], eta[:, k], torque[:, k], extra, inertia, inertia_inv, dt
         )
