@@ -162,7 +162,7 @@ def test_px4tools_fit_evaluate_report_through_the_cli(tmp_path: Path) -> None:
         )
     )
     tree = json.loads(ev.read_text())
-    assert tree["units"] == {"acceleration": "rad/s^2", "torque": "unknown"}
+    assert tree["units"] == {"acceleration": "rad/s^2", "torque": "unknown", "force": "unknown"}
     (log,) = tree["logs"]
     assert 600 < log["samples"] < 650  # 15 <= t < 21.44 s at 100 Hz, minus filter edges
     for pred in ("nominal", "effects", "model"):

@@ -5,7 +5,7 @@ back by the noise floor, each named effect's command and the separating plan.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -13,10 +13,12 @@ import numpy as np
 from omavctl.diagnose.commands import effect_commands, fit_command, separation
 from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
+from omavctl.learn.fit_notes import effect_unit
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
+from omavctl.physics.effects import EFFECTS
 
-__all__ = ["claimed", "diagnosis_with_commands"]
+__all__ = ["claimed", "diagnosis_with_commands", "display_units"]
 
 
 def diagnosis_with_commands(
@@ -48,7 +50,28 @@ def diagnosis_with_commands(
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
     diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
     withhold_given(diagnosis, models, mpaths)
+    display_units(diagnosis, model.vehicle.command_units)
     return diagnosis
+
+
+def display_units(tree: Any, command_units: Mapping[str, str]) -> None:
+    """Every effect entry's ``units`` in ``tree`` (a dict with a registered ``name`` and
+    a ``units`` mapping, at any depth) as ``fit`` shows them for these command units
+    (:func:`omavctl.learn.fit_notes.effect_unit`; in place): with a normalised torque
+    command a CoM offset is a torque per force and ``drag_moment``'s height one per
+    measured newton, not metres."""
+    if isinstance(tree, list):
+        for item in tree:
+            display_units(item, command_units)
+        return
+    if not isinstance(tree, dict):
+        return
+    name, units = tree.get("name"), tree.get("units")
+    if isinstance(name, str) and name in EFFECTS and isinstance(units, dict):
+        tree["units"] = {k: effect_unit(name, str(u), command_units) for k, u in units.items()}
+    for value in tree.values():
+        if isinstance(value, dict | list):
+            display_units(value, command_units)
 
 
 def claimed(diagnosis: dict[str, Any] | None) -> list[str]:

@@ -431,7 +431,11 @@ def evaluate(
         "logs": logs_json,
         "grid_rate_hz": rate,
         "savitzky_golay": {"window": sg.window, "order": sg.order},
-        "units": {"acceleration": "rad/s^2", "torque": "N m" if torque_units_known else "unknown"},
+        "units": {
+            "acceleration": "rad/s^2",
+            "torque": "N m" if torque_units_known else "unknown",
+            "force": "unknown" if model.vehicle.force_normalised else "N",
+        },
         "metrics": per_model[0]["metrics"],
         "metrics_by_log": per_model[0]["metrics_by_log"],
         "metrics_by_model": [pm["metrics"] for pm in per_model],

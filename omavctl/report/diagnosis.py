@@ -87,16 +87,26 @@ def _param_lines(
     return tuple(lines)
 
 
-def fitted_effect_items(effects: Mapping[str, Any], torque_unknown: bool) -> list[Content]:
+def fitted_effect_items(
+    effects: Mapping[str, Any], torque_unknown: bool, force_unknown: bool = False
+) -> list[Content]:
     """One item per effect a model fitted: its parameters ± standard errors and 95 %
-    intervals (the model file's ``P``, ``P_stderr``, ``P_ci95``, ``P_pinned``)."""
+    intervals (the model file's ``P``, ``P_stderr``, ``P_ci95``, ``P_pinned``), in the
+    units ``fit`` shows for the commands' units (:func:`omavctl.learn.fit_notes.effect_unit`)."""
+    from omavctl.learn.fit_notes import effect_unit
     from omavctl.physics.effects import EFFECTS
+    from omavctl.vehicle import NORMALISED
 
+    command_units = {
+        k: NORMALISED
+        for k, unknown in (("torque", torque_unknown), ("force", force_unknown))
+        if unknown
+    }
     out: list[Content] = []
     for name, params in effects.items():
         if not isinstance(params, Mapping) or name not in EFFECTS:
             continue
-        units = {p.name: p.unit for p in EFFECTS[name].parameters}
+        units = {p.name: effect_unit(name, p.unit, command_units) for p in EFFECTS[name].parameters}
         lines = _param_lines(params, units, torque_unknown, name)
         out.append(f"fitted {name}: " + "; ".join(str(x) for x in lines if isinstance(x, str)))
     return out

@@ -17,6 +17,7 @@ __all__ = [
     "as_list",
     "axes_of",
     "finite",
+    "force_unit_unknown",
     "num",
     "pct",
     "percent_change",
@@ -71,6 +72,11 @@ def axes_of(d: Any) -> list[Any]:
 def torque_unit_unknown(tree: Mapping[str, Any]) -> bool:
     """Whether the evaluation says its torques are in unknown units."""
     return _get(tree, "units", "torque") == "unknown"
+
+
+def force_unit_unknown(tree: Mapping[str, Any]) -> bool:
+    """Whether the evaluation says its force command is in unknown units."""
+    return _get(tree, "units", "force") == "unknown"
 
 
 def as_list(v: Any) -> list[Any]:

@@ -17,7 +17,7 @@ from omavctl.diagnose.verdict import get_path as _get
 from omavctl.report.diagnosis import fitted_effect_items
 from omavctl.report.document import Block, Bullets, Cell, Content, Heading, Lines, Para, Span, Table
 from omavctl.report.load import Evaluation
-from omavctl.report.numfmt import AXES, axes_of, num, torque_unit_unknown
+from omavctl.report.numfmt import AXES, axes_of, force_unit_unknown, num, torque_unit_unknown
 
 __all__ = ["ACCEL_METRICS", "METRICS", "PREDICTIONS", "model_title", "overview_table", "summary_of"]
 
@@ -133,6 +133,11 @@ def _signal_r2_row(
     return row
 
 
+def _units_unknown(tree: Mapping[str, Any]) -> tuple[bool, bool]:
+    """Whether the evaluation's torque and force commands are in unknown units."""
+    return torque_unit_unknown(tree), force_unit_unknown(tree)
+
+
 def summary_of(
     tree: Mapping[str, Any], series: Mapping[str, np.ndarray], k: int, label: str
 ) -> list[Block]:
@@ -160,7 +165,7 @@ def summary_of(
                 f"{m.get('n_train', '?')} training points",
             )
         )
-        items += fitted_effect_items(m.get("effects") or {}, torque_unit_unknown(tree))
+        items += fitted_effect_items(m.get("effects") or {}, *_units_unknown(tree))
     sg = tree.get("savitzky_golay") or {}
     items.append(
         f"{int(np.asarray(series['t']).size)} samples on a "

@@ -1,0 +1,69 @@
+"""Effect units on vehicles with normalised commands, in the diagnosis and the report:
+as ``fit`` shows them (omavctl/learn/fit_notes.py ``effect_unit``), not in metres or
+newton metres the commands are not in (a CoM offset is then a torque per force)."""
+
+from __future__ import annotations
+
+import copy
+
+from omavctl.diagnose.diagnosis_commands import display_units
+from omavctl.diagnose.estimate_text import estimate_sentence
+from omavctl.report.diagnosis import fitted_effect_items
+
+TREE = {
+    "missing": ["com_offset"],
+    "missing_effects": [
+        {"name": "com_offset", "units": {"r": "m"}},
+        {"name": "rotational_drag", "units": {"D": "N m s^2"}},
+        {"name": "inertia_error", "units": {"scale": "1"}},
+    ],
+    "not_pinned": [
+        {"name": "drag_moment", "units": {"h": "m"}, "beside_lag": {"lag": "motor_lag"}}
+    ],
+    "learned_steps": [{"name": "motor_lag", "units": {"T_m": "s"}}],
+    "fit_command": "omavctl fit ...",
+}
+
+
+def _units(tree):
+    out = {e["name"]: e["units"] for e in tree["missing_effects"]}
+    out.update({e["name"]: e["units"] for e in tree["not_pinned"] + tree["learned_steps"]})
+    return out
+
+
+def test_normalised_torque_units_in_every_entry_at_any_depth():
+    tree = copy.deepcopy(TREE)
+    display_units(tree, {"torque": "normalised", "force": "N"})
+    assert _units(tree) == {
+        "com_offset": {"r": "[torque unit]/N"},
+        "rotational_drag": {"D": "[torque unit] s^2"},
+        "inertia_error": {"scale": "1"},
+        "drag_moment": {"h": "[torque unit]/N"},
+        "motor_lag": {"T_m": "s (x torque gain)"},
+    }
+    assert tree["fit_command"] == TREE["fit_command"]
+
+
+def test_physical_units_unchanged_and_force_normalised_offset():
+    tree = copy.deepcopy(TREE)
+    display_units(tree, {"torque": "N m", "force": "N"})
+    assert tree == TREE
+    display_units(tree, {"torque": "N m", "force": "normalised"})
+    assert _units(tree)["com_offset"] == {"r": "N m/[force unit]"}
+    assert _units(tree)["drag_moment"] == {"h": "m"}  # a measured force is in N
+
+
+def test_the_verdict_sentence_and_the_report_say_the_unit():
+    tree = copy.deepcopy(TREE)
+    display_units(tree, {"torque": "normalised"})
+    entry = {
+        "name": "drag_moment",
+        "units": tree["not_pinned"][0]["units"],
+        "estimate": {"h": [0.044], "h_ci95": [[-0.001, 0.089]]},
+    }
+    assert "h = 0.044 [torque unit]/N (95 %:" in estimate_sentence(entry)
+    model_effects = {"com_offset": {"r": [0.01, -0.02, 0.0], "r_stderr": [0.001] * 3}}
+    text = str(fitted_effect_items(model_effects, True, True)[0])
+    assert "r_x = 0.01 ± 0.001 [torque unit]/[force unit]" in text
+    text = str(fitted_effect_items(model_effects, False)[0])
+    assert "r_x = 0.01 ± 0.001 m" in text
