@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from omavctl.diagnose.claim_text import learned_claim_text
 from omavctl.diagnose.claims import LARGE_CUT, large_cut_step, learned_claim
 from omavctl.diagnose.joint import MIN_HAC_T, MIN_SHARE
 from omavctl.diagnose.learned_beside import learned_beside_look_alikes
@@ -93,3 +94,21 @@ def test_an_inertia_error_is_judged_beside_the_look_alikes_when_only_they_were_t
     assert (
         timing_beside_look_alikes([], model, physics, regs, ["com_offset"], FLOOR, blocks, DT) == []
     )
+
+
+def test_the_verdict_says_what_a_share_beside_the_look_alikes_is_of():
+    model, physics, regs, blocks = _drag_beside_offset(DRAG)
+    found = learned_beside_look_alikes([_entry()], [], model, physics, regs, blocks, FLOOR)
+    assert found is not None
+    step = found[0].to_json()
+    assert step["beside_look_alikes"] is True
+    diag = {"missing": [], "learned_claims": ["rotational_drag"], "learned_steps": [step]}
+    text = learned_claim_text(diag, "on the held-out flight")
+    total = f"{100 * step['share_of_total']:.0f} %"
+    assert (
+        " That share is of what com_offset and rotor_interference, the look-alikes of every "
+        "rotorcraft's imperfections, leave at their least-squares fit on this flight; of "
+        f"the whole physics-only error it removes {total}."
+    ) in text
+    del step["beside_look_alikes"]  # a share of the whole error says nothing more
+    assert "That share is of" not in learned_claim_text(diag, "on the held-out flight")

@@ -266,7 +266,7 @@ def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:
     the estimate, the look-alikes) with the held-out test's numbers (and, accepted on
     its large cut, :class:`omavctl.diagnose.claims.LargeCutStep`'s)."""
     test = step.to_json()
-    keys = ("share", "share_of_total", "block_t", *LARGE_CUT_KEYS)
+    keys = ("share", "share_of_total", "block_t", "beside_look_alikes", *LARGE_CUT_KEYS)
     return {**entry, **{k: test[k] for k in keys if k in test}}
 
 

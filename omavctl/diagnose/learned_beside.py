@@ -36,7 +36,15 @@ from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
-__all__ = ["learned_beside_look_alikes"]
+__all__ = ["BesideCutStep", "learned_beside_look_alikes"]
+
+
+class BesideCutStep(LargeCutStep):
+    """A learned claim accepted on its large cut beside the look-alikes: its ``share`` is
+    of what they leave at their held-out fit, ``share_of_total`` of the whole error."""
+
+    def to_json(self) -> dict[str, Any]:
+        return {**super().to_json(), "beside_look_alikes": True}
 
 
 def _without(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -68,7 +76,7 @@ def _trial(
     physics: np.ndarray,
     x: np.ndarray,
     blocks: np.ndarray,
-) -> LargeCutStep:
+) -> BesideCutStep:
     """``name``'s bounded least-squares estimate on the training points, its part
     ``own_of(theta)`` (n, 3) on the held-out samples judged beside the look-alikes ``x``."""
     from scipy.optimize import lsq_linear
@@ -84,7 +92,7 @@ def _trial(
     log_t, better, n_blocks = _log_ratio_t(before, after, blocks)
     left, total = float(before.sum()), float((physics**2).sum())
     gain = left - float(after.sum())
-    return LargeCutStep(
+    return BesideCutStep(
         name=name,
         share=gain / left if left > 0 else 0.0,
         share_of_total=gain / total if total > 0 else 0.0,
@@ -105,7 +113,7 @@ def learned_beside_look_alikes(
     regressors: Mapping[str, np.ndarray],
     blocks: np.ndarray,
     floor: float,
-) -> tuple[LargeCutStep, Mapping[str, Any]] | None:
+) -> tuple[BesideCutStep, Mapping[str, Any]] | None:
     """The learned claim described in the module docstring, with its pool entry.
 
     pool: the ranking's learned entries with an ``estimate``; samples: the held-out
@@ -116,7 +124,7 @@ def learned_beside_look_alikes(
     if model.n_train == 0 or not alikes or not (physics**2).sum() > 0:
         return None
     x = np.concatenate([regressors[n] for n in alikes], axis=2)
-    best: tuple[LargeCutStep, Mapping[str, Any]] | None = None
+    best: tuple[BesideCutStep, Mapping[str, Any]] | None = None
     for entry in pool:
         name = str(entry.get("name"))
         if name in DEFAULT_LOOK_ALIKES or entry.get("missing") is not True:
