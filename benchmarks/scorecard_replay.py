@@ -68,6 +68,14 @@ OWN_SPLIT = {
         "effects": ("command_delay", "motor_lag", "servo_lag", "rotational_drag"),
         "version": 2,
     },
+    # issue 26 "steps7" (session 15): report7's design (every effect, the steps family
+    # on either side, version 2), declared before any draw was flown; fresh seeds
+    "own-steps7": {
+        "seed_base": 9_300_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 

@@ -200,9 +200,24 @@ def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
             f"removes {_pct(share)} of the squared physics-only error {where}"
         )
     text += "."
+    text += beside_look_alikes_sentence(step)
     text += large_cut_sentence(step)
     text += estimate_sentence(step)
     return text + (
         " What the GP learned of it holds only where the fit flight went; fitted as a "
         "physical effect it is tested on every flight."
+    )
+
+
+def beside_look_alikes_sentence(step: Mapping[str, Any]) -> str:
+    """What a learned claim's share is of when it was judged beside the default
+    imperfections' look-alikes refitted on the held-out flight
+    (:mod:`omavctl.diagnose.learned_beside`); '' otherwise."""
+    total = _num(step.get("share_of_total"))
+    if step.get("beside_look_alikes") is not True or total is None:
+        return ""
+    return (
+        " That share is of what com_offset and rotor_interference, the look-alikes of every "
+        "rotorcraft's imperfections, leave at their least-squares fit on this flight; of "
+        f"the whole physics-only error it removes {_pct(total)}."
     )

@@ -24,6 +24,7 @@ from omavctl.diagnose.claims import (
 )
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
 from omavctl.diagnose.joint import JointStep, joint_selection
+from omavctl.diagnose.learned_beside import learned_beside_look_alikes
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     MIN_EXPLAINED,
@@ -64,7 +65,9 @@ METHOD: dict[str, Any] = {
     "--effects would, lower the physics-only error on the held-out flight (joint; the "
     "default imperfections' look-alikes take no slot of its cap, and what they leave is "
     "the yardstick of a further effect; a step's part is judged against the claim floor by "
-    "the upper end of its 95 % interval)",
+    "the upper end of its 95 % interval; with no lag or delay taken, each is judged beside "
+    "the look-alikes refitted on the held-out flight, and with only look-alikes taken, any "
+    "other effect too)",
     "claim_guard": "a claim is kept only where the 95 % interval of its estimate as the fit "
     "command makes it excludes the effect's null on an axis it is claimed on, and, claimed by "
     "the joint selection alone, where its estimate on the fit flight (least squares at the "
@@ -76,7 +79,9 @@ METHOD: dict[str, Any] = {
     "interval excludes its null and, estimated from the training points by least squares, "
     "it passes the joint test on the held-out physics-only error, or fails only its "
     "per-block t and removes at least half of that error by a consistent fraction in every "
-    "block (large cut) (learned_claims)",
+    "block (large cut); the large cut is first judged on what the default imperfections' "
+    "look-alikes leave at their least-squares fit on the held-out flight, for an effect "
+    "that is not one of them (learned_claims)",
     "learned_estimate": ESTIMATE_METHOD,
 }
 
@@ -232,7 +237,7 @@ def diagnose(
     step = None
     if not names:
         pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)
-        step = learned_claim(pool, samples, model, physics, raw, blocks, floor)
+        step = _learned_claim(pool, samples, model, physics, raw, blocks, floor)
     return {
         **out,
         "learned_claims": [step[0].name] if step else [],
@@ -240,12 +245,28 @@ def diagnose(
     }
 
 
+def _learned_claim(
+    pool: list[dict[str, Any]],
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    physics: np.ndarray,
+    raw: dict[str, np.ndarray],
+    blocks: np.ndarray,
+    floor: float,
+) -> tuple[JointStep, Mapping[str, Any]] | None:
+    """The learned claim: judged beside the default look-alikes refitted on the held-out
+    flight first (:mod:`omavctl.diagnose.learned_beside`), then on the whole
+    physics-only error ``physics`` (n, 3) (:func:`omavctl.diagnose.claims.learned_claim`)."""
+    args = (pool, samples, model, physics, raw, blocks, floor)
+    return learned_beside_look_alikes(*args) or learned_claim(*args)
+
+
 def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:
     """A learned claim's JSON: its ranking entry (what the physics-only residual shows,
     the estimate, the look-alikes) with the held-out test's numbers (and, accepted on
     its large cut, :class:`omavctl.diagnose.claims.LargeCutStep`'s)."""
     test = step.to_json()
-    keys = ("share", "share_of_total", "block_t", *LARGE_CUT_KEYS)
+    keys = ("share", "share_of_total", "block_t", "beside_look_alikes", *LARGE_CUT_KEYS)
     return {**entry, **{k: test[k] for k in keys if k in test}}
 
 

@@ -38,6 +38,7 @@ was held back with it; guarded before it, the delay is pinned down and claimed).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -71,6 +72,29 @@ def _without(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     n, _, p = x.shape
     theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), y.reshape(3 * n), rcond=None)
     return np.asarray(y - x @ theta)
+
+
+def _trials(beside: tuple[Any, ...], names: Sequence[str], sq_before: np.ndarray) -> list[Any]:
+    """(gain, name, theta, part, sq_after) of each of ``names`` that passes beside the
+    look-alikes (``beside``: samples, model, physics, regressors, alikes, their stacked
+    regressor x, floor, dt; ``sq_before`` (n,) what the look-alikes leave, squared)."""
+    samples, model, physics, regressors, alikes, x, floor, dt = beside
+    left = float(sq_before.sum())
+    trials = []
+    for name in names:
+        theta = joint_theta(model, [*alikes, name])[0][name]
+        if not plausible_theta(name, theta) or (_is_timing(name) and float(theta[0]) < dt):
+            continue
+        if _is_timing(name):
+            own = np.concatenate([s.exact(name, float(theta[0])) for s in samples])
+        else:
+            own = regressors[name] @ theta
+        sq_after = (_without(x, physics - own) ** 2).sum(axis=1)
+        gain = left - float(sq_after.sum())
+        part = float(np.sqrt((own**2).mean()))
+        if part >= floor and gain >= MIN_SHARE * left and hac_t(sq_before, sq_after) >= MIN_HAC_T:
+            trials.append((gain, name, theta, part, sq_after))
+    return trials
 
 
 def timing_beside_look_alikes(
@@ -107,22 +131,17 @@ def timing_beside_look_alikes(
     left = float(sq_before.sum())
     if left <= 0:
         return []
-    trials = []
-    for name in (n for n in usable if _is_timing(n)):
-        theta = joint_theta(model, [*alikes, name])[0][name]
-        if not plausible_theta(name, theta) or float(theta[0]) < dt:
-            continue
-        own = np.concatenate([s.exact(name, float(theta[0])) for s in samples])
-        sq_after = (_without(x, physics - own) ** 2).sum(axis=1)
-        gain = left - float(sq_after.sum())
-        part = float(np.sqrt((own**2).mean()))
-        if part >= floor and gain >= MIN_SHARE * left and hac_t(sq_before, sq_after) >= MIN_HAC_T:
-            trials.append((gain, name, theta, part, sq_after))
+    beside = (samples, model, physics, regressors, alikes, x, floor, dt)
+    trials = _trials(beside, [n for n in usable if _is_timing(n)], sq_before)
+    if not trials and set(taken) <= DEFAULT_LOOK_ALIKES:
+        # only look-alikes taken: any other effect is judged beside them the same way
+        others = [n for n in usable if not _is_timing(n) and n not in DEFAULT_LOOK_ALIKES]
+        trials = _trials(beside, others, sq_before)
     if not trials:
         return []
     trials.sort(key=lambda t: -t[0])
     gain, name, theta, part, sq_after = trials[0]
-    rivals = [t[1] for t in trials[1:]]
+    rivals = [t[1] for t in trials[1:]] if _is_timing(name) else []
     total = float((physics**2).sum())
     return [
         JointStep(
