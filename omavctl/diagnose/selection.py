@@ -120,7 +120,7 @@ def lag_checked(
 ) -> Guarded:
     """:func:`.joint_lag.beside_lag` on the physics-only error (n, 3); ``ranking`` as _guard's."""
     again = partial(_guard, samples, model, ranking=ranking, stage=stage)
-    return beside_lag(samples, model, physics, guarded, ranking[2], again)
+    return beside_lag(samples, model, physics, guarded, ranking[2], again, ranking[1])
 
 
 def one_at_a_time(guard: Callable[[list[str]], Guarded], names: list[str]) -> Guarded:
