@@ -5,6 +5,7 @@ pair; noise claims nothing; the claims guard decides what is kept."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from types import SimpleNamespace
 
 import numpy as np
@@ -92,7 +93,8 @@ def test_noise_alone_claims_no_lag_or_delay():
 
 
 def _guard(pinned: set[str]):
-    def guard(names: list[str]) -> Guarded:
+    def guard(names: list[str], found: Sequence[str]) -> Guarded:
+        assert set(found) <= set(names)
         held = [{"name": n, "estimate": {}} for n in names if n not in pinned]
         return Guarded([n for n in names if n in pinned], {}, held)
 
