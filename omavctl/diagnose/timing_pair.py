@@ -274,9 +274,8 @@ def with_timing_pair(
     fit = fits[0]
     trial = guard([*guarded.kept, *fit.names], fit.names)
     if not all(n in trial.kept for n in fit.names):  # said, with the profile's numbers
-        held = [
-            {**h, "timing_pair": fit.to_json()} for h in trial.held_back if h["name"] in fit.names
-        ]
+        first = {h["name"]: h for h in reversed(trial.held_back) if h["name"] in fit.names}
+        held = [{**first[n], "timing_pair": fit.to_json()} for n in fit.names if n in first]
         return Guarded(guarded.kept, guarded.estimates, [*guarded.held_back, *held])
     trial.held_back = [*guarded.held_back, *trial.held_back]
     for s in scores:
