@@ -121,3 +121,16 @@ def test_a_lag_claimed_already_is_left_as_it_is():
     before = Guarded(["motor_lag"], {}, [])
     out = with_timing_pair([s], MODEL, physics, before, FLOOR, _guard(set()))  # type: ignore[arg-type]
     assert out is before
+
+
+def test_a_member_held_back_twice_is_said_once():
+    s, physics = _flight({"command_delay": 0.05, "servo_lag": 0.10})
+
+    def guard(names: list[str], found: Sequence[str]) -> Guarded:
+        held = [{"name": "servo_lag", "estimate": {"T_s": [0.2]}}, {"name": "servo_lag"}]
+        return Guarded([n for n in names if n != "servo_lag"], {}, held)
+
+    out = with_timing_pair([s], MODEL, physics, Guarded([], {}, []), FLOOR, guard)  # type: ignore[arg-type]
+    assert out.kept == []
+    assert [h["name"] for h in out.held_back] == ["servo_lag"]
+    assert out.held_back[0]["estimate"] == {"T_s": [0.2]}  # the first entry
