@@ -182,7 +182,7 @@ def _pair(prof: _Profile, a: str, b: str, singles: dict[str, TimingFit], left: f
     shares, parts, ts = [], [], []
     for m, v, other in ((a, va, b), (b, vb, a)):
         alone = prof.left([other], singles[other].values)
-        shares.append(1 - float(after.sum()) / float(alone.sum()))
+        shares.append(1 - float(after.sum()) / max(float(alone.sum()), 1e-300))
         parts.append(float(np.sqrt((prof.exact(m, v) ** 2).mean())))
         ts.append(hac_t(alone, after))
     share = 1 - float(after.sum()) / left
