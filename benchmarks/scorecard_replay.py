@@ -76,6 +76,24 @@ OWN_SPLIT = {
         "held_back": "steps",
         "version": 2,
     },
+    # issue 26 "pair" (session 15): timing effects in pairs and beside a non-timing one,
+    # every trajectory family; only the draws that hide two effects, at least one a lag or
+    # delay, are flown (/tmp script's rule, declared before any was looked at); the same
+    # seed base as own-steps7 (both declared in parallel), another effect pool: other draws
+    "own-timing": {
+        "seed_base": 9_300_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "effects": (
+            "command_delay",
+            "motor_lag",
+            "servo_lag",
+            "rotational_drag",
+            "inertia_error",
+            "com_offset",
+        ),
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 

@@ -33,6 +33,8 @@ from scipy.optimize import minimize_scalar
 
 from omavctl.diagnose.claims import Guarded
 from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES, MIN_SHARE
+from omavctl.diagnose.scoring import EffectScore
+from omavctl.diagnose.timing_pair import PairGuard, with_timing_pair
 from omavctl.learn.effects_band import effect_residual
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
@@ -176,15 +178,23 @@ def beside_lag(
     guarded: Guarded,
     floor: float,
     guard: Callable[[list[str]], Guarded],
+    pair: tuple[Sequence[EffectScore], PairGuard] | None = None,
 ) -> Guarded:
-    """``guarded`` with each kept claim beside a lag that fails :func:`lag_profile`'s
-    test held back (``beside_lag`` in its entry: the profile's JSON) and the rest guarded
-    again by ``guard`` (names -> Guarded), so that the quoted estimates are the printed
-    fit command's. With no lag claimed nor in the model, a ``command_delay`` that adds
-    nothing to the motor lag's exact form gives way to the motor lag when the guard keeps
-    it (:func:`_delay_for_lag`)."""
+    """``guarded`` with a lag, delay or pair of them claimed when none is and the
+    exact forms profiled together pass (:func:`with_timing_pair`, with ``pair`` = (the
+    ranking's scores, the guard that takes the names it found on the held-out flight);
+    those were tested beside each other's exact form already), then each kept claim
+    beside a lag that fails :func:`lag_profile`'s test held back (``beside_lag`` in its entry: the
+    profile's JSON) and the rest guarded again by ``guard`` (names -> Guarded), so that
+    the quoted estimates are the printed fit command's. With no lag claimed nor in the
+    model, a ``command_delay`` that adds nothing to the motor lag's exact form gives way
+    to the motor lag when the guard keeps it (:func:`_delay_for_lag`)."""
+    before = set(guarded.kept)
+    if pair is not None:
+        guarded = with_timing_pair(samples, model, physics, guarded, floor, pair[1], pair[0])
+    paired = set(guarded.kept) - before
     lags = [g for g in LAGS if g in guarded.kept or g in model.effects]
-    tested = [n for n in guarded.kept if n not in LAGS and n not in DEFAULT_LOOK_ALIKES]
+    tested = [n for n in guarded.kept if n not in LAGS and n not in DEFAULT_LOOK_ALIKES | paired]
     if not tested:
         return guarded
     if not lags:

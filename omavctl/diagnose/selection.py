@@ -31,6 +31,7 @@ def _guard(
     ranking: tuple[Sequence[dict[str, Any]], list[EffectScore], float],
     stage: SecondStage,
     rivals: Mapping[str, Sequence[str]] | None = None,
+    held_out: Sequence[str] = (),
 ) -> Guarded:
     """The claims ``names`` whose 95 % interval, estimated as the fit command would,
     excludes their null on an axis they are claimed on (:func:`guard_claims`; the
@@ -41,7 +42,10 @@ def _guard(
     back stays in the ambiguous set of a
     kept look-alike it was ambiguous with (in place): the flight did not tell them
     apart, it only could not pin the one down. A lag or delay held back gives way to its
-    joint step's timing ``rivals`` (:func:`with_timing_rivals`)."""
+    joint step's timing ``rivals`` (:func:`with_timing_rivals`). The claims of
+    ``held_out`` (lags and delays found by their exact forms on the held-out flight,
+    :mod:`omavctl.diagnose.timing_pair`) are not judged by the fit flight's first-order
+    estimate."""
     accepted, scores, floor = ranking
     ranked = {str(a["name"]) for a in accepted}
     by_name = {s.name: s for s in scores}
@@ -56,7 +60,7 @@ def _guard(
                 floor,
                 model,
                 stage,
-                [n for n in claims if n not in ranked],
+                [n for n in claims if n not in ranked and n not in held_out],
             ),
             claims,
         ),
@@ -120,7 +124,11 @@ def lag_checked(
 ) -> Guarded:
     """:func:`.joint_lag.beside_lag` on the physics-only error (n, 3); ``ranking`` as _guard's."""
     again = partial(_guard, samples, model, ranking=ranking, stage=stage)
-    return beside_lag(samples, model, physics, guarded, ranking[2], again)
+
+    def paired(names: list[str], held_out: Sequence[str]) -> Guarded:
+        return _guard(samples, model, names, ranking, stage, held_out=held_out)
+
+    return beside_lag(samples, model, physics, guarded, ranking[2], again, (ranking[1], paired))
 
 
 def one_at_a_time(guard: Callable[[list[str]], Guarded], names: list[str]) -> Guarded:
