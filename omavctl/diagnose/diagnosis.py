@@ -75,6 +75,13 @@ METHOD: dict[str, Any] = {
     "two claims or more are held back together, only the last-ranked of them is, and the "
     "others are guarded again without it; a lag or delay held back gives way to the next "
     "lag or delay that passed its joint step",
+    "timing_pair": "with no lag or delay claimed nor in the model, each lag or delay and "
+    "each pair of them is profiled over its time constants with its exact form on the "
+    "held-out physics-only error (the look-alikes refitted at each value); a pair is "
+    "claimed when each member passes, beside the other, the bars of a single claim (15 % "
+    "share, part at the claim floor, Newey-West t, at least one sample period), else the "
+    "best single one on the same bars; the claims guard then estimates them as the fit "
+    "command does",
     "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
     "interval excludes its null and, estimated from the training points by least squares, "
     "it passes the joint test on the held-out physics-only error, or fails only its "
