@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -167,6 +168,7 @@ def _plan(
     args = ["--task", str(paths["task"]), "--model", str(paths["model"])]
     args += ["--candidates", str(cfg.candidates), "--sims", str(cfg.sims), "--seed", str(seed)]
     args += ["--objective", kind, "--jobs", "1", "--scores", str(w / f"scores-{kind}{tag}.csv")]
+    args += shlex.split(cfg.plan_args)
     if tag == "-task":  # the second plan of a draw: --baseline-plan
         args += ["--region", "task"] if cfg.baseline_plan == "task-region" else []
         args += ["--tilt-margin", "90"] if cfg.baseline_plan == "uncapped" else []
@@ -212,7 +214,11 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
     }
     res.update(best=best, random=drawn[0], task_cost=float(planned["task_cost"]))
     res.update(best_task_region=best_paper, task_cost_task_region=float(paper["task_cost"]))
-    res.update(baseline_plan=cfg.baseline_plan, max_tilt_deg=float(planned["max_tilt_deg"]))
+    res.update(
+        plan_args=cfg.plan_args,
+        baseline_plan=cfg.baseline_plan,
+        max_tilt_deg=float(planned["max_tilt_deg"]),
+    )
     if cfg.with_effects:
         _plan(paths, w, seed, cfg, "effects")
         res["effects_plan"] = _second(w / "plan-effects.csv", paths, seed, w, "effects")
@@ -230,6 +236,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--candidates", type=int, default=50)
     ap.add_argument("--sims", type=int, default=4)
     ap.add_argument("--pool-extra", type=int, default=3, help="random pool candidates also flown")
+    ap.add_argument("--plan-args", default="", metavar="ARGS",
+                    help="further options of both plans, e.g. '--amplitude 3' (the candidate "
+                    "family; the pool, random candidate and oracle follow it)")  # fmt: skip
     ap.add_argument("--with-effects", action="store_true", help="also plan --objective effects")
     ap.add_argument("--baseline-plan", choices=["task-region", "uncapped"], default="task-region",
                     help="the second plan each draw flies: --region task, or the default "
