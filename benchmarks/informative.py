@@ -212,7 +212,7 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
         str(k): {**second, "cost": float(cost[k]), "cost_task_region": float(cost_paper[k])}
         for k, second in zip(refs, seconds, strict=True)
     }
-    res.update(best=best, random=drawn[0], task_cost=float(planned["task_cost"]))
+    res.update(best=best, random=drawn[0], drawn=drawn, task_cost=float(planned["task_cost"]))
     res.update(best_task_region=best_paper, task_cost_task_region=float(paper["task_cost"]))
     res.update(
         plan_args=cfg.plan_args,

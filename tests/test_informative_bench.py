@@ -315,3 +315,23 @@ def test_plan_args_reach_both_plans_of_a_draw(tmp_path, monkeypatch) -> None:
                 i = args.index("--amplitude")
                 assert args[i : i + 4] == ["--amplitude", "3", "--max-freq", "1.5"]
         assert ("--tilt-margin" in baseline_plan) == (baseline == "uncapped")
+
+
+def test_the_random_candidates_mean_is_over_every_drawn_pool_candidate() -> None:
+    """With the draws' random pool candidates listed (``drawn``), planned and oracle are
+    also compared with their mean: here (0.9 + 0.7) / 2 = 0.8 against the planned 0.5,
+    while the one random candidate (0.9) gives a larger gain; the rows are absent for
+    draws that do not list them."""
+    draws = [_draw(2.0, 1.0, {0: (3.0, 0.9), 1: (1.0, 0.5), 2: (2.0, 0.7)}) for _ in range(2)]
+    region = "model RMSE, region's held-out flights"
+    assert ("planned vs the random candidates' mean", region) not in {
+        (n, label) for n, label, _ in comparisons(draws)
+    }
+    for d in draws:
+        d["drawn"] = [0, 2]
+    rows = {(name, label): g for name, label, g in comparisons(draws)}
+    assert rows[("planned vs the random candidates' mean", region)] == [pytest.approx(37.5)] * 2
+    assert (
+        rows[("oracle vs the random candidates' mean (room)", region)] == [pytest.approx(37.5)] * 2
+    )
+    assert rows[("planned vs one random candidate", region)] == [pytest.approx(100 * 0.4 / 0.9)] * 2
