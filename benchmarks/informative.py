@@ -14,17 +14,19 @@ outputs run at once), and of ``evaluate`` only the metrics the benchmark reads
    task: the figure-8 (26 deg, 8 s period, ``--duration`` s);
 2. first flight of the task (noise seed s) -> ``fit`` -> the first model;
 3. ``plan --task --model --candidates K --scores`` (variance objective, plan seed s;
-   the defaults ``--region pool --tilt-margin 10``), and a baseline plan on the same
-   candidates and simulations (``--baseline-plan``): ``--region task`` (the paper's
+   the defaults ``--region pool --tilt-margin 10``; ``--plan-args`` adds options to
+   both plans, e.g. a wider candidate family ``--amplitude 3``), and a baseline plan on
+   the same candidates and simulations (``--baseline-plan``): ``--region task`` (the paper's
    test points around the task: the objective before issue 29) or ``uncapped``
    (``--tilt-margin 90``: the default before the tilt margin);
 4. second flights, all with noise seed 100 + s: the task again; the planned
    reference (and the baseline plan's choice); one random candidate of the
    same pool (a seeded draw among the candidates feasible for the planned flight's
    limits, the tilt margin included: the same deviation distribution); ``--pool-extra``
-   further random candidates of the pool,
-   so that the best of all flown candidates by realised error is the oracle (a lower
-   bound of the room the selection has); with ``--with-effects`` also
+   further random candidates of the pool (all of them ``drawn`` in result.json: the
+   mean over them is a steadier random candidate than one, whose index is the same for
+   every effect set of a seed), so that the best of all flown candidates by realised
+   error is the oracle (a lower bound of the room the selection has); with ``--with-effects`` also
    ``plan --objective effects``;
 5. ``fit FIRST SECOND`` -> refitted model; ``evaluate``'s RMSE on held-out flights:
    the task flown once more (noise seed 200 + s) and the region's flights, a faster
