@@ -14,17 +14,19 @@ outputs run at once), and of ``evaluate`` only the metrics the benchmark reads
    task: the figure-8 (26 deg, 8 s period, ``--duration`` s);
 2. first flight of the task (noise seed s) -> ``fit`` -> the first model;
 3. ``plan --task --model --candidates K --scores`` (variance objective, plan seed s;
-   the defaults ``--region pool --tilt-margin 10``), and a baseline plan on the same
-   candidates and simulations (``--baseline-plan``): ``--region task`` (the paper's
+   the defaults ``--region pool --tilt-margin 10``; ``--plan-args`` adds options to
+   both plans, e.g. a wider candidate family ``--amplitude 3``), and a baseline plan on
+   the same candidates and simulations (``--baseline-plan``): ``--region task`` (the paper's
    test points around the task: the objective before issue 29) or ``uncapped``
    (``--tilt-margin 90``: the default before the tilt margin);
 4. second flights, all with noise seed 100 + s: the task again; the planned
    reference (and the baseline plan's choice); one random candidate of the
    same pool (a seeded draw among the candidates feasible for the planned flight's
    limits, the tilt margin included: the same deviation distribution); ``--pool-extra``
-   further random candidates of the pool,
-   so that the best of all flown candidates by realised error is the oracle (a lower
-   bound of the room the selection has); with ``--with-effects`` also
+   further random candidates of the pool (all of them ``drawn`` in result.json: the
+   mean over them is a steadier random candidate than one, whose index is the same for
+   every effect set of a seed), so that the best of all flown candidates by realised
+   error is the oracle (a lower bound of the room the selection has); with ``--with-effects`` also
    ``plan --objective effects``;
 5. ``fit FIRST SECOND`` -> refitted model; ``evaluate``'s RMSE on held-out flights:
    the task flown once more (noise seed 200 + s) and the region's flights, a faster
@@ -45,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -167,6 +170,7 @@ def _plan(
     args = ["--task", str(paths["task"]), "--model", str(paths["model"])]
     args += ["--candidates", str(cfg.candidates), "--sims", str(cfg.sims), "--seed", str(seed)]
     args += ["--objective", kind, "--jobs", "1", "--scores", str(w / f"scores-{kind}{tag}.csv")]
+    args += shlex.split(cfg.plan_args)
     if tag == "-task":  # the second plan of a draw: --baseline-plan
         args += ["--region", "task"] if cfg.baseline_plan == "task-region" else []
         args += ["--tilt-margin", "90"] if cfg.baseline_plan == "uncapped" else []
@@ -210,9 +214,13 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
         str(k): {**second, "cost": float(cost[k]), "cost_task_region": float(cost_paper[k])}
         for k, second in zip(refs, seconds, strict=True)
     }
-    res.update(best=best, random=drawn[0], task_cost=float(planned["task_cost"]))
+    res.update(best=best, random=drawn[0], drawn=drawn, task_cost=float(planned["task_cost"]))
     res.update(best_task_region=best_paper, task_cost_task_region=float(paper["task_cost"]))
-    res.update(baseline_plan=cfg.baseline_plan, max_tilt_deg=float(planned["max_tilt_deg"]))
+    res.update(
+        plan_args=cfg.plan_args,
+        baseline_plan=cfg.baseline_plan,
+        max_tilt_deg=float(planned["max_tilt_deg"]),
+    )
     if cfg.with_effects:
         _plan(paths, w, seed, cfg, "effects")
         res["effects_plan"] = _second(w / "plan-effects.csv", paths, seed, w, "effects")
@@ -230,6 +238,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--candidates", type=int, default=50)
     ap.add_argument("--sims", type=int, default=4)
     ap.add_argument("--pool-extra", type=int, default=3, help="random pool candidates also flown")
+    ap.add_argument("--plan-args", default="", metavar="ARGS",
+                    help="further options of both plans, e.g. '--amplitude 3' (the candidate "
+                    "family; the pool, random candidate and oracle follow it)")  # fmt: skip
     ap.add_argument("--with-effects", action="store_true", help="also plan --objective effects")
     ap.add_argument("--baseline-plan", choices=["task-region", "uncapped"], default="task-region",
                     help="the second plan each draw flies: --region task, or the default "

@@ -3,6 +3,7 @@ its held-out errors against evaluate's on a short flight (seconds)."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 
@@ -291,3 +292,46 @@ def test_heldout_is_what_evaluate_reports(tmp_path, vehicle, short_fig8) -> None
     assert got["rmse"] == full["metrics"]["model"]["rmse"]
     assert got["tracking"] == full["tracking"] and got["tracking"]["mean"] > 0
     assert calls.cost()["evaluate"][0] >= 1
+
+
+def test_plan_args_reach_both_plans_of_a_draw(tmp_path, monkeypatch) -> None:
+    """``--plan-args`` (the candidate family, e.g. a wider amplitude) is appended to the
+    planned and the baseline plan's command lines alike, so the pool, the random candidate
+    and the oracle all come from the same family; without it the plans are unchanged."""
+    import benchmarks.informative as inf
+
+    seen: list[tuple[str, ...]] = []
+    monkeypatch.setattr(inf, "omavctl", lambda *args: seen.append(args) or {})
+    paths = {"task": tmp_path / "task.csv", "model": tmp_path / "first.npz"}
+    for extra, baseline in (("--amplitude 3 --max-freq 1.5", "uncapped"), ("", "task-region")):
+        cfg = argparse.Namespace(candidates=30, sims=4, plan_args=extra, baseline_plan=baseline)
+        seen.clear()
+        inf._plan(paths, tmp_path, 5, cfg, "variance")
+        inf._plan(paths, tmp_path, 5, cfg, "variance", "-task")
+        planned, baseline_plan = (list(a) for a in seen)
+        for args in (planned, baseline_plan):
+            assert args[0] == "plan" and ("--amplitude" in args) == bool(extra)
+            if extra:
+                i = args.index("--amplitude")
+                assert args[i : i + 4] == ["--amplitude", "3", "--max-freq", "1.5"]
+        assert ("--tilt-margin" in baseline_plan) == (baseline == "uncapped")
+
+
+def test_the_random_candidates_mean_is_over_every_drawn_pool_candidate() -> None:
+    """With the draws' random pool candidates listed (``drawn``), planned and oracle are
+    also compared with their mean: here (0.9 + 0.7) / 2 = 0.8 against the planned 0.5,
+    while the one random candidate (0.9) gives a larger gain; the rows are absent for
+    draws that do not list them."""
+    draws = [_draw(2.0, 1.0, {0: (3.0, 0.9), 1: (1.0, 0.5), 2: (2.0, 0.7)}) for _ in range(2)]
+    region = "model RMSE, region's held-out flights"
+    assert ("planned vs the random candidates' mean", region) not in {
+        (n, label) for n, label, _ in comparisons(draws)
+    }
+    for d in draws:
+        d["drawn"] = [0, 2]
+    rows = {(name, label): g for name, label, g in comparisons(draws)}
+    assert rows[("planned vs the random candidates' mean", region)] == [pytest.approx(37.5)] * 2
+    assert (
+        rows[("oracle vs the random candidates' mean (room)", region)] == [pytest.approx(37.5)] * 2
+    )
+    assert rows[("planned vs one random candidate", region)] == [pytest.approx(100 * 0.4 / 0.9)] * 2

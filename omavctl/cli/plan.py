@@ -59,6 +59,14 @@ TiltMargin = Annotated[
         "worse on it, docs/informative.md), 90 for effects.",
     ),
 ]
+YawMargin = Annotated[
+    float | None,
+    typer.Option(
+        metavar="DEG",
+        help="Only candidates whose reference turns at most this far from the task's yaw "
+        "(deg; others are redrawn before simulating). Default: no limit.",
+    ),
+]
 Epsilon = Annotated[
     float | None,
     typer.Option(
@@ -160,6 +168,7 @@ def plan(
     amplitude: Amplitude = 1.0,
     max_tilt: MaxTilt = 80.0,
     tilt_margin: TiltMargin = None,
+    yaw_margin: YawMargin = None,
     epsilon: Epsilon = None,
     test_points: TestPoints = 500,
     region: Region = "pool",
@@ -195,6 +204,7 @@ def plan(
         amplitude=amplitude,
         max_tilt_deg=max_tilt,
         tilt_margin_deg=tilt_margin,
+        yaw_margin_deg=yaw_margin,
         epsilon=epsilon,
         test_points=test_points,
         region=region,

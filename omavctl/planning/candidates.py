@@ -29,6 +29,7 @@ __all__ = [
     "coefficient_names",
     "deviated_references",
     "sample_coefficients",
+    "yaw_deviation_deg",
 ]
 
 
@@ -52,6 +53,21 @@ def sample_coefficients(
     f = rng.uniform(min_freq, max_freq, size=(n, 3, frequencies))
     a = rng.uniform(-amplitude, amplitude, size=(n, 3, frequencies))
     return np.stack([f, a], axis=-1)
+
+
+def yaw_deviation_deg(task: Trajectory, coefficients: np.ndarray, ramp: float = 2.0) -> np.ndarray:
+    """Largest |yaw deviation| from the task's reference yaw over the task (K,), deg.
+
+    coefficients (K, 3, P, 2); the z row of ``delta`` of the module docstring on the
+    task's samples: the candidate's reference yaw minus the task's, known before any
+    simulation (a low deviation frequency turns the vehicle far: A / (2 pi f)^2).
+    """
+    t = task.t - task.t[0]
+    env = Envelope(float(t[-1]), min(ramp, float(t[-1]) / 2))(t)[0]
+    f, amp = coefficients[:, 2, :, 0, None], coefficients[:, 2, :, 1, None]  # (K, P, 1)
+    w = 2 * np.pi * f
+    delta = env * (amp / w**2 * np.sin(w * t)).sum(axis=1)  # (K, N)
+    return np.rad2deg(np.abs(delta).max(axis=1))
 
 
 def _task_euler_derivatives(task: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -44,7 +44,11 @@ from typing import Any
 import numpy as np
 
 from omavctl.base.errors import OmavctlError
-from omavctl.planning.candidates import deviated_references, sample_coefficients
+from omavctl.planning.candidates import (
+    deviated_references,
+    sample_coefficients,
+    yaw_deviation_deg,
+)
 from omavctl.planning.gp import GPAxes, PathwiseSamples
 from omavctl.planning.rollout import REASONS, Progress
 from omavctl.planning.scoring import Flights, Objective, VarianceObjective
@@ -99,6 +103,10 @@ class PlanSettings:
     #: :func:`tilt_limit`; None: TILT_MARGIN_DEG for the variance objective, whose
     #: refit further tilts hurt on the task (docs/informative.md), none for effects)
     tilt_margin_deg: float | None = None
+    #: candidates turn at most this far from the task's reference yaw (deg, known before
+    #: simulating: :func:`~omavctl.planning.candidates.yaw_deviation_deg`; others are
+    #: redrawn); None: no limit (docs/informative.md, session 15)
+    yaw_margin_deg: float | None = None
     max_error_deg: float = 30.0  # attitude error beyond which a simulation diverged
     stride: int = 4  # points are picked among every stride-th simulated sample
     search: str = "random"  # or "cem"
@@ -349,7 +357,32 @@ def _check(model, settings: PlanSettings) -> None:
         resolve_effects(model, settings.effects)
 
 
-def _proposer(settings: PlanSettings, rng: np.random.Generator):
+#: Draws of --yaw-margin's redrawing before it gives up (each of the missing count)
+YAW_DRAWS = 200
+
+
+def _within_yaw(task: Trajectory, margin: float | None, draw: Callable[[int], np.ndarray]):
+    """``draw`` with the candidates that turn beyond ``margin`` from the task's yaw
+    redrawn (``draw(n)`` -> (n, 3, P, 2)); ``draw`` itself when there is no margin."""
+    if margin is None:
+        return draw
+
+    def redrawn(n: int) -> np.ndarray:
+        kept: list[np.ndarray] = []
+        for _ in range(YAW_DRAWS):
+            c = draw(n)
+            kept.append(c[yaw_deviation_deg(task, c) <= margin])
+            if sum(len(k) for k in kept) >= n:
+                return np.concatenate(kept)[:n]
+        raise OmavctlError(
+            f"--yaw-margin {margin:g}: too few candidates turn less than that from the "
+            "task's yaw: raise it or lower --amplitude"
+        )
+
+    return redrawn
+
+
+def _proposer(settings: PlanSettings, rng: np.random.Generator, task: Trajectory):
     """Generation sizes and ``propose(n, coeffs so far, costs so far)`` -> (n, 3, P, 2)."""
     s = settings
     bounds = (s.frequencies, s.min_freq, s.max_freq, s.amplitude)
@@ -361,6 +394,9 @@ def _proposer(settings: PlanSettings, rng: np.random.Generator):
     def propose(n: int, coeffs: list[np.ndarray], costs: list[np.ndarray]) -> np.ndarray:
         if coeffs:
             cem.update(np.concatenate(coeffs), np.concatenate(costs))
+        return _within_yaw(task, s.yaw_margin_deg, draw)(n)
+
+    def draw(n: int) -> np.ndarray:
         if cem.centres is None:  # first generation, or nothing feasible yet: uniform
             return sample_coefficients(rng, n, *bounds)
         return cem.sample(rng, n, (3, s.frequencies, 2))
@@ -383,7 +419,7 @@ def plan(
     limits = (tilt_limit(task, settings), settings.max_error_deg)
     jobs = settings.jobs or available_cores()
     sim = Simulator(model, samples, task, settings.stride, limits, settings.fast, jobs, progress)
-    sizes, propose = _proposer(settings, rng_cand)
+    sizes, propose = _proposer(settings, rng_cand, task)
     coeffs: list[np.ndarray] = []
     parts: list[tuple[dict[str, np.ndarray], np.ndarray, list[str], np.ndarray]] = []
     objectives: dict[str, Objective] = {}
