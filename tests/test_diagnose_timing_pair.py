@@ -134,3 +134,25 @@ def test_a_member_held_back_twice_is_said_once():
     assert out.kept == []
     assert [h["name"] for h in out.held_back] == ["servo_lag"]
     assert out.held_back[0]["estimate"] == {"T_s": [0.2]}  # the first entry
+
+
+def test_a_claim_of_the_profile_is_not_also_said_not_claimed():
+    """report8 draw 37: the first guard held the servo lag back on the fit flight's
+    first-order estimate, the profile then claimed it: the verdict said "Missing:
+    servo_lag" and "Not claimed: servo_lag" one after the other."""
+    s, physics = _flight({"command_delay": 0.05, "servo_lag": 0.10})
+    before = Guarded(["com_offset"], {}, [{"name": "servo_lag", "fit_flight": {}}])
+    pinned = {"com_offset", "command_delay", "servo_lag"}
+    out = with_timing_pair([s], MODEL, physics, before, FLOOR, _guard(pinned))  # type: ignore[arg-type]
+    assert out.kept == ["com_offset", "command_delay", "servo_lag"]
+    assert out.held_back == []
+
+
+def test_held_back_before_and_by_the_profile_is_said_once_with_the_profile():
+    """report8 draw 41 listed the motor lag twice in not_pinned."""
+    s, physics = _flight({"command_delay": 0.05, "servo_lag": 0.10})
+    before = Guarded(["com_offset"], {}, [{"name": "command_delay"}, {"name": "inertia_error"}])
+    out = with_timing_pair([s], MODEL, physics, before, FLOOR, _guard({"com_offset"}))  # type: ignore[arg-type]
+    assert out.kept == ["com_offset"]
+    assert [h["name"] for h in out.held_back] == ["command_delay", "inertia_error", "servo_lag"]
+    assert out.held_back[0]["timing_pair"]["names"] == ["command_delay", "servo_lag"]

@@ -276,9 +276,20 @@ def with_timing_pair(
     if not all(n in trial.kept for n in fit.names):  # said, with the profile's numbers
         first = {h["name"]: h for h in reversed(trial.held_back) if h["name"] in fit.names}
         held = [{**first[n], "timing_pair": fit.to_json()} for n in fit.names if n in first]
-        return Guarded(guarded.kept, guarded.estimates, [*guarded.held_back, *held])
-    trial.held_back = [*guarded.held_back, *trial.held_back]
+        return Guarded(guarded.kept, guarded.estimates, _held_once([*guarded.held_back, *held], []))
+    trial.held_back = _held_once([*guarded.held_back, *trial.held_back], trial.kept)
     for s in scores:
         if s.name in fit.names:
             s.ambiguous_with += [n for n in fit.ambiguous_with if n not in s.ambiguous_with]
     return trial
+
+
+def _held_once(entries: Sequence[dict[str, Any]], kept: Sequence[str]) -> list[dict[str, Any]]:
+    """The held-back entries, one per name (the last, which carries the profile's
+    ``timing_pair``, at the first's place), none of a claim ``kept``: a lag the first
+    guard held back and the profile then claimed is not also said "not claimed"
+    (report8 draw 37: "Missing: servo_lag ... Not claimed: servo_lag"), nor one held
+    back twice said twice (draw 41)."""
+    last = {str(h["name"]): h for h in entries}
+    order = list(dict.fromkeys(str(h["name"]) for h in entries))
+    return [last[n] for n in order if n not in kept]
