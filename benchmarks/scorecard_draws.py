@@ -99,6 +99,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report8's records were read (2026-11-26, session 15): the next changes are reported
+    # on report9 (10 000 000: the own splits of scorecard_replay.py use 9 1xx xxx-9 3xx xxx)
+    "report9": {
+        "seed_base": 10_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
