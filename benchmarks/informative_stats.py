@@ -58,6 +58,19 @@ def mean_interval(values: Sequence[float], level: float = 0.95) -> MeanInterval:
     return MeanInterval(mean, mean - half, mean + half, int(x.size), level)
 
 
+def seed_interval(
+    values: Sequence[float], seeds: Sequence[int], level: float = 0.95
+) -> MeanInterval:
+    """Mean of the per-seed means of ``values`` (n,) with the t-interval over the seeds
+    (``n`` of the result: the number of seeds). The draws of one seed share their task
+    flights, the candidate pool and the random candidate's index, so they are not
+    independent; an interval over the seeds does not assume they are."""
+    x, s = np.asarray(values, dtype=float), np.asarray(seeds)
+    if x.shape != s.shape:
+        raise ValueError(f"lengths differ: {x.size} values, {s.size} seeds")
+    return mean_interval([float(x[s == k].mean()) for k in sorted(set(s.tolist()))], level)
+
+
 def spearman(a: Sequence[float], b: Sequence[float]) -> float:
     """Spearman rank correlation of two equally long sequences (NaN if undefined)."""
     if len(a) != len(b):

@@ -13,7 +13,7 @@ from scipy import stats
 
 from benchmarks import informative_calls as calls
 from benchmarks.informative_md import comparisons, correlation, oracle
-from benchmarks.informative_stats import gain, mean_interval, spearman
+from benchmarks.informative_stats import gain, mean_interval, seed_interval, spearman
 from omavctl.diagnose.evaluate import evaluate
 from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import save_model
@@ -43,6 +43,22 @@ def test_mean_interval_covers_the_true_mean_about_95_percent_of_the_time() -> No
         (iv := mean_interval(rng.normal(5.0, 3.0, 6))).low < 5.0 < iv.high for _ in range(2000)
     )
     assert 0.93 < hits / 2000 < 0.97
+
+
+def test_seed_interval_is_over_the_seed_means() -> None:
+    """Six draws of two seeds: the interval is the t-interval of the two seed means (1
+    degree of freedom), far wider than the six draws' own, which takes them as
+    independent though a seed's draws share their flights and pool."""
+    gains = [10.0, 12.0, 11.0, 30.0, 28.0, 29.0]
+    seeds = [5, 5, 5, 6, 6, 6]
+    iv = seed_interval(gains, seeds)
+    half = stats.t.ppf(0.975, 1) * np.std([11.0, 29.0], ddof=1) / math.sqrt(2)
+    assert iv.n == 2 and iv.mean == pytest.approx(20.0)
+    assert (iv.low, iv.high) == pytest.approx((20.0 - half, 20.0 + half))
+    per_draw = mean_interval(gains)
+    assert per_draw.n == 6 and per_draw.high - per_draw.low < (iv.high - iv.low) / 5
+    with pytest.raises(ValueError, match="lengths differ: 6 values, 5 seeds"):
+        seed_interval(gains, seeds[:5])
 
 
 def test_target_needs_the_mean_and_the_lower_end() -> None:
@@ -154,6 +170,9 @@ def test_markdown_says_which_target_holds() -> None:
     assert "span 57 % of their mean (per draw 57, 57, 57 %)" in text
     assert "cost is 75 % below the task's own" in text
     assert "RMS amplitude +0.50, +0.50, +0.50; with its mean frequency -0.25," in text
+    # three seeds of one draw each: clustered by seed, the same gains and intervals
+    assert "The same gains clustered by seed (3 seeds:" in text
+    assert text.count("| planned vs the task flown again | closed-loop tracking of the task |") == 2
 
 
 def test_pool_ranking_finds_what_the_cost_rewards(tmp_path) -> None:
