@@ -21,13 +21,14 @@ outputs run at once), and of ``evaluate`` only the metrics the benchmark reads
    (``--tilt-margin 90``: the default before the tilt margin);
 4. second flights, all with noise seed 100 + s: the task again; the planned
    reference (and the baseline plan's choice); one random candidate of the
-   same pool (a seeded draw among the candidates feasible for the planned flight's
-   limits, the tilt margin included: the same deviation distribution); ``--pool-extra``
+   same pool (a draw among the candidates feasible for the planned flight's limits, the
+   tilt margin included: the same deviation distribution; seeded by the seed and the
+   effect set, ``informative_stats.random_draws``: draws cached before that was so used
+   the seed alone, one random flight for every effect set of a seed); ``--pool-extra``
    further random candidates of the pool (all of them ``drawn`` in result.json: the
-   mean over them is a steadier random candidate than one, whose index is the same for
-   every effect set of a seed), so that the best of all flown candidates by realised
-   error is the oracle (a lower bound of the room the selection has); with ``--with-effects`` also
-   ``plan --objective effects``;
+   mean over them is a steadier random candidate than one), so that the best of all
+   flown candidates by realised error is the oracle (a lower bound of the room the
+   selection has); with ``--with-effects`` also ``plan --objective effects``;
 5. ``fit FIRST SECOND`` -> refitted model; ``evaluate``'s RMSE on held-out flights:
    the task flown once more (noise seed 200 + s) and the region's flights, a faster
    figure-8 (20/30 deg, 6 s) and a wobble (15 deg); RMSE = mean over the axes;
@@ -58,6 +59,7 @@ import numpy as np
 from benchmarks.informative_calls import cost, heldout, omavctl, start, stop
 from benchmarks.informative_kept import add_kept, read_scores
 from benchmarks.informative_md import markdown
+from benchmarks.informative_stats import random_draws
 from omavctl.planning.candidates import deviated_references
 from omavctl.sim.trajectory import Trajectory, read_trajectory, write_trajectory
 
@@ -201,8 +203,7 @@ def run_draw(w: Path, name: str, seed: int, cfg: argparse.Namespace) -> dict:
     _, cost = read_scores(w / "scores-variance.csv")
     _, cost_paper = read_scores(w / "scores-variance-task.csv")
     feasible = np.flatnonzero(np.isfinite(cost))
-    rng = np.random.default_rng(1000 + seed)
-    drawn = [int(k) for k in rng.permutation(feasible)[: 1 + cfg.pool_extra]]
+    drawn = random_draws(feasible.tolist(), seed, name, 1 + cfg.pool_extra)
     best, best_paper = int(planned["best"]), int(paper["best"])
     refs = _pool(w, paths["task"], sorted({best, best_paper, *drawn}), w / "scores-variance.csv")
     again, *seconds = _together(

@@ -8,6 +8,7 @@ draws with its 95 % t-interval, and the Spearman rank correlation.
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -56,6 +57,16 @@ def mean_interval(values: Sequence[float], level: float = 0.95) -> MeanInterval:
         return MeanInterval(mean, -math.inf, math.inf, 1, level)
     half = float(stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
     return MeanInterval(mean, mean - half, mean + half, int(x.size), level)
+
+
+def random_draws(feasible: Sequence[int], seed: int, effects: str, n: int) -> list[int]:
+    """``n`` of the ``feasible`` pool indices drawn at random for the draw of effect set
+    ``effects`` and ``seed``: seeded by both, so the draws of one seed are judged against
+    different random flights (before session 15's end the generator was seeded by the
+    seed alone, ``default_rng(1000 + seed)``, and every effect set of a seed flew the
+    same random candidate)."""
+    rng = np.random.default_rng([1000 + seed, zlib.crc32(effects.encode())])
+    return [int(k) for k in rng.permutation(np.asarray(feasible))[:n]]
 
 
 def seed_interval(

@@ -13,7 +13,13 @@ from scipy import stats
 
 from benchmarks import informative_calls as calls
 from benchmarks.informative_md import comparisons, correlation, oracle
-from benchmarks.informative_stats import gain, mean_interval, seed_interval, spearman
+from benchmarks.informative_stats import (
+    gain,
+    mean_interval,
+    random_draws,
+    seed_interval,
+    spearman,
+)
 from omavctl.diagnose.evaluate import evaluate
 from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import save_model
@@ -59,6 +65,17 @@ def test_seed_interval_is_over_the_seed_means() -> None:
     assert per_draw.n == 6 and per_draw.high - per_draw.low < (iv.high - iv.low) / 5
     with pytest.raises(ValueError, match="lengths differ: 6 values, 5 seeds"):
         seed_interval(gains, seeds[:5])
+
+
+def test_the_random_flights_differ_between_the_effect_sets_of_a_seed() -> None:
+    """Seeded by the seed alone, all six effect sets of seed 5 flew pool index 14."""
+    pool = list(range(30))
+    sets = ["drag", "inertia", "delay", "com", "drag+delay", "inertia+com"]
+    first = {name: random_draws(pool, 5, name, 4) for name in sets}
+    assert len({d[0] for d in first.values()}) >= 4
+    assert all(len(set(d)) == 4 and set(d) <= set(pool) for d in first.values())
+    assert random_draws(pool, 5, "drag", 4) == first["drag"]  # reproducible
+    assert random_draws(pool, 6, "drag", 4) != first["drag"]
 
 
 def test_target_needs_the_mean_and_the_lower_end() -> None:
