@@ -86,6 +86,7 @@ __all__ = [
     "learned_step",
     "part_high",
     "plausible_theta",
+    "without_fit",
 ]
 
 #: Share of the physics-only error (sum of squares) left before it that an
@@ -417,3 +418,12 @@ def learned_step(
         block_t=min(trial.block_t, 1e6),
         theta=theta,
     )
+
+
+def without_fit(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``y`` (n, 3) less its least-squares fit on the regressor ``x`` (n, 3, p)."""
+    if x.shape[2] == 0 or y.size == 0:
+        return y
+    n, _, p = x.shape
+    theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), y.reshape(3 * n), rcond=None)
+    return np.asarray(y - x @ theta)

@@ -31,7 +31,13 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.claims import LARGE_CUT, LargeCutStep, claimed_axes, excludes_null
-from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES, MIN_HAC_T, block_sums, block_t
+from omavctl.diagnose.joint import (
+    DEFAULT_LOOK_ALIKES,
+    MIN_HAC_T,
+    block_sums,
+    block_t,
+    without_fit,
+)
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
@@ -45,15 +51,6 @@ class BesideCutStep(LargeCutStep):
 
     def to_json(self) -> dict[str, Any]:
         return {**super().to_json(), "beside_look_alikes": True}
-
-
-def _without(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``y`` (n, 3) less its least-squares fit on the regressor ``x`` (n, 3, p)."""
-    if x.shape[2] == 0 or y.size == 0:
-        return y
-    n, _, p = x.shape
-    theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), y.reshape(3 * n), rcond=None)
-    return np.asarray(y - x @ theta)
 
 
 def _log_ratio_t(
@@ -87,8 +84,8 @@ def _trial(
     a, b = train.reshape(3 * k, p), model.targets.reshape(3 * k)
     theta = np.asarray(lsq_linear(a, b, bounds=(lo, hi), method="bvls").x)
     own = own_of(theta)
-    before = (_without(x, physics) ** 2).sum(axis=1)
-    after = (_without(x, physics - own) ** 2).sum(axis=1)
+    before = (without_fit(x, physics) ** 2).sum(axis=1)
+    after = (without_fit(x, physics - own) ** 2).sum(axis=1)
     log_t, better, n_blocks = _log_ratio_t(before, after, blocks)
     left, total = float(before.sum()), float((physics**2).sum())
     gain = left - float(after.sum())

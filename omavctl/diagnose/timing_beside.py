@@ -53,6 +53,7 @@ from omavctl.diagnose.joint import (
     hac_t,
     joint_theta,
     plausible_theta,
+    without_fit,
 )
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
@@ -63,15 +64,6 @@ __all__ = ["timing_beside_look_alikes"]
 
 def _is_timing(name: str) -> bool:
     return get_effect(name).search is not None
-
-
-def _without(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``y`` (n, 3) less its least-squares fit on the regressor ``x`` (n, 3, p)."""
-    if x.shape[2] == 0 or y.size == 0:
-        return y
-    n, _, p = x.shape
-    theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), y.reshape(3 * n), rcond=None)
-    return np.asarray(y - x @ theta)
 
 
 def _trials(beside: tuple[Any, ...], names: Sequence[str], sq_before: np.ndarray) -> list[Any]:
@@ -89,7 +81,7 @@ def _trials(beside: tuple[Any, ...], names: Sequence[str], sq_before: np.ndarray
             own = np.concatenate([s.exact(name, float(theta[0])) for s in samples])
         else:
             own = regressors[name] @ theta
-        sq_after = (_without(x, physics - own) ** 2).sum(axis=1)
+        sq_after = (without_fit(x, physics - own) ** 2).sum(axis=1)
         gain = left - float(sq_after.sum())
         part = float(np.sqrt((own**2).mean()))
         if part >= floor and gain >= MIN_SHARE * left and hac_t(sq_before, sq_after) >= MIN_HAC_T:
@@ -126,7 +118,7 @@ def timing_beside_look_alikes(
         if alikes
         else np.zeros((*physics.shape, 0))
     )
-    before = _without(x, physics)
+    before = without_fit(x, physics)
     sq_before = (before**2).sum(axis=1)
     left = float(sq_before.sum())
     if left <= 0:
