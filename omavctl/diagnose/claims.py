@@ -51,7 +51,9 @@ __all__ = [
     "guard_claims",
     "large_cut_step",
     "learned_claim",
+    "log_ratio_t",
     "material_axes",
+    "training_estimate",
 ]
 
 AXES = ("x", "y", "z")
@@ -418,6 +420,31 @@ class LargeCutStep(JointStep):
         }
 
 
+def training_estimate(model: ResidualGP, name: str) -> np.ndarray:
+    """``name``'s parameters (p,) by bounded least squares on the model's training points
+    (its stored regressor against the GP's targets), within their plausible range."""
+    from scipy.optimize import lsq_linear
+
+    train = model.train_regressors[name]
+    k, _, p = train.shape
+    lo, hi = get_effect(name).theta_range
+    a, b = train.reshape(3 * k, p), model.targets.reshape(3 * k)
+    return np.asarray(lsq_linear(a, b, bounds=(lo, hi), method="bvls").x)
+
+
+def log_ratio_t(
+    before: np.ndarray, after: np.ndarray, blocks: np.ndarray
+) -> tuple[float, int, int]:
+    """Mean over the time ``blocks`` of -log(after / before) over its standard error, the
+    blocks made better and the blocks (``before``, ``after`` (n,) squared errors)."""
+    b0, b1 = block_sums(before, blocks), block_sums(after, blocks)
+    keep = b0 > 0
+    ratio = -np.log(np.maximum(b1[keep], 1e-300) / b0[keep])
+    se = ratio.std(ddof=1) / np.sqrt(ratio.size) if ratio.size >= 3 else np.inf
+    t = float(ratio.mean() / se) if se > 0 else float(np.inf if ratio.mean() > 0 else 0.0)
+    return t, int((b0 > b1).sum()), int(b0.size)
+
+
 def large_cut_step(
     model: ResidualGP,
     name: str,
@@ -445,22 +472,12 @@ def large_cut_step(
     fraction, no block counts more than another. The cut guards against the look-alikes
     that pass the fraction test alone (an inertia scale the vehicle lacked removed
     29-48 % on own2/tune2 draws, with fractions consistent over the blocks)."""
-    train = model.train_regressors.get(name)
-    if train is None or model.n_train == 0 or not (physics**2).sum() > 0:
+    if name not in model.train_regressors or model.n_train == 0 or not (physics**2).sum() > 0:
         return None
-    from scipy.optimize import lsq_linear
-
-    k, _, p = train.shape
-    lo, hi = get_effect(name).theta_range
-    a, b = train.reshape(3 * k, p), model.targets.reshape(3 * k)
-    theta = np.asarray(lsq_linear(a, b, bounds=(lo, hi), method="bvls").x)
+    theta = training_estimate(model, name)
     own = regressor @ theta if exact is None else exact(float(theta[0]))
     before, after = (physics**2).sum(axis=1), ((physics - own) ** 2).sum(axis=1)
-    b0, b1 = block_sums(before, blocks), block_sums(after, blocks)
-    keep = b0 > 0
-    ratio = -np.log(np.maximum(b1[keep], 1e-300) / b0[keep])
-    se = ratio.std(ddof=1) / np.sqrt(ratio.size) if ratio.size >= 3 else np.inf
-    log_t = float(ratio.mean() / se) if se > 0 else float(np.inf if ratio.mean() > 0 else 0.0)
+    log_t, better, n_blocks = log_ratio_t(before, after, blocks)
     share = 1.0 - float(after.sum() / before.sum())
     rms = float(np.sqrt((own**2).mean()))
     if not (rms >= floor and share >= LARGE_CUT and log_t >= MIN_HAC_T):
@@ -473,6 +490,6 @@ def large_cut_step(
         block_t=min(block_t(before, after, blocks), 1e6),
         theta=theta,
         log_ratio_t=min(log_t, 1e6),
-        blocks_better=int((b0 > b1).sum()),
-        blocks=int(b0.size),
+        blocks_better=better,
+        blocks=n_blocks,
     )

@@ -30,11 +30,17 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.diagnose.claims import LARGE_CUT, LargeCutStep, claimed_axes, excludes_null
+from omavctl.diagnose.claims import (
+    LARGE_CUT,
+    LargeCutStep,
+    claimed_axes,
+    excludes_null,
+    log_ratio_t,
+    training_estimate,
+)
 from omavctl.diagnose.joint import (
     DEFAULT_LOOK_ALIKES,
     MIN_HAC_T,
-    block_sums,
     block_t,
     without_fit,
 )
@@ -53,40 +59,22 @@ class BesideCutStep(LargeCutStep):
         return {**super().to_json(), "beside_look_alikes": True}
 
 
-def _log_ratio_t(
-    before: np.ndarray, after: np.ndarray, blocks: np.ndarray
-) -> tuple[float, int, int]:
-    """Mean over the 2 s blocks of -log(after / before) over its standard error, the
-    blocks made better and the blocks (before, after (n,) squared errors)."""
-    b0, b1 = block_sums(before, blocks), block_sums(after, blocks)
-    keep = b0 > 0
-    ratio = -np.log(np.maximum(b1[keep], 1e-300) / b0[keep])
-    se = ratio.std(ddof=1) / np.sqrt(ratio.size) if ratio.size >= 3 else np.inf
-    t = float(ratio.mean() / se) if se > 0 else float(np.inf if ratio.mean() > 0 else 0.0)
-    return t, int((b0 > b1).sum()), int(b0.size)
-
-
 def _trial(
     model: ResidualGP,
     name: str,
     own_of: Any,
     physics: np.ndarray,
-    x: np.ndarray,
+    beside: tuple[np.ndarray, np.ndarray],
     blocks: np.ndarray,
 ) -> BesideCutStep:
     """``name``'s bounded least-squares estimate on the training points, its part
-    ``own_of(theta)`` (n, 3) on the held-out samples judged beside the look-alikes ``x``."""
-    from scipy.optimize import lsq_linear
-
-    train = model.train_regressors[name]
-    k, _, p = train.shape
-    lo, hi = get_effect(name).theta_range
-    a, b = train.reshape(3 * k, p), model.targets.reshape(3 * k)
-    theta = np.asarray(lsq_linear(a, b, bounds=(lo, hi), method="bvls").x)
+    ``own_of(theta)`` (n, 3) on the held-out samples judged beside the look-alikes
+    (``beside``: their stacked regressor x (n, 3, p) and what they leave, squared (n,))."""
+    x, before = beside
+    theta = training_estimate(model, name)
     own = own_of(theta)
-    before = (without_fit(x, physics) ** 2).sum(axis=1)
     after = (without_fit(x, physics - own) ** 2).sum(axis=1)
-    log_t, better, n_blocks = _log_ratio_t(before, after, blocks)
+    log_t, better, n_blocks = log_ratio_t(before, after, blocks)
     left, total = float(before.sum()), float((physics**2).sum())
     gain = left - float(after.sum())
     return BesideCutStep(
@@ -121,6 +109,7 @@ def learned_beside_look_alikes(
     if model.n_train == 0 or not alikes or not (physics**2).sum() > 0:
         return None
     x = np.concatenate([regressors[n] for n in alikes], axis=2)
+    beside = (x, (without_fit(x, physics) ** 2).sum(axis=1))
     best: tuple[BesideCutStep, Mapping[str, Any]] | None = None
     for entry in pool:
         name = str(entry.get("name"))
@@ -141,7 +130,7 @@ def learned_beside_look_alikes(
             own_of = lambda th, n=name: np.concatenate([s.exact(n, float(th[0])) for s in samples])  # noqa: E731
         else:
             own_of = lambda th, r=reg: r @ th  # noqa: E731
-        step = _trial(model, name, own_of, physics, x, blocks)
+        step = _trial(model, name, own_of, physics, beside, blocks)
         ok = (
             step.contribution_rms >= floor
             and step.share >= LARGE_CUT

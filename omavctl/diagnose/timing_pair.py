@@ -46,6 +46,7 @@ from omavctl.diagnose.joint import (
     MIN_HAC_T,
     MIN_SHARE,
     hac_t,
+    plausible_theta,
 )
 from omavctl.diagnose.scoring import EffectScore
 from omavctl.learn.model import ResidualGP
@@ -214,7 +215,9 @@ def timing_fits(
     pairs = [_pair(prof, a, b, singles, left) for a, b in combinations(names, 2)]
     fits = [f for f in [*pairs, *singles.values()] if f.passes(floor, dt)]
     fits = [
-        f for f in fits if all(_plausible(n, v) for n, v in zip(f.names, f.values, strict=True))
+        f
+        for f in fits
+        if all(plausible_theta(n, np.array([v])) for n, v in zip(f.names, f.values, strict=True))
     ]
     if not fits:
         return []
@@ -236,11 +239,6 @@ def _alike(other: TimingFit, best: TimingFit) -> bool:
 def _search_end(name: str) -> float:
     search = get_effect(name).search
     return float(search[1]) if search is not None else 0.3
-
-
-def _plausible(name: str, value: float) -> bool:
-    lo, hi = get_effect(name).theta_range
-    return bool(lo - 1e-12 <= value <= hi + 1e-12)
 
 
 def with_timing_pair(
