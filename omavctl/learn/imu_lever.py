@@ -100,8 +100,10 @@ class LeverArm:
         what = (
             "its alpha x r + omega x (omega x r) is removed from the measured force "
             "drag_moment reads"
-            if self.pinned
+            if self.pinned and REMOVE_LEVER
             else "not distinguishable from 0 (95 %): the measured force is left as logged"
+            if not self.pinned
+            else "the measured force is left as logged (REMOVE_LEVER off)"
         )
         return (
             f"accelerometer lever arm from the centre of mass, mm (95 %): {parts}, estimated "
