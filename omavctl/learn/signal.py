@@ -44,6 +44,7 @@ import numpy as np
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from omavctl.base.errors import ConfigError, LogError
+from omavctl.learn.imu_lever import LeverArm, lever_of, without_lever
 from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
 from omavctl.physics.effects import Effect, EffectContext, get_effect
@@ -338,8 +339,9 @@ def residual_samples(
         alloc = Allocation(vehicle)
     extra = dict(extra or {})
     parts = _Parts.empty(effects, extra)
+    lever = lever_of(flight, sg, kept) if any(e.measured_state for e in eff) else None
     for segment in kept:
-        _add_segment(parts, flight, vehicle, sg, segment, eff, alloc, extra)
+        _add_segment(parts, flight, vehicle, sg, segment, eff, alloc, extra, lever)
     return _assemble(flight, parts, extra, sg, (edge, short))
 
 
@@ -370,9 +372,11 @@ def _add_segment(
     eff: Sequence[Effect],
     alloc: Allocation | None,
     extra: Mapping[str, str],
+    lever: LeverArm | None = None,
 ) -> None:
     """Append one kept segment ``(start, stop, keep_start, keep_stop)`` to ``parts``:
-    derivative, held nominal acceleration, held inputs, effect regressors and roles."""
+    derivative, held nominal acceleration, held inputs, effect regressors and roles
+    (the measured force less the accelerometer's ``lever`` term, :mod:`.imu_lever`)."""
     a, b, ka, kb = segment
     inertia, inertia_inv = vehicle.inertia, vehicle.inertia_inv
     omega = flight.signals["body_rate"][a:b]
@@ -406,7 +410,13 @@ def _add_segment(
             fixed_rotors=vehicle.motors is not None and not vehicle.motors.tilting,
             motor=motor_signals(flight, vehicle, slice(a, b)),
             **_battery(flight, slice(a, b)),
-            measured_force=_measured_force(flight, vehicle.mass, slice(a, b)),
+            measured_force=without_lever(
+                _measured_force(flight, vehicle.mass, slice(a, b)),
+                omega,
+                omega_dot,
+                lever,
+                vehicle.mass,
+            ),
         )
         for e in eff:
             parts.regressors[e.name].append(sg.hold(e.regressor(ctx))[keep])

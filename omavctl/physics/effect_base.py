@@ -92,8 +92,9 @@ class EffectContext:
     median voltage) when the log maps ``battery_voltage``, else None.
     ``measured_force`` (N, 3) N: the body force the accelerometer measures (the
     vehicle's mass times the ``specific_force`` role, less its median over the log's
-    valid samples: the accelerometer's calibration offset) when the log maps
-    ``specific_force``, else None.
+    valid samples: the accelerometer's calibration offset, and less the accelerometer's
+    lever-arm term where the log pins it down: ``omavctl.learn.imu_lever``) when the log
+    maps ``specific_force``, else None.
     """
 
     omega: np.ndarray

@@ -171,7 +171,9 @@ class DragMoment(Effect):
     with it) at the rotor plane, above the centre of mass; the accelerometer
     measures that force (gravity is not a specific force). With ``f = m a_meas``
     (N; ``a_meas`` the ``specific_force`` role less its median over the log, the
-    accelerometer's offset) the torque is ``tau = h e_z x f = h (-f_y, f_x, 0)``;
+    accelerometer's offset, and less its lever-arm term ``alpha x r + omega x (omega x r)``
+    where the log pins ``r`` down, :mod:`omavctl.learn.imu_lever`) the torque is
+    ``tau = h e_z x f = h (-f_y, f_x, 0)``;
     residual ``I^-1 tau``; ``h`` in m (in the torque command's unit per N when it is
     normalised). ``com_offset``'s ``r_z`` on the measured, not the commanded, force.
     Identifiable from roll and pitch accelerations when the lateral measured force
