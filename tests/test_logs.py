@@ -604,7 +604,7 @@ def test_column_map(tmp_path: Path) -> None:
     raw = read_raw(path, columns=COLUMN_MAP)
     assert raw.format == "csv" and raw.t0 == 1.0
     assert raw.series["body_rate"].stamps.size == n - 1
-    assert "body_rate: 1 rows with empty cells skipped" in raw.notes
+    assert "body_rate: 1 row with empty cells skipped" in raw.notes
     log = read_log(path, columns=COLUMN_MAP)
     assert log.t.size == n
     np.testing.assert_allclose(log.signals["body_rate"][10], [0.1, -0.1, np.deg2rad(10)])
@@ -688,3 +688,19 @@ def test_overlapping_gaps_in_two_topics() -> None:
     assert "gap of 0.30 s at t=0.50 s in /omav/imu: samples 51-79 excluded" in log.notes
     assert "gap of 0.30 s at t=0.70 s in /omav/wrench_command: samples 71-99 excluded" in log.notes
     assert "49 of 201 grid samples inside gaps marked invalid" in log.notes
+
+
+def test_rows_without_time_counted_in_words(tmp_path: Path) -> None:
+    """The px4tools CSV's second line has no time value: the note says "1 row", and
+    two such rows "2 rows" (it said "1 rows")."""
+    n = 20
+    for missing, note in ((1, "1 row without a time value skipped"), (2, "2 rows without")):
+        lines = ["time_us,gx,gy,gz_deg,roll,pitch,yaw,thrust,mx,my,mz,mode"]
+        for i in range(n):
+            t = "" if i < missing else str(1_000_000 + i * 10_000)
+            lines.append(f"{t},0.1,0.2,{i},0.1,0.2,0.3,{i / n},0.5,0.6,0.7,AUTO")
+        path = tmp_path / f"notime{missing}.csv"
+        path.write_text("\n".join(lines) + "\n")
+        raw = read_raw(path, columns=COLUMN_MAP)
+        assert any(line.startswith(note) for line in raw.notes), raw.notes
+        assert raw.series["body_rate"].stamps.size == n - missing

@@ -539,3 +539,23 @@ def test_nothing_claimed_offers_its_command_as_a_test_not_as_an_addition():
     # nothing near a claim: no command, so nothing to test
     plain = verdict(_nothing_missing())[0]
     assert (plain.command, plain.test) == (None, False)
+
+
+def test_report_does_not_title_the_which_model_sentence_as_a_change():
+    """The px4tools loop's report (two --model in one evaluation) read "Error change: The
+    lines below are about gp.npz (the first --model) ...": that sentence is a pointer, so
+    the report gives it no bold head; the other lines keep theirs."""
+    from omavctl.report.document import _md_inline
+    from omavctl.report.top import verdict_section
+
+    (before, _), (after, _) = _pair(0.388)
+    tree = copy.deepcopy(before)
+    old = {**before["models"][0], "name": "old.npz"}
+    new = {**after["models"][0], "name": "new.npz"}
+    tree["models"], tree["metrics_by_model"] = [old, new], [before["metrics"], after["metrics"]]
+    items = [_md_inline(it) for it in verdict_section([(tree, None, "e.json")])[1].items]
+    pointer = [it for it in items if "The lines below are about" in it]
+    assert pointer == ["The lines below are about old.npz (the first --model), with no effects."], (
+        items
+    )
+    assert items[0].startswith("**Missing:** command\\_delay, measured — with it added"), items

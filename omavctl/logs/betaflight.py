@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.base.errors import LogError
+from omavctl.logs.csvlog import rows_skipped
 from omavctl.logs.tables import ColumnGroup, ColumnTable
 from omavctl.logs.textio import read_head, read_text
 
@@ -289,7 +290,7 @@ def betaflight_table(path: Path) -> ColumnTable:
     if not has_t.any():
         raise LogError("column 'time' holds no numbers", path)
     if not has_t.all():
-        notes.append(f"{int((~has_t).sum())} rows without a time value skipped")
+        notes.append(rows_skipped(int((~has_t).sum()), "without a time value"))
         time, columns = time[has_t], {k: v[has_t] for k, v in columns.items()}
     order = np.argsort(time, kind="stable")
     group = ColumnGroup("main", time[order], {k: v[order] for k, v in columns.items()})

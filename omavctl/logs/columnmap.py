@@ -55,7 +55,14 @@ import numpy as np
 
 from omavctl.base.errors import ConfigError, LogError
 from omavctl.logs.contract import euler_from_quaternion
-from omavctl.logs.csvlog import CsvRead, csv_columns, cut_row_notes, parse_column, read_table
+from omavctl.logs.csvlog import (
+    CsvRead,
+    csv_columns,
+    cut_row_notes,
+    parse_column,
+    read_table,
+    rows_skipped,
+)
 from omavctl.logs.stats import topic_info
 from omavctl.logs.types import ROLE_COLUMNS, RawLog, RawSeries
 
@@ -381,7 +388,7 @@ def read_mapped(table: MappedTable, specs: dict[str, ColumnSpec], notes: list[st
     if not has_t.any():
         raise LogError(f"column '{specs['t'].column}' (time) has no numeric value", path)
     if not has_t.all():
-        notes.append(f"{int((~has_t).sum())} rows without a time value skipped")
+        notes.append(rows_skipped(int((~has_t).sum()), "without a time value"))
     t0 = float(t_all[has_t].min())
     series: dict[str, RawSeries] = {}
     topics = []
@@ -436,7 +443,7 @@ def _mapped_role(
         return None
     skipped = int(has_t.sum() - ok.sum())
     if skipped:
-        notes.append(f"{role}: {skipped} rows with empty cells skipped")
+        notes.append(f"{role}: " + rows_skipped(skipped, "with empty cells"))
     if quat:
         w, x, y, z = src[ok].T
         return ok, euler_from_quaternion(np.column_stack([x, y, z, w]))

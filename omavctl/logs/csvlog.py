@@ -30,6 +30,7 @@ __all__ = [
     "parse_column",
     "read_csv",
     "read_table",
+    "rows_skipped",
     "write_csv",
 ]
 
@@ -324,6 +325,11 @@ def cut_row_notes(table: CsvTable) -> list[str]:
         f"the file ends in the middle of its last row (line {line}: {cells} of "
         f"{len(table.header)} cells): truncated? That row is dropped"
     ]
+
+
+def rows_skipped(count: int, why: str) -> str:
+    """The note for ``count`` rows skipped ``why`` ("1 row ...", "3 rows ...")."""
+    return f"{count} {'row' if count == 1 else 'rows'} {why} skipped"
 
 
 def parse_column(cells: list[str], name: str, lines: list[int], path: Path) -> np.ndarray:

@@ -62,10 +62,19 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         else:
             text = ln.text
         parts: tuple[Inline, ...] = (Span(f"{head}: ", "strong"), *_with_code(text, commands))
+        if _is_pointer(ln.key, ln.text):
+            parts = _with_code(ln.text, commands)
         if ln.command:
             parts = (*parts, f" {ln.add_words}: ", Span(ln.command, "code"))
         items.append(parts)
     return [Heading(2, "Verdict", "verdict"), Bullets(items)]
+
+
+def _is_pointer(key: str, text: str) -> bool:
+    """The sentence that says which model the lines after it are about: no bold head
+    (it is filed with the change lines, and "Error change: The lines below are about
+    gp.npz" read as a change)."""
+    return key == "change" and text.startswith("The lines below are about ")
 
 
 def _with_code(text: str, commands: Sequence[str]) -> tuple[Inline, ...]:
