@@ -89,4 +89,3 @@ def test_a_model_with_a_lag_is_left_as_it_is():
     before = Guarded(["command_delay"], {}, [])
     out = beside_claimed([s], model, physics, before, FLOOR, _guard(set()))  # type: ignore[arg-type]
     assert out is before
-
