@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import pytest
 
 from omavctl.diagnose.claims import Guarded
-from omavctl.diagnose.joint_text import beside_timing_sentence
+from omavctl.diagnose.joint_text import beside_timing_sentence, replaced_step, replaced_text
 from omavctl.diagnose.timing_claimed import beside_claimed
 from tests.test_diagnose_timing_pair import FLOOR, MODEL, _flight
 
@@ -89,3 +89,15 @@ def test_a_model_with_a_lag_is_left_as_it_is():
     before = Guarded(["command_delay"], {}, [])
     out = beside_claimed([s], model, physics, before, FLOOR, _guard(set()))  # type: ignore[arg-type]
     assert out is before
+
+
+def test_lags_that_replaced_a_delay_are_not_said_to_take_its_joint_step():
+    """report8 draw 25's verdict said the lags took the delay's joint step because the
+    delay 'could not be pinned down', with the delay's share: the delay was pinned down
+    and replaced by the lags' exact forms."""
+    step = {"name": "command_delay", "timing_rivals": ["servo_lag", "motor_lag"]}
+    diag = {"joint_steps": [step], "missing": ["motor_lag", "servo_lag"], "not_pinned": []}
+    assert replaced_step(diag, "motor_lag") == "command_delay"  # the rivals' path
+    diag["not_pinned"] = [{"name": "command_delay", "beside_timing": {}}]
+    assert replaced_step(diag, "motor_lag") is None
+    assert replaced_text(diag, "servo_lag") == ""

@@ -39,6 +39,8 @@ def replaced_step(diag: Mapping[str, Any], name: str) -> str | None:
     if any(e.get("name") == name for e in steps):
         return None
     said = set(map(str, diag.get("missing") or []))
+    # a claim the others' exact forms replaced (timing_claimed.py) is said on its own
+    said |= {str(e.get("name")) for e in _entries(diag, "not_pinned") if "beside_timing" in e}
     for e in steps:
         held = str(e.get("name"))
         if name in map(str, e.get("timing_rivals") or []) and held not in said:
