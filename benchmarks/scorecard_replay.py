@@ -94,6 +94,17 @@ OWN_SPLIT = {
         ),
         "version": 2,
     },
+    # issue 26 "delaylag" (session 16): the timing effects alone, singles and pairs, the
+    # steps family on one side, every other family on the other; only the draws that hide
+    # at least one effect are flown, in index order (a scratch loop's rule, declared here
+    # before any draw was flown); seeds of no other split
+    "own-timing2": {
+        "seed_base": 9_400_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "effects": ("command_delay", "motor_lag", "servo_lag"),
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 

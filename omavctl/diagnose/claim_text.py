@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from omavctl.diagnose.estimate_text import estimate_sentence
+from omavctl.diagnose.joint_text import beside_timing_sentence
 
 __all__ = [
     "beside_lag_sentence",
@@ -118,6 +119,10 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
         lag = e.get("beside_lag")
         if isinstance(lag, Mapping):
             out += beside_lag_sentence(name, lag) + said
+            continue
+        beside = e.get("beside_timing")
+        if isinstance(beside, Mapping):
+            out += beside_timing_sentence(name, beside)
             continue
         beyond = e.get("not_physical")
         if isinstance(beyond, list) and beyond:

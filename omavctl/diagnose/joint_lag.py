@@ -34,7 +34,8 @@ from scipy.optimize import minimize_scalar
 from omavctl.diagnose.claims import Guarded
 from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES, MIN_SHARE
 from omavctl.diagnose.scoring import EffectScore
-from omavctl.diagnose.timing_pair import PairGuard, with_timing_pair
+from omavctl.diagnose.timing_claimed import beside_claimed
+from omavctl.diagnose.timing_pair import TIMING, PairGuard, with_timing_pair
 from omavctl.learn.effects_band import effect_residual
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
@@ -193,6 +194,11 @@ def beside_lag(
     if pair is not None:
         guarded = with_timing_pair(samples, model, physics, guarded, floor, pair[1], pair[0])
     paired = set(guarded.kept) - before
+    if pair is not None and not paired:  # a lag or delay claimed: the others beside it
+        judged = beside_claimed(samples, model, physics, guarded, floor, pair[1], pair[0])
+        if judged is not guarded:  # each was judged beside the other's exact form
+            paired = {n for n in judged.kept if n in TIMING}
+        guarded = judged
     lags = [g for g in LAGS if g in guarded.kept or g in model.effects]
     tested = [n for n in guarded.kept if n not in LAGS and n not in DEFAULT_LOOK_ALIKES | paired]
     if not tested:

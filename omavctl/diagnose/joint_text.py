@@ -7,7 +7,14 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["joint_share", "joint_text", "min_explained", "replaced_step", "replaced_text"]
+__all__ = [
+    "beside_timing_sentence",
+    "joint_share",
+    "joint_text",
+    "min_explained",
+    "replaced_step",
+    "replaced_text",
+]
 
 
 def _num(v: Any) -> float | None:
@@ -32,6 +39,8 @@ def replaced_step(diag: Mapping[str, Any], name: str) -> str | None:
     if any(e.get("name") == name for e in steps):
         return None
     said = set(map(str, diag.get("missing") or []))
+    # a claim the others' exact forms replaced (timing_claimed.py) is said on its own
+    said |= {str(e.get("name")) for e in _entries(diag, "not_pinned") if "beside_timing" in e}
     for e in steps:
         held = str(e.get("name"))
         if name in map(str, e.get("timing_rivals") or []) and held not in said:
@@ -87,3 +96,29 @@ def min_explained(diag: Mapping[str, Any]) -> float:
     method = diag.get("method")
     value = _num(method.get("min_explained_variance")) if isinstance(method, Mapping) else None
     return value if value is not None else 0.15
+
+
+def _timing_fit_words(fit: Mapping[str, Any]) -> str:
+    """'motor_lag and servo_lag (32.4 ms, 74.5 ms)' of a profiled fit's JSON."""
+    names = [str(n) for n in fit.get("names") or []]
+    values = [v for v in (_num(x) for x in fit.get("values_s") or []) if v is not None]
+    at = f" ({', '.join(f'{1000 * v:.1f} ms' for v in values)})" if values else ""
+    return f"{' and '.join(names)}{at}"
+
+
+def beside_timing_sentence(name: str, beside: Mapping[str, Any]) -> str:
+    """' Not claimed: command_delay, which the held-out flight tells from motor_lag and
+    servo_lag: ...' for a lag or delay that :mod:`omavctl.diagnose.timing_claimed`
+    replaced by a better pair or single."""
+    claim, instead = beside.get("claim"), beside.get("instead")
+    if not isinstance(claim, Mapping) or not isinstance(instead, Mapping):
+        return f" Not claimed: {name}, which another lag or delay explains better."
+    share, t = _num(beside.get("share")), _num(beside.get("hac_t"))
+    cut = f" remove {_pct(share)} of what" if share is not None else " explain more than"
+    by = f" (a gain of {t:.1f} Newey-West standard errors per sample)" if t is not None else ""
+    return (
+        f" Not claimed: {name}, which the held-out flight tells from "
+        f"{_timing_fit_words(instead)}: with their exact forms and the default look-alikes "
+        f"refitted, they{cut} {_timing_fit_words(claim)} alone leaves{by}. A lag and a delay "
+        "look alike to first order; what is claimed in its place is what the flight shows."
+    )

@@ -56,7 +56,16 @@ from omavctl.physics.effects import get_effect
 #: The claims guard the pair is guarded by: (names, the names found here) -> Guarded.
 PairGuard = Callable[[list[str], Sequence[str]], Guarded]
 
-__all__ = ["GRID", "TIMING", "PairGuard", "TimingFit", "timing_fits", "with_timing_pair"]
+__all__ = [
+    "GRID",
+    "TIMING",
+    "PairGuard",
+    "TimingFit",
+    "held_once",
+    "profile_fits",
+    "timing_fits",
+    "with_timing_pair",
+]
 
 #: The lags and delays: their exact forms are searched over their time constants.
 TIMING = ("command_delay", "motor_lag", "servo_lag")
@@ -92,6 +101,11 @@ class TimingFit:
             s >= MIN_SHARE and p >= floor and t >= MIN_HAC_T and v >= dt
             for s, p, t, v in zip(self.member_share, self.part, self.hac, self.values, strict=True)
         )
+
+    def plausible(self) -> bool:
+        """Every time constant within its effect's plausible range."""
+        pairs = zip(self.names, self.values, strict=True)
+        return all(plausible_theta(n, np.array([v])) for n, v in pairs)
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -203,6 +217,25 @@ def timing_fits(
     sample period (s). Empty when the model has a lag or delay already."""
     if any(get_effect(n).search is not None for n in model.effects) or not samples:
         return []
+    fits = [f for f in profile_fits(samples, model, physics) if f.passes(floor, dt)]
+    fits = [f for f in fits if f.plausible()]
+    if not fits:
+        return []
+    best = max(fits, key=lambda f: (len(f.names), f.share))  # a pair that passes first
+    best.ambiguous_with = sorted(
+        {n for f in fits if _alike(f, best) for n in f.names if n not in best.names}
+    )
+    return [best]
+
+
+def profile_fits(
+    samples: Sequence[ResidualSamples], model: ResidualGP, physics: np.ndarray
+) -> list[TimingFit]:
+    """Every lag or delay the samples carry, alone, then every pair of them, profiled on
+    the held-out physics-only error ``physics`` (n, 3) beside the defaults' look-alikes
+    the model lacks (module docstring); pairs first. Empty when nothing is left."""
+    if not samples:
+        return []
     names = [n for n in TIMING if n in samples[0].regressors]
     alikes = [a for a in sorted(DEFAULT_LOOK_ALIKES) if a not in model.effects]
     alikes = [a for a in alikes if a in samples[0].regressors]
@@ -213,19 +246,7 @@ def timing_fits(
         return []
     singles = {n: _single(prof, n, before) for n in names}
     pairs = [_pair(prof, a, b, singles, left) for a, b in combinations(names, 2)]
-    fits = [f for f in [*pairs, *singles.values()] if f.passes(floor, dt)]
-    fits = [
-        f
-        for f in fits
-        if all(plausible_theta(n, np.array([v])) for n, v in zip(f.names, f.values, strict=True))
-    ]
-    if not fits:
-        return []
-    best = max(fits, key=lambda f: (len(f.names), f.share))  # a pair that passes first
-    best.ambiguous_with = sorted(
-        {n for f in fits if _alike(f, best) for n in f.names if n not in best.names}
-    )
-    return [best]
+    return [*pairs, *singles.values()]
 
 
 def _alike(other: TimingFit, best: TimingFit) -> bool:
@@ -274,15 +295,15 @@ def with_timing_pair(
     if not all(n in trial.kept for n in fit.names):  # said, with the profile's numbers
         first = {h["name"]: h for h in reversed(trial.held_back) if h["name"] in fit.names}
         held = [{**first[n], "timing_pair": fit.to_json()} for n in fit.names if n in first]
-        return Guarded(guarded.kept, guarded.estimates, _held_once([*guarded.held_back, *held], []))
-    trial.held_back = _held_once([*guarded.held_back, *trial.held_back], trial.kept)
+        return Guarded(guarded.kept, guarded.estimates, held_once([*guarded.held_back, *held], []))
+    trial.held_back = held_once([*guarded.held_back, *trial.held_back], trial.kept)
     for s in scores:
         if s.name in fit.names:
             s.ambiguous_with += [n for n in fit.ambiguous_with if n not in s.ambiguous_with]
     return trial
 
 
-def _held_once(entries: Sequence[dict[str, Any]], kept: Sequence[str]) -> list[dict[str, Any]]:
+def held_once(entries: Sequence[dict[str, Any]], kept: Sequence[str]) -> list[dict[str, Any]]:
     """The held-back entries, one per name (the last, which carries the profile's
     ``timing_pair``, at the first's place), none of a claim ``kept``: a lag the first
     guard held back and the profile then claimed is not also said "not claimed"
