@@ -201,6 +201,7 @@ def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
         )
     text += "."
     text += beside_look_alikes_sentence(step)
+    text += held_out_not_pinned_sentence(step)
     text += large_cut_sentence(step)
     text += estimate_sentence(step)
     return text + (
@@ -221,3 +222,27 @@ def beside_look_alikes_sentence(step: Mapping[str, Any]) -> str:
         "rotorcraft's imperfections, leave at their least-squares fit on this flight; of "
         f"the whole physics-only error it removes {_pct(total)}."
     )
+
+
+def held_out_not_pinned_sentence(step: Mapping[str, Any]) -> str:
+    """Why a lag or delay the held-out flight does not pin down is claimed on its
+    fit-flight estimate (:mod:`omavctl.diagnose.held_beside`), and the lags and delays
+    the data do not tell from it; '' for any other step."""
+    ci = step.get("fit_flight_ci95")
+    if step.get("held_out_not_pinned") is not True or not isinstance(ci, list) or len(ci) != 2:
+        return ""
+    lo, hi = _num(ci[0]), _num(ci[1])
+    if lo is None or hi is None:
+        return ""
+    text = (
+        " This flight alone does not pin its value down, but the fit flight does "
+        f"({1e3 * lo:.0f} to {1e3 * hi:.0f} ms, 95 %), and at that value it removes the share "
+        "above beside the look-alikes."
+    )
+    alike = [str(n) for n in step.get("ambiguous_with") or []]
+    if alike:
+        text += (
+            f" The data do not tell it from {', '.join(alike)}: plan --objective effects "
+            "designs a flight that does."
+        )
+    return text
