@@ -71,10 +71,11 @@ def test_a_lag_the_data_do_not_tell_from_it_is_named_ambiguous_and_the_text_says
     assert step.name == "command_delay" and entry["ambiguous_with"] == ["motor_lag"]
     diag = {"missing": [], "learned_claims": ["command_delay"], "learned_steps": [entry]}
     text = learned_claim_text(diag, "on the held-out flight")
-    lo, hi = (1e3 * v for v in entry["fit_flight_ci95"])
+    ms = 1e3 * entry["fit_flight_value"]
     assert (
-        " This flight alone does not pin its value down, but the fit flight does "
-        f"({lo:.0f} to {hi:.0f} ms, 95 %), and at that value it removes the share above "
-        "beside the look-alikes. The data do not tell it from motor_lag: plan --objective "
-        "effects designs a flight that does."
+        " This flight alone does not pin its value down; the fit flight shows it "
+        f"({ms:.0f} ms, its 95 % interval excluding 0; the GP shrinks it, so fit --effects "
+        "gives the value to trust), and at that value it removes the share above beside the "
+        "look-alikes. The data do not tell it from motor_lag: plan --objective effects "
+        "designs a flight that does."
     ) in text

@@ -228,15 +228,13 @@ def held_out_not_pinned_sentence(step: Mapping[str, Any]) -> str:
     """Why a lag or delay the held-out flight does not pin down is claimed on its
     fit-flight estimate (:mod:`omavctl.diagnose.held_beside`), and the lags and delays
     the data do not tell from it; '' for any other step."""
-    ci = step.get("fit_flight_ci95")
-    if step.get("held_out_not_pinned") is not True or not isinstance(ci, list) or len(ci) != 2:
-        return ""
-    lo, hi = _num(ci[0]), _num(ci[1])
-    if lo is None or hi is None:
+    value = _num(step.get("fit_flight_value"))
+    if step.get("held_out_not_pinned") is not True or value is None:
         return ""
     text = (
-        " This flight alone does not pin its value down, but the fit flight does "
-        f"({1e3 * lo:.0f} to {1e3 * hi:.0f} ms, 95 %), and at that value it removes the share "
+        " This flight alone does not pin its value down; the fit flight shows it "
+        f"({1e3 * value:.0f} ms, its 95 % interval excluding 0; the GP shrinks it, so "
+        "fit --effects gives the value to trust), and at that value it removes the share "
         "above beside the look-alikes."
     )
     alike = [str(n) for n in step.get("ambiguous_with") or []]
