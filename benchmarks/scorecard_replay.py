@@ -105,6 +105,14 @@ OWN_SPLIT = {
         "effects": ("command_delay", "motor_lag", "servo_lag"),
         "version": 2,
     },
+    # issue 26 "smooth" (session 16): report7/8's design (every effect, the steps family
+    # on either side, version 2), declared before any draw was flown; fresh seeds
+    "own-steps8": {
+        "seed_base": 9_500_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 

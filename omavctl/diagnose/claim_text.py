@@ -206,6 +206,7 @@ def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
         )
     text += "."
     text += beside_look_alikes_sentence(step)
+    text += held_out_not_pinned_sentence(step)
     text += large_cut_sentence(step)
     text += estimate_sentence(step)
     return text + (
@@ -226,3 +227,25 @@ def beside_look_alikes_sentence(step: Mapping[str, Any]) -> str:
         "rotorcraft's imperfections, leave at their least-squares fit on this flight; of "
         f"the whole physics-only error it removes {_pct(total)}."
     )
+
+
+def held_out_not_pinned_sentence(step: Mapping[str, Any]) -> str:
+    """Why a lag or delay the held-out flight does not pin down is claimed on its
+    fit-flight estimate (:mod:`omavctl.diagnose.held_beside`), and the lags and delays
+    the data do not tell from it; '' for any other step."""
+    value = _num(step.get("fit_flight_value"))
+    if step.get("held_out_not_pinned") is not True or value is None:
+        return ""
+    text = (
+        " This flight alone does not pin its value down; the fit flight shows it "
+        f"({1e3 * value:.0f} ms, its 95 % interval excluding 0; the GP shrinks it, so "
+        "fit --effects gives the value to trust), and at that value it removes the share "
+        "above beside the look-alikes."
+    )
+    alike = [str(n) for n in step.get("ambiguous_with") or []]
+    if alike:
+        text += (
+            f" The data do not tell it from {', '.join(alike)}: plan --objective effects "
+            "designs a flight that does."
+        )
+    return text

@@ -20,9 +20,11 @@ import numpy as np
 
 from omavctl.diagnose.claims import (
     LARGE_CUT_KEYS,
+    Guarded,
     learned_claim,
 )
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
+from omavctl.diagnose.held_beside import held_timing_beside
 from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.learned_beside import learned_beside_look_alikes
 from omavctl.diagnose.metrics import AXES
@@ -244,7 +246,7 @@ def diagnose(
     step = None
     if not names:
         pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)
-        step = _learned_claim(pool, samples, model, physics, raw, blocks, floor)
+        step = _learned_claim(pool, samples, model, physics, raw, blocks, (floor, sg.dt, guarded))
     return {
         **out,
         "learned_claims": [step[0].name] if step else [],
@@ -259,13 +261,22 @@ def _learned_claim(
     physics: np.ndarray,
     raw: dict[str, np.ndarray],
     blocks: np.ndarray,
-    floor: float,
+    held: tuple[float, float, Guarded],
 ) -> tuple[JointStep, Mapping[str, Any]] | None:
-    """The learned claim: judged beside the default look-alikes refitted on the held-out
-    flight first (:mod:`omavctl.diagnose.learned_beside`), then on the whole
-    physics-only error ``physics`` (n, 3) (:func:`omavctl.diagnose.claims.learned_claim`)."""
+    """The learned claim: a lag or delay held back as not pinned down on the held-out
+    flight, judged there at its fit-flight estimate beside the look-alikes
+    (:mod:`omavctl.diagnose.held_beside`); else judged beside the default look-alikes
+    refitted on the held-out flight (:mod:`omavctl.diagnose.learned_beside`), then on the
+    whole physics-only error ``physics`` (n, 3) (:func:`omavctl.diagnose.claims.
+    learned_claim`). ``held``: (the claim floor, the log's sample period, the claims
+    guard)."""
+    floor, dt, guarded = held
     args = (pool, samples, model, physics, raw, blocks, floor)
-    return learned_beside_look_alikes(*args) or learned_claim(*args)
+    return (
+        held_timing_beside(guarded.held_back, samples, model, physics, raw, blocks, (floor, dt))
+        or learned_beside_look_alikes(*args)
+        or learned_claim(*args)
+    )
 
 
 def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:

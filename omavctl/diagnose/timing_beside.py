@@ -59,14 +59,16 @@ from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
-__all__ = ["timing_beside_look_alikes"]
+__all__ = ["beside_trials", "timing_beside_look_alikes"]
 
 
 def _is_timing(name: str) -> bool:
     return get_effect(name).search is not None
 
 
-def _trials(beside: tuple[Any, ...], names: Sequence[str], sq_before: np.ndarray) -> list[Any]:
+def beside_trials(
+    beside: tuple[Any, ...], names: Sequence[str], sq_before: np.ndarray
+) -> list[Any]:
     """(gain, name, theta, part, sq_after) of each of ``names`` that passes beside the
     look-alikes (``beside``: samples, model, physics, regressors, alikes, their stacked
     regressor x, floor, dt; ``sq_before`` (n,) what the look-alikes leave, squared)."""
@@ -124,11 +126,11 @@ def timing_beside_look_alikes(
     if left <= 0:
         return []
     beside = (samples, model, physics, regressors, alikes, x, floor, dt)
-    trials = _trials(beside, [n for n in usable if _is_timing(n)], sq_before)
+    trials = beside_trials(beside, [n for n in usable if _is_timing(n)], sq_before)
     if not trials and set(taken) <= DEFAULT_LOOK_ALIKES:
         # only look-alikes taken: any other effect is judged beside them the same way
         others = [n for n in usable if not _is_timing(n) and n not in DEFAULT_LOOK_ALIKES]
-        trials = _trials(beside, others, sq_before)
+        trials = beside_trials(beside, others, sq_before)
     if not trials:
         return []
     trials.sort(key=lambda t: -t[0])
