@@ -151,13 +151,16 @@ def test_kept_share_attributes_every_training_point_to_its_flight(tmp_path) -> N
     first, second = tmp_path / "first.csv", tmp_path / "second.csv"
     write_log(first, simulate(fig8(duration=4.0), vehicle, truth, seed=1).log)
     write_log(second, simulate(wobble(duration=4.0), vehicle, truth, seed=2).log)
-    shares = []
+    shares, inputs = [], {}
     for name, logs in (("a", [first]), ("b", [second]), ("ab", [first, second])):
         model = fit_model(logs, vehicle, points=30, seed=0, restarts=0).model
         save_model(tmp_path / f"{name}.npz", model)
         shares.append(kept_share(tmp_path / f"{name}.npz", first, second))
+        inputs[name] = model.inputs
     assert shares[0] == 0.0 and shares[1] == 1.0
-    assert 0.0 < shares[2] < 1.0
+    # two logs: each keeps the 30 points a fit on it alone picks
+    assert shares[2] == 0.5
+    assert np.array_equal(inputs["ab"], np.concatenate([inputs["a"], inputs["b"]]))
 
 
 def test_markdown_says_which_target_holds() -> None:

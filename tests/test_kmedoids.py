@@ -82,3 +82,22 @@ def test_bad_k():
         kmedoids(curve(10), 11)
     with pytest.raises(ValueError, match="cannot select"):
         kmedoids(curve(10), 0)
+
+
+def test_several_logs_keep_each_logs_own_points():
+    # two logs far apart in input space: pooled k-medoids gives the wide second one most
+    # of the points; per log, the first keeps exactly the points a fit on it alone picks
+    from omavctl.learn.points import normalisation, select_points_per_log
+
+    first, second = curve(300), 5.0 * curve(400)[::-1] + 3.0
+    x = np.concatenate([first, second])
+    idx, how = select_points_per_log(x, [300, 400], 12, seed=0)
+    alone, _ = select_points((first - normalisation(first)[0]) / normalisation(first)[1], 12)
+    assert idx[:12].tolist() == alone.tolist()
+    assert idx.size == 24 and np.all(idx[12:] >= 300)
+    assert how.startswith("per log, up to 12 points each (log 1: k-medoids on all 300")
+    # three logs share twice the budget; a log shorter than its share gives all its samples
+    idx3, _ = select_points_per_log(np.concatenate([x, curve(5)]), [300, 400, 5], 12)
+    assert np.bincount(np.searchsorted([300, 700, 705], idx3, side="right")).tolist() == [8, 8, 5]
+    with pytest.raises(ValueError, match=r"log lengths \[300, 300\] do not add up to 700"):
+        select_points_per_log(x, [300, 300], 12)

@@ -47,7 +47,11 @@ Effects = Annotated[
     ),
 ]
 Points = Annotated[
-    int, typer.Option(help="GP training points chosen from the new logs by k-medoids.")
+    int,
+    typer.Option(
+        help="GP training points chosen from the new logs by k-medoids; with several "
+        "logs, each log's own (two logs: this many each; more: twice this many shared)."
+    ),
 ]
 Prior = Annotated[
     Path | None,

@@ -348,7 +348,7 @@ def _summary(
     return FitSummary(
         logs=summaries,
         samples=sum(s.used for s in summaries),
-        points_new=opts.points,
+        points_new=int(train.idx.size),
         points_prior=train.n_prior,
         features=opts.features,
         input_names=feature_names(opts.features),

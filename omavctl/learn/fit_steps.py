@@ -43,7 +43,7 @@ from omavctl.learn.hyperparameters import (
 )
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.model_file import check_vehicle, load_model
-from omavctl.learn.points import normalisation, select_points
+from omavctl.learn.points import normalisation, select_points, select_points_per_log
 from omavctl.learn.signal import FEATURES, ResidualSamples, SavitzkyGolay, feature_names
 from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -267,12 +267,17 @@ def first_pass(original: list[ResidualSamples], names: Sequence[str]) -> Residua
 
 
 def training_set(opts: FitOptions, res: Residuals) -> TrainingSet:
-    """4. training points: k-medoids on the normalised inputs of every sample, after
-    the prior model's training points when there is one."""
+    """4. training points: k-medoids on the normalised inputs of every sample (with
+    several logs, each log's own, :func:`select_points_per_log`), after the prior
+    model's training points when there is one."""
     samples = res.samples
     inputs_all = np.concatenate([s.inputs(opts.features) for s in samples])
-    mean_all, scale_all = normalisation(inputs_all)
-    idx, kmethod = select_points((inputs_all - mean_all) / scale_all, opts.points, opts.seed)
+    if len(samples) > 1:  # several logs: each its own points (select_points_per_log)
+        lengths = [s.n for s in samples]
+        idx, kmethod = select_points_per_log(inputs_all, lengths, opts.points, opts.seed)
+    else:
+        mean_all, scale_all = normalisation(inputs_all)
+        idx, kmethod = select_points((inputs_all - mean_all) / scale_all, opts.points, opts.seed)
     train_x = inputs_all[idx]
     train_y = res.targets[idx]
     train_reg = {nm: np.concatenate([s.regressors[nm] for s in samples])[idx] for nm in EFFECTS}

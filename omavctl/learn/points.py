@@ -4,10 +4,15 @@
 new logs (squared Euclidean distance, as in the paper); above
 :data:`KMEDOIDS_MAX_DIRECT` samples it clusters seeded subsamples instead of
 building the n x n distance matrix. :func:`normalisation` is the per-column
-mean and scale the inputs are normalised with.
+mean and scale the inputs are normalised with. With several logs
+:func:`select_points_per_log` picks each log's points among its own samples, so
+that a second flight adds points beside the first one's instead of taking a share
+of them.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -15,8 +20,10 @@ __all__ = [
     "KMEDOIDS_DRAWS",
     "KMEDOIDS_MAX_DIRECT",
     "KMEDOIDS_SUBSAMPLE",
+    "LOGS_BUDGET",
     "normalisation",
     "select_points",
+    "select_points_per_log",
 ]
 
 #: Above this many samples k-medoids runs on seeded subsamples (CLARA-style):
@@ -25,6 +32,9 @@ KMEDOIDS_MAX_DIRECT = 3000
 #: Size of each subsample, and how many subsamples are tried.
 KMEDOIDS_SUBSAMPLE = 2000
 KMEDOIDS_DRAWS = 3
+#: With several logs the training points total at most this many times ``points``
+#: (each of two logs gets ``points``; more logs share the budget).
+LOGS_BUDGET = 2
 
 
 def _sq_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -92,3 +102,35 @@ def normalisation(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     std = x.std(axis=0)
     scale = np.where(std > 1e-9 * np.maximum(1.0, np.abs(mean)), std, 1.0)
     return mean, scale
+
+
+def select_points_per_log(
+    x: np.ndarray, lengths: Sequence[int], k: int, seed: int = 0
+) -> tuple[np.ndarray, str]:
+    """Training points of several logs: each log's own k-medoids among its own samples.
+
+    x (n, d): the GP inputs (not normalised) of every sample, the logs' samples one
+    after the other, ``lengths`` of them each (sum n). Each log's inputs are
+    normalised by their own :func:`normalisation` and ``k`` of its samples picked by
+    :func:`select_points` with ``seed``, exactly the points a fit on that log alone
+    picks; with more than :data:`LOGS_BUDGET` logs each gets
+    ``LOGS_BUDGET * k // len(lengths)`` (at least 1), and a log with fewer samples
+    all of them. Why: one k-medoids over the pooled samples gave a deviated second
+    flight 75 % of the points and the first flight's states a quarter, and the
+    refitted model predicted the first flight's task worse than one refitted on the
+    task flown again (docs/informative.md, session 16). Returns sorted indices
+    (m,) into the pooled samples and a description of the method.
+    """
+    ends = np.cumsum(np.asarray(lengths, dtype=np.int64))
+    if ends.size == 0 or ends[-1] != x.shape[0]:
+        raise ValueError(f"log lengths {list(lengths)} do not add up to {x.shape[0]} samples")
+    share = k if len(lengths) <= LOGS_BUDGET else max(1, LOGS_BUDGET * k // len(lengths))
+    picks, methods = [], []
+    for start, end in zip(ends - np.asarray(lengths), ends, strict=True):
+        xi = x[start:end]
+        mean, scale = normalisation(xi)
+        idx, method = select_points((xi - mean) / scale, min(share, end - start), seed)
+        picks.append(start + idx)
+        methods.append(method)
+    text = "; ".join(f"log {i + 1}: {m}" for i, m in enumerate(methods))
+    return np.concatenate(picks), f"per log, up to {share} points each ({text})"
