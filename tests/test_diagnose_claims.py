@@ -310,7 +310,32 @@ def test_a_claim_the_fit_flight_does_not_confirm_says_so_with_both_estimates():
     assert (
         "Not claimed: command_delay, which the fit flight does not confirm: estimated there "
         "from the model's training points together with the other claims, its 95 % interval "
-        "does not exclude tau_d = 0 (the value at which it is absent) on the side this flight "
-        "puts it. On the fit flight: tau_d = -0.00056 s (95 %: -0.00125 to 0.00013)."
+        "holds tau_d = 0 (the value at which it is absent). On the fit flight: "
+        "tau_d = -0.00056 s (95 %: -0.00125 to 0.00013)."
     ) in text
     assert "Estimated on this flight as fit would: tau_d = 0.004 s (95 %: 0.0021 to 0.0059)" in text
+
+
+def test_a_fit_flight_interval_on_the_other_side_says_so_not_that_it_holds_the_null():
+    # the Crazyflie window (docs/real-data-check.md, item 6): the fit flight puts the
+    # delay at +6.75 ms [5.88, 7.61], this flight below 0; "does not exclude tau_d = 0"
+    # read as a contradiction of the interval quoted right after it
+    diag = {
+        "missing": [],
+        "missing_effects": [],
+        "not_pinned": [
+            {
+                "name": "command_delay",
+                "units": {"tau_d": "s"},
+                "estimate": {"tau_d": [-0.0006], "tau_d_ci95": [[-0.0011, -0.0001]]},
+                "axes": None,
+                "fit_flight": {"tau_d": [0.00675], "tau_d_ci95": [[0.00588, 0.00761]]},
+            }
+        ],
+    }
+    text = " ".join(ln.text for ln in verdict(_tree(diag)))
+    assert (
+        "its 95 % interval lies wholly on the other side of tau_d = 0 (the value at which it "
+        "is absent) than this flight's estimate. On the fit flight: tau_d = 0.00675 s"
+    ) in text
+    assert "does not exclude tau_d = 0" not in text

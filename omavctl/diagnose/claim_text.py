@@ -51,6 +51,31 @@ def _null_words(name: str) -> str:
     return ", ".join(f"{k} = {float(v.flat[0]):g}" for k, v in nulls.items())
 
 
+def _fit_side_words(name: str, fit: Mapping[str, Any], here: Any) -> str:
+    """Why the fit flight's interval does not confirm this flight's estimate, for a
+    one-component effect: 'holds tau_d = 0 ...' or 'lies wholly on the other side of
+    tau_d = 0 ...' (this flight puts it above, the fit flight below, or the reverse);
+    with several components both cases in one phrase."""
+    null = _null_words(name)
+    absent = f"{null} (the value at which it is absent)"
+    generic = f"does not lie wholly on the side of {absent} where this flight puts it"
+    keys = [k for k in fit if not k.endswith("_ci95")]
+    if len(keys) != 1 or not isinstance(here, Mapping):
+        return generic
+    key = keys[0]
+    try:
+        lo, hi = (float(x) for x in fit[f"{key}_ci95"][0])
+        value = float(here[key][0])
+        zero = float(null.split("=")[-1])
+    except (KeyError, IndexError, TypeError, ValueError):
+        return generic
+    if lo <= zero <= hi:
+        return f"holds {absent}"
+    if (value - zero) * (lo - zero) < 0:
+        return f"lies wholly on the other side of {absent} than this flight's estimate"
+    return generic
+
+
 def _bound_words(name: str) -> str:
     """'its physical bound 0' for an effect whose parameters have one."""
     from omavctl.learn.intervals import PHYSICAL_BOUNDS
@@ -112,8 +137,7 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
             out += (
                 f" Not claimed: {name}, which the fit flight does not confirm: estimated "
                 "there from the model's training points together with the other claims, its "
-                f"95 % interval does not exclude {_null_words(name)} (the value at which it "
-                f"is absent) on the side this flight puts it.{there}{said}"
+                f"95 % interval {_fit_side_words(name, fit, e.get('estimate'))}.{there}{said}"
             )
             continue
         lag = e.get("beside_lag")
