@@ -329,7 +329,12 @@ def test_a_fit_flight_interval_on_the_other_side_says_so_not_that_it_holds_the_n
                 "units": {"tau_d": "s"},
                 "estimate": {"tau_d": [-0.0006], "tau_d_ci95": [[-0.0011, -0.0001]]},
                 "axes": None,
-                "fit_flight": {"tau_d": [0.00675], "tau_d_ci95": [[0.00588, 0.00761]]},
+                "fit_flight": {
+                    "tau_d": [0.00675],
+                    "tau_d_ci95": [[0.00588, 0.00761]],
+                    "tau_d_stderr": [0.00044],
+                    "excited": [True],
+                },
             }
         ],
     }

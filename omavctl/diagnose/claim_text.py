@@ -59,7 +59,7 @@ def _fit_side_words(name: str, fit: Mapping[str, Any], here: Any) -> str:
     null = _null_words(name)
     absent = f"{null} (the value at which it is absent)"
     generic = f"does not lie wholly on the side of {absent} where this flight puts it"
-    keys = [k for k in fit if not k.endswith("_ci95")]
+    keys = [k for k in fit if f"{k}_ci95" in fit]
     if len(keys) != 1 or not isinstance(here, Mapping):
         return generic
     key = keys[0]
