@@ -382,7 +382,7 @@ def test_nothing_missing_is_reconciled_also_below_the_flags_said_first():
     tree["models"] = [before["models"][0], {**after["models"][0], "name": "m2.npz"}]
     tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
     texts = [v["text"] for v in evaluation_json(tree, {})["verdict"]]
-    assert texts[0] == "axis x: worse"
+    assert texts[0] == "With m.npz: axis x: worse"  # which model it is about
     assert "Nothing missing" not in " ".join(texts)
     assert any(t.startswith("Missing: command_delay, measured") for t in texts)
 
@@ -559,3 +559,41 @@ def test_report_does_not_title_the_which_model_sentence_as_a_change():
         items
     )
     assert items[0].startswith("**Missing:** command\\_delay, measured — with it added"), items
+
+
+def test_two_models_each_flag_names_its_model_and_a_later_model_is_flagged_too():
+    """docs/real-data-check.md items 13 and 16 (the Crazyflie halves, the Betaflight
+    pair): with two --model the "predicting none would do as well" flag was given for
+    the first model only, and a flag about the first model stood, unnamed, above "The
+    lines below are about <first> (the first --model)"."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    (before, _), (after, _) = _pair(0.388)
+    full = {"coverage_2sigma": {a: 0.95 for a in "xyz"}}
+    m0 = {
+        "zero": {"rmse": {"x": 1.0, "y": 1.0, "z": 0.05}},
+        "effects": {"rmse": {"x": 0.1, "y": 0.2, "z": 0.1}},
+        "model": {"rmse": {"x": 0.1, "y": 0.2, "z": 0.1}, **full},
+    }
+    m1 = copy.deepcopy(m0)
+    m1["zero"]["rmse"]["z"] = 0.5
+    m1["model"]["rmse"] = {"x": 0.06, "y": 0.12, "z": 0.6}  # z above its zero
+    m1["effects"]["rmse"] = {"x": 0.06, "y": 0.12, "z": 0.6}
+    tree = copy.deepcopy(before)
+    tree["models"] = [
+        {**before["models"][0], "name": "old.npz"},
+        {**after["models"][0], "name": "new.npz"},
+    ]
+    tree["metrics"], tree["metrics_by_model"] = m0, [m0, m1]
+    tree["flags"] = [
+        {"code": "no_better_than_zero", "axis": "z", "message": "axis z: the first's flag"}
+    ]
+    texts = [ln.text for ln in verdict_of_models(tree)]
+    pointer = texts.index("The lines below are about old.npz (the first --model), with no effects.")
+    assert texts[0] == "With old.npz: axis z: the first's flag", texts
+    (later,) = [t for t in texts if t.startswith("With new.npz: ")]
+    assert later.startswith(
+        "With new.npz: axis z: the model's error (0.6 rad/s² RMS) is not below the angular "
+        "acceleration itself (0.5): predicting none would do as well"
+    )
+    assert texts.index(later) < pointer

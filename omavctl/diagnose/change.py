@@ -15,8 +15,17 @@ from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.claim_text import not_pinned_names
+from omavctl.diagnose.metrics import quality_flags
 from omavctl.diagnose.verdict import verdict
-from omavctl.diagnose.verdict_lines import AXES, Line, ModelScore, _pct, _signed, get_path
+from omavctl.diagnose.verdict_lines import (
+    AXES,
+    FIRST_FLAGS,
+    Line,
+    ModelScore,
+    _pct,
+    _signed,
+    get_path,
+)
 
 __all__ = [
     "MATERIAL_FALL",
@@ -328,13 +337,36 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
     at = next((i for i, ln in enumerate(own) if ln.key == "missing"), 0)
     if before is models[0]:  # the diagnosed model is the one the effects were added to
         own[at] = reconciled_head(own[at], before, after)
+    # the first model's leading flags say which model they are about (one stood above
+    # "The lines below are about ...": docs/real-data-check.md item 16)
+    firsts = set(FIRST_FLAGS.values())
+    lead = next((i for i, ln in enumerate(own) if ln.key not in firsts), 0)
+    own[:lead] = [replace(ln, text=f"With {models[0].label}: {ln.text}") for ln in own[:lead]]
     rest = [ln for ln in own[1:] if not (ln.key == "learned" and ln.subject in added)]
     which = Line(
         "change",
         f"The lines below are about {models[0].label} (the first --model), "
         f"{_effects_words(models[0])}.",
     )
-    return [own[0], *change_lines(models), which, *rest]
+    return [own[0], *change_lines(models), *_later_flags(tree, models), which, *rest]
+
+
+def _later_flags(tree: Mapping[str, Any], models: Sequence[ModelScore]) -> list[Line]:
+    """The models after the first that are no better than predicting no acceleration,
+    or worse than their own physics, on an axis: 'with M: axis z: ...' (the flags of
+    :func:`omavctl.diagnose.metrics.quality_flags` were the first model's only:
+    docs/real-data-check.md item 13)."""
+    by_model = tree.get("metrics_by_model") or []
+    out = []
+    for score, metrics in zip(models[1:], by_model[1:], strict=False):
+        try:
+            flags = quality_flags(metrics, [])
+        except (KeyError, TypeError):  # an evaluation without the per-model metrics
+            continue
+        for flag in flags:
+            if flag["code"] in ("no_better_than_zero", "worse_than_physics"):
+                out.append(Line("worse", f"With {score.label}: {flag['message']}"))
+    return out
 
 
 def _effects_words(score: ModelScore) -> str:
