@@ -257,6 +257,14 @@ def test_report_json_gives_the_change_as_numbers(evals, tmp_path):
     summary = ReportSummary(tmp_path / "r.md", "md", 0, [ev(0.0), ev(0.5)])
     text = json.dumps(_report_json(summary, summary.out), allow_nan=False)
     assert json.loads(text)["change"] == {"x": None, "y": 0.0, "z": 0.0}
+    # one file evaluated with two --model: the change from its first model to its last
+    # (it was null while the verdict printed the change; docs/real-data-check.md item 17)
+    two = EvaluationSummary("e", "e.json", {"x": 2.0, "y": 1.0, "z": 2.0}, {}, [], None)
+    two.models_rmse = [{"x": 2.0, "y": 1.0, "z": 2.0}, {"x": 1.0, "y": 1.5, "z": 2.0}]
+    one = ReportSummary(tmp_path / "r.md", "md", 0, [two])
+    assert _report_json(one, one.out)["change"] == {"x": -0.5, "y": 0.5, "z": 0.0}
+    two.models_rmse = two.models_rmse[:1]
+    assert _report_json(one, one.out)["change"] is None
 
 
 def test_cli(evals, tmp_path):

@@ -166,6 +166,8 @@ class EvaluationSummary:
     nominal_rmse: dict[str, float]
     missing: list[str]
     fit_command: str | None
+    #: each ``--model``'s RMSE per axis, in the file's order (one entry for one model)
+    models_rmse: list[dict[str, float]] = field(default_factory=list)
 
 
 @dataclass
@@ -178,11 +180,30 @@ class ReportSummary:
     evaluations: list[EvaluationSummary]
     verdict: list[Any] = field(default_factory=list)
 
-    def change(self) -> dict[str, float | None]:
-        """Per-axis relative change of the model RMSE from the first file to the last,
-        as a fraction (-0.141: 14.1 % lower); None where undefined."""
-        first, last = self.evaluations[0].model_rmse, self.evaluations[-1].model_rmse
+    def change(self) -> dict[str, float | None] | None:
+        """Per-axis relative change of the model RMSE from the first file to the last
+        (of one file that holds several ``--model``: from its first model to its last),
+        as a fraction (-0.141: 14.1 % lower); None where undefined, and None in all for
+        one file of one model."""
+        if len(self.evaluations) > 1:
+            first, last = self.evaluations[0].model_rmse, self.evaluations[-1].model_rmse
+        elif self.evaluations and len(self.evaluations[0].models_rmse) > 1:
+            first, last = self.evaluations[0].models_rmse[0], self.evaluations[0].models_rmse[-1]
+        else:
+            return None
         return {a: relative_change(last[a], first[a]) for a in AXES}
+
+
+def _models_rmse(tree: Mapping[str, Any]) -> list[dict[str, float]]:
+    """Each ``--model``'s model RMSE per axis (``metrics_by_model``); [] when the file
+    has none or a value is not a number."""
+    try:
+        return [
+            {a: float(m["model"]["rmse"][a]) for a in AXES}
+            for m in tree.get("metrics_by_model") or []
+        ]
+    except (KeyError, TypeError, ValueError):
+        return []
 
 
 def _labels(paths: Sequence[str | Path]) -> list[str]:
@@ -249,6 +270,7 @@ def write_report(
             nominal_rmse={a: float(tree["metrics"]["nominal"]["rmse"][a]) for a in AXES},
             missing=[str(x) for x in _get(tree, "diagnosis", "missing", default=[]) or []],
             fit_command=_get(tree, "diagnosis", "fit_command"),
+            models_rmse=_models_rmse(tree),
         )
         for (tree, _, label), p in zip(evals, paths, strict=True)
     ]
