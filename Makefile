@@ -111,14 +111,14 @@ scorecard: $(STAMP)
 # scorecard version 2 (docs/scorecard.md): sizes as multiples of the claim floor,
 # planned flights among the families, one worker process per draw; report draws
 # run until SCORECARD2_ABOVE of them hide an effect at or above the claim floor
-# (at most SCORECARD2_REPORT draws). SCORECARD2_SPLIT is report9 since report2-8's
+# (at most SCORECARD2_REPORT draws). SCORECARD2_SPLIT is report10 since report2-9's
 # records were read to find causes (docs/scorecard.md); the scorer's
 # apparent truth (benchmarks/scorecard_truth.py) re-flies each draw's fit flight
 SCORECARD2_DIR ?= build/scorecard2
 SCORECARD2_TUNE ?= 12
 SCORECARD2_ABOVE ?= 40
 SCORECARD2_REPORT ?= 100
-SCORECARD2_SPLIT ?= report9
+SCORECARD2_SPLIT ?= report10
 scorecard2: $(STAMP)
 	nice -n 10 $(BIN)/python benchmarks/scorecard.py run --split tune2 --draws $(SCORECARD2_TUNE) \
 		--jobs $(SCORECARD_JOBS) --workdir $(SCORECARD2_DIR)

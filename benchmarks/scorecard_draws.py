@@ -107,6 +107,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report9's records were read (2026-11-26, session 16): the next changes are reported
+    # on report10 (11 000 000; the own splits use 9 1xx xxx-9 5xx xxx)
+    "report10": {
+        "seed_base": 11_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}

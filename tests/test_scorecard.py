@@ -572,6 +572,7 @@ def test_run_until_stops_at_the_count_above_the_floor(tmp_path, monkeypatch):
         ("report6", "report7"),
         ("report7", "report8"),
         ("report8", "report9"),
+        ("report9", "report10"),
     ],
 )
 def test_each_report_split_is_fresh(old: str, new: str) -> None:
