@@ -36,11 +36,11 @@ import numpy as np
 
 from omavctl.diagnose.joint import (
     AMBIGUOUS_RATIO,
-    DEFAULT_LOOK_ALIKES,
     Z95,
     JointStep,
     block_t,
     joint_theta,
+    look_alike_regressors,
     without_fit,
 )
 from omavctl.diagnose.timing_beside import beside_trials
@@ -92,13 +92,7 @@ def held_timing_beside(
     held = {n: h for n, h in held.items() if _unpinned_here(h)}
     if not held or model.n_train == 0:
         return None
-    usable = [n for n in regressors if n in model.train_regressors and n not in model.effects]
-    alikes = [n for n in usable if n in DEFAULT_LOOK_ALIKES]
-    x = (
-        np.concatenate([regressors[n] for n in alikes], axis=2)
-        if alikes
-        else np.zeros((*physics.shape, 0))
-    )
+    usable, alikes, x = look_alike_regressors(regressors, model, physics)
     sq_before = (without_fit(x, physics) ** 2).sum(axis=1)
     left = float(sq_before.sum())
     if left <= 0:

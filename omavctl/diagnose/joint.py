@@ -84,6 +84,7 @@ __all__ = [
     "joint_selection",
     "joint_theta",
     "learned_step",
+    "look_alike_regressors",
     "part_high",
     "plausible_theta",
     "without_fit",
@@ -427,3 +428,19 @@ def without_fit(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     n, _, p = x.shape
     theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), y.reshape(3 * n), rcond=None)
     return np.asarray(y - x @ theta)
+
+
+def look_alike_regressors(
+    regressors: Mapping[str, np.ndarray], model: ResidualGP, physics: np.ndarray
+) -> tuple[list[str], list[str], np.ndarray]:
+    """The effects ``regressors`` (name -> (n, 3, p)) holds that the model was trained
+    with and does not hold, the default look-alikes among them, and their regressors
+    stacked (n, 3, sum p; (n, 3, 0) with none), ``physics`` (n, 3) giving the shape."""
+    usable = [n for n in regressors if n in model.train_regressors and n not in model.effects]
+    alikes = [n for n in usable if n in DEFAULT_LOOK_ALIKES]
+    x = (
+        np.concatenate([regressors[n] for n in alikes], axis=2)
+        if alikes
+        else np.zeros((*physics.shape, 0))
+    )
+    return usable, alikes, x

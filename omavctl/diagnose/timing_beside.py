@@ -52,6 +52,7 @@ from omavctl.diagnose.joint import (
     block_t,
     hac_t,
     joint_theta,
+    look_alike_regressors,
     plausible_theta,
     without_fit,
 )
@@ -113,13 +114,7 @@ def timing_beside_look_alikes(
         return []
     if sum(n not in DEFAULT_LOOK_ALIKES for n in taken) >= MAX_EFFECTS:
         return []
-    usable = [n for n in regressors if n in model.train_regressors and n not in model.effects]
-    alikes = [n for n in usable if n in DEFAULT_LOOK_ALIKES]
-    x = (
-        np.concatenate([regressors[n] for n in alikes], axis=2)
-        if alikes
-        else np.zeros((*physics.shape, 0))
-    )
+    usable, alikes, x = look_alike_regressors(regressors, model, physics)
     before = without_fit(x, physics)
     sq_before = (before**2).sum(axis=1)
     left = float(sq_before.sum())
