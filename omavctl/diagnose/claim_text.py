@@ -195,13 +195,7 @@ def large_cut_sentence(step: Mapping[str, Any]) -> str:
         f"{blocks:.0f} blocks better by a consistent fraction (t {log_t:.1f}) and removes at "
         "least half of the error: claimed on that large cut, for the next fit to test."
     )
-    alike = [str(n) for n in step.get("ambiguous_with") or []]
-    if alike:
-        text += (
-            f" The data do not tell it from {', '.join(alike)}: plan --objective effects "
-            "designs a flight that does."
-        )
-    return text
+    return text + _not_told_apart(step)
 
 
 def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
@@ -266,10 +260,16 @@ def held_out_not_pinned_sentence(step: Mapping[str, Any]) -> str:
         "fit --effects gives the value to trust), and at that value it removes the share "
         "above beside the look-alikes."
     )
+    return text + _not_told_apart(step)
+
+
+def _not_told_apart(step: Mapping[str, Any]) -> str:
+    """' The data do not tell it from a, b: plan --objective effects designs a flight
+    that does.' for a step with look-alikes in ``ambiguous_with``; '' without."""
     alike = [str(n) for n in step.get("ambiguous_with") or []]
-    if alike:
-        text += (
-            f" The data do not tell it from {', '.join(alike)}: plan --objective effects "
-            "designs a flight that does."
-        )
-    return text
+    if not alike:
+        return ""
+    return (
+        f" The data do not tell it from {', '.join(alike)}: plan --objective effects "
+        "designs a flight that does."
+    )
