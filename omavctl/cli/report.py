@@ -86,8 +86,8 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
             Text(ev.missing[0] if ev.missing else "none"),
         )
     con.print(table)
-    change = summary.change()
-    if len(summary.evaluations) > 1 and change is not None:
+    change = summary.change() if len(summary.evaluations) > 1 else None
+    if change is not None:
         con.print(
             f"change {summary.evaluations[0].label} -> {summary.evaluations[-1].label}: "
             + ", ".join(f"{a} {_signed_pct(change[a])}" for a in "xyz"),
