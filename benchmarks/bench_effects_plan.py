@@ -102,12 +102,14 @@ def run_case(
     amplitude: float = AMPLITUDE,
     ideal: bool = False,
     run: Callable[..., dict] | None = None,
+    points: int | None = None,
 ) -> dict:
     """One seed of the benchmark (module docstring) in ``workdir``; its numbers.
 
     ``ideal``: actuators without imperfections (no lags, interference, spread,
     backlash), so that the hidden delay is the plant's only delay. ``run``: how each
-    command runs (default :func:`omavctl`, a child process per command).
+    command runs (default :func:`omavctl`, a child process per command). ``points``:
+    the refits' ``--points`` (per log; fit's default when None).
     """
     command = run or omavctl
     w = Path(workdir)
@@ -208,6 +210,7 @@ def run_case(
             EFFECTS,
             "--seed",
             str(seed),
+            *(["--points", str(points)] if points else []),
             "--out",
             str(w / f"second-{kind}.npz"),
         )

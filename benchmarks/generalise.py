@@ -175,12 +175,13 @@ def run_two_flights(
     effects: Iterable[str] = (),
 ) -> list[Outcome]:
     """Fit on both flights of the main pair (200 points: 100 a flight, as one-flight
-    fits have), evaluate on each flight of the check pair: what a user with two
-    different flights has, and held-out flights neither of them is."""
+    fits have; ``points`` is per log since fit keeps each log's own points, session
+    16), evaluate on each flight of the check pair: what a user with two different
+    flights has, and held-out flights neither of them is."""
     fit_logs = fly_pair(workdir, case, timing, duration, "main")
     held = fly_pair(workdir, case, timing, duration, "check")
     result = fit_model(
-        list(fit_logs.values()), points=200, features=features, effects=list(effects), restarts=1
+        list(fit_logs.values()), points=100, features=features, effects=list(effects), restarts=1
     )
     tag = "".join(f"+{e}" for e in effects)
     model_path = workdir / f"{case}-{timing}-fig8+wobble-{features}{tag}.npz"
