@@ -38,12 +38,11 @@ from omavctl.diagnose.joint import (
     AMBIGUOUS_RATIO,
     Z95,
     JointStep,
-    block_t,
     joint_theta,
     look_alike_regressors,
     without_fit,
 )
-from omavctl.diagnose.timing_beside import beside_trials
+from omavctl.diagnose.timing_beside import beside_trials, trial_step
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
@@ -106,19 +105,10 @@ def held_timing_beside(
             ok.append((trial, value, half))
     if not ok:
         return None
-    (gain, name, theta, part, sq_after), value, half = max(ok, key=lambda o: o[0][0])
-    total = float((physics**2).sum())
+    trial, value, half = max(ok, key=lambda o: o[0][0])
+    gain, name = trial[:2]
     rivals = [t[1] for t in trials if t[1] != name and t[0] >= AMBIGUOUS_RATIO * gain]
-    step = JointStep(
-        name=name,
-        share=gain / left,
-        share_of_total=gain / total if total > 0 else 0.0,
-        contribution_rms=part,
-        block_t=min(block_t(sq_before, sq_after, blocks), 1e6),
-        theta=theta,
-        ambiguous_with=rivals,
-        contribution_high=part,
-    )
+    step = trial_step(trial, (left, physics, sq_before, blocks), rivals)
     entry = {
         "name": name,
         "units": held[name].get("units"),

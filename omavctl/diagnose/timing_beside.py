@@ -60,7 +60,7 @@ from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
-__all__ = ["beside_trials", "timing_beside_look_alikes"]
+__all__ = ["beside_trials", "timing_beside_look_alikes", "trial_step"]
 
 
 def _is_timing(name: str) -> bool:
@@ -129,19 +129,31 @@ def timing_beside_look_alikes(
     if not trials:
         return []
     trials.sort(key=lambda t: -t[0])
-    gain, name, theta, part, sq_after = trials[0]
-    rivals = [t[1] for t in trials[1:]] if _is_timing(name) else []
+    gain, name = trials[0][:2]
+    alike = [t[1] for t in trials[1:] if t[0] >= AMBIGUOUS_RATIO * gain]
+    step = trial_step(trials[0], (left, physics, sq_before, blocks), alike)
+    step.timing_rivals = [t[1] for t in trials[1:]] if _is_timing(name) else []
+    return [step]
+
+
+def trial_step(
+    trial: tuple[float, str, np.ndarray, float, np.ndarray],
+    judged: tuple[float, np.ndarray, np.ndarray, np.ndarray],
+    ambiguous_with: list[str],
+) -> JointStep:
+    """The joint step of one of :func:`beside_trials`' trials ``(gain, name, theta,
+    part, sq_after)``; ``judged``: (what the look-alikes leave, the physics-only error
+    (n, 3), its squared norm per sample before (n,), the 2 s block of each sample (n,))."""
+    gain, name, theta, part, sq_after = trial
+    left, physics, sq_before, blocks = judged
     total = float((physics**2).sum())
-    return [
-        JointStep(
-            name=name,
-            share=gain / left,
-            share_of_total=gain / total if total > 0 else 0.0,
-            contribution_rms=part,
-            block_t=min(block_t(sq_before, sq_after, blocks), 1e6),
-            theta=theta,
-            ambiguous_with=[t[1] for t in trials[1:] if t[0] >= AMBIGUOUS_RATIO * gain],
-            contribution_high=part,
-            timing_rivals=rivals,
-        )
-    ]
+    return JointStep(
+        name=name,
+        share=gain / left,
+        share_of_total=gain / total if total > 0 else 0.0,
+        contribution_rms=part,
+        block_t=min(block_t(sq_before, sq_after, blocks), 1e6),
+        theta=theta,
+        ambiguous_with=ambiguous_with,
+        contribution_high=part,
+    )
