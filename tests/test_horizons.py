@@ -296,6 +296,17 @@ def test_the_findings_and_the_report_name_a_model_that_wins_early_and_loses_late
         "x: the GP lowers the 0.01 s body-rate error (0.01 -> 0.008 rad/s) but raises it "
         "at 0.5 s (0.1 -> 0.2 rad/s)"
     )
+    # one file's report section and its --json name the GP that helps early and hurts late
+    from omavctl.report.horizons import _evaluation_blocks, horizons_json
+
+    gp_hurts["horizons"].update(windows=100, stride=1)
+    section = [str(i) for b in _evaluation_blocks(gp_hurts, "one.json", False)
+               if hasattr(b, "items") for i in b.items]  # fmt: skip
+    assert x["message"] in section
+    out = horizons_json(gp_hurts)
+    assert out is not None
+    assert [(f["code"], f["axis"]) for f in out["findings"] if f["code"] == "gp_hurts_long"] == [
+        ("gp_hurts_long", "x"), ("gp_hurts_long", "y"), ("gp_hurts_long", "z")]  # fmt: skip
     good = _tree({**errors, "model": [0.009, 0.05]})
     assert [f["code"] for f in good["horizons"]["findings"]] == []
     blocks = _side_by_side([(gp_hurts, {}, "one.json"), (good, {}, "two.json")])

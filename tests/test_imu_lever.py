@@ -4,10 +4,18 @@ untouched."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
-from omavctl.learn.imu_lever import estimate_lever, lever_matrix, lever_of, without_lever
+from omavctl.learn.imu_lever import (
+    estimate_lever,
+    lever_matrix,
+    lever_of,
+    lever_provenance,
+    without_lever,
+)
 from omavctl.learn.signal import SavitzkyGolay
 
 R_TRUE = np.array([0.02, -0.01, 0.05])  # m, body FLU
@@ -59,6 +67,14 @@ def test_lever_recovered_within_its_interval_and_removed(seed: int) -> None:
     left = cleaned[:, lateral] - 1.5 * (accel - lever_matrix(omega, alpha) @ R_TRUE)[:, lateral]
     term = 1.5 * (lever_matrix(omega, alpha) @ R_TRUE)[:, lateral]
     assert np.sqrt(np.mean(left**2)) < 0.1 * np.sqrt(np.mean(term**2))
+    # what a model file records of it (provenance.imu_lever): removed; a log without an
+    # estimate says so
+    rec = lever_provenance([("fit.csv", lever), ("short.csv", None)])
+    assert rec[0]["log"] == "fit.csv" and rec[0]["removed"] is True
+    np.testing.assert_allclose(rec[0]["r"], lever.r)
+    np.testing.assert_allclose(rec[0]["stderr"], lever.stderr)
+    assert rec[1] == {"log": "short.csv", "r": None, "stderr": None, "removed": False}
+    json.dumps(rec, allow_nan=False)
 
 
 def test_no_lever_when_the_accelerometer_reads_none() -> None:
@@ -71,6 +87,7 @@ def test_no_lever_when_the_accelerometer_reads_none() -> None:
     assert not lever.pinned  # then the force is left as logged
     assert without_lever(accel, omega, alpha, lever, 1.0) is accel
     assert "not distinguishable from 0" in lever.note()
+    assert lever_provenance([("a.csv", lever)])[0]["removed"] is False
     # fewer than 10 half-second blocks: no estimate
     assert estimate_lever(_parts(omega[:450], accel[:450]), SG) is None
 

@@ -68,6 +68,7 @@ from omavctl.learn.fit_steps import (
 )
 from omavctl.learn.flights import LogSummary, read_samples
 from omavctl.learn.hyperparameters import DEFAULT_RESTARTS, AxisFit
+from omavctl.learn.imu_lever import lever_provenance
 from omavctl.learn.mean_shrink import MEAN_SHRINK
 from omavctl.learn.model import EffectEstimate, ResidualGP
 from omavctl.learn.provenance import fit_provenance
@@ -81,6 +82,7 @@ from omavctl.learn.signal import (
     feature_names,
 )
 from omavctl.logs.types import FlightLog
+from omavctl.physics.effects import get_effect
 from omavctl.vehicle import NORMALISED, Vehicle, default_vehicle
 
 __all__ = [
@@ -209,6 +211,10 @@ def fit_model(
     validation_step(res, train, gp, eff)
     gain, notes = _gain(vehicle, opts.added, eff, notes, opts.names)
     model = _model(opts, res, train, gp, eff, gain, sum(s.n for s in original))
+    if any(get_effect(name).measured_state for name in model.effects):
+        # which lever arm the measured force was taken less of (files before: unknown)
+        levers = [(s.path.name, s.lever) for s in original]
+        model.provenance["imu_lever"] = lever_provenance(levers)
     with _timed(timings, "rollouts"):  # the GP mean on held-out rollouts
         _rollout_check(model, original, train, notes)
     with _timed(timings, "evaluate"):

@@ -32,6 +32,7 @@ __all__ = [
     "estimate_lever",
     "lever_matrix",
     "lever_of",
+    "lever_provenance",
     "without_lever",
 ]
 
@@ -186,3 +187,24 @@ def without_lever(
     if force is None or lever is None or not lever.pinned or not REMOVE_LEVER:
         return force
     return force - mass * (lever_matrix(omega, alpha) @ lever.r)
+
+
+def lever_provenance(levers: Sequence[tuple[str, LeverArm | None]]) -> list[dict[str, Any]]:
+    """What a model file records of the lever arm its measured-force effect was fitted
+    with (``provenance.imu_lever``, docs/schemas.md): per log (name, its lever or None)
+    ``r`` and ``stderr`` (m, body FLU; null without an estimate) and ``removed``, whether
+    its term was taken from the force before the effect's regressor was formed."""
+    out: list[dict[str, Any]] = []
+    for name, lever in levers:
+        if lever is None:
+            out.append({"log": name, "r": None, "stderr": None, "removed": False})
+            continue
+        out.append(
+            {
+                "log": name,
+                "r": [float(v) for v in lever.r],
+                "stderr": [float(v) for v in lever.stderr],
+                "removed": bool(lever.pinned and REMOVE_LEVER),
+            }
+        )
+    return out

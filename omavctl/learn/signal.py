@@ -245,6 +245,10 @@ class ResidualSamples:
     mask: np.ndarray | None = field(default=None, repr=False)
     #: (n, 6) rate of change of the scaled command u (SG derivative, held), 1/s
     du: np.ndarray = field(default_factory=lambda: np.empty((0, 6)))
+    #: the accelerometer's lever arm estimated on this log for an effect of the measured
+    #: force (:mod:`.imu_lever`); None without one (no such effect, no accelerometer, or
+    #: too short a log)
+    lever: LeverArm | None = field(default=None, repr=False)
 
     @property
     def n(self) -> int:
@@ -342,7 +346,9 @@ def residual_samples(
     lever = lever_of(flight, sg, kept) if any(e.measured_state for e in eff) else None
     for segment in kept:
         _add_segment(parts, flight, vehicle, sg, segment, eff, alloc, extra, lever)
-    return _assemble(flight, parts, extra, sg, (edge, short))
+    out = _assemble(flight, parts, extra, sg, (edge, short))
+    out.lever = lever
+    return out
 
 
 @dataclass
