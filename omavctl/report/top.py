@@ -27,6 +27,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
     titles = {
         "missing": "What is missing",
         "learned": "Not modelled as physics",
+        "disagree": "Fit and flight disagree",
         "change": "Error change",
         "fails": "Where it fails",
         "uncertainty": "Uncertainty",
