@@ -243,8 +243,7 @@ def diagnose(
         if any(h["name"] == entry["name"] for h in guarded.held_back):
             entry["missing"] = False  # claimed by a test, but its interval holds its null
             entry["not_pinned"] = True
-    # an effect the GP learned, pinned down and confirmed on the held-out physics-only
-    # error, is claimed when nothing else is: the loop goes on with its fit command
+    # when nothing else is, a learned effect confirmed on the held-out flight is claimed
     step, pool = None, []
     if not names:
         pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)

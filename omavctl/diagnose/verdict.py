@@ -19,6 +19,7 @@ from typing import Any
 from omavctl.diagnose import claim_text as ct
 from omavctl.diagnose.activity import activity
 from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.axis_share import axis_held_line
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause
 from omavctl.diagnose.given import given_sentence
@@ -326,6 +327,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     lines = [*firsts, _missing_line(tree), *_alternative_lines(tree)]
     for line in (
         _learned_line(tree),
+        axis_held_line(tree),
         disagree_line(tree),
         fails_line(tree),
         uncertainty_line(tree),
