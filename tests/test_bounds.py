@@ -36,6 +36,16 @@ def test_a_lag_interval_is_cut_at_zero_and_its_standard_error_kept():
     scales = interval95(np.array([-7.9, 2.5]), np.array([54.0, 2.96]), 0.0)
     assert scales[:, 0].tolist() == [0.0, 0.0]
     assert scales[:, 1].tolist() == [-7.9 + Z95 * 54.0, 2.5 + Z95 * 2.96]
+    # the estimate then lies outside its interval, and the words say so (the Crazyflie's
+    # tau_d = -0.617 ms, 95 %: 0 to 0.637 ms)
+    delay = {"tau_d": [-0.000617], "tau_d_ci95": [[0.0, 0.000637]], "tau_d_pinned": [False]}
+    entry = {"name": "command_delay", "estimate": delay, "units": {"tau_d": "s"}}
+    assert "(95 %: 0 to 0.000637, cut at tau_d ≥ 0; the estimate is below it, cannot" in (
+        estimate_sentence(entry)
+    )
+    assert _interval_note(delay, "tau_d", 0, "command_delay").startswith(
+        " [0, 0.00064] (cut at tau_d ≥ 0; the estimate is below it): "
+    )
     # a parameter of either sign (a CoM offset) is never cut
     assert interval95(np.array([0.001]), np.array([0.01]), None)[0, 0] < 0
 

@@ -208,7 +208,7 @@ def _effects_table(summary: Any) -> Any:
                     "not excited by these logs"
                     if v == 0.0
                     else _interval_text(
-                        intervals[p.name][i], bool(pinned[p.name][i]), (name, p.name, i)
+                        intervals[p.name][i], bool(pinned[p.name][i]), (name, p.name, i), v
                     )
                 )
                 eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", interval, Text(unit))
@@ -248,7 +248,9 @@ def gain_interval(low: float, high: float) -> tuple[float, float]:
     return -math.inf, math.inf
 
 
-def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> str:
+def _interval_text(
+    interval: Any, pinned: bool, which: tuple[str, str, int], value: float | None = None
+) -> str:
     """'[low, high]' of a 95 % interval (and '(cut at T_m ≥ 0)' where it ends at the
     parameter's physical bound), and, when it does not pin the parameter (effect,
     parameter, component) down, why, in words that follow the interval."""
@@ -258,7 +260,7 @@ def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> 
     lo, hi = (float(x) for x in interval)
     a, b, _ = interval_ends(lo, hi, null_component(*which))
     text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
-    if note := bound_note(which[0], which[1], lo):
+    if note := bound_note(which[0], which[1], lo, value):
         text += f" ({note})"
     return text if pinned else f"{text}: {unpinned_words(*which[:2], (lo, hi), which[2])}"
 

@@ -182,12 +182,15 @@ def cut_at_bound(name: str, param: str, low: float) -> bool:
     return bound is not None and float(low) == bound
 
 
-def bound_note(name: str, param: str, low: float) -> str:
+def bound_note(name: str, param: str, low: float, value: float | None = None) -> str:
     """'cut at T_m ≥ 0' when an interval's ``low`` end is the parameter's physical bound
-    (:func:`cut_at_bound`), else ''."""
+    (:func:`cut_at_bound`), else ''; '...; the estimate is below it' when the estimate
+    ``value`` is (it then lies outside its interval: tau_d -0.617 ms, 95 % 0 to 0.637)."""
     if not cut_at_bound(name, param, low):
         return ""
-    return f"cut at {param} ≥ {physical_bound(name, param):g}"
+    bound = physical_bound(name, param)
+    below = value is not None and bound is not None and float(value) < bound
+    return f"cut at {param} ≥ {bound:g}" + ("; the estimate is below it" if below else "")
 
 
 def physical_side(name: str, param: str, interval: np.ndarray) -> np.ndarray:

@@ -120,7 +120,9 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") 
         return ""
     lo, hi = ci[i]
     text = f" [{_ends(lo, hi, effect, k, i)}]" if finite(lo) and finite(hi) else " [unbounded]"
-    if note := _bound_note(effect, k, lo):
+    values = as_list(params.get(k, []))
+    value = values[i] if i < len(values) and finite(values[i]) else None
+    if note := _bound_note(effect, k, lo, value):
         text += f" ({note})"
     if i < len(pinned) and pinned[i] is False:
         text += f": {_unpinned(effect, k, ci[i], i)}"
@@ -140,11 +142,12 @@ def _ends(lo: float, hi: float, effect: str, param: str, i: int) -> str:
     return f"{a}, {b}"
 
 
-def _bound_note(effect: str, param: str, low: Any) -> str:
-    """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound."""
+def _bound_note(effect: str, param: str, low: Any, value: Any = None) -> str:
+    """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound (and
+    '; the estimate is below it' where ``value`` is)."""
     from omavctl.learn.intervals import bound_note
 
-    return bound_note(effect, param, float(low)) if finite(low) else ""
+    return bound_note(effect, param, float(low), value) if finite(low) else ""
 
 
 def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:
