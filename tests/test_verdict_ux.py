@@ -668,6 +668,13 @@ def test_the_report_shows_the_signature_of_the_effects_the_verdict_discusses():
         ],
     }
     assert discussed(diag, ["inertia_error"]) == ["com_offset"]
+    # and the one the verdict holds back on one axis (Betaflight: command_delay, y 34 %)
+    held = {**diag, "method": {"min_explained_variance": 0.15}}
+    held["missing_effects"] = [
+        {"name": "command_delay", "explained_variance_per_axis": {"y": 0.34}},
+        {"name": "com_offset"},
+    ]
+    assert discussed(held, ["inertia_error"]) == ["com_offset", "command_delay"]
     assert discussed({**diag, "learned": []}, ["inertia_error"]) == ["command_delay"]
     assert discussed({**diag, "missing": ["motor_lag"]}, []) == ["motor_lag"]
 

@@ -75,6 +75,7 @@ def discussed(diagnosis: Mapping[str, Any], effects: Sequence[str]) -> list[str]
         *(str(e.get("name")) for e in diagnosis.get("not_pinned") or []),
         *(str(n) for n in (diagnosis.get("below_noise"), diagnosis.get("refit_rejected")) if n),
         *learned_not_modelled(diagnosis, effects)[:1],
+        *[h["name"] for h in axis_held(diagnosis, effects)][:1],
     ]
     top = [str(e["name"]) for e in (diagnosis.get("missing_effects") or [])[:1]]
     return list(dict.fromkeys(named)) or top
