@@ -38,9 +38,12 @@ def diagnosis_with_commands(
     model, model_path = models[0], mpaths[0]
     parts: dict[str, np.ndarray] = {}
     diagnosis = diagnose(samples, model, series["mean_0"], series["std_0"], features, sg, parts)
-    for name in discussed(diagnosis, list(model.effects)):
-        if name in parts:
-            series[f"contribution_{name}"] = parts[name]
+    # of the effects the verdict discusses those scored on the model's error (one the
+    # GP absorbed may not be: px4tools' com_offset); else the top candidate's, as before
+    shown = [n for n in discussed(diagnosis, list(model.effects)) if n in parts]
+    top = [str(e["name"]) for e in diagnosis["missing_effects"][:1]]
+    for name in shown or top:
+        series[f"contribution_{name}"] = parts[name]
     # every missing effect, estimated jointly in one fit; else the effect the GP learned
     # that the held-out flight confirms (learned_claims), so that a loop goes on
     claimed = diagnosis["missing"] or diagnosis["learned_claims"]

@@ -339,9 +339,7 @@ def diagnosis_section(
         blocks.append(Bullets(unexplained))
     else:
         blocks.append(Para("None found (no feature correlation, no spectral peak)."))
-    held = [str(e) for e in ((tree.get("models") or [{}])[0].get("effects") or {})]
-    blocks += _learned_blocks(diag.get("learned") or [], learned_as, torque_unknown, held)
-    blocks += _order_note(diag.get("learned") or [], held, diag) if learned_as is None else []
+    blocks += _learned_blocks(tree, diag, learned_as, torque_unknown)
     blocks += _learned_commands(tree, diag)
     return blocks
 
@@ -399,10 +397,14 @@ def _order_note(
 
 
 def _learned_blocks(
-    learned: Sequence[Any], learned_as: str | None, torque_unknown: bool, held: Sequence[str] = ()
+    tree: Mapping[str, Any], diag: Mapping[str, Any], learned_as: str | None, torque_unknown: bool
 ) -> list[Block]:
     """'What the nominal model's residual resembles': the ranking fitted to the nominal
-    residual, or with ``learned_as`` a note that it is the same as for that file."""
+    residual (``diag["learned"]``, the first model's effects marked, and why one stands
+    below an effect the model lacks), or with ``learned_as`` a note that it is the same
+    as for that file."""
+    learned = diag.get("learned") or []
+    held = [str(e) for e in ((tree.get("models") or [{}])[0].get("effects") or {})]
     blocks: list[Block] = []
     if learned and learned_as is not None:
         blocks.append(Heading(4, "What the nominal model's residual resembles"))
@@ -430,4 +432,5 @@ def _learned_blocks(
             text += " Resembles most: " + ", ".join(found) + "."
         blocks.append(Para(text))
         blocks.append(_ranking_table(learned, torque_unknown, "learned", held))
+        blocks += _order_note(learned, held, diag)
     return blocks
