@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -23,19 +24,26 @@ from omavctl.base.shell import display_path, shell_join
 if TYPE_CHECKING:
     from rich.console import Console
 
-__all__ = ["console", "display_path", "emit_json", "jsonable", "shell_join"]
+__all__ = ["console", "display_path", "emit_json", "jsonable", "reader_gone", "shell_join"]
 
 #: Width of a console whose stream is not a terminal: wide enough that no table wraps.
 PIPE_WIDTH = 100_000
 
 
 def console(quiet: bool = False, stdout: bool = False) -> Console:
-    """A rich console on stderr (or stdout); unlimited width when not a terminal."""
+    """A rich console on stderr (or stdout); unlimited width when not a terminal; a
+    reader that closes the pipe early (``| head -2``) silences it, and the command
+    goes on to its end and its exit status (:func:`reader_gone`)."""
     from rich.console import Console
+
+    class _Console(Console):
+        def on_broken_pipe(self) -> None:  # rich's default exits 1 (and only mutes stdout)
+            self.quiet = True
+            reader_gone(self.file)
 
     stream = sys.stdout if stdout else sys.stderr
     tty = _isatty(stream)
-    return Console(
+    return _Console(
         stderr=not stdout,
         quiet=quiet,
         highlight=False,
@@ -72,5 +80,27 @@ def jsonable(obj: Any) -> Any:
 def emit_json(obj: Mapping[str, Any]) -> None:
     """Print one JSON object (one line) on stdout."""
     text = json.dumps(jsonable(obj), allow_nan=False, sort_keys=False)
-    sys.stdout.write(text + "\n")
-    sys.stdout.flush()
+    try:
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+    except BrokenPipeError:
+        reader_gone(sys.stdout)
+
+
+def reader_gone(stream: Any) -> None:
+    """The reader of ``stream``'s pipe closed it (``omavctl inspect LOG | head -2``):
+    what is left to write goes to /dev/null, so that neither a later write nor the
+    flush at exit fails, and the command ends as it would have (exit 0 when it
+    succeeded: a reader that stopped reading is not a failure of the command; the
+    files it writes are written). Python's advice on SIGPIPE
+    (https://docs.python.org/3/library/signal.html#note-on-sigpipe) without its
+    exit 1. A stream without a file descriptor (a test's buffer) is left as it is."""
+    try:
+        fd = stream.fileno()
+    except (AttributeError, ValueError, OSError):
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, fd)
+    finally:
+        os.close(devnull)

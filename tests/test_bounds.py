@@ -27,9 +27,25 @@ def test_a_lag_interval_is_cut_at_zero_and_its_standard_error_kept():
     assert lo == 0.0 and hi == 0.0094 + Z95 * 0.0185
     assert LAG.stderr["T_m"].tolist() == [0.0185]
     assert LAG.pinned()["T_m"].tolist() == [False]  # it holds 0: no lag
-    # an estimate below its bound keeps its interval (it is not physical, and says so)
+    # an interval wholly below its bound keeps its ends (it is not physical, and says so)
     below = interval95(np.array([-0.00136]), np.array([0.00068]), 0.0)
     assert below.tolist() == [[-0.00136 - Z95 * 0.00068, -0.00136 + Z95 * 0.00068]]
+    # one rule on every axis: an estimate below the bound whose interval reaches past it
+    # is cut too (Betaflight +battery_sag: scale_x -7.9 +- 54 was [-115, 98.8] beside
+    # scale_z's [0, 8.31])
+    scales = interval95(np.array([-7.9, 2.5]), np.array([54.0, 2.96]), 0.0)
+    assert scales[:, 0].tolist() == [0.0, 0.0]
+    assert scales[:, 1].tolist() == [-7.9 + Z95 * 54.0, 2.5 + Z95 * 2.96]
+    # the estimate then lies outside its interval, and the words say so (the Crazyflie's
+    # tau_d = -0.617 ms, 95 %: 0 to 0.637 ms)
+    delay = {"tau_d": [-0.000617], "tau_d_ci95": [[0.0, 0.000637]], "tau_d_pinned": [False]}
+    entry = {"name": "command_delay", "estimate": delay, "units": {"tau_d": "s"}}
+    assert "(95 %: 0 to 0.000637, cut at tau_d ≥ 0; the estimate is below it, cannot" in (
+        estimate_sentence(entry)
+    )
+    assert _interval_note(delay, "tau_d", 0, "command_delay").startswith(
+        " [0, 0.00064] (cut at tau_d ≥ 0; the estimate is below it): "
+    )
     # a parameter of either sign (a CoM offset) is never cut
     assert interval95(np.array([0.001]), np.array([0.01]), None)[0, 0] < 0
 
@@ -108,3 +124,37 @@ def test_a_claim_held_back_as_not_physical_says_so():
         "tau_d lies wholly below its physical bound 0"
     )
     assert "tau_d = -0.00136 s (95 %: -0.0027 to -3e-05, not physical" in text
+
+
+def test_a_torque_gain_interval_is_its_scale_interval_inverted():
+    """One parameter, one interval (px4tools, normalised commands): scale_x 8.2 +- 22,
+    95 % [0, 51.9], was printed beside gain_x = 1/scale_x 0.12 +- 0.33, [0, 0.77]: the
+    first allows gain >= 0.019 only, the second scale >= 1.3 only."""
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from omavctl.cli.fit import _effects_table, gain_interval
+
+    assert gain_interval(0.0, 51.9) == (1 / 51.9, float("inf"))
+    assert gain_interval(0.5, 2.0) == (0.5, 2.0)
+    assert gain_interval(-4.0, -2.0) == (-0.5, -0.25)  # not physical: stays on its side
+    scale = np.array([8.2, 1.25, 0.5])
+    se = np.array([22.0, 0.05, 0.02])
+    summary = SimpleNamespace(
+        effects={"inertia_error": EffectEstimate("inertia_error", {"scale": scale}, {"scale": se})},
+        command_units={"torque": "normalised", "force": "N"},
+        torque_gain=1.0 / scale,
+        torque_gain_stderr=se / scale**2,
+    )
+    con = Console(width=300, record=True, file=io.StringIO())
+    con.print(_effects_table(summary))
+    rows = {ln.split("│")[2].strip(): ln for ln in con.export_text().splitlines() if "│" in ln}
+    hi = 8.2 + Z95 * 22.0
+    assert f"[0, {hi:.3g}] (cut at scale ≥ 0)" in rows["scale_x"]
+    gain_x = rows["gain_x = 1/scale_x"]
+    assert f"[{1 / hi:.3g}, ∞): cannot be pinned down from this flight" in gain_x
+    lo, hi = 1.25 - Z95 * 0.05, 1.25 + Z95 * 0.05
+    assert f"[{1 / hi:.3g}, {1 / lo:.3g}]" in rows["gain_y = 1/scale_y"]
+    assert "cannot" not in rows["gain_y = 1/scale_y"]

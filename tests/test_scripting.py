@@ -80,29 +80,58 @@ def work(tmp_path_factory) -> Path:
 
 
 def test_inspect_pipes_into_grep(work):
-    """A real pipe: stdout is not a terminal, each topic stays on one line."""
+    """A real pipe: stdout is not a terminal, each topic stays on one line (its type and
+    rate beside it on the row grep finds). (One run: the listing captured before the
+    pipe checked the same row, and a second Python start pays for the closed-pipe test.)"""
     env = {**os.environ, "COLUMNS": "60"}
-    inspect = subprocess.run(
-        [sys.executable, "-m", "omavctl", "inspect", "logs/train.bag"],
-        cwd=work,
-        capture_output=True,
-        text=True,
-        env=env,
-        check=True,
-    )
-    rows = [ln for ln in inspect.stdout.splitlines() if "/omav/wrench_command" in ln]
-    assert len(rows) == 1
-    assert "WrenchStamped" in rows[0] and "100.0" in rows[0]
-    grep = subprocess.run(
-        f"{shlex.quote(sys.executable)} -m omavctl inspect logs/train.bag "
+    grep = subprocess.run(  # pipefail: inspect's own status too
+        f"set -o pipefail; {shlex.quote(sys.executable)} -m omavctl inspect logs/train.bag "
         "| grep /omav/wrench_command",
         shell=True,
+        executable="/bin/bash",
         cwd=work,
         capture_output=True,
         text=True,
         env=env,
     )
-    assert grep.returncode == 0 and "geometry_msgs/msg/WrenchStamped" in grep.stdout
+    rows = grep.stdout.splitlines()
+    assert grep.returncode == 0 and len(rows) == 1, grep.stdout
+    assert "geometry_msgs/msg/WrenchStamped" in rows[0] and "100.0" in rows[0]
+
+
+def test_a_reader_that_closes_the_pipe_is_not_a_failure(work):
+    """``omavctl inspect LOG | head -2`` exited 1, silently (rich's
+    Console.on_broken_pipe): a real pipe whose reader is gone before the first write
+    (head after two lines, as surely): exit 0, nothing on stderr."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "omavctl", "inspect", "logs/train.bag"],
+        cwd=work,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the only reader of the child's stdout: its writes fail (EPIPE)
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == 0 and err == b""
+
+
+def test_a_closed_stderr_pipe_silences_the_console_and_the_command_goes_on(monkeypatch):
+    """The human text goes to stderr (``evaluate ... 2>&1 | head -1``): once its reader
+    is gone, what is left goes nowhere, without an exception or an exit."""
+    from omavctl.cliout import console
+
+    read, write = os.pipe()
+    os.close(read)
+    stream = os.fdopen(write, "w")
+    monkeypatch.setattr(sys, "stderr", stream)
+    con = console()
+    con.print("the verdict")  # EPIPE: rich called on_broken_pipe, which did not exit
+    con.print("and the rest")
+    assert con.quiet
+    stream.write("a later write and the flush at exit go to /dev/null\n")
+    stream.flush()
+    monkeypatch.undo()
+    stream.close()
 
 
 def test_inspect_json(work):

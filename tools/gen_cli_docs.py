@@ -29,7 +29,9 @@ this file is stale). Conventions: every command reads files and writes files; ex
 code 0 on success, 2 with one line `error: <file>: <problem>` on bad input (a
 file that is unreadable, corrupt, implausible or of another format, a bad option
 value, an output that is one of the inputs, a directory or unwritable) and on a
-usage error, 1 on any other failure; `--seed` makes sampling commands
+usage error, 1 on any other failure (a reader that closes the pipe early, as
+`omavctl inspect LOG | head -2` does, is not one: the output stops, the command
+runs to its end, its files are written); `--seed` makes sampling commands
 reproducible byte for byte; `-q` silences progress bars and the summary; `--json`
 prints one JSON object on stdout (the files written and the key figures) while the
 human text stays on stderr; a failed `--json` run prints

@@ -208,7 +208,7 @@ def _effects_table(summary: Any) -> Any:
                     "not excited by these logs"
                     if v == 0.0
                     else _interval_text(
-                        intervals[p.name][i], bool(pinned[p.name][i]), (name, p.name, i)
+                        intervals[p.name][i], bool(pinned[p.name][i]), (name, p.name, i), v
                     )
                 )
                 eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", interval, Text(unit))
@@ -216,15 +216,17 @@ def _effects_table(summary: Any) -> Any:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         scale = summary.effects.get("inertia_error")
         for i, (axis, g, e) in enumerate(gains):
-            # a gain is positive, as the scale it inverts: cut at 0 (interval95); it is
-            # pinned down where the scale it inverts is (and never when it may be 0)
-            lo, hi = interval95(np.asarray([g]), np.asarray([e]), 0.0)[0]
-            pinned = lo > 0.0 and (scale is None or bool(scale.pinned()["scale"][i]))
+            if scale is not None:  # one parameter, one interval: the scale's, inverted
+                lo, hi = gain_interval(*scale.interval95()["scale"][i])
+                pinned = lo > 0.0 and bool(scale.pinned()["scale"][i])
+            else:  # a gain is positive: cut at 0 (interval95)
+                lo, hi = interval95(np.asarray([g]), np.asarray([e]), 0.0)[0]
+                pinned = lo > 0.0
             eff.add_row(
                 "torque command gain",
                 f"gain_{axis} = 1/scale_{axis}",
                 f"{g:.4g} ± {e:.2g}",
-                f"[{lo:.3g}, {hi:.3g}]"
+                f"[{lo:.3g}, {hi:.3g}]".replace("inf]", "∞)")
                 + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
                 + ("" if pinned else ": cannot be pinned down from this flight"),
                 Text("N m per command unit (assumed inertia)"),
@@ -232,7 +234,23 @@ def _effects_table(summary: Any) -> Any:
     return eff
 
 
-def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> str:
+def gain_interval(low: float, high: float) -> tuple[float, float]:
+    """The 95 % interval of a torque command gain ``1 / scale`` from its inertia scale's
+    (low, high): ``1 / x`` maps an interval on one side of 0 onto one, ends swapped
+    (scale [0, 51.9] is gain [0.0193, inf): the scale's 0 is an unbounded gain); one
+    across 0 (not cut: no bound) maps onto two rays, shown as all gains (-inf, inf)."""
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return math.nan, math.nan
+    if low > 0.0 or high < 0.0:
+        return 1.0 / high, 1.0 / low
+    if low == 0.0:
+        return (1.0 / high if high > 0.0 else math.inf), math.inf
+    return -math.inf, math.inf
+
+
+def _interval_text(
+    interval: Any, pinned: bool, which: tuple[str, str, int], value: float | None = None
+) -> str:
     """'[low, high]' of a 95 % interval (and '(cut at T_m ≥ 0)' where it ends at the
     parameter's physical bound), and, when it does not pin the parameter (effect,
     parameter, component) down, why, in words that follow the interval."""
@@ -242,7 +260,7 @@ def _interval_text(interval: Any, pinned: bool, which: tuple[str, str, int]) -> 
     lo, hi = (float(x) for x in interval)
     a, b, _ = interval_ends(lo, hi, null_component(*which))
     text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
-    if note := bound_note(which[0], which[1], lo):
+    if note := bound_note(which[0], which[1], lo, value):
         text += f" ({note})"
     return text if pinned else f"{text}: {unpinned_words(*which[:2], (lo, hi), which[2])}"
 

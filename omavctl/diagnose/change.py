@@ -342,7 +342,7 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
     firsts = set(FIRST_FLAGS.values())
     lead = next((i for i, ln in enumerate(own) if ln.key not in firsts), 0)
     own[:lead] = [replace(ln, text=f"With {models[0].label}: {ln.text}") for ln in own[:lead]]
-    rest = [ln for ln in own[1:] if not (ln.key == "learned" and ln.subject in added)]
+    rest = [ln for ln in own[1:] if not (ln.key in ("learned", "axis") and ln.subject in added)]
     which = Line(
         "change",
         f"The lines below are about {models[0].label} (the first --model), "

@@ -21,6 +21,8 @@ import numpy as np
 from omavctl.diagnose.claims import (
     LARGE_CUT_KEYS,
     Guarded,
+    claimed_axes,
+    excludes_null,
     learned_claim,
 )
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
@@ -241,9 +243,8 @@ def diagnose(
         if any(h["name"] == entry["name"] for h in guarded.held_back):
             entry["missing"] = False  # claimed by a test, but its interval holds its null
             entry["not_pinned"] = True
-    # an effect the GP learned, pinned down and confirmed on the held-out physics-only
-    # error, is claimed when nothing else is: the loop goes on with its fit command
-    step = None
+    # when nothing else is, a learned effect confirmed on the held-out flight is claimed
+    step, pool = None, []
     if not names:
         pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)
         step = _learned_claim(pool, samples, model, physics, raw, blocks, (floor, sg.dt, guarded))
@@ -251,7 +252,35 @@ def diagnose(
         **out,
         "learned_claims": [step[0].name] if step else [],
         "learned_steps": [_learned_json(*step)] if step else [],
+        **({} if names or step else {"learned_held": _learned_held(pool, model, raw)}),
     }
+
+
+def _learned_held(
+    pool: Sequence[Mapping[str, Any]], model: ResidualGP, raw: Mapping[str, np.ndarray]
+) -> dict[str, str]:
+    """Why each effect of the learned ``pool`` was not claimed when none was (the
+    verdict said "not pinned down away from its null, or adding it does not lower the
+    held-out physics-only error" and left the user to guess which): ``not_shown`` (the
+    physics-only residual does not claim it), ``look_alike`` (of an effect the model
+    holds), ``not_pinned`` (no claimed axis's 95 % interval excludes its null) or
+    ``no_fall`` (pinned down, but its fit-flight estimate fails the held-out test on
+    the physics-only error, :func:`omavctl.diagnose.claims.learned_claim`)."""
+    out: dict[str, str] = {}
+    for entry in pool:
+        name = str(entry.get("name"))
+        if name in model.effects or name not in raw:
+            continue
+        axes = claimed_axes(entry.get("explained_variance_per_axis"))
+        if entry.get("missing") is not True:
+            out[name] = "not_shown"
+        elif set(entry.get("ambiguous_with") or []) & set(model.effects):
+            out[name] = "look_alike"
+        elif not excludes_null(name, entry.get("estimate") or {}, axes):
+            out[name] = "not_pinned"
+        else:
+            out[name] = "no_fall"
+    return out
 
 
 def _learned_claim(

@@ -52,7 +52,7 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             null = null_component(str(entry.get("name")), name, i)
             lo, hi, digits = interval_ends(float(ci[0]), float(ci[1]), null)
             text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {lo} to {hi}"
-            if note := _bound_note(str(entry.get("name")), name, ci[0]):
+            if note := _bound_note(str(entry.get("name")), name, ci[0], v):
                 text += f", {note}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:
                 text += f", {_unpinned(str(entry.get('name')), name, ci, i)}"
@@ -79,15 +79,20 @@ def null_component(effect: str, param: str, i: int) -> float | None:
     return float(null[i] if i < null.size else null[0])
 
 
-def _bound_note(effect: str, param: str, low: Any) -> str:
+def _bound_note(effect: str, param: str, low: Any, value: Any = None) -> str:
     """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound
     (:func:`omavctl.learn.intervals.bound_note`; imported here, when needed)."""
     from omavctl.learn.intervals import bound_note
 
     try:
-        return bound_note(effect, param, float(low))
+        return bound_note(effect, param, float(low), _value(value))
     except (TypeError, ValueError):
         return ""
+
+
+def _value(v: Any) -> float | None:
+    """``v`` as a float when it is a number, else None."""
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
 def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:

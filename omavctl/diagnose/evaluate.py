@@ -228,10 +228,21 @@ def _model_metrics(
         "effects": {n: e.to_json() for n, e in m.effects.items()},
         "features": m.features,
         "n_train": m.n_train,
+        "fit_flight": _fit_flight(m),
         "metrics": metrics,
         "metrics_by_log": by_log,
     }
     return entry, eff_pred, mean, std
+
+
+def _fit_flight(m: ResidualGP) -> dict[str, Any]:
+    """The logs (names) and time window a model was fitted on, from its provenance."""
+    sources = m.provenance.get("sources") or []
+    window = m.provenance.get("time_window")
+    return {
+        "logs": [str(s.get("name")) for s in sources if isinstance(s, dict)],
+        "time_window": list(window) if isinstance(window, (list, tuple)) else None,
+    }
 
 
 def _read_logs(
@@ -429,6 +440,7 @@ def evaluate(
             for pm in per_model
         ],
         "logs": logs_json,
+        "time_window": None if time_window is None else list(time_window),
         "grid_rate_hz": rate,
         "savitzky_golay": {"window": sg.window, "order": sg.order},
         "units": {

@@ -19,7 +19,9 @@ from typing import Any
 from omavctl.diagnose import claim_text as ct
 from omavctl.diagnose.activity import activity
 from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.axis_share import axis_held_line
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
+from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
 from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained, replaced_text
@@ -115,7 +117,8 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"
         text += f" ({axes})" if axes else ""
     text += "."
-    text += estimate_sentence(ct.claim_estimate(diag, missing[0]), claimed)
+    said = estimate_sentence(ct.claim_estimate(diag, missing[0]), claimed)
+    text += said + (elsewhere_clause(tree) if said else "")
     if len(missing) > 1:
         text += f" Also: {', '.join(missing[1:])}{joint_text(diag, missing)}."
     amb = top.get("ambiguous_with") or []
@@ -236,6 +239,37 @@ def learned_not_modelled(diag: Mapping[str, Any], effects: Sequence[str]) -> lis
     ]
 
 
+#: Why a learned effect was not claimed (``diagnosis.learned_held``), in words.
+_HELD_WHY = {
+    "not_pinned": (
+        ": its 95 % interval on this flight holds the value at which it is absent (not "
+        "pinned down away from its null)."
+    ),
+    "no_fall": (
+        ": it is pinned down away from its null, but estimated from the fit flight as "
+        "fit --effects would, adding it does not lower the held-out physics-only error "
+        "enough (the joint selection's test)."
+    ),
+    "not_shown": (
+        ": with the model's effects subtracted (the physics-only error) it no longer "
+        "explains a material share of what is left."
+    ),
+    "look_alike": ": an effect the model holds leaves a residual of the same shape.",
+}
+
+
+def _held_why(diag: Mapping[str, Any], name: str) -> str:
+    """Which test held the learned effect ``name`` back (``learned_held``); both, as
+    "or", for a file written before the diagnosis said which."""
+    held = diag.get("learned_held")
+    if not isinstance(held, Mapping):
+        return (
+            " (not pinned down away from its null, or adding it does not lower the held-out "
+            "physics-only error)."
+        )
+    return _HELD_WHY.get(str(held.get(name, "not_shown")), ".")
+
+
 def _learned_line(tree: Mapping[str, Any]) -> Line | None:
     """When nothing is missing: the effect the GP has absorbed instead of the physics
     (the nominal residual shows it, the model does not hold it and no effect it holds
@@ -266,10 +300,7 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
         # the learned claim's test ran (nothing missing) and did not take it
         unconfirmed = "learned_claims" in diag
         if unconfirmed:
-            text += (
-                " Not claimed: this flight does not confirm it (not pinned down away from "
-                "its null, or adding it does not lower the held-out physics-only error)."
-            )
+            text += " Not claimed: this flight does not confirm it" + _held_why(diag, name)
         if name in (diag.get("below_noise"), diag.get("refit_rejected")):
             return Line("learned", text + " Its fit command is the one above.", subject=name)
         cmd = command if isinstance(command, str) else None
@@ -296,6 +327,8 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     lines = [*firsts, _missing_line(tree), *_alternative_lines(tree)]
     for line in (
         _learned_line(tree),
+        axis_held_line(tree),
+        disagree_line(tree),
         fails_line(tree),
         uncertainty_line(tree),
         envelope_line(tree),

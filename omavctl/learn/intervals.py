@@ -20,9 +20,10 @@ and :func:`pinned_down` says whether the interval determines the parameter:
 not when it is wider than the parameter's plausible range, includes the
 value at which the effect is absent, or lies wholly beyond the parameter's
 physical bound (:data:`PHYSICAL_BOUNDS`: a time constant, a delay, a drag, a
-thrust loss, an inertia scale are not negative). An interval of an estimate
-inside its bound that reaches past it is cut at the bound (``T_m`` 9.5 ms
--/+ 36 ms is 0 to 45.5 ms, "≥ 0"); the standard error is not changed.
+thrust loss, an inertia scale are not negative). An interval that reaches past
+the bound is cut there, whichever side the estimate is on (``T_m`` 9.5 ms
+-/+ 36 ms is 0 to 45.5 ms, "≥ 0"); one wholly beyond it is left whole (not
+physical); the standard error is not changed.
 """
 
 from __future__ import annotations
@@ -157,18 +158,21 @@ def physical_bound(name: str, param: str) -> float | None:
 
 def interval95(value: np.ndarray, stderr: np.ndarray, bound: float | None = None) -> np.ndarray:
     """95 % intervals (size, 2) ``value -/+ 1.96 stderr``; NaN where the standard
-    error is not finite. With a physical lower ``bound``, the low end of an estimate
-    at or above it is cut there (what lies below is impossible, not uncertain); an
-    estimate below the bound keeps its interval (it is not physical, and says so:
+    error is not finite. With a physical lower ``bound``, one rule for every
+    component: an interval that reaches past the bound from the physical side is cut
+    there (what lies below is impossible, not uncertain), whichever side of it the
+    estimate lies on (a Betaflight fit's inertia scales, -7.9 +- 54 on x and 2.5 +- 3
+    on z, were [-115, 98.8] and [0, 8.31]: now [0, 98.8] and [0, 8.31]); an interval
+    wholly below the bound keeps its ends (it is not physical, and says so:
     :func:`physical_side`)."""
     v = np.asarray(value, float).reshape(-1)
     se = np.asarray(stderr, float).reshape(-1)
     half = np.where(np.isfinite(se), Z95 * se, np.nan)
-    low = v - half
+    low, high = v - half, v + half
     if bound is not None:
         with np.errstate(invalid="ignore"):
-            low = np.where((v >= bound) & (low < bound), bound, low)
-    return np.stack([low, v + half], axis=-1)
+            low = np.where((high >= bound) & (low < bound), bound, low)
+    return np.stack([low, high], axis=-1)
 
 
 def cut_at_bound(name: str, param: str, low: float) -> bool:
@@ -178,12 +182,15 @@ def cut_at_bound(name: str, param: str, low: float) -> bool:
     return bound is not None and float(low) == bound
 
 
-def bound_note(name: str, param: str, low: float) -> str:
+def bound_note(name: str, param: str, low: float, value: float | None = None) -> str:
     """'cut at T_m ≥ 0' when an interval's ``low`` end is the parameter's physical bound
-    (:func:`cut_at_bound`), else ''."""
+    (:func:`cut_at_bound`), else ''; '...; the estimate is below it' when the estimate
+    ``value`` is (it then lies outside its interval: tau_d -0.617 ms, 95 % 0 to 0.637)."""
     if not cut_at_bound(name, param, low):
         return ""
-    return f"cut at {param} ≥ {physical_bound(name, param):g}"
+    bound = physical_bound(name, param)
+    below = value is not None and bound is not None and float(value) < bound
+    return f"cut at {param} ≥ {bound:g}" + ("; the estimate is below it" if below else "")
 
 
 def physical_side(name: str, param: str, interval: np.ndarray) -> np.ndarray:

@@ -120,7 +120,9 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") 
         return ""
     lo, hi = ci[i]
     text = f" [{_ends(lo, hi, effect, k, i)}]" if finite(lo) and finite(hi) else " [unbounded]"
-    if note := _bound_note(effect, k, lo):
+    values = as_list(params.get(k, []))
+    value = values[i] if i < len(values) and finite(values[i]) else None
+    if note := _bound_note(effect, k, lo, value):
         text += f" ({note})"
     if i < len(pinned) and pinned[i] is False:
         text += f": {_unpinned(effect, k, ci[i], i)}"
@@ -140,11 +142,12 @@ def _ends(lo: float, hi: float, effect: str, param: str, i: int) -> str:
     return f"{a}, {b}"
 
 
-def _bound_note(effect: str, param: str, low: Any) -> str:
-    """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound."""
+def _bound_note(effect: str, param: str, low: Any, value: Any = None) -> str:
+    """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound (and
+    '; the estimate is below it' where ``value`` is)."""
     from omavctl.learn.intervals import bound_note
 
-    return bound_note(effect, param, float(low)) if finite(low) else ""
+    return bound_note(effect, param, float(low), value) if finite(low) else ""
 
 
 def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:
@@ -170,7 +173,9 @@ def _part(e: Mapping[str, Any]) -> str:
     return f"{num(rms, 2)}" + ("" if e.get("above_noise", True) else " (below 3× noise)")
 
 
-def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> Table:
+def _ranking_table(
+    entries: Sequence[Any], torque_unknown: bool, what: str, held: Sequence[str] = ()
+) -> Table:
     rows: list[list[Cell]] = []
     for i, e in enumerate(entries):
         if not isinstance(e, Mapping):
@@ -184,6 +189,8 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
         name: tuple[Inline, ...] = (Span(str(e.get("name", "?")), "code"),)
         if e.get("identifiable") is False:
             name = (*name, Span(" (not identifiable)", "em"))
+        if str(e.get("name")) in held:
+            name = (*name, Span(" (in the model)", "em"))
         missing = e.get("missing")
         rows.append(
             [
@@ -196,7 +203,7 @@ def _ranking_table(entries: Sequence[Any], torque_unknown: bool, what: str) -> T
                         e.get("estimate") or e.get("parameters") or {},
                         e.get("units") or {},
                         torque_unknown,
-                        str(name),
+                        str(e.get("name", "?")),  # the effect, not its cell
                     )
                 ),
                 num(e.get("t_value"), 3),
@@ -332,7 +339,7 @@ def diagnosis_section(
         blocks.append(Bullets(unexplained))
     else:
         blocks.append(Para("None found (no feature correlation, no spectral peak)."))
-    blocks += _learned_blocks(diag.get("learned") or [], learned_as, torque_unknown)
+    blocks += _learned_blocks(tree, diag, learned_as, torque_unknown)
     blocks += _learned_commands(tree, diag)
     return blocks
 
@@ -364,11 +371,40 @@ def _learned_commands(tree: Mapping[str, Any], diag: Mapping[str, Any]) -> list[
     return blocks
 
 
+def _order_note(
+    learned: Sequence[Any], held: Sequence[str], diag: Mapping[str, Any]
+) -> list[Block]:
+    """Why an effect the model holds stands below one it does not in the ranking on the
+    nominal residual (claimed ones first, then by share): the test it fails (the
+    px4tools report listed com_offset, 26 %, above the model's own inertia_error, 42 %,
+    with nothing saying why: docs/real-data-check.md item 9); [] when none does."""
+    from omavctl.diagnose.axis_share import failed_test
+
+    floor = (diag.get("method") or {}).get("min_explained_variance")
+    if not isinstance(floor, int | float):
+        return []
+    entries = [e for e in learned if isinstance(e, Mapping)]
+    said = []
+    for i, e in enumerate(entries):
+        above = [str(a.get("name")) for a in entries[:i] if str(a.get("name")) not in held]
+        if str(e.get("name")) in held and e.get("missing") is not True and above:
+            said.append(
+                f"{e.get('name')} (in the model) stands below {', '.join(above)}: the order "
+                "is the effects that pass every test first, then by share, and "
+                f"{e.get('name')} does not pass them here: {failed_test(e, float(floor))}"
+            )
+    return [Para("; ".join(said) + ".", note=True)] if said else []
+
+
 def _learned_blocks(
-    learned: Sequence[Any], learned_as: str | None, torque_unknown: bool
+    tree: Mapping[str, Any], diag: Mapping[str, Any], learned_as: str | None, torque_unknown: bool
 ) -> list[Block]:
     """'What the nominal model's residual resembles': the ranking fitted to the nominal
-    residual, or with ``learned_as`` a note that it is the same as for that file."""
+    residual (``diag["learned"]``, the first model's effects marked, and why one stands
+    below an effect the model lacks), or with ``learned_as`` a note that it is the same
+    as for that file."""
+    learned = diag.get("learned") or []
+    held = [str(e) for e in ((tree.get("models") or [{}])[0].get("effects") or {})]
     blocks: list[Block] = []
     if learned and learned_as is not None:
         blocks.append(Heading(4, "What the nominal model's residual resembles"))
@@ -395,5 +431,6 @@ def _learned_blocks(
         if found:
             text += " Resembles most: " + ", ".join(found) + "."
         blocks.append(Para(text))
-        blocks.append(_ranking_table(learned, torque_unknown, "learned"))
+        blocks.append(_ranking_table(learned, torque_unknown, "learned", held))
+        blocks += _order_note(learned, held, diag)
     return blocks

@@ -27,6 +27,8 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
     titles = {
         "missing": "What is missing",
         "learned": "Not modelled as physics",
+        "disagree": "Fit and flight disagree",
+        "axis": "Held back on one axis",
         "change": "Error change",
         "fails": "Where it fails",
         "uncertainty": "Uncertainty",
@@ -149,7 +151,7 @@ def _signature_blocks(
     for key in sorted(k for k in series if k.startswith("contribution_")):
         name = key.removeprefix("contribution_")
         per_axis = entries.get(name, {}).get("explained_variance_per_axis")
-        status = "missing" if name in (diag.get("missing") or []) else "not missing"
+        status = _signature_status(diag, name)
         data = (
             rf.signature_figure(
                 np.asarray(series[key], float),
@@ -175,6 +177,17 @@ def _signature_blocks(
             )
         )
     return out
+
+
+def _signature_status(diag: Mapping[str, Any], name: str) -> str:
+    """What the verdict says of the effect whose signature is shown, in a few words."""
+    if name in (diag.get("missing") or []):
+        return "missing"
+    if name in (diag.get("learned_claims") or []):
+        return "learned by the GP, claimed"
+    if any(isinstance(e, Mapping) and e.get("name") == name for e in diag.get("not_pinned") or []):
+        return "not claimed: not pinned down"
+    return "not claimed"
 
 
 def _candidates_blocks(tree: Mapping[str, Any], label: str, figures: bool) -> list[Block]:

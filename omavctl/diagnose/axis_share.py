@@ -1,0 +1,88 @@
+"""A candidate that explains a material share of one axis's error but is not claimed.
+
+The claim floor is on the total (``min_explained_variance``, 15 % of the model's
+remaining error over all axes): on the Betaflight tunes ``command_delay`` explained
+34 % of the y error on held-out blocks (1-3 % on x and z) and the verdict named it
+nowhere, claimed or held back (docs/real-data-check.md item 14). :func:`axis_held`
+finds such candidates with the test that held each back; :func:`axis_held_line` says
+it. Works on the evaluation JSON only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.verdict_lines import AXES, Line, _pct, get_path
+
+__all__ = ["axis_held", "axis_held_line", "failed_test"]
+
+
+def _said(diag: Mapping[str, Any]) -> set[str]:
+    """The effects the verdict names already (claimed, held back, or tested)."""
+    names = {*map(str, diag.get("missing") or []), *map(str, diag.get("learned_claims") or [])}
+    names |= {str(e.get("name")) for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)}
+    names |= {str(n) for n in (diag.get("below_noise"), diag.get("refit_rejected")) if n}
+    return names
+
+
+def failed_test(entry: Mapping[str, Any], floor: float) -> str:
+    """The first test ``entry`` (a ``missing_effects`` entry) fails, in words."""
+    ev = _num(entry.get("explained_variance"))
+    if ev is not None and ev < floor:
+        return (
+            f"over all axes it explains {_pct(max(ev, 0.0))}, under the {_pct(floor)} of "
+            "the total a claim needs"
+        )
+    if entry.get("significant") is False:
+        t = _num(entry.get("t_value"))
+        return "its estimate is not significant" + (f" (t = {t:.2g})" if t is not None else "")
+    if entry.get("plausible") is False:
+        return "its estimate is outside the effect's plausible range"
+    if entry.get("above_noise") is False:
+        return "its part of the error is under the claim floor (three times the log's noise)"
+    refit = _num(entry.get("refit_explained_variance"))
+    if refit is not None and refit <= 0:
+        return "estimated as fit --effects would from the fit flight, it does not lower the error"
+    return "it does not pass the claims guard"
+
+
+def axis_held(diag: Mapping[str, Any], effects: Sequence[str] = ()) -> list[dict[str, Any]]:
+    """``{name, axes: {axis: share}, why}`` of every candidate (``missing_effects``)
+    that explains at least the claim floor's share of some axis's error but that the
+    verdict does not name otherwise; not the model's own ``effects``."""
+    floor = _num(get_path(diag, "method", "min_explained_variance"))
+    if floor is None:
+        return []
+    said = _said(diag) | set(effects)
+    out = []
+    for e in diag.get("missing_effects") or []:
+        if not isinstance(e, Mapping) or str(e.get("name")) in said:
+            continue
+        per_axis = e.get("explained_variance_per_axis") or {}
+        axes = {a: v for a in AXES if (v := _num(per_axis.get(a))) is not None and v >= floor}
+        if axes:
+            out.append({"name": str(e.get("name")), "axes": axes, "why": failed_test(e, floor)})
+    return out
+
+
+def axis_held_line(tree: Mapping[str, Any]) -> Line | None:
+    """'Not claimed although it explains 34 % of the y error: command_delay (over all
+    axes it explains 4 %, ...)' with the command that tests it; None when none is."""
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    effects = [str(e) for e in get_path(tree, "models", 0, "effects", default={}) or {}]
+    held = axis_held(diag, effects)
+    if not held:
+        return None
+    first = held[0]
+    shares = ", ".join(f"{_pct(v)} of the {a} error" for a, v in first["axes"].items())
+    text = (
+        f"Not claimed although it explains {shares} on held-out blocks: {first['name']}, "
+        f"because {first['why']}."
+    )
+    if len(held) > 1:
+        text += " Likewise: " + ", ".join(h["name"] for h in held[1:]) + "."
+    command = (diag.get("effect_commands") or {}).get(first["name"])
+    cmd = command if isinstance(command, str) and command else None
+    return Line("axis", text, command=cmd, subject=first["name"], test=cmd is not None)

@@ -1,0 +1,148 @@
+"""Where the model's fitted effect and this flight's estimate of it disagree.
+
+A model's effect parameters are estimated on its fit flight; the diagnosis
+estimates every effect on the evaluated flight as ``fit --effects`` would
+(``diagnosis.learned``, each entry's ``estimate``, with the model's effects): for an
+effect the model holds, that is the number the verdict of a model without it quoted.
+On the Crazyflie the verdict of a model fitted on the hover logs quoted T_m = 60.7
+ms (95 %: 24 to 97) on log15's roll/pitch window, and the printed command then
+fitted 9.5 +- 16.1 ms on the hover logs, 2.1 combined standard errors apart, with
+nothing on the page saying so (docs/real-data-check.md, item 10). Where the two
+differ by more than :data:`APART` combined standard errors, :func:`disagree_line`
+says so, with the flight each comes from. Works on the evaluation JSON only.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.estimate_text import AXIS_CLAIM
+from omavctl.diagnose.verdict_lines import AXES, Line, get_path
+
+__all__ = ["APART", "disagree_line", "elsewhere_clause", "flight_words"]
+
+#: Combined standard errors (``|a - b| / sqrt(se_a^2 + se_b^2)``) from which the fitted
+#: and this flight's estimates of one parameter are said to disagree (issue 26: the
+#: diagnosis's and fit's estimates of one effect on one log differ by less than 2).
+APART = 2.0
+
+
+def flight_words(logs: Sequence[Any], window: Any) -> str:
+    """'log10, log16' or 'log15, 15.76-50.76 s' (the window in s from each log's first
+    sample, as ``--time-window`` counts); '' without logs."""
+    names = ", ".join(str(n) for n in logs)
+    if not names:
+        return ""
+    if not isinstance(window, list) or len(window) != 2:
+        return names
+    a, b = (_num(w) for w in window)
+    if a is None and b is None:
+        return names
+    start = f"{a:g}" if a is not None else "the start"
+    end = f"{b:g} s" if b is not None else "the end"
+    return f"{names}, {start}–{end}" if b is not None else f"{names}, {start} s to the end"
+
+
+def _apart(
+    fitted: Mapping[str, Any], here: Mapping[str, Any], key: str, i: int
+) -> tuple[float, float, float, float, float] | None:
+    """(fitted value, its se, this flight's value, its se, combined standard errors
+    apart) of component ``i`` of parameter ``key``; None where a number is missing or
+    not finite, or the component was not excited (a value of exactly 0)."""
+    v, se = _num(get_path(fitted, key, i)), _num(get_path(fitted, f"{key}_stderr", i))
+    d, dse = _num(get_path(here, key, i)), _num(get_path(here, f"{key}_stderr", i))
+    if v is None or se is None or d is None or dse is None or v == 0.0 or d == 0.0:
+        return None
+    return v, se, d, dse, abs(v - d) / max(math.hypot(se, dse), 1e-300)
+
+
+def _parts(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any]) -> list[str]:
+    """'T_m = 0.0095 ± 0.016 s fitted, 0.0607 ± 0.019 s here (2.1 apart)' for each
+    component of effect ``name`` more than :data:`APART` apart; a per-axis component
+    only on an axis where the effect explains at least :data:`AXIS_CLAIM` of this
+    flight's error (elsewhere its estimate is whatever else that axis holds)."""
+    here = entry.get("estimate")
+    if not isinstance(here, Mapping):
+        return []
+    units = entry.get("units") if isinstance(entry.get("units"), Mapping) else {}
+    shares = entry.get("explained_variance_per_axis") or {}
+    out = []
+    for key, values in fitted.items():
+        if not isinstance(values, list) or f"{key}_stderr" not in fitted:
+            continue  # a parameter has its standard errors beside it
+        unit = str((units or {}).get(key, ""))
+        u = "" if unit in ("", "1") else f" {unit}"
+        for i in range(len(values)):
+            label = f"{key}_{AXES[i]}" if len(values) == 3 else key
+            share = _num(shares.get(AXES[i])) if len(values) == 3 else None
+            if len(values) == 3 and (share is None or share < AXIS_CLAIM):
+                continue
+            got = _apart(fitted, here, key, i)
+            if got is None or got[4] <= APART:
+                continue
+            v, se, d, dse, z = got
+            out.append(
+                f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted, {d:.3g} ± {dse:.2g}{u} "
+                f"on this flight ({z:.1f} combined standard errors apart)"
+            )
+    return out
+
+
+def disagree_line(tree: Mapping[str, Any]) -> Line | None:
+    """The effects of each model whose fitted parameters and the diagnosis's estimate
+    of them on the evaluated flight (``diagnosis.learned``, as fit --effects with the
+    first model's effects would make it) are more than :data:`APART` combined standard
+    errors apart, naming the flight each comes from (and the model, when there are
+    several); None when none is (or the file predates the estimates)."""
+    models = [m for m in tree.get("models") or [] if isinstance(m, Mapping)]
+    learned = get_path(tree, "diagnosis", "learned", default=[]) or []
+    entries = {str(e.get("name")): e for e in learned if isinstance(e, Mapping)}
+    logs = [get_path(lg, "name") for lg in tree.get("logs") or [] if isinstance(lg, Mapping)]
+    here = flight_words([n for n in logs if n], tree.get("time_window")) or "this flight"
+    said = []
+    for model in models:
+        effects = model.get("effects")
+        parts: list[str] = []
+        for name, fitted in effects.items() if isinstance(effects, Mapping) else []:
+            if isinstance(fitted, Mapping) and isinstance(entries.get(str(name)), Mapping):
+                parts += _parts(str(name), fitted, entries[str(name)])
+        if not parts:
+            continue
+        fit: Mapping[str, Any] = model.get("fit_flight") or {}
+        there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
+        who = f"With {model.get('name')}: t" if len(models) > 1 else "T"
+        said.append(
+            f"{who}he fit flight and this one disagree: {'; '.join(parts)}. Fitted on "
+            f"{there}; estimated on {here} as fit --effects would (the number a verdict "
+            "on this flight quotes)."
+        )
+    if not said:
+        return None
+    return Line(
+        "disagree",
+        " ".join(said) + " One of the flights does not pin the value down, or the effect is "
+        "not the same on both: fit on both flights together, or plan a flight that pins it "
+        "down (plan --objective effects), before trusting either number.",
+    )
+
+
+def elsewhere_clause(tree: Mapping[str, Any]) -> str:
+    """' The command below estimates it on the fit flight (log10, log16), not on this
+    one: ...' after the verdict's estimate of a missing effect on this flight, when the
+    first model's fit flight (logs or time window) is not the evaluated one; ''
+    otherwise or when the file does not say (older files)."""
+    fit = get_path(tree, "models", 0, "fit_flight")
+    if not isinstance(fit, Mapping) or not fit.get("logs"):
+        return ""
+    logs = [get_path(lg, "name") for lg in tree.get("logs") or [] if isinstance(lg, Mapping)]
+    same = list(fit.get("logs") or []) == logs and fit.get("time_window") == tree.get("time_window")
+    if same:
+        return ""
+    there = flight_words(fit.get("logs") or [], fit.get("time_window"))
+    return (
+        f" The command below estimates it on the fit flight ({there}), not on this one: "
+        "its value there can differ; evaluated here, the new model says if it does."
+    )
