@@ -113,6 +113,21 @@ OWN_SPLIT = {
         "held_back": "steps",
         "version": 2,
     },
+    # issue 26 "band" (session 17): the report design (every effect, the steps family on
+    # either side, version 2), declared before any draw was flown; the band inside the fit
+    # inputs is reported on own-band, anything tuned only on own-band-tune; fresh seeds
+    "own-band": {
+        "seed_base": 9_700_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
+    "own-band-tune": {
+        "seed_base": 9_710_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 

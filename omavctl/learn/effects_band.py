@@ -3,9 +3,10 @@
 A model's prediction is the effects ``sum_e X_e theta_e`` plus a GP trained on the
 residual after them (:mod:`omavctl.learn.model`). Its predictive variance then holds
 the term of a GP with explicit basis functions (Rasmussen & Williams §2.7, eq. 2.42):
-``diag(R Sigma R^T)``, ``R = H* - w k*(K + sigma^2 I)^-1 H`` with ``H*`` (n, 3, P) the
+``diag(R Sigma R^T)``, ``R = H* - k*(K + sigma^2 I)^-1 H`` with ``H*`` (n, 3, P) the
 effects' sensitivities at the predicted samples and ``H`` (m, 3, P) at the training
-points, ``w`` the GP mean's weight (:mod:`omavctl.learn.mean_shrink`) and ``Sigma``
+points (the GP mean's weight, :mod:`omavctl.learn.mean_shrink`, is not applied here:
+its cost is the band's own ``((1 - w) m)^2`` term) and ``Sigma``
 the parameters' posterior covariance with the model's calibrated GP as the model of
 what they leave (:meth:`omavctl.learn.model.ResidualGP.basis_covariance`).
 
@@ -26,7 +27,6 @@ from typing import Any
 import numpy as np
 
 from omavctl.learn.estimate import GAIN_EFFECT, GAIN_PRIOR_FACTOR, EffectEstimate
-from omavctl.learn.mean_shrink import shrink_weight
 
 __all__ = ["BEYOND_MARGIN", "beyond_weight", "effect_residual", "parameter_variance"]
 
@@ -48,12 +48,13 @@ def parameter_variance(model: Any, samples: Any) -> np.ndarray:
         return _independent(model, samples)
     at_samples, at_train, prior_std = basis
     z = samples.inputs(model.features)
-    w = np.ones((samples.n, 3))
-    if np.any(model.mean_shrink > 0):
-        mean, latent = model.latent(z)
-        w = shrink_weight(mean, latent, model.mean_shrink)
     sigma = model.basis_covariance(at_train, prior_std)
-    r = at_samples - w[:, :, None] * model.smooth(z, at_train)
+    # the GP mean carries back a parameter error in full (R&W eq. 2.42), also where
+    # ``mean_shrink`` weighs the mean: that weighing's cost is its own term of the band,
+    # ((1 - w) m)^2; weighing the carry-back too counted it again, and where the GP mean
+    # is near 0 (w near 0) left H* Sigma H*^T, the parameters' confounded directions in
+    # full (docs/intervals.md, "The effects' term inside the fit inputs")
+    r = at_samples - model.smooth(z, at_train)
     inside = np.maximum(np.einsum("nap,pq,naq->na", r, sigma, r), 0.0)
     rho = beyond_weight(model.inputs, z)
     if not np.any(rho > 0):

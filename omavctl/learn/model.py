@@ -420,12 +420,13 @@ class ResidualGP:
         log's samples: ``diag(R Sigma R^T)`` per axis, the term of a GP with explicit
         basis functions (Rasmussen & Williams §2.7, eq. 2.42).
 
-        ``R = H* - w k*(K + sigma^2 I)^-1 H``: a parameter error ``delta`` moves the
+        ``R = H* - k*(K + sigma^2 I)^-1 H``: a parameter error ``delta`` moves the
         effects' prediction by ``H* delta`` (``H*`` (n, 3, P) the sensitivities at the
         samples) and the GP's targets by ``H delta`` at the training points, of which its
-        mean (weighed by ``w``, :mod:`omavctl.learn.mean_shrink`) carries back the part it
-        can represent. ``Sigma = (B^-1 + sum_a H_a^T K_a^-1 H_a)^-1`` is the parameters'
-        posterior covariance with this model's calibrated GP as the model of what they
+        mean carries back the part it can represent (in full: the cost of weighing the
+        mean, :mod:`omavctl.learn.mean_shrink`, is the band's own ``((1 - w) m)^2``).
+        ``Sigma = (B^-1 + sum_a H_a^T K_a^-1 H_a)^-1`` is the parameters' posterior
+        covariance with this model's calibrated GP as the model of what they
         leave (``B`` the effects' prior). The intervals ``fit`` reports are wider (robust
         to autocorrelation, :mod:`omavctl.learn.intervals`): the band's GP part already
         carries that autocorrelation, and counting it twice made the band over-wide
