@@ -124,9 +124,11 @@ def fly(workdir: Path, case: str) -> tuple[Path, Path]:
     return out[0], out[1]
 
 
-def run_case(workdir: Path, case: str, points: int = 100) -> Outcome:
+def run_case(workdir: Path, case: str, points: int = 100, diagnose: bool = True) -> Outcome:
     """Fit on the case's fit flight with ``fit``'s defaults (``points``, 1 restart),
-    evaluate on its held-out flight."""
+    evaluate on its held-out flight (without the horizons table, which no
+    :class:`Outcome` reads; ``diagnose`` False: without the diagnosis, ``missing`` None,
+    which changes neither the metrics nor the envelope)."""
     from omavctl.diagnose.evaluate import evaluate
     from omavctl.learn.fit import fit_model
     from omavctl.learn.model_file import save_model
@@ -135,7 +137,7 @@ def run_case(workdir: Path, case: str, points: int = 100) -> Outcome:
     result = fit_model([fit_log], points=points, restarts=1)
     model = workdir / f"{case.replace(' ', '_').replace('>', '')}.npz"
     save_model(model, result.model)
-    tree = evaluate([model], [held]).tree
+    tree = evaluate([model], [held], horizons=(), with_diagnosis=diagnose).tree
     _, fit_on, held_out = CASES[case]
     return _outcome(tree, result.model, case, "100Hz-held", fit_on, held_out)
 

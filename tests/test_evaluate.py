@@ -75,6 +75,13 @@ CASES = {
     "none-yaw": ("yaw", None, {}),
     "servo_lag": ("yaw", "servo_lag", {"T_s": 0.08}),
 }
+#: ``evaluate`` without the horizons table (open-loop rollouts, about 1.2 CPU s on a
+#: 16 s log) for the tests that read none of it; ``METRICS`` without the diagnosis too
+#: (8 CPU s) for those that read only the metrics or the training-data flags, which
+#: neither changes (evaluate's ``with_diagnosis``; the verdict's first line, a flag,
+#: keeps the diagnosis beside it).
+NO_HORIZONS = {"horizons": ()}
+METRICS = {"with_diagnosis": False, "horizons": ()}
 #: Training points per fit (fewer than fit's default 200, for speed). inertia_error,
 #: like the GP a function of the wrench alone, needs the default: with 100 points
 #: whether the diagnosis names it depended on which points k-medoids picked (fit
@@ -120,7 +127,7 @@ def test_no_hidden_effect_nothing_is_missing(cases, case):
     when estimated from the fit flight it lowers the held-out physics-only error)."""
     _, c = cases
     _, eval_log, model = c[case]
-    tree = evaluate([model], [eval_log]).tree
+    tree = evaluate([model], [eval_log], **NO_HORIZONS).tree
     missing = tree["diagnosis"]["missing"]
     assert set(missing) <= {"rotor_interference", "com_offset"}
     if case == "none-heave":
@@ -145,7 +152,7 @@ def test_no_hidden_effect_nothing_is_missing(cases, case):
 def test_missing_effect_is_named_and_adding_it_halves_the_error(cases, vehicle, name):
     tmp, c = cases
     fit_log, eval_log, model = c[name]
-    before = evaluate([model], [eval_log]).tree
+    before = evaluate([model], [eval_log], **NO_HORIZONS).tree
     diag = before["diagnosis"]
     # claimed with what else the held-out flight confirms (the plant's own rotor
     # interference on the larger figure-8), all added by the one fit command
@@ -170,7 +177,7 @@ def test_missing_effect_is_named_and_adding_it_halves_the_error(cases, vehicle, 
             features=FEATURES,
         ).model,
     )
-    after = evaluate([refit], [eval_log]).tree
+    after = evaluate([refit], [eval_log], **NO_HORIZONS).tree
     assert name not in after["diagnosis"]["missing"]
 
     # the axes the effect drives on the held-out flight: where its true
@@ -235,7 +242,7 @@ def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
 
     _, c = cases
     fit_log, eval_log, model = c["none"]
-    tree = evaluate([model], [fit_log]).tree
+    tree = evaluate([model], [fit_log], **NO_HORIZONS).tree
     flags = [f for f in tree["flags"] if f["code"] == "training_data"]
     message = (
         f"{fit_log.name}: the model was fitted on this log: its errors here are not those "
@@ -244,7 +251,9 @@ def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
     assert flags == [{"code": "training_data", "axis": None, "value": None, "message": message}]
     assert verdict(tree)[0].key == "training" and verdict(tree)[0].text == message
     assert not [
-        f for f in evaluate([model], [eval_log]).tree["flags"] if f["code"] == "training_data"
+        f
+        for f in evaluate([model], [eval_log], **METRICS).tree["flags"]
+        if f["code"] == "training_data"
     ]
     # fitted on 0-8 s: evaluated on 6-16 s it overlaps, on 8 s to the end it does not
     windowed = tmp_path / "window.npz"
@@ -254,12 +263,12 @@ def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
             [fit_log], points=60, restarts=0, features=FEATURES, time_window=(0.0, 8.0)
         ).model,
     )
-    overlap = evaluate([windowed], [fit_log], time_window=(6.0, None)).tree["flags"]
+    overlap = evaluate([windowed], [fit_log], time_window=(6.0, None), **METRICS).tree["flags"]
     assert [f["message"] for f in overlap if f["code"] == "training_data"] == [
         f"{fit_log.name}: the model was fitted on this log in an overlapping time window: its "
         "errors here are not those of a flight it has not seen"
     ]
-    after = evaluate([windowed], [fit_log], time_window=(8.0, None)).tree["flags"]
+    after = evaluate([windowed], [fit_log], time_window=(8.0, None), **METRICS).tree["flags"]
     assert not [f for f in after if f["code"] == "training_data"]
     # a model fitted on another log with this one's model as --prior holds its points too
     augmented = tmp_path / "augmented.npz"
@@ -267,7 +276,7 @@ def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
         augmented,
         fit_model([eval_log], points=40, restarts=0, features=FEATURES, prior=model).model,
     )
-    tree = evaluate([augmented], [fit_log]).tree
+    tree = evaluate([augmented], [fit_log], **METRICS).tree
     assert [f["message"] for f in tree["flags"] if f["code"] == "training_data"] == [message]
 
 
@@ -275,7 +284,7 @@ def test_two_models_are_compared_on_the_same_samples(cases):
     _, c = cases
     _, eval_log, model = c["motor_lag"]
     _, _, other = c["none"]
-    tree = evaluate([model, other], [eval_log]).tree
+    tree = evaluate([model, other], [eval_log], **METRICS).tree
     assert len(tree["metrics_by_model"]) == 2
     assert tree["metrics_by_model"][0] == tree["metrics"]
 

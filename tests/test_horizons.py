@@ -33,6 +33,9 @@ from tests.conftest import NO_NOISE, rebuilt
 
 runner = CliRunner()
 DRAG = [0.05, 0.05, 0.03]
+#: ``evaluate`` without the diagnosis (about 4-8 CPU s) for the tests that read only the
+#: horizons table and the metrics, which the diagnosis does not change
+NO_DIAGNOSIS = {"with_diagnosis": False}
 
 
 def _model(vehicle, effects=None) -> ResidualGP:
@@ -72,7 +75,7 @@ def exact(tmp_path_factory, vehicle):
 
 def test_the_exact_truth_model_rolls_out_with_zero_error(exact):
     _, log, truth_model, _ = exact
-    h = evaluate([truth_model], [log]).tree["horizons"]
+    h = evaluate([truth_model], [log], **NO_DIAGNOSIS).tree["horizons"]
     assert h["steps"] == [1, 10, 50] and h["windows"] > 300 and h["attitude"]
     for row in h["table"]["model"]:
         assert row["rate_error"]["norm"] < 2e-3 * max(1.0, row["steps"] / 10), row
@@ -212,10 +215,10 @@ def test_the_band_covers_a_held_out_flight(fitted):
     covers >= 85 % at every horizon and axis; on a flight of another figure-8 it is as
     calibrated as the model's one-step band, whose calibration it inherits."""
     tmp, model = fitted
-    same = evaluate([model], [tmp / "same.csv"], horizon_stride=2).tree
+    same = evaluate([model], [tmp / "same.csv"], horizon_stride=2, **NO_DIAGNOSIS).tree
     for row in same["horizons"]["table"]["model"]:
         assert min(row["coverage"].values()) >= 0.85, row
-    other = evaluate([model], [tmp / "other.csv"], horizon_stride=2).tree
+    other = evaluate([model], [tmp / "other.csv"], horizon_stride=2, **NO_DIAGNOSIS).tree
     one_step = other["metrics"]["model"]["coverage_2sigma"]
     for row in other["horizons"]["table"]["model"]:
         for a in "xyz":
@@ -392,7 +395,9 @@ def test_measured_rotor_speeds_and_tilts_drive_the_rollout(tmp_path):
     save_model(tmp_path / "m.npz", _model(omav))
     err = {}
     for name in ("commanded", "measured"):
-        h = evaluate([tmp_path / "m.npz"], [tmp_path / f"{name}.csv"]).tree["horizons"]
+        h = evaluate([tmp_path / "m.npz"], [tmp_path / f"{name}.csv"], **NO_DIAGNOSIS).tree[
+            "horizons"
+        ]
         assert h["windows"] > 700
         err[name] = [row["rate_error"]["norm"] for row in h["table"]["model"]]
     # measured 0.017 rad/s at 0.5 s against 0.19 from the commanded wrench (lag unmodelled)

@@ -77,7 +77,9 @@ PINNED = {
 @pytest.fixture(scope="module")
 def outcomes(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("never_hurts")
-    return {case: run_case(tmp, case) for case in PINNED}
+    # the metrics alone: the test reads the ratio and the coverage, which the diagnosis
+    # does not change (3 x 8 CPU s less)
+    return {case: run_case(tmp, case, diagnose=False) for case in PINNED}
 
 
 @pytest.mark.parametrize("case", sorted(PINNED))
