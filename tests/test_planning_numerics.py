@@ -164,13 +164,15 @@ def test_fused_float32_samples_agree_with_the_float64_evaluation(noise):
 
 def test_fused_answer_does_not_depend_on_how_the_batch_is_split():
     """Bit for bit: plan's results must not depend on --jobs (the blocks are padded to
-    one width, so BLAS computes every column with the same kernel)."""
+    one width and a piece given its offset in the batch puts every column where the
+    whole batch does, so BLAS computes every column with the same kernel and place)."""
     gp = _gp(n=50, seed=17)
     fused = FusedSamples(PathwiseSamples(gp, 2, np.random.default_rng(18)), chunk=128)
     z = np.random.default_rng(19).normal(size=(6, 301))
     fused.set_batch(301)
     whole = fused.evaluate(z, 1)
-    parts = [fused.evaluate(z[:, lo:hi], 1) for lo, hi in ((0, 37), (37, 200), (200, 301))]
+    cuts = ((0, 37), (37, 200), (200, 301))
+    parts = [fused.evaluate(z[:, lo:hi], 1, offset=lo) for lo, hi in cuts]
     np.testing.assert_array_equal(np.concatenate(parts, axis=1), whole)
     fused.set_batch(5)
     assert fused.width == 64

@@ -227,10 +227,11 @@ def _effects(model, u: np.ndarray, w: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(e.T).reshape(3, *shape)
 
 
-def _evaluate(fused: FusedSamples, z: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """Samples and means (6, M, K) at z (d, M, K): sample m for row block m."""
+def _evaluate(fused: FusedSamples, z: np.ndarray, out: np.ndarray, offset: int) -> np.ndarray:
+    """Samples and means (6, M, K) at z (d, M, K): sample m for row block m; the K
+    candidates are ``offset`` to ``offset + K`` of the whole batch."""
     for m in range(z.shape[1]):
-        fused.evaluate(z[:, m], m, out=out[:, m])
+        fused.evaluate(z[:, m], m, out=out[:, m], offset=offset)
     return out
 
 
@@ -246,11 +247,13 @@ def rollout_batched(
     progress: Progress | None = None,
     label: str = "simulating",
     substeps: int = 4,
+    offset: int = 0,
 ) -> BatchRollouts:
     """Simulate every candidate of ``stream`` ``sims`` times (one sample each), batched.
 
     t_ref (N,) the task's times; limits as for the reference rollout (degrees);
-    ``keep_task``: keep candidate 0's full inputs and gap (it is the task).
+    ``keep_task``: keep candidate 0's full inputs and gap (it is the task);
+    ``offset``: the first candidate's place in the whole batch (``--jobs`` shares).
     """
     k_count = stream.coefficients.shape[0]
     t = control_times(t_ref, model.vehicle.gains.rate_hz)
@@ -279,11 +282,12 @@ def rollout_batched(
                 u[:3] = u_f
                 if mu_last is None:  # first step: the mean at u_tau = target
                     u[3:] = target
-                    mu_last = _evaluate(fused, _gp_inputs(model, u, omega, du, z), gout)[3:].copy()
+                    first = _evaluate(fused, _gp_inputs(model, u, omega, du, z), gout, offset)
+                    mu_last = first[3:].copy()
                     if model.effects:
                         mu_last += _effects(model, u, omega)
                 u[3:] = target - mu_last
-                _evaluate(fused, _gp_inputs(model, u, omega, du, z), gout)
+                _evaluate(fused, _gp_inputs(model, u, omega, du, z), gout, offset)
                 g, mu_last = gout[:3], gout[3:]
                 if model.effects:
                     static = _effects(model, u, omega)

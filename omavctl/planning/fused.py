@@ -45,12 +45,15 @@ class FusedSamples:
     sample, rows 3-5 the posterior mean. ``chunk`` (a multiple of 64) bounds the
     work buffer to (3D + 3n, chunk) float32 so that it stays in cache.
 
-    A column's answer does not depend on R or on its place in the batch, to the
-    bit: every block is padded with zero columns to the same width
-    (:meth:`set_batch`), so that every GEMM has one shape and BLAS one kernel (its
-    kernels for other shapes and for ragged edges round differently). ``plan``
-    relies on it: its results do not depend on how the candidates are split over
-    ``--jobs``.
+    A column's answer depends only on its place in the whole batch, to the bit,
+    not on how the batch is split: every block is padded with zero columns to the
+    same width (:meth:`set_batch`), so that every GEMM has one shape and BLAS one
+    kernel (its kernels for other shapes and for ragged edges round differently),
+    and a piece of the batch that starts at column ``offset`` of the whole puts each
+    column where the whole would (column j at place (offset + j) mod width of its
+    block): some BLAS kernels (OpenBLAS's Haswell SGEMM, for one) round a block's
+    first and last columns differently from the others. ``plan`` relies on it: its
+    results do not depend on how the candidates are split over ``--jobs``.
     """
 
     def __init__(self, samples: PathwiseSamples, chunk: int = 256) -> None:
@@ -95,24 +98,28 @@ class FusedSamples:
         shape, and they round differently)."""
         self.width = min(self.chunk, -(-max(columns, 1) // _LANES) * _LANES)
 
-    def evaluate(self, z: np.ndarray, m: int, out: np.ndarray | None = None) -> np.ndarray:
-        """Sample m and posterior mean (6, R) float64 at normalised inputs z (d, R)."""
+    def evaluate(
+        self, z: np.ndarray, m: int, out: np.ndarray | None = None, offset: int = 0
+    ) -> np.ndarray:
+        """Sample m and posterior mean (6, R) float64 at normalised inputs z (d, R),
+        columns ``offset`` to ``offset + R`` of the whole batch (see the class)."""
         d, r_count, wp = self.d, z.shape[1], self.width
         if out is None:
             out = np.empty((6, r_count))
         x, p, o = self._x[:, :wp], self._p[:, :wp], self._o[:, :wp]
-        for lo in range(0, r_count, wp):
-            hi = min(lo + wp, r_count)
-            w = hi - lo
-            x[:d, :w] = z[:, lo:hi]
-            x[:d, w:] = 0.0
+        for start in range(-(offset % wp), r_count, wp):
+            lo, hi = max(start, 0), min(start + wp, r_count)
+            a, b = lo - start, hi - start  # the columns' places in the block
+            x[:d, :a] = 0.0
+            x[:d, a:b] = z[:, lo:hi]
+            x[:d, b:] = 0.0
             np.matmul(self.inv_l2, x[:d] * x[:d], out=x[d : d + 3])
             x[d + 3] = 1.0
             np.matmul(self.w_t, x, out=p)
             np.cos(p[self._cos], out=p[self._cos])
             np.exp(p[self._exp], out=p[self._exp])
             np.matmul(self.v_t[m], p, out=o)
-            out[:, lo:hi] = o[:, :w]
+            out[:, lo:hi] = o[:, a:b]
         out[:3] += self.mean_offset[:, None]
         out[3:] += self.mean_offset[:, None]
         return out

@@ -79,8 +79,13 @@ class Simulator:
         assert self.fused is not None
         self.fused.set_batch(coeffs.shape[0] + with_task)  # one GEMM shape for every share
 
+        # each share's first column's place in the whole batch (the task, if flown, is 0)
+        ends = np.cumsum([len(c) for c in shares])
+        starts = [0, *(int(e) + int(with_task) for e in ends[:-1])]
+
         def share(i: int, report: Callable[[float], None]) -> BatchRollouts:
-            return self.fast_rollout(shares[i], with_task and i == 0, lambda _, f: report(f))
+            first = with_task and i == 0
+            return self.fast_rollout(shares[i], first, lambda _, f: report(f), starts[i])
 
         parts = run_tasks(share, len(shares), self.jobs, self.progress, label)
         first = 1 if with_task else 0
@@ -94,9 +99,14 @@ class Simulator:
         )
 
     def fast_rollout(
-        self, coeffs: np.ndarray, with_task: bool, progress: Progress | None = None
+        self,
+        coeffs: np.ndarray,
+        with_task: bool,
+        progress: Progress | None = None,
+        offset: int = 0,
     ) -> BatchRollouts:
-        """The fast path on coeffs; with_task prepends the task as candidate 0."""
+        """The fast path on coeffs; with_task prepends the task as candidate 0;
+        ``offset``: the first candidate's place in the whole batch."""
         assert self.fused is not None
         if with_task:
             coeffs = np.concatenate([np.zeros((1, *coeffs.shape[1:])), coeffs])
@@ -112,6 +122,7 @@ class Simulator:
             self.limits,
             keep_task=with_task,
             progress=progress,
+            offset=offset,
         )
 
     def _reference(self, coeffs: np.ndarray, with_task: bool, label: str) -> Batch:
