@@ -35,7 +35,7 @@ $(STAMP): pyproject.toml
 $(VENV1)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV1)
 	$(VENV1)/bin/python -m pip install -q --upgrade pip
-	$(VENV1)/bin/python -m pip install -q 'numpy>=1.26,<2' -e '.[dev]'
+	$(VENV1)/bin/python -m pip install -q 'numpy>=1.26,<2' -e . 'pytest>=8'
 	touch $@
 
 install: $(STAMP)
