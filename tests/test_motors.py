@@ -36,6 +36,14 @@ def _vehicle(tmp_path: Path, text: str, name: str = "v.yaml") -> tuple[Vehicle, 
     return load_vehicle(path), path
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of two 3-vectors, the same products and differences (bit for bit)
+    without its axis handling, which took two thirds of a 20 s flight's synthesis."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def synthesise(
     vehicle: Vehicle, seed: int, lag: float, duration: float = 20.0, rate: float = 100.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -65,7 +73,7 @@ def synthesise(
     for k in range(n * sub):
         if k % sub == 0:
             gyro[k // sub] = w
-        w = w + dt * inv @ (tau[k] - np.cross(w, inertia @ w))
+        w = w + dt * inv @ (tau[k] - _cross(w, inertia @ w))
     return t, gyro + 0.002 * rng.standard_normal(gyro.shape), cmd
 
 

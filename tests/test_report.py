@@ -106,9 +106,16 @@ def _signatures(path) -> int:
     return len(diag["missing"]) or min(1, len(diag["missing_effects"]))
 
 
-def test_single_report_is_valid_self_contained_html(evals, tmp_path):
-    out = tmp_path / "report.html"
-    summary = write_report([evals / "before.json"], out)
+@pytest.fixture(scope="module")
+def single(evals, tmp_path_factory):
+    """before.json's HTML report, rendered once: checked, and compared with a second
+    rendering for determinism (each rendering takes seconds: its figures)."""
+    out = tmp_path_factory.mktemp("single") / "report.html"
+    return out, write_report([evals / "before.json"], out)
+
+
+def test_single_report_is_valid_self_contained_html(evals, single):
+    out, summary = single
     text = out.read_text(encoding="utf-8")
     doc = parse(text)
     assert doc.errors == [] and doc.stack == []
@@ -198,10 +205,9 @@ def _text_lines(html_text: str) -> list[str]:
     return [ln.strip() for ln in html_mod.unescape(body).splitlines() if ln.strip()]
 
 
-def test_markdown_and_determinism(evals, tmp_path):
-    write_report([evals / "after.json"], tmp_path / "a.html")
-    write_report([evals / "after.json"], tmp_path / "b.html")
-    assert (tmp_path / "a.html").read_bytes() == (tmp_path / "b.html").read_bytes()
+def test_markdown_and_determinism(evals, single, tmp_path):
+    write_report([evals / "before.json"], tmp_path / "b.html")
+    assert single[0].read_bytes() == (tmp_path / "b.html").read_bytes()
     files = [evals / "before.json", evals / "after.json"]
     summary = write_report(files, tmp_path / "r.md")
     assert summary.fmt == "md" and summary.figures == 0
