@@ -117,17 +117,39 @@ def cases(tmp_path_factory, vehicle):
     return tmp, out
 
 
+#: The cases whose held-out evaluation a test reads in full, horizons table too (the
+#: JSON contract); the others' without it (``NO_HORIZONS``).
+FULL = {"rotational_drag"}
+
+
+@pytest.fixture(scope="module")
+def heldout(cases):
+    """case -> ``evaluate`` of its model on its held-out flight, computed once for
+    every test that reads it (the horizons table changes neither the diagnosis, the
+    metrics nor the flags): the effect test's "before", the JSON contract's second
+    evaluation (compared with the CLI's, for determinism), the flag test's held-out
+    log. About 9 CPU s each (the diagnosis)."""
+    _, c = cases
+    memo = {}
+
+    def get(case):
+        if case not in memo:
+            _, eval_log, model = c[case]
+            memo[case] = evaluate([model], [eval_log], **({} if case in FULL else NO_HORIZONS))
+        return memo[case]
+
+    return get
+
+
 @pytest.mark.parametrize("case", ["none", "none-heave", "none-small-fig8", "none-yaw"])
-def test_no_hidden_effect_nothing_is_missing(cases, case):
+def test_no_hidden_effect_nothing_is_missing(heldout, case):
     """The default plant's own imperfections (thrust spread, 5 ms lags, backlash)
     are real but small: nothing is called missing, except the registered effects
     that describe them, which the model lacks: its rotor interference (named on the
     figure-8, whose tilts excite it; not on the level heave) and the centre-of-mass
     offset that its 3 % thrust spread amounts to (named only by the joint selection,
     when estimated from the fit flight it lowers the held-out physics-only error)."""
-    _, c = cases
-    _, eval_log, model = c[case]
-    tree = evaluate([model], [eval_log], **NO_HORIZONS).tree
+    tree = heldout(case).tree
     missing = tree["diagnosis"]["missing"]
     assert set(missing) <= {"rotor_interference", "com_offset"}
     if case == "none-heave":
@@ -149,10 +171,10 @@ def test_no_hidden_effect_nothing_is_missing(cases, case):
 @pytest.mark.parametrize(
     "name", ["rotational_drag", "motor_lag", "com_offset", "inertia_error", "servo_lag"]
 )
-def test_missing_effect_is_named_and_adding_it_halves_the_error(cases, vehicle, name):
+def test_missing_effect_is_named_and_adding_it_halves_the_error(cases, heldout, vehicle, name):
     tmp, c = cases
-    fit_log, eval_log, model = c[name]
-    before = evaluate([model], [eval_log], **NO_HORIZONS).tree
+    fit_log, eval_log, _ = c[name]
+    before = heldout(name).tree
     diag = before["diagnosis"]
     # claimed with what else the held-out flight confirms (the plant's own rotor
     # interference on the larger figure-8), all added by the one fit command
@@ -197,7 +219,7 @@ def test_missing_effect_is_named_and_adding_it_halves_the_error(cases, vehicle, 
     assert np.all(rmse1[driven] <= 0.5 * rmse0[driven])
 
 
-def test_evaluation_json_contract_and_round_trip(cases, tmp_path):
+def test_evaluation_json_contract_and_round_trip(cases, heldout, tmp_path):
     _, c = cases
     _, eval_log, model = c["rotational_drag"]
     out = tmp_path / "eval.json"
@@ -229,12 +251,13 @@ def test_evaluation_json_contract_and_round_trip(cases, tmp_path):
     assert tree2 == tree and tree["series"]["file"] == "eval.series.npz"
     n = series["t"].size
     assert series["measured"].shape == (n, 3) and series["std_0"].shape == (n, 3)
-    write_evaluation(tmp_path / "again.json", evaluate([model], [eval_log]))
+    # computed in this process (by the effect test, when the module runs whole)
+    write_evaluation(tmp_path / "again.json", heldout("rotational_drag"))
     again = json.loads((tmp_path / "again.json").read_text())
     assert again.pop("series") != tree.pop("series") and again == tree  # deterministic
 
 
-def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
+def test_evaluating_on_the_fit_flight_is_flagged(cases, heldout, tmp_path):
     """The model's own training log (same file by sha256, overlapping time window) is
     not a held-out flight: flagged, in the verdict too; another log or a window after
     the fitted one is not."""
@@ -250,11 +273,7 @@ def test_evaluating_on_the_fit_flight_is_flagged(cases, tmp_path):
     )
     assert flags == [{"code": "training_data", "axis": None, "value": None, "message": message}]
     assert verdict(tree)[0].key == "training" and verdict(tree)[0].text == message
-    assert not [
-        f
-        for f in evaluate([model], [eval_log], **METRICS).tree["flags"]
-        if f["code"] == "training_data"
-    ]
+    assert not [f for f in heldout("none").tree["flags"] if f["code"] == "training_data"]
     # fitted on 0-8 s: evaluated on 6-16 s it overlaps, on 8 s to the end it does not
     windowed = tmp_path / "window.npz"
     save_model(

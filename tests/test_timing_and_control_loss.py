@@ -118,10 +118,11 @@ def _crash(vehicle, path):
     return result
 
 
-def test_a_flight_that_loses_control_is_evaluated_without_it(vehicle, tmp_path):
+def test_a_flight_that_loses_control_is_evaluated_without_it(vehicle, short_fig8, tmp_path):
+    # the model only has to exist and evaluate (nothing asserted reads its fit): a 6 s
+    # figure-8 (conftest's short_fig8: the same figure-8, 6 s instead of 10) is enough
     fit_log = tmp_path / "fit.csv"
-    ref = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=10.0, ramp=1.0)
-    write_log(fit_log, simulate(ref, vehicle, truth_from_tree({}, vehicle), seed=0).log)
+    write_log(fit_log, simulate(short_fig8, vehicle, truth_from_tree({}, vehicle), seed=0).log)
     crash = tmp_path / "crash.bag"
     result = _crash(vehicle, crash)
     assert result.diverged and result.diverged_at is not None
@@ -201,8 +202,9 @@ def test_a_hidden_command_delay_is_named_and_its_fit_command_halves_the_error(
         vehicle,
     )
     monkeypatch.chdir(tmp_path)
-    write_log("fit.csv", simulate(fig8(20, 20, 5.0, 16.0), vehicle, truth, seed=1).log)
-    write_log("eval.bag", simulate(wobble(25, duration=16.0), vehicle, truth, seed=2).log)
+    # 12 s flights (16 s: held-out RMSE after / before 0.065, 0.21, 0.26 on x, y, z)
+    write_log("fit.csv", simulate(fig8(20, 20, 5.0, 12.0), vehicle, truth, seed=1).log)
+    write_log("eval.bag", simulate(wobble(25, duration=12.0), vehicle, truth, seed=2).log)
     r = runner.invoke(
         app, ["fit", "fit.csv", "--points", "100", "--restarts", "0", "--out", "m.npz", "-q"]
     )
