@@ -10,29 +10,22 @@ import pytest
 from typer.testing import CliRunner
 
 from omavctl.cli import app
-from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import save_model
-from omavctl.logs import align
 from omavctl.planning import PlanSettings, plan
 from omavctl.planning.gp import GPAxes, PathwiseSamples
 from omavctl.planning.planner import _task_region, pool_test_points
 from omavctl.planning.scoring import Flights, VarianceObjective
 from omavctl.planning.simulate import Simulator
-from omavctl.sim.plant import simulate
-from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import write_trajectory
-from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 SMALL = PlanSettings(candidates=6, sims=2, test_points=150, points=15)
 
 
 @pytest.fixture(scope="module")
-def fitted(vehicle):
-    """An 8 s figure-8 task and a model fitted on one flight of it."""
-    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
-    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
-    return task, fit_model([flight], vehicle, points=40, restarts=0).model
+def fitted(fig8_fitted):
+    """An 8 s figure-8 task and a model fitted on one flight of it (tests/conftest.py)."""
+    return fig8_fitted
 
 
 def _coefficients(frequency: float, amplitude: float) -> np.ndarray:

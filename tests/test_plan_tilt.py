@@ -9,27 +9,22 @@ import pytest
 from typer.testing import CliRunner
 
 from omavctl.cli import app
-from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import save_model
-from omavctl.logs import align
 from omavctl.planning.candidates import deviated_references
 from omavctl.planning.planner import PlanSettings, plan, task_tilt_deg, tilt_limit
-from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import write_trajectory
-from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory, vehicle):
-    """A 20 deg figure-8 task and a model fitted on one flight of it, both as files."""
+def setup(tmp_path_factory, fig8_fitted):
+    """A 20 deg figure-8 task and a model fitted on one flight of it (tests/conftest.py),
+    both as files."""
     tmp = tmp_path_factory.mktemp("plan-tilt")
-    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
+    task, model = fig8_fitted
     write_trajectory(tmp / "task.csv", task)
-    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
-    model = fit_model([flight], vehicle, points=40, restarts=0).model
     save_model(tmp / "model.npz", model)
     return tmp, task, model
 
