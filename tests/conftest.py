@@ -37,6 +37,19 @@ def short_fig8():
     return fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=6.0, ramp=1.0)
 
 
+@pytest.fixture(scope="session")
+def fig8_fitted(vehicle):
+    """An 8 s 20 deg figure-8 task and a model fitted (40 points, no restarts) on one
+    flight of it (truth seed 1): the plan tests' shared model, fitted once per worker
+    (test_plan_fast, test_plan_region and test_plan_tilt each fitted the same one)."""
+    from omavctl.learn.fit import fit_model
+    from omavctl.logs import align
+
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
+    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
+    return task, fit_model([flight], vehicle, points=40, restarts=0).model
+
+
 def fly(vehicle: Vehicle, ref, truth: dict, seed: int = 0):
     """Simulate ``ref`` with a truth mapping; returns the SimulationResult."""
     return simulate(ref, vehicle, truth_from_tree(truth, vehicle), seed=seed)

@@ -37,15 +37,16 @@ SMALL = PlanSettings(candidates=5, sims=2, test_points=100, points=15)
 
 
 @pytest.fixture(scope="module")
-def fitted(vehicle):
-    """An 8 s figure-8 task and a model fitted on one flight of it."""
-    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
-    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
-    return task, fit_model([flight], vehicle, points=40, restarts=0).model
+def fitted(fig8_fitted):
+    """An 8 s figure-8 task and a model fitted on one flight of it (tests/conftest.py)."""
+    return fig8_fitted
 
 
 def test_fast_and_reference_paths_agree_on_costs(fitted):
-    task, model = fitted
+    """On a 4 s figure-8 (the 8 s task took 1.5x as long): 4 of 5 candidates feasible and
+    the paths 1e-7 apart, as on the 8 s one (measured 4 of 5 and 2e-7)."""
+    _, model = fitted
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=4.0, ramp=1.5)
     settings = replace(SMALL, selection="kmedoids")
     fast = plan(model, task, settings)
     ref = plan(model, task, replace(settings, fast=False))
@@ -61,7 +62,10 @@ def test_fast_and_reference_paths_agree_on_costs(fitted):
 
 
 def test_batched_selection_ranks_candidates_like_kmedoids(fitted):
-    task, model = fitted
+    """On a 4 s figure-8 (8.1 -> 4.5 CPU s): 38 of 40 candidates feasible and rho 0.996
+    (the 8 s task: 37 and 0.989)."""
+    _, model = fitted
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=4.0, ramp=1.5)
     rng = np.random.default_rng(3)
     gp = GPAxes.from_model(model)
     sim = Simulator(model, PathwiseSamples(gp, 8, rng), task, 4, (80.0, 30.0))
@@ -198,8 +202,10 @@ def test_plan_survives_an_axis_without_gp(fitted):
 def test_cli_plan_same_seed_same_bytes_for_any_jobs(fitted, tmp_path):
     """Same seed, same bytes; and the same bytes whatever --jobs splits the work into
     (the default, 0, is one process per core): a column's arithmetic does not depend
-    on the batch it is simulated in, and the scoring pieces are fixed."""
-    task, model = fitted
+    on the batch it is simulated in, and the scoring pieces are fixed. On a 4 s slice of
+    the model's figure-8 (the equalities need no margin; the 8 s task doubled the time)."""
+    _, model = fitted
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=4.0, ramp=1.5)
     task_path, model_path = tmp_path / "task.csv", tmp_path / "model.npz"
     write_trajectory(task_path, task)
     save_model(model_path, model)

@@ -10,29 +10,23 @@ import pytest
 from typer.testing import CliRunner
 
 from omavctl.cli import app
-from omavctl.learn.fit import fit_model
 from omavctl.learn.model_file import save_model
-from omavctl.logs import align
 from omavctl.planning import PlanSettings, plan
 from omavctl.planning.gp import GPAxes, PathwiseSamples
 from omavctl.planning.planner import _task_region, pool_test_points
 from omavctl.planning.scoring import Flights, VarianceObjective
 from omavctl.planning.simulate import Simulator
-from omavctl.sim.plant import simulate
 from omavctl.sim.tasks import fig8
 from omavctl.sim.trajectory import write_trajectory
-from omavctl.sim.truth import truth_from_tree
 
 runner = CliRunner()
 SMALL = PlanSettings(candidates=6, sims=2, test_points=150, points=15)
 
 
 @pytest.fixture(scope="module")
-def fitted(vehicle):
-    """An 8 s figure-8 task and a model fitted on one flight of it."""
-    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=8.0, ramp=1.5)
-    flight = align(simulate(task, vehicle, truth_from_tree({"seed": 1}, vehicle), seed=1).log)
-    return task, fit_model([flight], vehicle, points=40, restarts=0).model
+def fitted(fig8_fitted):
+    """An 8 s figure-8 task and a model fitted on one flight of it (tests/conftest.py)."""
+    return fig8_fitted
 
 
 def _coefficients(frequency: float, amplitude: float) -> np.ndarray:
@@ -92,8 +86,10 @@ def test_pool_test_points_are_medoids_of_the_states_and_repeat_with_the_seed():
 
 def test_plan_with_the_pool_region_is_deterministic_and_ranks_wider_flights_better(fitted):
     """Same seed, same costs; and over the pool region the chosen candidate's cost is
-    below the task's own (flying the task again covers least of the region)."""
-    task, model = fitted
+    below the task's own (flying the task again covers least of the region). On a 4 s
+    figure-8: best / task cost 0.51 (the 8 s task: 0.70), in about 0.6x the time."""
+    _, model = fitted
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=4.0, ramp=1.5)
     a = plan(model, task, SMALL)
     b = plan(model, task, SMALL)
     np.testing.assert_array_equal(a.cost, b.cost)
@@ -166,7 +162,8 @@ def test_cli_plan_json_and_summary_state_the_expected_error_fall(fitted, tmp_pat
     import json
     import math
 
-    task, model = fitted
+    _, model = fitted  # a 4 s task: the identities below need no margin
+    task = fig8(roll_deg=20, pitch_deg=20, period=4.0, duration=4.0, ramp=1.5)
     task_path, model_path = tmp_path / "task.csv", tmp_path / "model.npz"
     write_trajectory(task_path, task)
     save_model(model_path, model)
