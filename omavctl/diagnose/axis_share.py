@@ -16,15 +16,16 @@ from typing import Any
 from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.verdict_lines import AXES, Line, _pct, get_path
 
-__all__ = ["axis_held", "axis_held_line", "failed_test"]
+__all__ = ["axis_held", "axis_held_line", "failed_test", "named_effects"]
 
 
-def _said(diag: Mapping[str, Any]) -> set[str]:
-    """The effects the verdict names already (claimed, held back, or tested)."""
-    names = {*map(str, diag.get("missing") or []), *map(str, diag.get("learned_claims") or [])}
-    names |= {str(e.get("name")) for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)}
-    names |= {str(n) for n in (diag.get("below_noise"), diag.get("refit_rejected")) if n}
-    return names
+def named_effects(diag: Mapping[str, Any]) -> list[str]:
+    """The effects the verdict names already, in its order: missing, claimed as
+    learned, held back (``not_pinned``, the noise floor's, the refit test's)."""
+    names = [*map(str, diag.get("missing") or []), *map(str, diag.get("learned_claims") or [])]
+    names += [str(e.get("name")) for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)]
+    names += [str(n) for n in (diag.get("below_noise"), diag.get("refit_rejected")) if n]
+    return list(dict.fromkeys(names))
 
 
 def failed_test(entry: Mapping[str, Any], floor: float) -> str:
@@ -55,7 +56,7 @@ def axis_held(diag: Mapping[str, Any], effects: Sequence[str] = ()) -> list[dict
     floor = _num(get_path(diag, "method", "min_explained_variance"))
     if floor is None:
         return []
-    said = _said(diag) | set(effects)
+    said = {*named_effects(diag), *effects}
     out = []
     for e in diag.get("missing_effects") or []:
         if not isinstance(e, Mapping) or str(e.get("name")) in said:

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.diagnose.axis_share import axis_held
+from omavctl.diagnose.axis_share import axis_held, named_effects
 from omavctl.diagnose.commands import effect_commands, fit_command, separation
 from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
@@ -74,9 +74,7 @@ def discussed(diagnosis: Mapping[str, Any], effects: Sequence[str]) -> list[str]
     if diagnosis.get("missing"):
         return [str(n) for n in diagnosis["missing"]]
     named = [
-        *map(str, diagnosis.get("learned_claims") or []),
-        *(str(e.get("name")) for e in diagnosis.get("not_pinned") or []),
-        *(str(n) for n in (diagnosis.get("below_noise"), diagnosis.get("refit_rejected")) if n),
+        *named_effects(diagnosis),
         *learned_not_modelled(diagnosis, effects)[:1],
         *[h["name"] for h in axis_held(diagnosis, effects)][:1],
     ]

@@ -100,8 +100,7 @@ def disagree_line(tree: Mapping[str, Any]) -> Line | None:
     models = [m for m in tree.get("models") or [] if isinstance(m, Mapping)]
     learned = get_path(tree, "diagnosis", "learned", default=[]) or []
     entries = {str(e.get("name")): e for e in learned if isinstance(e, Mapping)}
-    logs = [get_path(lg, "name") for lg in tree.get("logs") or [] if isinstance(lg, Mapping)]
-    here = flight_words([n for n in logs if n], tree.get("time_window")) or "this flight"
+    here = flight_words([n for n in _logs(tree) if n], tree.get("time_window")) or "this flight"
     said = []
     for model in models:
         effects = model.get("effects")
@@ -137,12 +136,16 @@ def elsewhere_clause(tree: Mapping[str, Any]) -> str:
     fit = get_path(tree, "models", 0, "fit_flight")
     if not isinstance(fit, Mapping) or not fit.get("logs"):
         return ""
-    logs = [get_path(lg, "name") for lg in tree.get("logs") or [] if isinstance(lg, Mapping)]
-    same = list(fit.get("logs") or []) == logs and fit.get("time_window") == tree.get("time_window")
-    if same:
-        return ""
+    if list(fit.get("logs") or []) == _logs(tree):
+        if fit.get("time_window") == tree.get("time_window"):
+            return ""
     there = flight_words(fit.get("logs") or [], fit.get("time_window"))
     return (
         f" The command below estimates it on the fit flight ({there}), not on this one: "
         "its value there can differ; evaluated here, the new model says if it does."
     )
+
+
+def _logs(tree: Mapping[str, Any]) -> list[Any]:
+    """The evaluated logs' names, as the evaluation JSON records them."""
+    return [get_path(lg, "name") for lg in tree.get("logs") or [] if isinstance(lg, Mapping)]
