@@ -16,7 +16,7 @@ from omavctl.physics.rigid_body import (
     rotation_to_euler,
     state_derivative,
 )
-from omavctl.sim.plant import _Body
+from omavctl.sim.scalar import ScalarBody
 
 
 def test_rotation_euler_round_trip():
@@ -50,7 +50,7 @@ def test_body_acceleration_from_euler_derivatives_matches_finite_difference():
 def test_scalar_plant_derivative_matches_library(vehicle):
     rng = np.random.default_rng(2)
     inertia = np.array([[0.09, 0.001, 0.0], [0.001, 0.1, 0.002], [0.0, 0.002, 0.17]])
-    body = _Body(vehicle.mass, inertia, vehicle.gravity)
+    body = ScalarBody(vehicle.mass, inertia, vehicle.gravity)
     for _ in range(20):
         x = rng.normal(size=12)
         x[4] = np.clip(x[4], -1.2, 1.2)

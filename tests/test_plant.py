@@ -169,3 +169,44 @@ def test_bad_truth_yaml_is_one_clear_error(vehicle, tmp_path, text, message):
         load_truth(path, vehicle)
     assert str(err.value).startswith(f"{path}: ")
     assert message in str(err.value)
+
+
+def test_the_plants_scalar_controller_is_the_batched_one(vehicle, short_fig8):
+    """The truth plant's controller and allocation on Python floats give the batched
+    Controller's and Allocation's commands (no model) to 1e-12, integrators and their
+    anti-windup clamp included, over states that wander and saturate them."""
+    from omavctl.physics.controller import Controller, ControllerState
+    from omavctl.sim.scalar import ScalarAllocation, ScalarController
+
+    rng = np.random.default_rng(7)
+    alloc = Allocation(vehicle)
+    batched, state = Controller(vehicle), ControllerState.zeros(1)
+    scalar, scalar_alloc = ScalarController(vehicle), ScalarAllocation(alloc)
+    refs = short_fig8.sample(np.linspace(short_fig8.t[0], short_fig8.t[-1], 300))
+    x = np.zeros(12)
+    prev = np.zeros(6)
+    clamped = 0
+    for ref in refs:
+        x = x + rng.normal(0.0, [0.05] * 3 + [0.03] * 3 + [0.1] * 3 + [0.3] * 3)
+        x[3:6] = np.clip(x[3:6], -0.8, 0.8)
+        out = batched.step(state, x[None, :], ref[None, :], 0.01)
+        one = scalar.step(x.tolist(), ref.tolist(), 0.01)
+        for a, b in zip(
+            (out.force, out.torque, out.desired_angular, out.desired_linear),
+            (one.force, one.torque, one.desired_angular, one.desired_linear),
+            strict=True,
+        ):
+            np.testing.assert_allclose(b, a[0], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(scalar.att_integral, state.att_integral[0], atol=1e-15)
+        np.testing.assert_allclose(scalar.pos_integral, state.pos_integral[0], atol=1e-15)
+        clamped += int(np.any(np.abs(state.pos_integral) >= 0.5))
+        wrench = np.concatenate([out.force[0], out.torque[0]])
+        res = alloc.allocate(wrench[None, :], prev[None, :])
+        tilt, rotor, ok = scalar_alloc.allocate(wrench.tolist(), prev.tolist())
+        np.testing.assert_allclose(tilt, res.tilt[0], atol=1e-12)
+        np.testing.assert_allclose(rotor, res.rotor_thrust[0], rtol=1e-12)
+        assert ok == bool(res.feasible[0])
+        too_fast = alloc.tilt_rate_exceeded(res.tilt[0], prev, 0.01).any()
+        assert scalar_alloc.rate_exceeded(tilt, prev.tolist(), 0.01) == too_fast
+        prev = res.tilt[0]
+    assert clamped > 10  # the anti-windup clamp was exercised

@@ -30,9 +30,9 @@ from omavctl.vehicle import Vehicle
 __all__ = ["Allocation", "AllocationResult"]
 
 #: Below this arm thrust (N) the tilt angle is undetermined; the previous one is kept.
-_TILT_THRUST_EPS = 1e-6
+TILT_THRUST_EPS = 1e-6
 #: Slack on every limit check (a value at the limit is within it).
-_LIMIT_TOL = 1e-9
+LIMIT_TOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -93,7 +93,9 @@ class Allocation:
         s, c = np.sin(tilt)[..., None], np.cos(tilt)[..., None]
         return s * self.arm_y + c * np.array([0.0, 0.0, 1.0])
 
-    def interference(self, tilt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def interference(
+        self, tilt: np.ndarray, directions: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Shapes (..., 6) of the two tilt-dependent thrust losses of each arm's pair.
 
         ``wake``: ``sum_k max(0, -n_k . e_kj)^4`` over the two neighbouring pairs
@@ -101,21 +103,25 @@ class Allocation:
         pair k is tilted towards it); ``arm``: ``sin^2(alpha_j)`` (the pair's own
         wash on its arm). The plant's efficiency is ``1 - rotor_rotor * wake -
         rotor_arm * arm`` (:mod:`omavctl.sim.plant`, ``rotor_interference``).
+        ``directions``: the tilts' :meth:`thrust_directions` (..., 6, 3), when known.
         """
-        n = self.thrust_directions(tilt)  # (..., 6, 3)
+        n = self.thrust_directions(tilt) if directions is None else directions
         hit = np.clip(-np.einsum("...kc,kjc->...kj", n, self.pair_direction), 0.0, None) ** 4
         cols = np.arange(tilt.shape[-1])
         wake = hit[..., self.neighbours[:, 0], cols] + hit[..., self.neighbours[:, 1], cols]
         return wake, np.sin(tilt) ** 2
 
-    def forward(self, tilt: np.ndarray, rotor_thrust: np.ndarray) -> np.ndarray:
+    def forward(
+        self, tilt: np.ndarray, rotor_thrust: np.ndarray, directions: np.ndarray | None = None
+    ) -> np.ndarray:
         """Body wrench [f, tau] (..., 6) from tilts (..., 6) rad and rotor thrusts (..., 12) N.
 
         Includes the rotor drag torques ``drag_ratio (T_top - T_bottom) n_i`` of
-        each counter-rotating pair (zero for an equal split).
+        each counter-rotating pair (zero for an equal split). ``directions``: the
+        tilts' :meth:`thrust_directions` (..., 6, 3), when known.
         """
         top, bottom = rotor_thrust[..., 0::2], rotor_thrust[..., 1::2]
-        n = self.thrust_directions(tilt)  # (..., 6, 3)
+        n = self.thrust_directions(tilt) if directions is None else directions
         arm_force = (top + bottom)[..., None] * n
         force = arm_force.sum(axis=-2)
         drag = (self.vehicle.drag_ratio * (top - bottom))[..., None] * n
@@ -140,11 +146,11 @@ class Allocation:
         arm_thrust = np.hypot(s, c)
         tilt = np.arctan2(s, c)
         if previous_tilt is not None:
-            tilt = np.where(arm_thrust < _TILT_THRUST_EPS, previous_tilt, tilt)
+            tilt = np.where(arm_thrust < TILT_THRUST_EPS, previous_tilt, tilt)
         rotor = np.repeat(arm_thrust / 2.0, 2, axis=-1)
         v = self.vehicle
-        high = rotor > v.max_thrust + _LIMIT_TOL
-        low = rotor < v.min_thrust - _LIMIT_TOL
+        high = rotor > v.max_thrust + LIMIT_TOL
+        low = rotor < v.min_thrust - LIMIT_TOL
         if previous_tilt is not None and dt is not None:
             rate_bad = self.tilt_rate_exceeded(tilt, previous_tilt, dt)
         else:
@@ -157,7 +163,7 @@ class Allocation:
         """Per arm (..., 6) whether going from ``previous_tilt`` to ``tilt`` in ``dt`` s
         is faster than the servos' ``max_tilt_rate``."""
         rate = np.abs(wrap_angle(tilt - previous_tilt)) / dt
-        return np.asarray(rate > self.vehicle.max_tilt_rate + _LIMIT_TOL)
+        return np.asarray(rate > self.vehicle.max_tilt_rate + LIMIT_TOL)
 
     # --- sensitivities used by the lag effects -----------------------------
     def tilt_jacobian(self, tilt: np.ndarray, arm_thrust: np.ndarray) -> np.ndarray:

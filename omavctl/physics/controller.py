@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 #: Integral terms are clamped to this magnitude (anti-windup), rad s and m s.
-_INTEGRAL_LIMIT = np.array([0.5, 0.5, 0.5])
+INTEGRAL_LIMIT = np.array([0.5, 0.5, 0.5])
 
 
 class ResidualModel(Protocol):
@@ -207,9 +207,7 @@ class Controller:
 
         # position loop (world frame)
         e_p = p_ref - p
-        state.pos_integral = np.clip(
-            state.pos_integral + e_p * dt, -_INTEGRAL_LIMIT, _INTEGRAL_LIMIT
-        )
+        state.pos_integral = np.clip(state.pos_integral + e_p * dt, -INTEGRAL_LIMIT, INTEGRAL_LIMIT)
         a_lin = a_ref + g.pos_kd * (v_ref - vel) + g.pos_kp * e_p + g.pos_ki * state.pos_integral
         rot = rotation_matrix(eta)
         acc_body = np.einsum("bji,bj->bi", rot, a_lin + np.array([0.0, 0.0, v.gravity]))
@@ -222,7 +220,7 @@ class Controller:
             [m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], axis=-1
         )
         state.att_integral = np.clip(
-            state.att_integral + e_att * dt, -_INTEGRAL_LIMIT, _INTEGRAL_LIMIT
+            state.att_integral + e_att * dt, -INTEGRAL_LIMIT, INTEGRAL_LIMIT
         )
         a_star = (
             dw_ref + g.att_kd * (w_ref - omega) + g.att_kp * e_att + g.att_ki * state.att_integral

@@ -37,7 +37,6 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -47,6 +46,7 @@ from omavctl.physics.allocation import Allocation
 from omavctl.physics.controller import Controller, ControllerState, ResidualModel
 from omavctl.physics.effects import Effect
 from omavctl.physics.rigid_body import rotation_matrix, wrap_angle
+from omavctl.sim.scalar import ScalarAllocation, ScalarBody, ScalarController, ScalarOutput
 from omavctl.sim.trajectory import Trajectory
 from omavctl.sim.truth import TruthParameters
 from omavctl.vehicle import Vehicle
@@ -122,9 +122,10 @@ class _Actuators:
             out = out * (1.0 + t.battery_sag * (volts - t.battery["nominal"]))[:, None]
         return out
 
-    def efficiency(self, tilt: np.ndarray) -> np.ndarray:
-        """Per-arm thrust efficiency (..., 6) from tilts (..., 6)."""
-        wake, arm = self.alloc.interference(tilt)
+    def efficiency(self, tilt: np.ndarray, directions: np.ndarray | None = None) -> np.ndarray:
+        """Per-arm thrust efficiency (..., 6) from tilts (..., 6) (and their thrust
+        directions (..., 6, 3), when known)."""
+        wake, arm = self.alloc.interference(tilt, directions)
         return 1.0 - self.truth.rotor_arm * arm - self.truth.rotor_rotor * wake
 
     def advance(
@@ -137,19 +138,36 @@ class _Actuators:
         motor = 1.0 - math.exp(-dt / t.motor_time_constant) if t.motor_time_constant > 0 else 1.0
         lag = t.servo_time_constant if t.servo_time_constant > 0 else dt
         tilts, thrusts = np.empty((n, 6)), np.empty((n, 12))
+        # the servos on Python floats (numpy's per-call overhead on 6-vectors was most
+        # of a step; same arithmetic, so bit-identical): the shaft follows the setpoint,
+        # rate-limited; the arm follows the shaft through the backlash dead band
+        pi, two_pi = math.pi, 2.0 * math.pi
+        cmd, shafts, arms = tilt_cmd.tolist(), self.shaft.tolist(), self.tilt.tolist()
+        for a in range(6):
+            c, shaft, arm = cmd[a], shafts[a], arms[a]
+            col = tilts[:, a].tolist()
+            for i in range(n):
+                speed = ((c - shaft + pi) % two_pi - pi) / lag
+                shaft = shaft + min(max(speed, -rate), rate) * dt
+                gap = shaft - arm
+                if gap > half:
+                    arm = shaft - half
+                elif gap < -half:
+                    arm = shaft + half
+                col[i] = arm
+            tilts[:, a] = col
+            shafts[a], arms[a] = shaft, arm
+        self.shaft, self.tilt = np.array(shafts), np.array(arms)
+        thrust = self.thrust
         for i in range(n):
-            speed = wrap_angle(tilt_cmd - self.shaft) / lag
-            self.shaft = self.shaft + np.clip(speed, -rate, rate) * dt
-            gap = self.shaft - self.tilt
-            self.tilt = np.where(
-                gap > half, self.shaft - half, np.where(gap < -half, self.shaft + half, self.tilt)
-            )
-            self.thrust = self.thrust + motor * (thrust_cmd - self.thrust)
-            tilts[i], thrusts[i] = self.tilt, self.thrust
-        eff = np.repeat(self.efficiency(tilts), 2, axis=-1)
+            thrust = thrust + motor * (thrust_cmd - thrust)
+            thrusts[i] = thrust
+        self.thrust = thrust
+        directions = self.alloc.thrust_directions(tilts)
+        eff = np.repeat(self.efficiency(tilts, directions), 2, axis=-1)
         self.volts = self.battery(t0 + dt * np.arange(1, n + 1), thrusts)
         true = self.motor_level(thrusts, self.volts)
-        return self.alloc.forward(tilts, true * self.spread * self.health * eff)
+        return self.alloc.forward(tilts, true * self.spread * self.health * eff, directions)
 
     def fail(self, arms: tuple[int, ...], factor: float) -> None:
         """The rotor pairs of ``arms`` keep ``factor`` of their thrust from now on."""
@@ -158,63 +176,6 @@ class _Actuators:
 
     def rotor_speed(self) -> np.ndarray:
         return np.sqrt(np.clip(self.thrust, 0.0, None) / self.v.thrust_coefficient)
-
-
-class _Body:
-    """Newton–Euler derivative of one vehicle on Python floats.
-
-    Same equations as :func:`omavctl.physics.rigid_body.state_derivative`
-    (a test checks they agree); scalar code because numpy's per-call overhead
-    on 3-vectors dominated the 1 kHz inner loop (profiled: 4x slower).
-    """
-
-    def __init__(self, mass: float, inertia: np.ndarray, gravity: float) -> None:
-        self.m, self.g = mass, gravity
-        self.i = [[float(v) for v in row] for row in inertia]
-        self.ii = [[float(v) for v in row] for row in np.linalg.inv(inertia)]
-
-    def derivative(self, x: list[float], f: list[float], tau: list[float]) -> list[float]:
-        _, _, _, r, p, y, vx, vy, vz, wx, wy, wz = x
-        cr, sr, cp, sp = math.cos(r), math.sin(r), math.cos(p), math.sin(p)
-        cy, sy = math.cos(y), math.sin(y)
-        tp = sp / cp
-        f0, f1, f2 = f
-        ax = (cy * cp * f0 + (cy * sp * sr - sy * cr) * f1 + (cy * sp * cr + sy * sr) * f2) / self.m
-        ay = (sy * cp * f0 + (sy * sp * sr + cy * cr) * f1 + (sy * sp * cr - cy * sr) * f2) / self.m
-        az = (-sp * f0 + cp * sr * f1 + cp * cr * f2) / self.m - self.g
-        i, ii = self.i, self.ii
-        hx = i[0][0] * wx + i[0][1] * wy + i[0][2] * wz
-        hy = i[1][0] * wx + i[1][1] * wy + i[1][2] * wz
-        hz = i[2][0] * wx + i[2][1] * wy + i[2][2] * wz
-        mx = tau[0] - (wy * hz - wz * hy)
-        my = tau[1] - (wz * hx - wx * hz)
-        mz = tau[2] - (wx * hy - wy * hx)
-        return [
-            vx,
-            vy,
-            vz,
-            wx + sr * tp * wy + cr * tp * wz,
-            cr * wy - sr * wz,
-            (sr * wy + cr * wz) / cp,
-            ax,
-            ay,
-            az,
-            ii[0][0] * mx + ii[0][1] * my + ii[0][2] * mz,
-            ii[1][0] * mx + ii[1][1] * my + ii[1][2] * mz,
-            ii[2][0] * mx + ii[2][1] * my + ii[2][2] * mz,
-        ]
-
-    def rk4(self, x: list[float], f: list[float], tau: list[float], dt: float) -> list[float]:
-        """One RK4 step with the wrench held over ``dt``."""
-        d = self.derivative
-        k1 = d(x, f, tau)
-        k2 = d([a + 0.5 * dt * b for a, b in zip(x, k1, strict=True)], f, tau)
-        k3 = d([a + 0.5 * dt * b for a, b in zip(x, k2, strict=True)], f, tau)
-        k4 = d([a + dt * b for a, b in zip(x, k3, strict=True)], f, tau)
-        return [
-            a + dt / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4, strict=True)
-        ]
 
 
 _RECORDED = (
@@ -277,15 +238,21 @@ class _Flight:
             np.random.default_rng([truth.seed, 0x5EED]),
             rates.steps * rates.dt,
         )
-        self.ctrl = Controller(vehicle, model)
+        # without a learned model the controller runs on Python floats (same equations)
+        self.ctrl = Controller(vehicle, model) if model is not None else None
+        self.scalar = ScalarController(vehicle)
+        self.scalar_alloc = ScalarAllocation(self.alloc)
         self.state = ControllerState.zeros(1)
-        self.body = _Body(vehicle.mass, truth.inertia, vehicle.gravity)
+        self.body = ScalarBody(vehicle.mass, truth.inertia, vehicle.gravity)
         self.noise = truth.noise
+        n = truth.noise
+        self.noise_scale = np.repeat([n["position"], n["attitude"], n["velocity"], n["gyro"]], 3)
         self.gyro_bias = np.zeros(3)
         for effect, params in truth.effects:
             off = effect.gyro_offset(params)
             if off is not None:
                 self.gyro_bias = self.gyro_bias + off
+        self.bias = np.concatenate([np.zeros(9), self.gyro_bias])
         self.torque_effects = [
             (e, p) for e, p in truth.effects if type(e).body_torque is not Effect.body_torque
         ]
@@ -302,7 +269,7 @@ class _Flight:
         self.hover_cmd = (hover.tilt.copy(), np.clip(hover.rotor_thrust, 0.0, None))
         self.cmd_tilt = np.empty((n_ctrl, 6))
         self.cmd_thrust = np.empty((n_ctrl, 12))
-        self.outputs: list[Any] = []
+        self.outputs: list[ScalarOutput] = []
         n_log = rates.steps // rates.log_every + 1
         self.rec = {k: np.empty((n_log, 3)) for k in _RECORDED}
         self.rec_t = np.empty(n_log)
@@ -314,41 +281,44 @@ class _Flight:
         self.infeasible = 0
         self.max_att_err = 0.0
         self.diverged_at: float | None = None
-        self.prev_tilt_cmd = hover.tilt.copy()
+        self.prev_tilt_cmd = hover.tilt.tolist()
 
     # ---------------------------------------------------------------- events
     def measure(self) -> np.ndarray:
         """Noisy measurement (12,) of the state: world velocity, wrapped angles."""
-        n, x, rng = self.noise, self.x, self.rng
-        return np.concatenate(
-            [
-                x[0:3] + n["position"] * rng.standard_normal(3),
-                wrap_angle(x[3:6] + n["attitude"] * rng.standard_normal(3)),
-                x[6:9] + n["velocity"] * rng.standard_normal(3),
-                x[9:12] + self.gyro_bias + n["gyro"] * rng.standard_normal(3),
-            ]
-        )
+        meas = self.x + self.bias + self.noise_scale * self.rng.standard_normal(12)
+        meas[3:6] = wrap_angle(meas[3:6])
+        return meas
+
+    def command(self, k: int, dt_ctrl: float) -> ScalarOutput:
+        """The controller's output at controller step k from a fresh measurement."""
+        if self.ctrl is None:
+            return self.scalar.step(self.measure().tolist(), self.ref_rows[k].tolist(), dt_ctrl)
+        out = self.ctrl.step(self.state, self.measure()[None, :], self.ref_rows[k : k + 1], dt_ctrl)
+        rows = (out.force, out.torque, out.desired_angular, out.desired_linear)
+        return ScalarOutput(*(a[0].tolist() for a in rows))
 
     def control(self, k: int) -> None:
         """Controller step k: command from a fresh measurement, setpoints stored."""
         dt_ctrl = self.r.ctrl_every * self.r.dt
-        out = self.ctrl.step(self.state, self.measure()[None, :], self.ref_rows[k : k + 1], dt_ctrl)
-        wrench = np.concatenate([out.force[0], out.torque[0]])
-        res = self.alloc.allocate(wrench[None, :], self.prev_tilt_cmd[None, :])
+        out = self.command(k, dt_ctrl)
+        tilt, rotor, ok = self.scalar_alloc.allocate(out.force + out.torque, self.prev_tilt_cmd)
         # the tilt rate over TILT_RATE_WINDOW at least: per 1 ms step of a fast controller,
         # sensor noise through the controller jitters the tilt at rates no servo could
         # follow, and every step would count as infeasible
         back = max(1, math.ceil(TILT_RATE_WINDOW / dt_ctrl - 1e-9))
-        old = self.cmd_tilt[k - back] if k >= back else self.hover_cmd[0]
-        too_fast = self.alloc.tilt_rate_exceeded(res.tilt[0], old, back * dt_ctrl)
-        if not bool(res.feasible[0]) or bool(too_fast.any()):  # feasible: thrust only here
+        old = self.cmd_tilt[k - back].tolist() if k >= back else self.hover_cmd[0].tolist()
+        if not ok or self.scalar_alloc.rate_exceeded(tilt, old, back * dt_ctrl):
             self.infeasible += 1
-        self.cmd_tilt[k] = self.prev_tilt_cmd = res.tilt[0]
-        self.cmd_thrust[k] = np.clip(res.rotor_thrust[0], self.v.min_thrust, self.v.max_thrust)
+        self.cmd_tilt[k] = tilt
+        self.prev_tilt_cmd = tilt
+        self.cmd_thrust[k] = [min(max(r, self.v.min_thrust), self.v.max_thrust) for r in rotor]
         self.outputs.append(out)
-        att_err = float(np.max(np.abs(wrap_angle(self.x[3:6] - self.ref_rows[k, 4:7]))))
+        x, ref = self.x.tolist(), self.ref_rows[k].tolist()
+        pi, two_pi = math.pi, 2.0 * math.pi
+        att_err = max(abs((x[3 + i] - ref[4 + i] + pi) % two_pi - pi) for i in range(3))
         self.max_att_err = max(self.max_att_err, att_err)
-        lost = att_err > np.deg2rad(80) or abs(self.x[4]) > np.deg2rad(85)
+        lost = att_err > math.radians(80) or abs(x[4]) > math.radians(85)
         if lost and self.diverged_at is None:
             self.diverged_at = k * dt_ctrl
 
@@ -359,10 +329,10 @@ class _Flight:
         self.rec["attitude"][i] = meas[3:6]
         self.rec["position"][i] = meas[0:3]
         self.rec["velocity"][i] = rotation_matrix(self.x[3:6]).T @ meas[6:9]
-        self.rec["force_command"][i] = out.force[0]
-        self.rec["torque_command"][i] = out.torque[0]
-        self.rec["desired_acceleration"][i] = out.desired_angular[0]
-        self.rec["desired_linear_acceleration"][i] = out.desired_linear[0]
+        self.rec["force_command"][i] = out.force
+        self.rec["torque_command"][i] = out.torque
+        self.rec["desired_acceleration"][i] = out.desired_angular
+        self.rec["desired_linear_acceleration"][i] = out.desired_linear
         self.tilt_log[i] = self.act.tilt
         self.rotor_log[i] = self.act.rotor_speed()
         self.volt_log[i] = self.act.voltage
@@ -377,7 +347,7 @@ class _Flight:
     def applied(self, step: int) -> int:
         """Index of the controller step whose setpoints act at physics ``step`` (-1: hover)."""
         t = step * self.r.dt - self.truth.command_delay
-        return min(int(np.floor(t / (self.r.ctrl_every * self.r.dt) + 1e-9)), len(self.outputs) - 1)
+        return min(math.floor(t / (self.r.ctrl_every * self.r.dt) + 1e-9), len(self.outputs) - 1)
 
     # ------------------------------------------------------------------ loop
     def run(self, progress: Callable[[float], None] | None = None) -> None:
@@ -404,8 +374,8 @@ class _Flight:
 
     def _airborne(self, step: int) -> bool:
         """False once the log has run AFTER_LOSS_SECONDS past a divergence or blew up."""
-        rate = float(np.max(np.abs(self.x[9:12])))
-        if not np.all(np.isfinite(self.x)) or rate > MAX_RATE:
+        x = self.x.tolist()
+        if not all(map(math.isfinite, x)) or max(abs(w) for w in x[9:12]) > MAX_RATE:
             return False
         return self.diverged_at is None or step * self.r.dt < self.diverged_at + AFTER_LOSS_SECONDS
 
@@ -422,24 +392,30 @@ class _Flight:
         r, j = self.r, self.applied(i)
         tilt, thrust = (self.cmd_tilt[j], self.cmd_thrust[j]) if j >= 0 else self.hover_cmd
         wrenches = self.act.advance(tilt, thrust, r.dt, n, i * r.dt)
+        forces, torques = wrenches[:, :3].tolist(), wrenches[:, 3:]
+        volts = self.act.volts.tolist()
         xs = self.x.tolist()
+        isfinite = math.isfinite
         for s in range(n):
             step = i + s
-            self.act.voltage = float(self.act.volts[s])
+            self.act.voltage = volts[s]
             if step % r.log_every == 0:
+                self.x = np.array(xs)
                 self.record_log(step * r.dt)
             if step % r.imu_every == 0:
+                self.x = np.array(xs)
                 self.record_imu(step * r.dt)
-            force, torque = wrenches[s, :3], wrenches[s, 3:]
+            torque = torques[s]
             # effect torques from the state at the start of the physics step
             for effect, params in self.torque_effects:
-                extra = effect.body_torque(params, np.asarray(xs[9:12]), force)
+                extra = effect.body_torque(params, np.asarray(xs[9:12]), wrenches[s, :3])
                 if extra is not None:
                     torque = torque + extra
-            xs = self.body.rk4(xs, force.tolist(), torque.tolist(), r.dt)
-            self.x = np.asarray(xs)
-            if not np.all(np.isfinite(self.x)):
+            xs = self.body.rk4(xs, forces[s], torque.tolist(), r.dt)
+            if not all(map(isfinite, xs)):
+                self.x = np.array(xs)
                 return step + 1
+        self.x = np.array(xs)
         return i + n
 
     def result(self, reference: Trajectory) -> SimulationResult:
