@@ -260,7 +260,8 @@ def test_a_worse_axis_and_the_disagree_line_say_one_parameters_disagreement_once
     last["diagnosis"]["learned"] = learned
     texts = [ln.text for ln in report_verdict([(before, "a.json"), (last, "b.json")])]
     assert sum("0.036 ± 0.005" in t for t in texts) == 1
-    assert [t for t in texts if t.startswith("Axis z got worse")][0].endswith(pointer)
+    (worse,) = [t for t in texts if t.startswith("Axis z got worse")]
+    assert worse.endswith(pointer)
     # the first file of another flight: the change is about another pair of flights
     other = copy.deepcopy(before)
     other["metrics"]["nominal"]["rmse"]["z"] = 0.2
