@@ -13,13 +13,14 @@ import numpy as np
 import pytest
 
 from omavctl.base.errors import LogError
+from omavctl.diagnose.verdict_lines import flag_lines
 from omavctl.learn import rollout_residual
 from omavctl.learn.effect_fit import check_available
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.rollout_residual import GridSignals, gather, held_spread, residual_function
 from omavctl.learn.signal import SavitzkyGolay, residual_samples
 from omavctl.logs import read_raw
-from omavctl.logs.types import FlightLog
+from omavctl.logs.types import FlightLog, RawSeries
 from omavctl.physics.effects import EFFECTS, EffectContext
 from omavctl.vehicle import load_vehicle
 from tests.test_horizons import _model
@@ -174,7 +175,8 @@ def test_evaluate_refuses_a_drag_moment_model_on_a_log_without_an_accelerometer(
     from tests.conftest import fly
 
     log = tmp_path / "held.csv"
-    write_log(log, fly(vehicle, short_fig8, {"effects": {}}, seed=0).log)
+    flown = fly(vehicle, short_fig8, {"effects": {}}, seed=0).log
+    write_log(log, flown)
     est = EffectEstimate("drag_moment", {"h": np.array([0.01])}, {"h": np.zeros(1)})
     model = tmp_path / "m.npz"
     save_model(model, _model(vehicle, {"drag_moment": est}))
@@ -184,3 +186,25 @@ def test_evaluate_refuses_a_drag_moment_model_on_a_log_without_an_accelerometer(
         f"{log}: drag_moment needs the accelerometer: map the log's specific force "
         "(m/s^2, body) as the specific_force role (docs/logs.md)"
     )
+    # the same flight with an accelerometer: evaluated; this model, like a file written
+    # before fit recorded the lever arm (provenance.imu_lever), gets one warning naming
+    # the file and saying to refit; one that records it, none (#28)
+    rate = flown.series["body_rate"]
+    level = np.tile([0.0, 0.0, G], (rate.stamps.size, 1))
+    flown.series["specific_force"] = RawSeries(rate.stamps, level)
+    write_log(imu := tmp_path / "imu.csv", flown)
+    tree = evaluate([model], [imu], with_diagnosis=False, horizons=()).tree
+    (flag,) = [f for f in tree["flags"] if f["code"] == "no_imu_lever"]
+    assert flag["message"] == (
+        f"{model}: drag_moment was fitted before omavctl recorded the accelerometer's lever "
+        "arm (no provenance.imu_lever), so it may hold the lever's α × r + ω × (ω × r) as "
+        "well as the force's moment: refit the model (omavctl fit on the same logs with "
+        "--effects drag_moment), which removes the lever where the log pins it down, before "
+        "trusting its numbers"
+    )
+    assert [ln.text for ln in flag_lines(tree) if ln.text == flag["message"]]
+    recorded = _model(vehicle, {"drag_moment": est})
+    recorded.provenance["imu_lever"] = [{"log": "fit.csv", "r": None, "stderr": None}]
+    save_model(current := tmp_path / "current.npz", recorded)
+    tree = evaluate([current], [imu], with_diagnosis=False, horizons=()).tree
+    assert not [f for f in tree["flags"] if f["code"] == "no_imu_lever"]

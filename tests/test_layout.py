@@ -192,3 +192,24 @@ def test_the_architecture_page_draws_every_layer():
     packages = {m for m in MODULES if m.count(".") == 1 and MODULES[m].name == "__init__.py"}
     for package in sorted(packages):
         assert f"{package.replace('.', '/')}/" in page, f"docs/architecture.md: {package}"
+
+
+def test_the_savitzky_golay_filter_sits_below_the_residual():
+    """learn/signal.py reached 496 lines (session 17): the filter on arrays (the
+    derivative and the kernel that holds commands alike) is its own module, which
+    imports nothing of learn; the lever arm, which needs the filter but not the
+    residual, reads it there; signal re-exports the same objects for its callers."""
+    from omavctl.learn import savgol, signal
+
+    def imports(module: str) -> set[str]:  # import_graph() for one module (0.7 s for all)
+        tree = ast.parse(MODULES[module].read_text())
+        nodes = [n for n in ast.walk(tree) if isinstance(n, ast.Import | ast.ImportFrom)]
+        return {d for n in nodes for d in _imported(module, n)}
+
+    assert not {
+        d for d in imports("omavctl.learn.savgol") if layer_of(d) >= LAYERS["omavctl.learn"]
+    }
+    lever = imports("omavctl.learn.imu_lever")
+    assert "omavctl.learn.savgol" in lever and "omavctl.learn.signal" not in lever
+    for name in ("SavitzkyGolay", "usable_segments", "DEFAULT_SG_WINDOW", "DEFAULT_SG_ORDER"):
+        assert getattr(signal, name) is getattr(savgol, name) and name in signal.__all__

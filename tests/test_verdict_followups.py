@@ -208,3 +208,62 @@ def test_a_worst_segment_barely_above_the_flights_error_is_not_called_a_failure(
     tree["metrics"]["model"]["rmse"]["y"] = 0.2  # 1.7×: it stands out
     (line,) = [ln for ln in verdict(tree) if ln.key == "fails"]
     assert line.text.startswith("Fails most at 1.8–2.8 s of d2.bag: y error 0.337 rad/s² RMS")
+
+
+def test_a_worse_axis_and_the_disagree_line_say_one_parameters_disagreement_once():
+    """`evaluate held.bag --model a.npz --model b.npz` (b adds rotational_drag, fitted on
+    fit.bag): "Axis z got worse: ... D_z is 0.036 ± 0.005 as fitted on the fit flight but
+    0.002 ± 0.001 from the evaluated log, 6.7 standard errors apart" and, lines later,
+    "With b.npz: the fit flight and this one disagree: rotational_drag's D_z = 0.036 ±
+    0.005 as fitted, 0.0021 ± 0.001 on this flight (6.6 ...)": one parameter on one pair
+    of flights, said twice with two sets of numbers. The disagree line (both estimates as
+    fit --effects makes them, the flights named) says it; the worse axis points to it."""
+    from omavctl.diagnose.change import report_verdict, verdict_of_models
+
+    drag = {"rotational_drag": {"D": [0.05, 0.05, 0.036], "D_stderr": [0.002, 0.002, 0.005]}}
+    before = _file({"x": 0.1, "y": 0.2, "z": 0.04}, {"x": 0.3, "y": 0.3, "z": 0.05}, {})
+    after = _file({"x": 0.06, "y": 0.1, "z": 0.05}, {"x": 0.1, "y": 0.1, "z": 0.0625}, drag)
+    here = {"D": [0.05, 0.05, 0.0021], "D_stderr": [0.002, 0.002, 0.001]}
+    learned = [
+        {
+            "name": "rotational_drag",
+            "units": {"D": "1/rad"},
+            "explained_variance_per_axis": {"x": 0.5, "y": 0.9, "z": 0.2},
+            "estimate": here,
+        }
+    ]
+    tree = copy.deepcopy(before)
+    tree["models"] = [before["models"][0], {**after["models"][0], "name": "b.npz"}]
+    tree["models"][1]["fit_flight"] = {"logs": ["fit.bag"], "time_window": None}
+    tree["logs"] = [{"name": "held.bag"}]
+    tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
+    tree["diagnosis"]["learned"] = learned
+    disagree = (
+        "rotational_drag's D_z = 0.036 ± 0.005 1/rad as fitted, 0.0021 ± 0.001 1/rad on this "
+        "flight (6.6 combined standard errors apart)"
+    )
+    pointer = (
+        "since rotational_drag's D_z as fitted on the fit flight disagrees with its estimate "
+        "on the evaluated log (both, with their standard errors, in the line below that says "
+        "the fit flight and this one disagree)."
+    )
+    texts = [ln.text for ln in verdict_of_models(tree)]
+    assert sum("0.036 ± 0.005" in t for t in texts) == 1
+    (worse,) = [t for t in texts if t.startswith("Axis z got worse")]
+    assert worse.endswith(pointer)
+    (said,) = [t for t in texts if "disagree:" in t]
+    assert said.startswith(f"With b.npz: the fit flight and this one disagree: {disagree}.")
+    assert texts.index(worse) < texts.index(said)
+    # a report of the two evaluation files of that flight: the same, once
+    last = {**copy.deepcopy(after), "logs": [{"name": "held.bag"}]}
+    last["models"][0]["fit_flight"] = {"logs": ["fit.bag"], "time_window": None}
+    last["diagnosis"]["learned"] = learned
+    texts = [ln.text for ln in report_verdict([(before, "a.json"), (last, "b.json")])]
+    assert sum("0.036 ± 0.005" in t for t in texts) == 1
+    (worse,) = [t for t in texts if t.startswith("Axis z got worse")]
+    assert worse.endswith(pointer)
+    # the first file of another flight: the change is about another pair of flights
+    other = copy.deepcopy(before)
+    other["metrics"]["nominal"]["rmse"]["z"] = 0.2
+    texts = [ln.text for ln in report_verdict([(other, "a.json"), (last, "b.json")])]
+    assert sum("0.036 ± 0.005" in t for t in texts) == 2

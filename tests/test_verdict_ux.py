@@ -707,6 +707,34 @@ def test_a_material_share_of_one_axis_is_named_as_held_back_with_its_reason():
     assert not [ln for ln in verdict(tree) if ln.key == "axis"]
 
 
+def test_the_likewise_effects_of_the_one_axis_share_come_with_their_shares():
+    """Betaflight (real-data check item 14) read "Likewise: com_offset, motor_lag.": the
+    first held-back effect came with its share of the axis, the others with none."""
+    tree = _nothing_missing()
+    tree["diagnosis"]["missing_effects"] = [
+        {
+            "name": "command_delay",
+            "explained_variance": 0.13,
+            "explained_variance_per_axis": {"y": 0.34},
+        },
+        {
+            "name": "com_offset",
+            "explained_variance": 0.05,
+            "explained_variance_per_axis": {"x": 0.18, "y": 0.02, "z": 0.21},
+        },
+        {
+            "name": "motor_lag",
+            "explained_variance": 0.04,
+            "explained_variance_per_axis": {"y": 0.16},
+        },
+    ]
+    (line,) = [ln for ln in verdict(tree) if ln.key == "axis"]
+    assert line.text.endswith(
+        "a claim needs. Likewise: com_offset (18 % of the x error, 21 % of the z error), "
+        "motor_lag (16 % of the y error)."
+    )
+
+
 def test_the_ranking_says_why_an_effect_the_model_holds_stands_below_one_it_lacks():
     """Real-data check item 9 (px4tools): "What the nominal model's residual resembles",
     best first, listed com_offset (26 %) above inertia_error (42 %), which the model

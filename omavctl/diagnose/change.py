@@ -15,6 +15,7 @@ from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.claim_text import not_pinned_names
+from omavctl.diagnose.fit_vs_flight import disagreeing
 from omavctl.diagnose.metrics import quality_flags
 from omavctl.diagnose.verdict import verdict
 from omavctl.diagnose.verdict_lines import (
@@ -70,16 +71,31 @@ def scores_of_models(tree: Mapping[str, Any]) -> list[ModelScore]:
 
 
 def _disagreement(
-    key: str, axis: str, v: float | None, se: float | None, held: Mapping[str, Any], i: int
+    key: str,
+    axis: str,
+    v: float | None,
+    se: float | None,
+    held: Mapping[str, Any],
+    i: int,
+    below: str | None = None,
 ) -> list[str]:
     """A reason when a fitted parameter is more than 2 standard errors (combined) from
-    the estimate the evaluated log gave (the diagnosis' ``parameters``)."""
+    the estimate the evaluated log gave (the diagnosis' ``parameters``); ``below``: the
+    effect's name when the verdict's disagree line printed with this one says the same
+    parameter on the same flights (:func:`_said_below`): the reason then points to it
+    instead of saying it a second time with other numbers."""
     d, dse = _num(get_path(held, key, i)), _num(get_path(held, f"{key}_stderr", i))
     if v is None or se is None or d is None or dse is None:
         return []
     z = abs(v - d) / max(math.hypot(se, dse), 1e-300)
     if z <= 2.0:
         return []
+    if below is not None:
+        return [
+            f"{below}'s {key}_{axis} as fitted on the fit flight disagrees with its estimate "
+            "on the evaluated log (both, with their standard errors, in the line below that "
+            "says the fit flight and this one disagree)"
+        ]
     return [
         f"{key}_{axis} is {v:.3g} ± {se:.2g} as fitted on the fit flight but {d:.3g} ± "
         f"{dse:.2g} from the evaluated log, {z:.1f} standard errors apart: the fit flight "
@@ -88,10 +104,16 @@ def _disagreement(
 
 
 def _worse_reason(
-    before: ModelScore, after: ModelScore, added: Sequence[str], axis: str, removed: bool = False
+    before: ModelScore,
+    after: ModelScore,
+    added: Sequence[str],
+    axis: str,
+    removed: bool = False,
+    said: frozenset[tuple[str, str]] = frozenset(),
 ) -> str:
     """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold;
-    ``removed``: ``after`` also lacks effects ``before`` has."""
+    ``removed``: ``after`` also lacks effects ``before`` has; ``said``: the (effect,
+    parameter) disagreements a line printed with this one gives (:func:`_said_below`)."""
     i = AXES.index(axis)
     reasons: list[str] = []
     misfit: list[str] = []
@@ -111,7 +133,8 @@ def _worse_reason(
                 reasons.append(
                     f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable from 0"
                 )
-            misfit += _disagreement(key, axis, v, se, held, i)
+            below = name if (name, f"{key}_{axis}") in said else None
+            misfit += _disagreement(key, axis, v, se, held, i, below)
     part = _which_part(before, after, axis)
     if misfit:  # the effect's own estimate is off: one sentence with the parts' numbers
         return _misfit_reason(misfit, part, axis)
@@ -181,13 +204,35 @@ def ordered(first: ModelScore, last: ModelScore) -> tuple[ModelScore, ModelScore
     return first, last
 
 
-def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[Line]:
+def _said_below(
+    shown: Mapping[str, Any] | None, before: ModelScore, after: ModelScore
+) -> frozenset[tuple[str, str]]:
+    """The (effect, parameter) pairs whose fitted value and this flight's estimate the
+    verdict of ``shown`` (printed with the change lines) says disagree for ``after``'s
+    model (:func:`omavctl.diagnose.fit_vs_flight.disagreeing`); empty unless ``after``
+    is a model of ``shown`` and ``before`` was evaluated on the same samples (then both
+    sentences are about the same parameter on the same pair of flights)."""
+    if shown is None or after.tree is not shown or not _same_flight(before, after):
+        return frozenset()
+    models = shown.get("models") or []
+    # the score holds its model's own effects mapping (scores_of_files, scores_of_models)
+    at = [i for i, m in enumerate(models) if get_path(m, "effects") is after.effect_params]
+    return frozenset(disagreeing(shown, at[0])) if at else frozenset()
+
+
+def change_lines(
+    scores: Sequence[ModelScore],
+    name_after: bool = True,
+    shown: Mapping[str, Any] | None = None,
+) -> list[Line]:
     """Before/after: the first score against the last (ordered by :func:`ordered`),
     per axis, worse axes explained; ``name_after`` names both in the sentence (when
-    the line does not say which files it compares)."""
+    the line does not say which files it compares); ``shown``: the evaluation whose
+    verdict is printed with these lines (its disagree line is not repeated)."""
     if len(scores) < 2:
         return []
     before, after = ordered(scores[0], scores[-1])
+    said = _said_below(shown, before, after)
     added = [e for e in after.effects if e not in before.effects]
     removed = [e for e in before.effects if e not in after.effects]
     changes: dict[str, float] = {}
@@ -222,7 +267,7 @@ def change_lines(scores: Sequence[ModelScore], name_after: bool = True) -> list[
                 Line(
                     "change",
                     f"Axis {a} got worse ({_signed(c)}): "
-                    f"{_worse_reason(before, after, added, a, bool(removed))}.",
+                    f"{_worse_reason(before, after, added, a, bool(removed), said)}.",
                 )
             )
     return lines
@@ -348,7 +393,8 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
         f"The lines below are about {models[0].label} (the first --model), "
         f"{_effects_words(models[0])}.",
     )
-    return [own[0], *change_lines(models), *_later_flags(tree, models), which, *rest]
+    changes = change_lines(models, shown=tree)
+    return [own[0], *changes, *_later_flags(tree, models), which, *rest]
 
 
 def _later_flags(tree: Mapping[str, Any], models: Sequence[ModelScore]) -> list[Line]:
@@ -392,7 +438,7 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
             i, j = j, i
         return [
             Line(ln.key, ln.text, f"{evals[i][1]} → {evals[j][1]}")
-            for ln in change_lines([scores[i], scores[j]], name_after=False)
+            for ln in change_lines([scores[i], scores[j]], name_after=False, shown=last)
         ]
 
     # each file's first sentence (what it lacked: why the next one was fitted), and

@@ -22,7 +22,7 @@ from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.estimate_text import AXIS_CLAIM
 from omavctl.diagnose.verdict_lines import AXES, Line, get_path
 
-__all__ = ["APART", "disagree_line", "elsewhere_clause", "flight_words"]
+__all__ = ["APART", "disagree_line", "disagreeing", "elsewhere_clause", "flight_words"]
 
 #: Combined standard errors (``|a - b| / sqrt(se_a^2 + se_b^2)``) from which the fitted
 #: and this flight's estimates of one parameter are said to disagree (issue 26: the
@@ -59,11 +59,12 @@ def _apart(
     return v, se, d, dse, abs(v - d) / max(math.hypot(se, dse), 1e-300)
 
 
-def _parts(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any]) -> list[str]:
-    """'T_m = 0.0095 ± 0.016 s fitted, 0.0607 ± 0.019 s here (2.1 apart)' for each
-    component of effect ``name`` more than :data:`APART` apart; a per-axis component
-    only on an axis where the effect explains at least :data:`AXIS_CLAIM` of this
-    flight's error (elsewhere its estimate is whatever else that axis holds)."""
+def _parts(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """(label, 'T_m = 0.0095 ± 0.016 s fitted, 0.0607 ± 0.019 s here (2.1 apart)') for
+    each component of effect ``name`` more than :data:`APART` apart (label ``D_z``, or
+    the key of a one-component parameter); a per-axis component only on an axis where
+    the effect explains at least :data:`AXIS_CLAIM` of this flight's error (elsewhere
+    its estimate is whatever else that axis holds)."""
     here = entry.get("estimate")
     if not isinstance(here, Mapping):
         return []
@@ -85,8 +86,11 @@ def _parts(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any]) -> li
                 continue
             v, se, d, dse, z = got
             out.append(
-                f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted, {d:.3g} ± {dse:.2g}{u} "
-                f"on this flight ({z:.1f} combined standard errors apart)"
+                (
+                    label,
+                    f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted, {d:.3g} ± "
+                    f"{dse:.2g}{u} on this flight ({z:.1f} combined standard errors apart)",
+                )
             )
     return out
 
@@ -103,11 +107,7 @@ def disagree_line(tree: Mapping[str, Any]) -> Line | None:
     here = flight_words([n for n in _logs(tree) if n], tree.get("time_window")) or "this flight"
     said = []
     for model in models:
-        effects = model.get("effects")
-        parts: list[str] = []
-        for name, fitted in effects.items() if isinstance(effects, Mapping) else []:
-            if isinstance(fitted, Mapping) and isinstance(entries.get(str(name)), Mapping):
-                parts += _parts(str(name), fitted, entries[str(name)])
+        parts = [text for _, _, text in _model_parts(model, entries)]
         if not parts:
             continue
         fit: Mapping[str, Any] = model.get("fit_flight") or {}
@@ -126,6 +126,33 @@ def disagree_line(tree: Mapping[str, Any]) -> Line | None:
         "not the same on both: fit on both flights together, or plan a flight that pins it "
         "down (plan --objective effects), before trusting either number.",
     )
+
+
+def _model_parts(
+    model: Mapping[str, Any], entries: Mapping[str, Any]
+) -> list[tuple[str, str, str]]:
+    """(effect, parameter label, words) of every parameter of ``model``'s effects that
+    :func:`_parts` finds apart from its estimate in ``entries`` (name -> the
+    diagnosis's ``learned`` entry)."""
+    effects = model.get("effects")
+    out: list[tuple[str, str, str]] = []
+    for name, fitted in effects.items() if isinstance(effects, Mapping) else []:
+        if isinstance(fitted, Mapping) and isinstance(entries.get(str(name)), Mapping):
+            out += [(str(name), lb, t) for lb, t in _parts(str(name), fitted, entries[str(name)])]
+    return out
+
+
+def disagreeing(tree: Mapping[str, Any], model: int) -> set[tuple[str, str]]:
+    """(effect, parameter label, e.g. ``('rotational_drag', 'D_z')``) of every fitted
+    parameter of the ``model``-th model that :func:`disagree_line` says disagrees with
+    this flight's estimate: a sentence printed with that line need not say it again
+    (the worse-axis reason of :mod:`omavctl.diagnose.change` did, with other numbers)."""
+    models = tree.get("models") or []
+    if not 0 <= model < len(models) or not isinstance(models[model], Mapping):
+        return set()
+    learned = get_path(tree, "diagnosis", "learned", default=[]) or []
+    entries = {str(e.get("name")): e for e in learned if isinstance(e, Mapping)}
+    return {(name, label) for name, label, _ in _model_parts(models[model], entries)}
 
 
 def elsewhere_clause(tree: Mapping[str, Any]) -> str:

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from omavctl.learn.savgol import SavitzkyGolay
+
 __all__ = [
     "REMOVE_LEVER",
     "LeverArm",
@@ -112,9 +114,9 @@ class LeverArm:
         )
 
 
-def estimate_lever(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, slice]], sg: Any) -> (
-    LeverArm | None
-):  # fmt: skip
+def estimate_lever(
+    parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, slice]], sg: SavitzkyGolay
+) -> LeverArm | None:
     """r from the segments' ``(omega, alpha, accel, keep)``: body rate (n, 3) rad/s, its
     Savitzky-Golay derivative (n, 3) rad/s^2, specific force (n, 3) m/s^2, each over a
     whole segment, and the slice of its kept samples; ``sg`` the Savitzky-Golay filter
@@ -154,7 +156,7 @@ def estimate_lever(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, sli
     return LeverArm(coef[:3], se, int(x.shape[0]), wald)
 
 
-def lever_of(flight: Any, sg: Any, segments: Sequence[tuple[int, int, int, int]]) -> (
+def lever_of(flight: Any, sg: SavitzkyGolay, segments: Sequence[tuple[int, int, int, int]]) -> (
     LeverArm | None
 ):  # fmt: skip
     """:func:`estimate_lever` over a log's kept ``segments`` ``(start, stop, keep_start,
