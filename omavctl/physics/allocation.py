@@ -80,6 +80,10 @@ class Allocation:
         a[:3, n:] = z.T
         a[3:, n:] = cross(r, z).T
         self.matrix = a  # (6, 12)
+        drag = np.zeros((6, 2 * n))
+        drag[3:, :n], drag[3:, n:] = y.T, z.T  # a pair's drag torque acts along n_i
+        #: (6, 24): the wrench of [T s, T c, d s, d c] (arm thrusts T, drag terms d)
+        self.wrench_map = np.concatenate([a, drag], axis=1)
         self.pinv = np.linalg.pinv(a)  # (12, 6)
         # neighbours of each arm: the pairs at +-1 index around the hexagon
         self.neighbours = np.array([[(i - 1) % n, (i + 1) % n] for i in range(n)])
@@ -93,9 +97,7 @@ class Allocation:
         s, c = np.sin(tilt)[..., None], np.cos(tilt)[..., None]
         return s * self.arm_y + c * np.array([0.0, 0.0, 1.0])
 
-    def interference(
-        self, tilt: np.ndarray, directions: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def interference(self, tilt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Shapes (..., 6) of the two tilt-dependent thrust losses of each arm's pair.
 
         ``wake``: ``sum_k max(0, -n_k . e_kj)^4`` over the two neighbouring pairs
@@ -103,30 +105,27 @@ class Allocation:
         pair k is tilted towards it); ``arm``: ``sin^2(alpha_j)`` (the pair's own
         wash on its arm). The plant's efficiency is ``1 - rotor_rotor * wake -
         rotor_arm * arm`` (:mod:`omavctl.sim.plant`, ``rotor_interference``).
-        ``directions``: the tilts' :meth:`thrust_directions` (..., 6, 3), when known.
         """
-        n = self.thrust_directions(tilt) if directions is None else directions
+        n = self.thrust_directions(tilt)  # (..., 6, 3)
         hit = np.clip(-np.einsum("...kc,kjc->...kj", n, self.pair_direction), 0.0, None) ** 4
         cols = np.arange(tilt.shape[-1])
         wake = hit[..., self.neighbours[:, 0], cols] + hit[..., self.neighbours[:, 1], cols]
         return wake, np.sin(tilt) ** 2
 
-    def forward(
-        self, tilt: np.ndarray, rotor_thrust: np.ndarray, directions: np.ndarray | None = None
-    ) -> np.ndarray:
+    def forward(self, tilt: np.ndarray, rotor_thrust: np.ndarray) -> np.ndarray:
         """Body wrench [f, tau] (..., 6) from tilts (..., 6) rad and rotor thrusts (..., 12) N.
 
         Includes the rotor drag torques ``drag_ratio (T_top - T_bottom) n_i`` of
-        each counter-rotating pair (zero for an equal split). ``directions``: the
-        tilts' :meth:`thrust_directions` (..., 6, 3), when known.
+        each counter-rotating pair (zero for an equal split). One product with the
+        allocation matrix and the drag map (:attr:`wrench_map`): the arm forces
+        ``T_i (sin a_i y_i + cos a_i e_z)`` are what the matrix's columns map.
         """
         top, bottom = rotor_thrust[..., 0::2], rotor_thrust[..., 1::2]
-        n = self.thrust_directions(tilt) if directions is None else directions
-        arm_force = (top + bottom)[..., None] * n
-        force = arm_force.sum(axis=-2)
-        drag = (self.vehicle.drag_ratio * (top - bottom))[..., None] * n
-        torque = (cross(self.arm_position, arm_force) + drag).sum(axis=-2)
-        return np.concatenate([force, torque], axis=-1)
+        s, c = np.sin(tilt), np.cos(tilt)
+        total, drag = top + bottom, self.vehicle.drag_ratio * (top - bottom)
+        parts = np.concatenate([total * s, total * c, drag * s, drag * c], axis=-1)
+        # numpy's own loops, not BLAS: a row's arithmetic must not depend on the batch
+        return np.einsum("...k,jk->...j", parts, self.wrench_map)
 
     def allocate(
         self,

@@ -122,10 +122,9 @@ class _Actuators:
             out = out * (1.0 + t.battery_sag * (volts - t.battery["nominal"]))[:, None]
         return out
 
-    def efficiency(self, tilt: np.ndarray, directions: np.ndarray | None = None) -> np.ndarray:
-        """Per-arm thrust efficiency (..., 6) from tilts (..., 6) (and their thrust
-        directions (..., 6, 3), when known)."""
-        wake, arm = self.alloc.interference(tilt, directions)
+    def efficiency(self, tilt: np.ndarray) -> np.ndarray:
+        """Per-arm thrust efficiency (..., 6) from tilts (..., 6)."""
+        wake, arm = self.alloc.interference(tilt)
         return 1.0 - self.truth.rotor_arm * arm - self.truth.rotor_rotor * wake
 
     def advance(
@@ -163,11 +162,10 @@ class _Actuators:
             thrust = thrust + motor * (thrust_cmd - thrust)
             thrusts[i] = thrust
         self.thrust = thrust
-        directions = self.alloc.thrust_directions(tilts)
-        eff = np.repeat(self.efficiency(tilts, directions), 2, axis=-1)
+        eff = np.repeat(self.efficiency(tilts), 2, axis=-1)
         self.volts = self.battery(t0 + dt * np.arange(1, n + 1), thrusts)
         true = self.motor_level(thrusts, self.volts)
-        return self.alloc.forward(tilts, true * self.spread * self.health * eff, directions)
+        return self.alloc.forward(tilts, true * self.spread * self.health * eff)
 
     def fail(self, arms: tuple[int, ...], factor: float) -> None:
         """The rotor pairs of ``arms`` keep ``factor`` of their thrust from now on."""
