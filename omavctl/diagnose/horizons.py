@@ -130,10 +130,11 @@ def horizon_steps(horizons: Sequence[float], rate: float) -> list[int]:
     return sorted(steps)
 
 
-def _geodesic(eta_a: np.ndarray, eta_b: np.ndarray) -> np.ndarray:
-    """Rotation angle (...) rad between ZYX Euler attitudes (..., 3):
-    ``2 arcsin(|R_a - R_b|_F / (2 sqrt 2))``, accurate for small angles."""
-    diff = rotation_matrix(eta_a) - rotation_matrix(eta_b)
+def _geodesic(eta_a: np.ndarray, rot_b: np.ndarray) -> np.ndarray:
+    """Rotation angle (...) rad between ZYX Euler attitudes eta_a (..., 3) and the
+    rotation matrices rot_b (..., 3, 3) (the logged attitude's, computed once per
+    table): ``2 arcsin(|R_a - R_b|_F / (2 sqrt 2))``, accurate for small angles."""
+    diff = rotation_matrix(eta_a) - rot_b
     norm = np.sqrt(np.einsum("...ij,...ij->...", diff, diff))
     return 2.0 * np.arcsin(np.clip(norm / (2.0 * np.sqrt(2.0)), 0.0, 1.0))
 
@@ -149,23 +150,34 @@ class _Run:
 
 
 def _rolled(
-    win: Windows, inertia: np.ndarray, inertia_inv: np.ndarray, dt: float, residual: Any
+    win: Windows,
+    inertia: np.ndarray,
+    inertia_inv: np.ndarray,
+    dt: float,
+    residual: Any,
+    rot: np.ndarray | None = None,
 ) -> _Run:
-    """Errors of a rollout from every window's measured start (residual None: physics only)."""
+    """Errors of a rollout from every window's measured start (residual None: physics
+    only); rot (W, K + 1, 3, 3) the logged attitude's rotation matrices (None: computed
+    here)."""
     k = win.pos.shape[1] - 1
     eta0 = win.attitude[:, 0] if win.attitude is not None else np.zeros((win.count, 3))
     omega, eta = rollout(
         win.omega[:, 0], eta0, win.torque[:, :k], inertia, inertia_inv, dt, residual
     )
-    attitude = None if win.attitude is None else _geodesic(eta, win.attitude)
+    attitude = None
+    if win.attitude is not None:
+        attitude = _geodesic(eta, rotation_matrix(win.attitude) if rot is None else rot)
     return _Run(rate=omega - win.omega, attitude=attitude)
 
 
-def _naive(win: Windows) -> _Run:
-    """Errors of holding the start state over the window."""
+def _naive(win: Windows, rot: np.ndarray | None) -> _Run:
+    """Errors of holding the start state over the window (rot as in :func:`_rolled`,
+    not None where the windows have an attitude)."""
     attitude = None
     if win.attitude is not None:
-        attitude = _geodesic(np.broadcast_to(win.attitude[:, :1], win.attitude.shape), win.attitude)
+        assert rot is not None
+        attitude = _geodesic(np.broadcast_to(win.attitude[:, :1], win.attitude.shape), rot)
     return _Run(rate=win.omega[:, :1] - win.omega, attitude=attitude)
 
 
@@ -280,15 +292,25 @@ def _predictors(
     """Every predictor's description and errors: naive, nominal, then per model
     effects and the full model (with its band)."""
     v = models[0].vehicle
+    rot = None if win.attitude is None else rotation_matrix(win.attitude)
+    nominal = _rolled(win, v.inertia, v.inertia_inv, dt, None, rot)
     out: list[tuple[dict[str, Any], _Run]] = [
-        ({"key": "naive", "kind": "naive", "model": None}, _naive(win)),
-        ({"key": "nominal", "kind": "nominal", "model": None},
-         _rolled(win, v.inertia, v.inertia_inv, dt, None)),
-    ]  # fmt: skip
+        ({"key": "naive", "kind": "naive", "model": None}, _naive(win, rot)),
+        ({"key": "nominal", "kind": "nominal", "model": None}, nominal),
+    ]
     for j, m in enumerate(models):
         suffix = "" if j == 0 else f"_{j}"
-        eff = _rolled(win, v.inertia, v.inertia_inv, dt, residual_function(m, win, samples, False))
-        full = _rolled(win, v.inertia, v.inertia_inv, dt, residual_function(m, win, samples, True))
+        # no effects: their residual is zero at every step, the rollout physics only's
+        eff = (
+            _rolled(
+                win, v.inertia, v.inertia_inv, dt, residual_function(m, win, samples, False), rot
+            )
+            if m.effects
+            else _Run(rate=nominal.rate, attitude=nominal.attitude)
+        )
+        full = _rolled(
+            win, v.inertia, v.inertia_inv, dt, residual_function(m, win, samples, True), rot
+        )
         full.std = _band(m, win, samples, dt)
         out.append(({"key": f"effects{suffix}", "kind": "effects", "model": j}, eff))
         weights = {a: float(w) for a, w in zip(AXES, m.rollout_gp, strict=True)}

@@ -214,9 +214,19 @@ class ResidualGP:
         return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
     def _kernel(self, axis: int, zq: np.ndarray, zq_sq: np.ndarray) -> np.ndarray:
-        """k(zq, Z) (B, n) for length-scaled queries zq (B, d) with squared norms (B,)."""
-        d2 = zq_sq[:, None] + self._z_sq[axis][None, :] - 2.0 * zq @ self._z[axis].T
-        return self.signal_variance[axis] * np.exp(-0.5 * np.maximum(d2, 0.0))
+        """k(zq, Z) (B, n) for length-scaled queries zq (B, d) with squared norms (B,).
+
+        ``s^2 exp(zq . Z_j - |zq|^2 / 2 - |Z_j|^2 / 2)``, the exponent clamped at 0
+        (rounding), built in place in one (B, n) array: a rollout calls it at every
+        step, and the temporaries of the plain formula cost as much as its ``exp``.
+        """
+        k = zq @ self._z[axis].T
+        k -= 0.5 * zq_sq[:, None]
+        k -= 0.5 * self._z_sq[axis]
+        np.minimum(k, 0.0, out=k)
+        np.exp(k, out=k)
+        k *= self.signal_variance[axis]
+        return k
 
     # ----------------------------------------------------------- prediction
     def gp_predict(
@@ -253,8 +263,10 @@ class ResidualGP:
                 zq = zn[rows] / self.length_scales[a]
                 k = self._kernel(a, zq, np.einsum("bd,bd->b", zq, zq))
                 mean[rows, a] = self.target_mean[a] + k @ self._alpha[a]
-                if variance:
-                    v = solve_triangular(self._chol[a], k.T, lower=True, check_finite=False)
+                if variance:  # k is not needed after: solve in place (a copy cost a third)
+                    v = solve_triangular(
+                        self._chol[a], k.T, lower=True, check_finite=False, overwrite_b=True
+                    )
                     var[rows, a] = self.latent_scale[a] * np.maximum(
                         self.signal_variance[a] - np.einsum("nb,nb->b", v, v), 0.0
                     ) + self.beyond_scale[a] * beyond_envelope_variance(
