@@ -1,12 +1,13 @@
 """Flags about the model files themselves, before any number of an evaluation.
 
-A model with an effect of the measured force (``drag_moment``) records since
-session 17 the accelerometer lever arm its fit logs' force was taken less of
+A model with an effect of the measured force (``drag_moment``) records the
+accelerometer lever arm its fit logs' force was taken less of
 (``provenance.imu_lever``, docs/schemas.md; :mod:`omavctl.learn.imu_lever`). A file
-written before it may have fitted that effect on the raw force, lever term and all
-(docs/horizons.md, "The accelerometer's lever arm"): evaluated as it is, its effect
-and its open-loop horizons are of that force. :func:`lever_flags` says so, one flag
-per such file, naming it and what to do (refit); the file is still evaluated.
+written by an omavctl that did not record it may have fitted that effect on the raw
+force, lever term and all (docs/horizons.md, "The accelerometer's lever arm"):
+evaluated as it is, its effect and its open-loop horizons are of that force.
+:func:`lever_flags` says so, one flag per such file, naming it and what to do (refit);
+the file is still evaluated.
 """
 
 from __future__ import annotations

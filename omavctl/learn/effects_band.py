@@ -39,8 +39,30 @@ BEYOND_MARGIN = 0.25
 
 
 def parameter_variance(model: Any, samples: Any) -> np.ndarray:
-    """Variance (n, 3) the effects' parameter uncertainty adds to ``model``'s prediction
-    on a log's samples (:meth:`omavctl.learn.model.ResidualGP.effects_variance`)."""
+    """Variance (n, 3) the effects' parameter uncertainty adds to ``model``'s
+    prediction on a log's samples: ``diag(R Sigma R^T)`` per axis, the term of a GP
+    with explicit basis functions (Rasmussen & Williams §2.7, eq. 2.42).
+
+    ``R = H* - k*(K + sigma^2 I)^-1 H``: a parameter error ``delta`` moves the
+    effects' prediction by ``H* delta`` (``H*`` (n, 3, P) the sensitivities at the
+    samples) and the GP's targets by ``H delta`` at the training points, of which its
+    mean carries back the part it can represent (in full: the cost of weighing the
+    mean, :mod:`omavctl.learn.mean_shrink`, is the band's own ``((1 - w) m)^2``).
+    ``Sigma = (B^-1 + sum_a H_a^T K_a^-1 H_a)^-1`` is the parameters' posterior
+    covariance with this model's calibrated GP as the model of what they
+    leave (``B`` the effects' prior). The intervals ``fit`` reports are wider (robust
+    to autocorrelation, :mod:`omavctl.learn.intervals`): the band's GP part already
+    carries that autocorrelation, and counting it twice made the band over-wide
+    inside the fit flight's inputs (docs/generalisation.md). Beyond the training
+    inputs, where neither vouches for the parameters, the term rises to at least
+    ``sum_j (se_j H*_j)^2`` with those robust errors (fully a quarter of a training
+    range beyond the box: :func:`beyond_weight`). Linear
+    effects enter by their regressors (exact); a searched effect (lag, delay) by
+    its exact form's difference one standard error away, and at the training points
+    by its linearised regressor scaled to that sensitivity. A file without training
+    regressors gets ``sum_j (se_j H*_j)^2`` everywhere. (The model's
+    :meth:`omavctl.learn.model.ResidualGP.effects_variance`.)
+    """
     if not model.effects:
         return np.zeros((samples.n, 3))
     basis = _basis(model, samples)
