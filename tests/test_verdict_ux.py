@@ -762,3 +762,48 @@ def test_the_ranking_says_why_an_effect_the_model_holds_stands_below_one_it_lack
         "pass every test first, then by share, and inertia_error does not pass them here: its "
         "estimate is outside the effect's plausible range."
     ) in " ".join(text.split())
+
+
+def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeypatch):
+    """Eyes3 (motor_lag hidden, fig8 -> wobble): the verdict named com_offset,
+    rotor_interference and motor_lag missing, while the report's ranking said "no" for
+    the last two (motor_lag at 0 %: the joint selection named it) and its bar chart drew
+    them as "not missing": each now says which later step claimed it, with its numbers."""
+    from omavctl.report import figures as rf
+    from omavctl.report.diagnosis import diagnosis_section
+    from omavctl.report.document import Document, to_markdown
+    from omavctl.report.top import _candidates_blocks
+
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing"] = ["com_offset", "rotor_interference", "motor_lag"]
+    diag["missing_effects"] = [
+        {"name": "com_offset", "explained_variance": 0.246, "missing": True},
+        {"name": "rotor_interference", "explained_variance": 0.147, "missing": False},
+        {"name": "motor_lag", "explained_variance": 0.0, "missing": False},
+    ]
+    diag["missing_steps"] = [
+        {"name": "com_offset", "explained_variance": 0.246},
+        {"name": "rotor_interference", "explained_variance": 0.183},
+    ]
+    diag["joint_steps"] = [{"name": "motor_lag", "share": 0.812, "share_of_total": 0.112}]
+    diag["fit_command"] = "omavctl fit f.bag --effects com_offset,rotor_interference,motor_lag"
+    text = to_markdown(Document("r", diagnosis_section(tree, 0, "eval.json")))
+    text = " ".join(text.replace("\\_", "_").split())
+    assert (
+        "named by a later step: rotor_interference: step 2 of the forward selection: it "
+        "explains 18 % of the model's remaining error that com_offset leaves; motor_lag: the "
+        "joint selection: estimated from the fit flight as fit --effects would, it removes "
+        "81 % of the held-out physics-only error left before it (11 % of the whole)."
+    ) in text
+    assert "**MISSING** (step 2) | – |" in text and "**MISSING** (joint selection) | – |" in text
+    assert "| no |" not in text  # no claimed effect says "no" any more
+    assert "#### Command that adds com_offset, rotor_interference, motor_lag" in text
+    drawn: dict[str, Any] = {}
+    monkeypatch.setattr(rf, "candidates_figure", lambda e, t, later: drawn.update(later) or b"")
+    (block,) = _candidates_blocks(tree, "eval.json", figures=True)
+    assert drawn == {"rotor_interference": "step 2", "motor_lag": "joint selection"}
+    assert block.caption.endswith(
+        "; rotor_interference, motor_lag claimed by a later selection step (section 5)."
+    )
