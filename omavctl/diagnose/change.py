@@ -118,11 +118,18 @@ def _worse_reason(
     reasons: list[str] = []
     misfit: list[str] = []
     diag = get_path(before.tree, "diagnosis", "missing_effects", default=[]) or []
+    learned = get_path(before.tree, "diagnosis", "learned_claims", default=[]) or []
     for name in added:
         entry = next((e for e in diag if isinstance(e, Mapping) and e.get("name") == name), None)
         ev = _num(get_path(entry, "explained_variance_per_axis", axis))
         if ev is not None and ev < 0.05:
-            reasons.append(f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error")
+            # of the earlier model's remaining error: a GP that had learned the effect
+            # leaves it none, though it removes much of the physics-only error
+            gp = " (its GP had learned it)" if name in learned else ""
+            reasons.append(
+                f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error the earlier "
+                f"model left{gp}"
+            )
         params = after.effect_params.get(name) or {}
         held = get_path(entry, "parameters", default={}) or {}
         for key, vals in params.items():
