@@ -807,3 +807,33 @@ def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeyp
     assert block.caption.endswith(
         "; rotor_interference, motor_lag claimed by a later selection step (section 5)."
     )
+
+
+def test_no_better_than_zero_on_several_axes_is_one_line():
+    """Eyes3 (Crazyflie log15 -> log10): the verdict opened with the same 300-character
+    sentence three times, once per axis; it is one line with each axis's numbers, the
+    advice once (the JSON keeps one flag per axis for scripts)."""
+    from omavctl.diagnose.metrics import quality_flags
+
+    tree = _nothing_missing()
+    metrics = {
+        "zero": {"rmse": {"x": 9.54, "y": 8.97, "z": 1.68}},
+        "model": {
+            "rmse": {"x": 11.6, "y": 16.9, "z": 2.32},
+            "coverage_2sigma": {a: 0.95 for a in "xyz"},
+        },
+        "effects": {"rmse": {"x": 11.6, "y": 16.9, "z": 2.32}},
+    }
+    tree["flags"] = quality_flags(metrics, [], ["motor_lag"])
+    assert len(tree["flags"]) == 3
+    lines = [ln for ln in verdict(tree) if "predicting none" in ln.text]
+    assert [(ln.key, ln.text) for ln in lines] == [
+        (
+            "worse",
+            "axes x, y, z: the model's error (x 11.6, y 16.9, z 2.32 rad/s² RMS) is not below "
+            "the angular acceleration itself (x 9.54, y 8.97, z 1.68): predicting none would "
+            "do as well; the diagnosis names what the physics lacks (motor_lag): add it "
+            "first; if the error stays, check the command's gain, sign and frame, and whether "
+            "the flight moves the vehicle enough for its commands to show",
+        )
+    ]
