@@ -768,7 +768,8 @@ def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeyp
     """Eyes3 (motor_lag hidden, fig8 -> wobble): the verdict named com_offset,
     rotor_interference and motor_lag missing, while the report's ranking said "no" for
     the last two (motor_lag at 0 %: the joint selection named it) and its bar chart drew
-    them as "not missing": each now says which later step claimed it, with its numbers."""
+    them as "not missing": each now says which later step claimed it, with its numbers,
+    in the report and in the verdict's "Also:"."""
     from omavctl.report import figures as rf
     from omavctl.report.diagnosis import diagnosis_section
     from omavctl.report.document import Document, to_markdown
@@ -800,6 +801,11 @@ def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeyp
     assert "**MISSING** (step 2) | – |" in text and "**MISSING** (joint selection) | – |" in text
     assert "| no |" not in text  # no claimed effect says "no" any more
     assert "#### Command that adds com_offset, rotor_interference, motor_lag" in text
+    said = next(ln for ln in verdict(tree) if ln.key == "missing").plain()
+    assert (
+        "Also: rotor_interference, motor_lag (the fit command adds them together; "
+        "rotor_interference: step 2 of the forward selection: it explains 18 %"
+    ) in said
     drawn: dict[str, Any] = {}
     monkeypatch.setattr(rf, "candidates_figure", lambda e, t, later: drawn.update(later) or b"")
     (block,) = _candidates_blocks(tree, "eval.json", figures=True)

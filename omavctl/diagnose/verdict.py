@@ -24,7 +24,13 @@ from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
-from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained, replaced_text
+from omavctl.diagnose.joint_text import (
+    joint_share,
+    joint_text,
+    min_explained,
+    named_later,
+    replaced_text,
+)
 from omavctl.diagnose.verdict_lines import (
     AXES,
     COVERAGE_MIN,
@@ -120,7 +126,12 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     said = estimate_sentence(ct.claim_estimate(diag, missing[0]), claimed)
     text += said + (elsewhere_clause(tree) if said else "")
     if len(missing) > 1:
-        text += f" Also: {', '.join(missing[1:])}{joint_text(diag, missing)}."
+        together = joint_text(diag, missing)
+        later = [why for name, (_, why) in named_later(diag).items() if name in missing[1:]]
+        if later and together == " (the fit command adds them together)":
+            # say how each came in: the report's ranking scores each effect alone
+            together = f" (the fit command adds them together; {'; '.join(later)})"
+        text += f" Also: {', '.join(missing[1:])}{together}."
     amb = top.get("ambiguous_with") or []
     if amb:
         text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
