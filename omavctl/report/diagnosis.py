@@ -309,20 +309,8 @@ def diagnosis_section(
             )
         )
     missing = [str(x) for x in diag.get("missing", []) or []]
-    if missing:
-        blocks.append(
-            Para(("Missing: ", *(s for name in missing for s in (Span(name, "strong"), " ")))[:-1])
-        )
-    else:
-        blocks.append(Para("No registered effect is missing from this model."))
     later = named_later(diag)
-    if later:  # the ranking below scores each effect alone: say how the others came in
-        blocks.append(
-            Para(
-                "The ranking below scores each effect alone on the model's remaining error; "
-                f"named by a later step: {'; '.join(why for _, why in later.values())}."
-            )
-        )
+    blocks += _missing_paras(missing, later)
     learned = [str(x) for x in diag.get("learned_claims") or []]
     if learned:  # what the GP learned, confirmed on the held-out flight: claimed
         names = (s for name in learned for s in (Span(name, "strong"), " "))
@@ -368,6 +356,24 @@ def diagnosis_section(
     blocks += _learned_blocks(tree, diag, learned_as, torque_unknown)
     blocks += _learned_commands(tree, diag)
     return blocks
+
+
+def _missing_paras(missing: Sequence[str], later: Mapping[str, tuple[str, str]]) -> list[Block]:
+    """'Missing: A B C', and how a later step named those the ranking below, which
+    scores each effect alone, does not (:func:`~omavctl.diagnose.joint_text.named_later`)."""
+    if not missing:
+        return [Para("No registered effect is missing from this model.")]
+    out: list[Block] = [
+        Para(("Missing: ", *(s for name in missing for s in (Span(name, "strong"), " ")))[:-1])
+    ]
+    if later:
+        out.append(
+            Para(
+                "The ranking below scores each effect alone on the model's remaining error; "
+                f"named by a later step: {'; '.join(why for _, why in later.values())}."
+            )
+        )
+    return out
 
 
 def _learned_commands(tree: Mapping[str, Any], diag: Mapping[str, Any]) -> list[Block]:
