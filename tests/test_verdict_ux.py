@@ -791,6 +791,7 @@ def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeyp
     diag["joint_steps"] = [{"name": "motor_lag", "share": 0.812, "share_of_total": 0.112}]
     diag["fit_command"] = "omavctl fit f.bag --effects com_offset,rotor_interference,motor_lag"
     text = to_markdown(Document("r", diagnosis_section(tree, 0, "eval.json")))
+    assert "\\`fit --effects\\`" not in text  # shown with its backticks in the HTML too
     text = " ".join(text.replace("\\_", "_").split())
     assert (
         "named by a later step: rotor_interference: step 2 of the forward selection: it "

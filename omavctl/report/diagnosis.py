@@ -304,7 +304,7 @@ def diagnosis_section(
                 f"estimate is significant (t ≥ {num(method.get('min_t_value'), 3)}) and "
                 "physically plausible, its part of the error is at least "
                 f"{num(method.get('min_contribution_rms'), 2)} rad/s² RMS (three times the "
-                "log's measurement noise: less is not claimed), and fitted as `fit --effects` "
+                "log's measurement noise: less is not claimed), and fitted as fit --effects "
                 "would fit it, it still lowers the error."
             )
         )
