@@ -844,3 +844,22 @@ def test_no_better_than_zero_on_several_axes_is_one_line():
             "the flight moves the vehicle enough for its commands to show",
         )
     ]
+
+
+def test_two_models_the_first_models_own_sentence_names_its_model():
+    """Eyes3 (`evaluate flight-02.bag --model gp.npz --model gp+com_offset+...npz`): the
+    verdict opened "Missing: com_offset ..." above the change line and the pointer
+    "The lines below are about gp.npz", so it read as the better model's lack; it now
+    says which model it is about, as the first model's leading flags do."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    (before, _), (after, _) = _pair(0.388)
+    tree = copy.deepcopy(before)
+    tree["diagnosis"]["missing"] = ["com_offset"]
+    tree["diagnosis"]["missing_effects"] = [{"name": "com_offset", "explained_variance": 0.25}]
+    old = {**before["models"][0], "name": "old.npz"}
+    new = {**after["models"][0], "name": "new.npz"}
+    tree["models"], tree["metrics_by_model"] = [old, new], [before["metrics"], after["metrics"]]
+    texts = [ln.text for ln in verdict_of_models(tree)]
+    assert texts[0].startswith("With old.npz: Missing: com_offset — it explains 25 %"), texts
+    assert texts[2] == "The lines below are about old.npz (the first --model), with no effects."
