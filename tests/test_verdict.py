@@ -377,14 +377,17 @@ def test_an_input_constant_in_training_is_named_not_measured_in_its_zero_range()
 
 def test_a_named_com_offset_says_what_else_looks_like_it():
     """A CoM offset is what a thrust spread and the rotors' interference also look like
-    at small tilts: the verdict that names it says so; drag has no such look-alike."""
+    at small tilts: the verdict that names it says so; drag has no such look-alike. It
+    names the effect: after a long "Also: ..." clause (eyes3) "its" read as the last
+    effect named there."""
     tree = copy.deepcopy(BEFORE)
     tree["diagnosis"]["missing"] = ["com_offset"]
     tree["diagnosis"]["missing_effects"][0]["name"] = "com_offset"
     text = verdict(tree)[0].text
     assert text.startswith("Missing: com_offset — it explains 51 %")
     assert text.endswith(
-        "A residual of its shape is also left by a thrust spread between the rotors and the "
+        "A residual of com_offset's shape is also left by a thrust spread between the rotors "
+        "and the "
         "rotors' interference at small tilts (rotor_interference), which also shift where "
         "the thrust acts."
     )

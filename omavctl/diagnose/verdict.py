@@ -131,7 +131,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
     alike = _look_alikes(missing[0])
     if alike:
-        text += f" A residual of its shape is also left by {alike}."
+        text += f" A residual of {missing[0]}'s shape is also left by {alike}."
     text += ct.not_pinned_text(diag)
     cmd = diag.get("fit_command")
     text += given_sentence(diag, missing[0])
