@@ -29,3 +29,21 @@ def test_a_negative_gain_from_motor_outputs_names_the_motor_lag(tmp_path: Path) 
     (bad,) = [n for n in unit_notes(veh, [], gain, se, ["motor_lag"]) if "not positive" in n]
     assert "motor_lag" not in bad
     assert not [n for n in unit_notes(veh, [], np.abs(gain), se) if "not positive" in n]
+
+
+def test_a_band_widened_by_a_factor_that_rounds_to_one_is_not_noted() -> None:
+    """Eyes3 (fit on the tool's own fig8 flight): "axis x: predictive std widened x1.00
+    to cover 95% of held-out time blocks (was 95%)" said nothing; a factor that rounds
+    to 1.00 is not noted, a real widening still is."""
+    from omavctl.learn.hyperparameters import _axis_notes
+    from omavctl.learn.validation import AxisValidation
+
+    def notes(std: float, latent: float = 1.0) -> list[str]:
+        v = AxisValidation(1.0, 2.0, 0.95, std, True, 1.0, latent_factor=latent)
+        return _axis_notes("x", v)
+
+    assert notes(1.004, 1.003) == []
+    assert notes(1.04, 1.2) == [
+        "axis x: predictive std widened x1.04 to cover 95% of held-out time blocks (was 95%)",
+        "axis x: extrapolation uncertainty widened x1.20 (held-out regions of input space)",
+    ]

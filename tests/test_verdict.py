@@ -168,6 +168,21 @@ def test_before_after_per_axis_with_the_reason_for_the_worse_axis():
     assert "within 2.0× the measurement noise" in reason
 
 
+def test_a_worse_axis_says_the_share_was_of_the_earlier_models_error():
+    """Eyes3 (Crazyflie log15 -> log10): the first verdict claimed motor_lag learned by
+    the GP ("it removes 50 % of the squared physics-only error"); after adding it, the
+    change line said "motor_lag explained 0 % of the x error", which read as a
+    contradiction: the 0 % is of the earlier model's remaining error, which its GP had
+    already taken."""
+    before = copy.deepcopy(BEFORE)
+    before["diagnosis"]["learned_claims"] = ["rotational_drag"]
+    lines = change_lines(scores_of_files([(before, "before.json"), (AFTER, "after.json")]))
+    assert (
+        "rotational_drag explained 0 % of the z error the earlier model left (its GP had "
+        "learned it); "
+    ) in lines[1].text
+
+
 def test_a_worse_axis_with_no_reason_in_the_files_claims_none():
     """An added effect whose parameter on the worse axis is well determined and that
     explained a share of its error: the files do not say why the axis got worse, and
@@ -200,7 +215,8 @@ def test_a_worse_axis_says_whether_the_physics_or_the_gp_part_rose():
         return change_lines(scores)[-1].text
 
     assert worse(0.0481, 0.0714) == (  # 0.0465 -> 0.0581 (+24.9 %), physics +48.4 %
-        "Axis z got worse (+24.9 %): rotational_drag explained 0 % of the z error; its "
+        "Axis z got worse (+24.9 %): rotational_drag explained 0 % of the z error the "
+        "earlier model left; its "
         "fitted D_z = 0.036 ± 0.079 is indistinguishable from 0; the physics-only error on z "
         "rose 0.0481 → 0.0714 rad/s² (+48.4 %) and the model's error relative to it went "
         "0.97× → 0.81×: the refitted effects made z worse, not the GP."
@@ -361,14 +377,17 @@ def test_an_input_constant_in_training_is_named_not_measured_in_its_zero_range()
 
 def test_a_named_com_offset_says_what_else_looks_like_it():
     """A CoM offset is what a thrust spread and the rotors' interference also look like
-    at small tilts: the verdict that names it says so; drag has no such look-alike."""
+    at small tilts: the verdict that names it says so; drag has no such look-alike. It
+    names the effect: after a long "Also: ..." clause (eyes3) "its" read as the last
+    effect named there."""
     tree = copy.deepcopy(BEFORE)
     tree["diagnosis"]["missing"] = ["com_offset"]
     tree["diagnosis"]["missing_effects"][0]["name"] = "com_offset"
     text = verdict(tree)[0].text
     assert text.startswith("Missing: com_offset — it explains 51 %")
     assert text.endswith(
-        "A residual of its shape is also left by a thrust spread between the rotors and the "
+        "A residual of com_offset's shape is also left by a thrust spread between the rotors "
+        "and the "
         "rotors' interference at small tilts (rotor_interference), which also shift where "
         "the thrust acts."
     )

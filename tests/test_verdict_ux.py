@@ -762,3 +762,104 @@ def test_the_ranking_says_why_an_effect_the_model_holds_stands_below_one_it_lack
         "pass every test first, then by share, and inertia_error does not pass them here: its "
         "estimate is outside the effect's plausible range."
     ) in " ".join(text.split())
+
+
+def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeypatch):
+    """Eyes3 (motor_lag hidden, fig8 -> wobble): the verdict named com_offset,
+    rotor_interference and motor_lag missing, while the report's ranking said "no" for
+    the last two (motor_lag at 0 %: the joint selection named it) and its bar chart drew
+    them as "not missing": each now says which later step claimed it, with its numbers,
+    in the report and in the verdict's "Also:"."""
+    from omavctl.report import figures as rf
+    from omavctl.report.diagnosis import diagnosis_section
+    from omavctl.report.document import Document, to_markdown
+    from omavctl.report.top import _candidates_blocks
+
+    tree = _nothing_missing()
+    diag = tree["diagnosis"]
+    diag["unexplained"] = []
+    diag["missing"] = ["com_offset", "rotor_interference", "motor_lag"]
+    diag["missing_effects"] = [
+        {"name": "com_offset", "explained_variance": 0.246, "missing": True},
+        {"name": "rotor_interference", "explained_variance": 0.147, "missing": False},
+        {"name": "motor_lag", "explained_variance": 0.0, "missing": False},
+    ]
+    diag["missing_steps"] = [
+        {"name": "com_offset", "explained_variance": 0.246},
+        {"name": "rotor_interference", "explained_variance": 0.183},
+    ]
+    diag["joint_steps"] = [{"name": "motor_lag", "share": 0.812, "share_of_total": 0.112}]
+    diag["fit_command"] = "omavctl fit f.bag --effects com_offset,rotor_interference,motor_lag"
+    text = to_markdown(Document("r", diagnosis_section(tree, 0, "eval.json")))
+    assert "\\`fit --effects\\`" not in text  # shown with its backticks in the HTML too
+    text = " ".join(text.replace("\\_", "_").split())
+    assert (
+        "named by a later step: rotor_interference: step 2 of the forward selection: it "
+        "explains 18 % of the model's remaining error that com_offset leaves; motor_lag: the "
+        "joint selection: estimated from the fit flight as fit --effects would, it removes "
+        "81 % of the held-out physics-only error left before it (11 % of the whole)."
+    ) in text
+    assert "**MISSING** (step 2) | – |" in text and "**MISSING** (joint selection) | – |" in text
+    assert "| no |" not in text  # no claimed effect says "no" any more
+    assert "#### Command that adds com_offset, rotor_interference, motor_lag" in text
+    said = next(ln for ln in verdict(tree) if ln.key == "missing").plain()
+    assert (
+        "Also: rotor_interference, motor_lag (the fit command adds them together; "
+        "rotor_interference: step 2 of the forward selection: it explains 18 %"
+    ) in said
+    drawn: dict[str, Any] = {}
+    monkeypatch.setattr(rf, "candidates_figure", lambda e, t, later: drawn.update(later) or b"")
+    (block,) = _candidates_blocks(tree, "eval.json", figures=True)
+    assert drawn == {"rotor_interference": "step 2", "motor_lag": "joint selection"}
+    assert block.caption.endswith(
+        "; rotor_interference, motor_lag claimed by a later selection step (section 5)."
+    )
+
+
+def test_no_better_than_zero_on_several_axes_is_one_line():
+    """Eyes3 (Crazyflie log15 -> log10): the verdict opened with the same 300-character
+    sentence three times, once per axis; it is one line with each axis's numbers, the
+    advice once (the JSON keeps one flag per axis for scripts)."""
+    from omavctl.diagnose.metrics import quality_flags
+
+    tree = _nothing_missing()
+    metrics = {
+        "zero": {"rmse": {"x": 9.54, "y": 8.97, "z": 1.68}},
+        "model": {
+            "rmse": {"x": 11.6, "y": 16.9, "z": 2.32},
+            "coverage_2sigma": {a: 0.95 for a in "xyz"},
+        },
+        "effects": {"rmse": {"x": 11.6, "y": 16.9, "z": 2.32}},
+    }
+    tree["flags"] = quality_flags(metrics, [], ["motor_lag"])
+    assert len(tree["flags"]) == 3
+    lines = [ln for ln in verdict(tree) if "predicting none" in ln.text]
+    assert [(ln.key, ln.text) for ln in lines] == [
+        (
+            "worse",
+            "axes x, y, z: the model's error (x 11.6, y 16.9, z 2.32 rad/s² RMS) is not below "
+            "the angular acceleration itself (x 9.54, y 8.97, z 1.68): predicting none would "
+            "do as well; the diagnosis names what the physics lacks (motor_lag): add it "
+            "first; if the error stays, check the command's gain, sign and frame, and whether "
+            "the flight moves the vehicle enough for its commands to show",
+        )
+    ]
+
+
+def test_two_models_the_first_models_own_sentence_names_its_model():
+    """Eyes3 (`evaluate flight-02.bag --model gp.npz --model gp+com_offset+...npz`): the
+    verdict opened "Missing: com_offset ..." above the change line and the pointer
+    "The lines below are about gp.npz", so it read as the better model's lack; it now
+    says which model it is about, as the first model's leading flags do."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    (before, _), (after, _) = _pair(0.388)
+    tree = copy.deepcopy(before)
+    tree["diagnosis"]["missing"] = ["com_offset"]
+    tree["diagnosis"]["missing_effects"] = [{"name": "com_offset", "explained_variance": 0.25}]
+    old = {**before["models"][0], "name": "old.npz"}
+    new = {**after["models"][0], "name": "new.npz"}
+    tree["models"], tree["metrics_by_model"] = [old, new], [before["metrics"], after["metrics"]]
+    texts = [ln.text for ln in verdict_of_models(tree)]
+    assert texts[0].startswith("With old.npz: Missing: com_offset — it explains 25 %"), texts
+    assert texts[2] == "The lines below are about old.npz (the first --model), with no effects."

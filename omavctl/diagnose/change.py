@@ -118,11 +118,18 @@ def _worse_reason(
     reasons: list[str] = []
     misfit: list[str] = []
     diag = get_path(before.tree, "diagnosis", "missing_effects", default=[]) or []
+    learned = get_path(before.tree, "diagnosis", "learned_claims", default=[]) or []
     for name in added:
         entry = next((e for e in diag if isinstance(e, Mapping) and e.get("name") == name), None)
         ev = _num(get_path(entry, "explained_variance_per_axis", axis))
         if ev is not None and ev < 0.05:
-            reasons.append(f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error")
+            # of the earlier model's remaining error: a GP that had learned the effect
+            # leaves it none, though it removes much of the physics-only error
+            gp = " (its GP had learned it)" if name in learned else ""
+            reasons.append(
+                f"{name} explained {_pct(max(ev, 0.0))} of the {axis} error the earlier "
+                f"model left{gp}"
+            )
         params = after.effect_params.get(name) or {}
         held = get_path(entry, "parameters", default={}) or {}
         for key, vals in params.items():
@@ -380,12 +387,15 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
     added = {e for e in after.effects if e not in before.effects}
     # the first "missing" sentence, wherever flags put it, is reconciled with the change
     at = next((i for i, ln in enumerate(own) if ln.key == "missing"), 0)
+    head = own[at]
     if before is models[0]:  # the diagnosed model is the one the effects were added to
         own[at] = reconciled_head(own[at], before, after)
     # the first model's leading flags say which model they are about (one stood above
-    # "The lines below are about ...": docs/real-data-check.md item 16)
+    # "The lines below are about ...": docs/real-data-check.md item 16), and so does its
+    # own first sentence there ("Missing: com_offset ..." read as the better model's)
     firsts = set(FIRST_FLAGS.values())
     lead = next((i for i, ln in enumerate(own) if ln.key not in firsts), 0)
+    lead += 1 if lead == at == 0 and own[0] is head else 0
     own[:lead] = [replace(ln, text=f"With {models[0].label}: {ln.text}") for ln in own[:lead]]
     rest = [ln for ln in own[1:] if not (ln.key in ("learned", "axis") and ln.subject in added)]
     which = Line(

@@ -12,6 +12,7 @@ __all__ = [
     "joint_share",
     "joint_text",
     "min_explained",
+    "named_later",
     "replaced_step",
     "replaced_text",
 ]
@@ -122,3 +123,54 @@ def beside_timing_sentence(name: str, beside: Mapping[str, Any]) -> str:
         f"refitted, they{cut} {_timing_fit_words(claim)} alone leaves{by}. A lag and a delay "
         "look alike to first order; what is claimed in its place is what the flight shows."
     )
+
+
+def named_later(diag: Mapping[str, Any]) -> dict[str, tuple[str, str]]:
+    """Each effect of ``missing`` that the ranking of effects one at a time
+    (``missing_effects``, where it is not ``missing``) does not name, with how a later
+    step named it: name -> (a few words for a table cell or a figure label, a clause
+    with the step's numbers). The report shows the ranking; without this a claimed
+    effect stands there as "no" (the demo's motor lag at 0 %, named by the joint
+    selection on the physics-only error)."""
+    alone = {
+        str(e.get("name")) for e in _entries(diag, "missing_effects") if e.get("missing") is True
+    }
+    steps = [str(e.get("name")) for e in _entries(diag, "missing_steps")]
+    step_ev = {
+        str(e.get("name")): _num(e.get("explained_variance"))
+        for e in _entries(diag, "missing_steps")
+    }
+    out: dict[str, tuple[str, str]] = {}
+    for name in map(str, diag.get("missing") or []):
+        if name in alone:
+            continue
+        if name in steps and steps.index(name) > 0:
+            k = steps.index(name)
+            ev = step_ev.get(name)
+            share = f"it explains {_pct(ev)} of" if ev is not None else "it explains a share of"
+            leave = "leaves" if k == 1 else "leave"
+            out[name] = (
+                f"step {k + 1}",
+                f"{name}: step {k + 1} of the forward selection: {share} the model's "
+                f"remaining error that {' and '.join(steps[:k])} {leave}",
+            )
+            continue
+        out[name] = _joint_words(diag, name)
+    return out
+
+
+def _joint_words(diag: Mapping[str, Any], name: str) -> tuple[str, str]:
+    """:func:`named_later`'s words for an effect the joint selection named."""
+    step = replaced_step(diag, name) or name
+    joint = next((e for e in _entries(diag, "joint_steps") if e.get("name") == step), None)
+    if joint is None:
+        return ("a later step", f"{name}: named by a later step of the selection")
+    removed, total = _num(joint.get("share")), _num(joint.get("share_of_total"))
+    numbers = ""
+    if removed is not None:
+        numbers = (
+            f": estimated from the fit flight as fit --effects would, it removes "
+            f"{_pct(removed)} of the held-out physics-only error left before it"
+        )
+        numbers += f" ({_pct(total)} of the whole)" if total is not None else ""
+    return ("joint selection", f"{name}: the joint selection{numbers}")

@@ -24,7 +24,13 @@ from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
-from omavctl.diagnose.joint_text import joint_share, joint_text, min_explained, replaced_text
+from omavctl.diagnose.joint_text import (
+    joint_share,
+    joint_text,
+    min_explained,
+    named_later,
+    replaced_text,
+)
 from omavctl.diagnose.verdict_lines import (
     AXES,
     COVERAGE_MIN,
@@ -119,14 +125,13 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     text += "."
     said = estimate_sentence(ct.claim_estimate(diag, missing[0]), claimed)
     text += said + (elsewhere_clause(tree) if said else "")
-    if len(missing) > 1:
-        text += f" Also: {', '.join(missing[1:])}{joint_text(diag, missing)}."
+    text += _also_text(diag, missing)
     amb = top.get("ambiguous_with") or []
     if amb:
         text += f" Ambiguous with {', '.join(map(str, amb))} (their signatures look alike)."
     alike = _look_alikes(missing[0])
     if alike:
-        text += f" A residual of its shape is also left by {alike}."
+        text += f" A residual of {missing[0]}'s shape is also left by {alike}."
     text += ct.not_pinned_text(diag)
     cmd = diag.get("fit_command")
     text += given_sentence(diag, missing[0])
@@ -135,6 +140,19 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     elif amb and isinstance(sep := diag.get("separate_flight"), str) and sep:
         text += f" {sep[0].upper()}{sep[1:]}"
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
+
+
+def _also_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
+    """' Also: B, C (...).' for the missing effects after the first, with the joint
+    selection's shares, or else how a later step named each (:func:`named_later`: the
+    report's ranking scores each effect alone); '' for one missing effect."""
+    if len(missing) < 2:
+        return ""
+    together = joint_text(diag, missing)
+    later = [why for name, (_, why) in named_later(diag).items() if name in missing[1:]]
+    if later and together == " (the fit command adds them together)":
+        together = f" (the fit command adds them together; {'; '.join(later)})"
+    return f" Also: {', '.join(missing[1:])}{together}."
 
 
 def _structure(items: Any, most: int = 2) -> str:

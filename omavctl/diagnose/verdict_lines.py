@@ -10,6 +10,7 @@ and puts the lines in order; works on the evaluation JSON tree (schema
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -265,9 +266,13 @@ def excluded_line(tree: Mapping[str, Any]) -> Line | None:
 
 def flag_lines(tree: Mapping[str, Any]) -> list[Line]:
     out = []
+    zero = _zero_line(tree.get("flags") or [])
     for flag in tree.get("flags") or []:
         if not isinstance(flag, Mapping) or flag.get("code") in ("overconfident", "out_of_control"):
             continue  # the uncertainty and kept-out sentences say these
+        if zero is not None and flag.get("code") == "no_better_than_zero":
+            out += [zero] if zero not in out else []
+            continue
         message = str(flag.get("message", flag.get("code", "")))
         axis = (
             f"axis {flag['axis']}: " if flag.get("axis") and not message.startswith("axis") else ""
@@ -275,6 +280,35 @@ def flag_lines(tree: Mapping[str, Any]) -> list[Line]:
         key = FIRST_FLAGS.get(str(flag.get("code")), "flag")
         out.append(Line(key, f"{axis}{message}"))
     return out
+
+
+_ZERO = re.compile(
+    r"axis (?P<a>[xyz]): the model's error \((?P<m>\S+) rad/s² RMS\) is not below the "
+    r"angular acceleration itself \((?P<z>[^)]+)\): (?P<rest>predicting none would do as well.*)",
+    re.S,
+)
+
+
+def _zero_line(flags: Sequence[Any]) -> Line | None:
+    """The ``no_better_than_zero`` flags of several axes as one line (each axis's
+    numbers, the advice once), None for one axis or messages of another form: the same
+    long sentence three times over led a Crazyflie verdict."""
+    found = [
+        _ZERO.fullmatch(str(f.get("message", "")))
+        for f in flags
+        if isinstance(f, Mapping) and f.get("code") == "no_better_than_zero"
+    ]
+    parts = [m for m in found if m is not None]
+    if len(parts) < 2 or len(parts) < len(found) or len({m["rest"] for m in parts}) > 1:
+        return None
+    axes = ", ".join(m["a"] for m in parts)
+    model = ", ".join(f"{m['a']} {m['m']}" for m in parts)
+    itself = ", ".join(f"{m['a']} {m['z']}" for m in parts)
+    return Line(
+        FIRST_FLAGS["no_better_than_zero"],
+        f"axes {axes}: the model's error ({model} rad/s² RMS) is not below the angular "
+        f"acceleration itself ({itself}): {parts[0]['rest']}",
+    )
 
 
 #: Flags said before everything else (their line keys): what follows them is not a

@@ -254,7 +254,7 @@ def apply_validation(
 def _axis_notes(name: str, v: AxisValidation) -> list[str]:
     """What the blocked cross-validation changed on one axis, for the summary."""
     notes: list[str] = []
-    if v.std_factor > 1.0:
+    if round(v.std_factor, 2) > 1.0:  # "widened x1.00 ... (was 95%)" said nothing
         notes.append(
             f"axis {name}: predictive std widened x{v.std_factor:.2f} to cover "
             f"{TARGET_COVERAGE:.0%} of held-out time blocks (was {v.coverage:.0%})"
@@ -264,7 +264,7 @@ def _axis_notes(name: str, v: AxisValidation) -> list[str]:
             f"axis {name}: the band grows beyond the training inputs with weight "
             f"{v.beyond_scale:.2f} (held-out ends of the inputs; {BEYOND_PRIOR:g} at least)"
         )
-    if v.latent_factor > 1.0:
+    if round(v.latent_factor, 2) > 1.0:
         notes.append(
             f"axis {name}: extrapolation uncertainty widened x{v.latent_factor:.2f} "
             "(held-out regions of input space)"

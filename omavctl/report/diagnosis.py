@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from omavctl.diagnose.joint_text import named_later
 from omavctl.report.document import (
     Block,
     Bullets,
@@ -174,8 +175,15 @@ def _part(e: Mapping[str, Any]) -> str:
 
 
 def _ranking_table(
-    entries: Sequence[Any], torque_unknown: bool, what: str, held: Sequence[str] = ()
+    entries: Sequence[Any],
+    torque_unknown: bool,
+    what: str,
+    held: Sequence[str] = (),
+    later: Mapping[str, tuple[str, str]] | None = None,
 ) -> Table:
+    """The ranking of ``entries``, one effect at a time; ``later``: effects a later
+    selection step named (:func:`omavctl.diagnose.joint_text.named_later`), marked
+    claimed with that step instead of "no"."""
     rows: list[list[Cell]] = []
     for i, e in enumerate(entries):
         if not isinstance(e, Mapping):
@@ -210,7 +218,7 @@ def _ranking_table(
                 _flag(e.get("significant")),
                 _flag(e.get("plausible")),
                 _part(e),
-                (Span(what.upper(), "strong"),) if missing is True else _flag(missing),
+                _claimed_cell(what, missing, (later or {}).get(str(e.get("name")))),
                 ", ".join(str(x) for x in e.get("ambiguous_with", []) or []) or "–",
             ]
         )
@@ -232,6 +240,16 @@ def _ranking_table(
     if what == "missing":
         columns.insert(-2, "explained as fit --effects would fit it")
     return Table(columns=columns, rows=rows, align="rlrrrrlll" + "r" * (what == "missing") + "ll")
+
+
+def _claimed_cell(what: str, claimed: Any, later: tuple[str, str] | None) -> Cell:
+    """MISSING (or LEARNED) where the ranking claims the effect, with the later step's
+    words where a later selection step did, else yes/no."""
+    if claimed is True:
+        return (Span(what.upper(), "strong"),)
+    if later is not None:
+        return (Span(what.upper(), "strong"), f" ({later[0]})")
+    return _flag(claimed)
 
 
 def _unexplained_items(items: Sequence[Any]) -> list[Content]:
@@ -286,17 +304,13 @@ def diagnosis_section(
                 f"estimate is significant (t ≥ {num(method.get('min_t_value'), 3)}) and "
                 "physically plausible, its part of the error is at least "
                 f"{num(method.get('min_contribution_rms'), 2)} rad/s² RMS (three times the "
-                "log's measurement noise: less is not claimed), and fitted as `fit --effects` "
+                "log's measurement noise: less is not claimed), and fitted as fit --effects "
                 "would fit it, it still lowers the error."
             )
         )
     missing = [str(x) for x in diag.get("missing", []) or []]
-    if missing:
-        blocks.append(
-            Para(("Missing: ", *(s for name in missing for s in (Span(name, "strong"), " ")))[:-1])
-        )
-    else:
-        blocks.append(Para("No registered effect is missing from this model."))
+    later = named_later(diag)
+    blocks += _missing_paras(missing, later)
     learned = [str(x) for x in diag.get("learned_claims") or []]
     if learned:  # what the GP learned, confirmed on the held-out flight: claimed
         names = (s for name in learned for s in (Span(name, "strong"), " "))
@@ -321,10 +335,10 @@ def diagnosis_section(
     entries = diag.get("missing_effects") or []
     if entries:
         blocks.append(Heading(4, "Candidate missing effects, best first"))
-        blocks.append(_ranking_table(entries, torque_unknown, "missing"))
+        blocks.append(_ranking_table(entries, torque_unknown, "missing", later=later))
     command = diag.get("fit_command")
     if isinstance(command, str) and command:
-        top = missing[0] if missing else (learned or ["the top effect"])[0]
+        top = ", ".join(missing) if missing else (learned or ["the top effect"])[0]
         blocks.append(Heading(4, f"Command that adds {top}"))
         blocks.append(Code(command))
     unexplained = _unexplained_items(diag.get("unexplained") or [])
@@ -342,6 +356,24 @@ def diagnosis_section(
     blocks += _learned_blocks(tree, diag, learned_as, torque_unknown)
     blocks += _learned_commands(tree, diag)
     return blocks
+
+
+def _missing_paras(missing: Sequence[str], later: Mapping[str, tuple[str, str]]) -> list[Block]:
+    """'Missing: A B C', and how a later step named those the ranking below, which
+    scores each effect alone, does not (:func:`~omavctl.diagnose.joint_text.named_later`)."""
+    if not missing:
+        return [Para("No registered effect is missing from this model.")]
+    out: list[Block] = [
+        Para(("Missing: ", *(s for name in missing for s in (Span(name, "strong"), " ")))[:-1])
+    ]
+    if later:
+        out.append(
+            Para(
+                "The ranking below scores each effect alone on the model's remaining error; "
+                f"named by a later step: {'; '.join(why for _, why in later.values())}."
+            )
+        )
+    return out
 
 
 def _learned_commands(tree: Mapping[str, Any], diag: Mapping[str, Any]) -> list[Block]:

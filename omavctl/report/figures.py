@@ -210,8 +210,14 @@ def signature_figure(
         return png(fig)
 
 
-def candidates_figure(entries: Sequence[Mapping[str, Any]], threshold: float | None) -> bytes:
-    """Held-out explained variance of every candidate effect, best first."""
+def candidates_figure(
+    entries: Sequence[Mapping[str, Any]],
+    threshold: float | None,
+    later: Mapping[str, str] | None = None,
+) -> bytes:
+    """Held-out explained variance of every candidate effect, best first; ``later``:
+    effect -> the later selection step that claimed it (coloured missing, labelled with
+    the step, though its bar alone is short)."""
     from matplotlib.figure import Figure
 
     rows = [e for e in entries if isinstance(e, Mapping)][:10]
@@ -222,7 +228,8 @@ def candidates_figure(entries: Sequence[Mapping[str, Any]], threshold: float | N
         ax = fig.subplots()
         y = np.arange(len(rows))[::-1]
         for k, e in enumerate(rows):
-            missing = e.get("missing") is True
+            step = (later or {}).get(names[k])
+            missing = e.get("missing") is True or step is not None
             amb = e.get("ambiguous_with") or []
             ax.barh(
                 y[k],
@@ -238,6 +245,7 @@ def candidates_figure(entries: Sequence[Mapping[str, Any]], threshold: float | N
                 if isinstance(v, int | float):
                     ax.plot(max(float(v), 0.0), y[k], "|", ms=12, mew=2, color=AXIS_COLOURS[i])
             text = f"{100 * ev[k]:.0f} %" + ("  missing" if missing else "")
+            text += f" ({step})" if step is not None else ""
             if amb:
                 text += f"  ambiguous with {', '.join(map(str, amb))}"
             axis_ev = [float(v) for v in per_axis.values() if isinstance(v, int | float)]

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.change import report_verdict
+from omavctl.diagnose.joint_text import named_later
 from omavctl.report import figures as rf
 from omavctl.report.document import Block, Bullets, Content, FigureBlock, Heading, Inline, Span
 from omavctl.report.load import Evaluation
@@ -197,14 +198,20 @@ def _candidates_blocks(tree: Mapping[str, Any], label: str, figures: bool) -> li
         return []
     threshold = (diag.get("method") or {}).get("min_explained_variance")
     thr = float(threshold) if isinstance(threshold, int | float) else None
-    data = rf.candidates_figure(entries, thr) if figures else b""
+    later = {name: words for name, (words, _) in named_later(diag).items()}
+    data = rf.candidates_figure(entries, thr, later) if figures else b""
     return [
         FigureBlock(
             data,
             "explained variance of the candidate effects",
             f"{label}: how much of the model's remaining error each registered effect "
             "explains on held-out blocks (bar: all axes, ticks: per axis); hatched bars are "
-            "ambiguous (their contributions look alike).",
+            "ambiguous (their contributions look alike)"
+            + (
+                f"; {', '.join(later)} claimed by a later selection step (section 5)."
+                if later
+                else "."
+            ),
         )
     ]
 
