@@ -802,6 +802,8 @@ def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeyp
     assert "**MISSING** (step 2) | – |" in text and "**MISSING** (joint selection) | – |" in text
     assert "| no |" not in text  # no claimed effect says "no" any more
     assert "#### Command that adds com_offset, rotor_interference, motor_lag" in text
+    # the names apart, as everywhere else ("Missing: A B C" ran them together)
+    assert "Missing: **com_offset**, **rotor_interference**, **motor_lag**" in text
     said = next(ln for ln in verdict(tree) if ln.key == "missing").plain()
     assert (
         "Also: rotor_interference, motor_lag (the fit command adds them together; "

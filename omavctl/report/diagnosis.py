@@ -359,12 +359,12 @@ def diagnosis_section(
 
 
 def _missing_paras(missing: Sequence[str], later: Mapping[str, tuple[str, str]]) -> list[Block]:
-    """'Missing: A B C', and how a later step named those the ranking below, which
+    """'Missing: A, B, C', and how a later step named those the ranking below, which
     scores each effect alone, does not (:func:`~omavctl.diagnose.joint_text.named_later`)."""
     if not missing:
         return [Para("No registered effect is missing from this model.")]
     out: list[Block] = [
-        Para(("Missing: ", *(s for name in missing for s in (Span(name, "strong"), " ")))[:-1])
+        Para(("Missing: ", *(s for name in missing for s in (Span(name, "strong"), ", ")))[:-1])
     ]
     if later:
         out.append(
