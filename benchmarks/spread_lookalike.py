@@ -39,22 +39,8 @@ def run_seed(seed: int, root: Path) -> None:
     d.mkdir(parents=True, exist_ok=True)
     (d / "veh.yaml").write_text("preset: omav-rotors\n")
     (d / "truth.yaml").write_text(f"seed: {seed}\n")
-    omavctl(
-        "task",
-        "fig8",
-        "--roll",
-        "26",
-        "--pitch",
-        "26",
-        "--period",
-        "4",
-        "--duration",
-        "20",
-        "--out",
-        "fig8.csv",
-        "-q",
-        cwd=d,
-    )
+    fig8 = "task fig8 --roll 26 --pitch 26 --period 4 --duration 20 --out fig8.csv -q"
+    omavctl(*fig8.split(), cwd=d)
     omavctl("task", "wobble", "--duration", "20", "--out", "wob.csv", "-q", cwd=d)
     omavctl("task", "steps", "--duration", "20", "--out", "steps.csv", "-q", cwd=d)
     for ref, noise in (("fig8", 3), *HELD.values()):
