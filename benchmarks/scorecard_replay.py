@@ -128,6 +128,16 @@ OWN_SPLIT = {
         "held_back": "steps",
         "version": 2,
     },
+    # issue 26 "drag" (session 19): report10's weakest effect (rotational_drag, first
+    # answer right 3/8 at or above the floor) and its look-alike com_offset, the steps
+    # family on either side, version 2; declared before any draw was flown; fresh seeds
+    "own-drag": {
+        "seed_base": 9_800_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "effects": ("com_offset", "rotational_drag"),
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 
