@@ -169,6 +169,7 @@ PLAUSIBLE = {
     "rotor.min_thrust": (0.0, 1e5),
     "rotor.thrust_coefficient": (1e-12, 1e3),
     "rotor.drag_ratio": (0.0, 10.0),
+    "rotor.thrust_tolerance": (0.0, 0.5),
     "servo.max_tilt_rate": (1e-3, 1e4),
     "controller.rate_hz": (1.0, 1e5),
 }
@@ -243,6 +244,10 @@ class Vehicle:
     source: str = "built-in default omav"
     #: the rotors and their mixer (``motors:``), None when not described
     motors: Motors | None = None
+    #: 1-sigma spread of the rotors' thrust coefficients, as a fraction (a batch of the
+    #: same motors and propellers): no flight tells it from a centre-of-mass offset or
+    #: a drag, so the effects' reported intervals carry it (:mod:`omavctl.learn.spread`)
+    thrust_tolerance: float = 0.0
     tree: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @cached_property
@@ -348,6 +353,9 @@ def _build(tree: dict[str, Any], path: Path | None, source: str) -> Vehicle:
         command_units=command_units,
         source=source,
         motors=motors,
+        thrust_tolerance=_positive(
+            rot.get("thrust_tolerance", 0.0), "rotor.thrust_tolerance", path, allow_zero=True
+        ),
         tree=tree,
     )
 

@@ -267,6 +267,40 @@ def test_diagnosis_and_fit_agree_on_the_octocopters_delay():
     assert abs(g - f) < math.hypot(g_se, f_se), (g, g_se, f, f_se)
 
 
+def test_the_rotors_thrust_spread_is_in_the_interval_not_in_the_standard_error():
+    """A vehicle with the simulator's 3 % thrust spread (truth seed 101) and no centre-of-
+    mass offset: on a wobble the least-squares r_y is -2.9 mm with a standard error of
+    0.02 mm, a hundred standard errors from the truth 0, because the spread's torque
+    follows the force as an offset's does. The reported interval carries what a 3 %
+    spread can do to r (1.8 mm, from the flight's own thrusts) and holds 0; the flight's
+    statistics alone still say a torque of that shape is there, and the words say why
+    the interval does not pin it down. Model file JSON keeps the systematic part."""
+    from omavctl.diagnose.estimate_text import estimate_sentence
+    from omavctl.learn.effect_fit import estimate_effects
+    from omavctl.learn.estimate import systematic_from_json
+    from omavctl.learn.intervals import SPREAD_WORDS
+
+    vehicle = default_vehicle()
+    assert vehicle.thrust_tolerance == 0.03
+    ref = wobble(amplitude_deg=15.0, duration=12.0, seed=3)
+    log = align(simulate(ref, vehicle, truth_from_tree({"seed": 101}, vehicle), seed=3).log)
+    est = estimate_effects([log_samples(log, vehicle, SG)[0]], ["com_offset"]).estimates[
+        "com_offset"
+    ]
+    assert est.systematic is not None
+    assert np.all((1.5e-3 < est.systematic["r"][:2]) & (est.systematic["r"][:2] < 2.5e-3))
+    hi = est.interval95(systematic=False)["r"][1][1]
+    assert hi < 0.0  # the flight alone: a torque of this shape is there
+    total = est.interval95()["r"]
+    assert np.all((total[:2, 0] < 0.0) & (total[:2, 1] > 0.0)), total  # the truth, 0
+    assert not est.pinned()["r"][1] and est.pinned(systematic=False)["r"][1]
+    as_json = est.to_json()
+    back = systematic_from_json(as_json, est.effect)
+    assert back is not None and np.allclose(back["r"], est.systematic["r"])
+    entry = {"name": "com_offset", "units": {"r": "m"}, "estimate": as_json}
+    assert SPREAD_WORDS in estimate_sentence(entry, axes={"x", "y"})
+
+
 def test_the_diagnosis_interval_is_as_wide_as_fits_on_the_same_log():
     """A CoM offset on a wobble with the simulator's default thrust spread (a new
     user's case): the first pass alone said r_y = -0.01348 m (95 %: -0.0135 to

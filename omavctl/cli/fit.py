@@ -185,18 +185,24 @@ def _effects_table(summary: Any) -> Any:
     from rich.text import Text
 
     from omavctl.learn.fit_notes import effect_unit
-    from omavctl.learn.intervals import interval95
+    from omavctl.learn.intervals import SPREAD_WORDS, interval95
     from omavctl.physics.effects import get_effect
 
     units = summary.command_units
+    has_spread = any(est.systematic is not None for est in summary.effects.values())
     eff = Table(
-        title="effects (value ± standard error, robust to autocorrelated residuals)",
+        title="effects (value ± standard error, robust to autocorrelated residuals"
+        + (
+            "; ± spread: what the rotors' thrust tolerance could shift it by, in the interval)"
+            if has_spread
+            else ")"
+        ),
         title_justify="left",
     )
     for col in ("effect", "parameter", "value ± std. error", "95 % interval", "unit"):
         eff.add_column(col)
     for name, est in summary.effects.items():
-        intervals, pinned = est.interval95(), est.pinned()
+        intervals, pinned, by_flight = est.interval95(), est.pinned(), est.pinned(False)
         for p in get_effect(name).parameters:
             labels = "xyz" if p.size == 3 else [str(i) for i in range(p.size)]
             for i, (v, e) in enumerate(zip(est.values[p.name], est.stderr[p.name], strict=True)):
@@ -211,7 +217,11 @@ def _effects_table(summary: Any) -> Any:
                         intervals[p.name][i], bool(pinned[p.name][i]), (name, p.name, i), v
                     )
                 )
-                eff.add_row(name, label, f"{v:.4g} ± {e:.2g}", interval, Text(unit))
+                if by_flight[p.name][i] and not pinned[p.name][i]:
+                    interval = interval.split(": ")[0] + f": {SPREAD_WORDS}"
+                spread = est.systematic[p.name][i] if est.systematic is not None else 0.0
+                value = f"{v:.4g} ± {e:.2g}" + (f" (± {spread:.2g} spread)" if spread > 0 else "")
+                eff.add_row(name, label, value, interval, Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         scale = summary.effects.get("inertia_error")

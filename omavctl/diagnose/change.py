@@ -133,7 +133,8 @@ def _worse_reason(
         params = after.effect_params.get(name) or {}
         held = get_path(entry, "parameters", default={}) or {}
         for key, vals in params.items():
-            if str(key).endswith("_stderr") or not isinstance(vals, list) or len(vals) != 3:
+            derived = ("_stderr", "_systematic", "_ci95", "_ci95_statistical", "_pinned")
+            if str(key).endswith(derived) or not isinstance(vals, list) or len(vals) != 3:
                 continue
             v, se = _num(vals[i]), _num(get_path(params, f"{key}_stderr", i))
             if v is not None and se is not None and abs(v) < 2 * se:

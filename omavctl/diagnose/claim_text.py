@@ -177,7 +177,7 @@ def claim_estimate(diag: Mapping[str, Any], name: str) -> Mapping[str, Any]:
     )
     ests = diag.get("claim_estimates")
     if isinstance(ests, Mapping) and isinstance(ests.get(name), Mapping):
-        return {"units": learned.get("units"), "estimate": ests[name]}
+        return {"name": name, "units": learned.get("units"), "estimate": ests[name]}
     return learned
 
 

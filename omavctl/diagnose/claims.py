@@ -113,7 +113,9 @@ def _claimed_rows(
     axis (``D_x``)."""
     out = []
     for param, value in get_effect(name).null_parameters().items():
-        rows = estimate.get(f"{param}_ci95")
+        # the flight's statistics decide whether a torque of this shape is there; the
+        # rotors' spread (``P_systematic``) says what it is, not whether it is
+        rows = estimate.get(f"{param}_ci95_statistical", estimate.get(f"{param}_ci95"))
         if not isinstance(rows, list):
             continue
         for i, row in enumerate(rows):
@@ -215,7 +217,7 @@ def _nearest_to_null(est: EffectEstimate) -> np.ndarray:
     (0 where the interval holds it, the estimate where it is not defined): the
     smallest effect the flight allows. (An inertia scale's interval cut at its bound 0
     reaches theta = +inf: the side is kept.)"""
-    intervals = est.interval95()
+    intervals = est.interval95(systematic=False)
     with np.errstate(divide="ignore"):  # a scale cut at its bound 0: theta +inf
         ends = [
             est.effect.to_theta({k: iv[:, side] for k, iv in intervals.items()}) for side in (0, 1)

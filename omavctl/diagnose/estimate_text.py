@@ -55,7 +55,7 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             if note := _bound_note(str(entry.get("name")), name, ci[0], v):
                 text += f", {note}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:
-                text += f", {_unpinned(str(entry.get('name')), name, ci, i)}"
+                text += f", {_unpinned(str(entry.get('name')), name, ci, i, est)}"
             parts.append(text + ")")
     text = f" Estimated on this flight as fit would: {'; '.join(parts)}." if parts else ""
     if unclaimed:
@@ -95,12 +95,21 @@ def _value(v: Any) -> float | None:
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
-def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:
+def _unpinned(
+    effect: str, param: str, ci: list[Any], i: int, est: Mapping[str, Any] | None = None
+) -> str:
     """Why the interval does not pin the parameter down, in words that follow it
-    (:func:`omavctl.learn.intervals.unpinned_words`; imported here, when needed)."""
-    from omavctl.learn.intervals import unpinned_words
+    (:func:`omavctl.learn.intervals.unpinned_words`; imported here, when needed): the
+    rotors' spread where the flight's statistics alone (``P_ci95_statistical``) would."""
+    import numpy as np
+
+    from omavctl.learn.intervals import SPREAD_WORDS, pinned_down, unpinned_words
 
     try:
+        flight = (est or {}).get(f"{param}_ci95_statistical")
+        if isinstance(flight, list) and i < len(flight) and None not in (flight[i] or [None]):
+            if pinned_down(effect, param, np.asarray([flight[i]], float))[0]:
+                return SPREAD_WORDS
         return unpinned_words(effect, param, ci, i)
     except (KeyError, ValueError):  # an effect or parameter this version does not know
         return "cannot be pinned down from this flight"

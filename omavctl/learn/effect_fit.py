@@ -27,6 +27,7 @@ from omavctl.learn.intervals import hac_covariance, segment_ids
 from omavctl.learn.model import EffectEstimate
 from omavctl.learn.physical import TORQUE_EFFECTS, PhysicalMap, physical_map, to_physical
 from omavctl.learn.signal import ResidualSamples
+from omavctl.learn.spread import spread_covariance
 from omavctl.learn.validation import cholesky_of_k
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.vehicle import Vehicle
@@ -60,6 +61,9 @@ class EffectFit:
     physical: how the torque effects' parameters are put in physical units beside
     an inertia scale (:mod:`omavctl.learn.physical`; None: they already are).
     ``theta`` and ``cov`` stay the additive model's, which the model predicts with.
+    cov_spread (p, p): the systematic covariance of the rotors' thrust spread
+    (:func:`omavctl.learn.spread.spread_covariance`; None: not computed), reported in
+    the estimates' intervals, never in what the model predicts with.
     """
 
     theta: np.ndarray
@@ -69,6 +73,7 @@ class EffectFit:
     explained: np.ndarray
     cov_white: np.ndarray | None = None
     physical: PhysicalMap | None = None
+    cov_spread: np.ndarray | None = None
 
     @property
     def inflation(self) -> np.ndarray:
@@ -126,18 +131,24 @@ def estimate_effects(samples: Sequence[ResidualSamples], effects: Sequence[str])
     phys = physical_map(x, effects, bool(ctx is not None and ctx.torque_normalised))
     var = residual.var(axis=0)
     explained = np.where(var > 0, 1.0 - rest.var(axis=0) / np.where(var > 0, var, 1.0), 0.0)
-    estimates = _estimates(effects, theta, cov, phys)
-    return EffectFit(theta, cov, estimates, rest.std(axis=0), explained, cov_white, phys)
+    spread = spread_covariance(samples, x, effects)
+    estimates = _estimates(effects, theta, cov, phys, spread)
+    return EffectFit(theta, cov, estimates, rest.std(axis=0), explained, cov_white, phys, spread)
 
 
 def _estimates(
-    names: Sequence[str], theta: np.ndarray, cov: np.ndarray, phys: PhysicalMap | None
+    names: Sequence[str],
+    theta: np.ndarray,
+    cov: np.ndarray,
+    phys: PhysicalMap | None,
+    spread: np.ndarray | None = None,
 ) -> dict[str, EffectEstimate]:
     """Each effect's estimate from the stacked theta (p,) and covariance (p, p) of the
     additive model; beside an inertia scale (``phys``) the torque effects' parameters
     in physical units, their additive coefficients kept as ``fitted``
-    (:mod:`omavctl.learn.physical`)."""
+    (:mod:`omavctl.learn.physical`); with ``spread`` (p, p) their systematic parts."""
     theta_p, cov_p = to_physical(theta, cov, phys)
+    spread_p = None if spread is None else to_physical(theta, spread, phys)[1]
     moved = phys is not None and theta_p is not theta
     estimates: dict[str, EffectEstimate] = {}
     i = 0
@@ -147,11 +158,16 @@ def _estimates(
         block = slice(i, i + size)
         params = effect.to_parameters(theta_p[block], cov_p[block, block])
         fitted = theta[block].copy() if moved and name in TORQUE_EFFECTS else None
+        systematic = None
+        if spread_p is not None:
+            sys_params = effect.to_parameters(theta_p[block], spread_p[block, block])
+            systematic = {k: np.nan_to_num(se) for k, (_, se) in sys_params.items()}
         estimates[name] = EffectEstimate(
             name,
             {k: v for k, (v, _) in params.items()},
             {k: se for k, (_, se) in params.items()},
             fitted=fitted,
+            systematic=systematic,
         )
         i += size
     return estimates
@@ -277,8 +293,10 @@ def refit_estimates(
 ) -> EffectFit:
     """An :class:`EffectFit` with new parameters (explained variances and the physical
     map kept from ``old``)."""
-    estimates = _estimates(names, theta, cov, old.physical)
-    return EffectFit(theta, cov, estimates, old.residual_std, old.explained, None, old.physical)
+    estimates = _estimates(names, theta, cov, old.physical, old.cov_spread)
+    return EffectFit(
+        theta, cov, estimates, old.residual_std, old.explained, None, old.physical, old.cov_spread
+    )
 
 
 def search_step(

@@ -16,7 +16,7 @@ import numpy as np
 from omavctl.learn.intervals import interval95, physical_bound, pinned_down
 from omavctl.physics.effects import Effect, get_effect
 
-__all__ = ["GAIN_EFFECT", "GAIN_PRIOR_FACTOR", "EffectEstimate"]
+__all__ = ["GAIN_EFFECT", "GAIN_PRIOR_FACTOR", "EffectEstimate", "systematic_from_json"]
 
 #: The effect whose ``scale`` is the inverse command gain of a normalised torque command.
 GAIN_EFFECT = "inertia_error"
@@ -36,7 +36,11 @@ class EffectEstimate:
     the regression coefficients (p,) the model predicts with, where they differ
     from the parameters' (a torque effect fitted beside ``inertia_error``: the
     parameters are physical, the coefficients see the nominal inertia,
-    :mod:`omavctl.learn.physical`); None: ``to_theta(values)``.
+    :mod:`omavctl.learn.physical`); None: ``to_theta(values)``. ``systematic[p]``
+    (size,): the part of the parameter's uncertainty that no flight of this vehicle
+    averages away, the rotors' thrust spread within the vehicle's tolerance
+    (:mod:`omavctl.learn.spread`); None: none computed. The standard error is the
+    flight's alone; the 95 % interval holds both.
     """
 
     name: str
@@ -44,21 +48,35 @@ class EffectEstimate:
     stderr: dict[str, np.ndarray]
     stderr_method: str = "hac"
     fitted: np.ndarray | None = None
+    systematic: dict[str, np.ndarray] | None = None
 
-    def interval95(self) -> dict[str, np.ndarray]:
-        """95 % interval (size, 2) per parameter: value -/+ 1.96 standard errors
-        (NaN where the standard error is not finite), cut at the parameter's physical
-        bound (:func:`omavctl.learn.intervals.interval95`: a lag's is not negative)."""
+    def total_stderr(self) -> dict[str, np.ndarray]:
+        """Per parameter (size,): the standard error and the systematic part in
+        quadrature (the standard error without a systematic part)."""
+        if self.systematic is None:
+            return self.stderr
         return {
-            k: interval95(v, self.stderr[k], physical_bound(self.name, k))
-            for k, v in self.values.items()
+            k: np.hypot(se, self.systematic.get(k, np.zeros_like(se)))
+            for k, se in self.stderr.items()
         }
 
-    def pinned(self) -> dict[str, np.ndarray]:
+    def interval95(self, systematic: bool = True) -> dict[str, np.ndarray]:
+        """95 % interval (size, 2) per parameter: value -/+ 1.96 standard errors, the
+        systematic part added in quadrature unless ``systematic`` is False (the flight's
+        statistics alone: is there a torque of this shape?); NaN where not finite, cut at
+        the parameter's physical bound (:func:`omavctl.learn.intervals.interval95`: a
+        lag's is not negative)."""
+        se = self.total_stderr() if systematic else self.stderr
+        return {
+            k: interval95(v, se[k], physical_bound(self.name, k)) for k, v in self.values.items()
+        }
+
+    def pinned(self, systematic: bool = True) -> dict[str, np.ndarray]:
         """bool (size,) per parameter: its 95 % interval determines it (narrower than
         the plausible range, excluding the value of no effect;
-        :func:`omavctl.learn.intervals.pinned_down`)."""
-        return {k: pinned_down(self.name, k, iv) for k, iv in self.interval95().items()}
+        :func:`omavctl.learn.intervals.pinned_down`); the flight's statistics alone
+        when ``systematic`` is False."""
+        return {k: pinned_down(self.name, k, iv) for k, iv in self.interval95(systematic).items()}
 
     @property
     def effect(self) -> Effect:
@@ -92,19 +110,42 @@ class EffectEstimate:
         """Values, standard errors (``P_stderr``), 95 % intervals (``P_ci95``, [low,
         high] each) and whether each is pinned down (``P_pinned``); what is not finite
         (a parameter the data cannot determine) is null: JSON never holds NaN or
-        Infinity. ``stderr_method`` says how the errors were obtained; ``theta_fitted``
-        the coefficients the model predicts with, when set."""
+        Infinity. With a systematic part: ``P_systematic`` and ``P_ci95_statistical``,
+        the interval of the flight's statistics alone (``P_ci95`` holds both).
+        ``stderr_method`` says how the errors were obtained; ``theta_fitted`` the
+        coefficients the model predicts with, when set."""
         out: dict[str, Any] = {"stderr_method": self.stderr_method}
         intervals, pinned = self.interval95(), self.pinned()
+        flight = self.interval95(systematic=False) if self.systematic is not None else None
         for p in self.effect.parameters:
             out[p.name] = [float(x) for x in self.values[p.name]]
-            out[f"{p.name}_stderr"] = [
-                float(x) if math.isfinite(x) else None for x in self.stderr[p.name]
-            ]
-            out[f"{p.name}_ci95"] = [
-                [float(x) if math.isfinite(x) else None for x in row] for row in intervals[p.name]
-            ]
+            out[f"{p.name}_stderr"] = _finite(self.stderr[p.name])
+            out[f"{p.name}_ci95"] = [_finite(row) for row in intervals[p.name]]
             out[f"{p.name}_pinned"] = [bool(x) for x in pinned[p.name]]
+            if self.systematic is not None and flight is not None:
+                out[f"{p.name}_systematic"] = _finite(self.systematic[p.name])
+                out[f"{p.name}_ci95_statistical"] = [_finite(row) for row in flight[p.name]]
         if self.fitted is not None:
             out["theta_fitted"] = [float(x) for x in self.fitted]
         return out
+
+
+def _finite(values: Any) -> list[float | None]:
+    """Floats, None where not finite (JSON holds no NaN)."""
+    return [float(x) if math.isfinite(x) else None for x in values]
+
+
+def systematic_from_json(params: Any, effect: Effect) -> dict[str, np.ndarray] | None:
+    """An effect's optional ``P_systematic`` per parameter (files before it: None); a
+    value that is not a finite, non-negative number of the parameter's size is read
+    as 0 (the interval is then the statistical one, as such files had)."""
+    if not any(f"{p.name}_systematic" in params for p in effect.parameters):
+        return None
+    out = {}
+    for p in effect.parameters:
+        try:
+            v = np.asarray(params.get(f"{p.name}_systematic"), dtype=float).reshape(p.size)
+        except (TypeError, ValueError):
+            v = np.zeros(p.size)
+        out[p.name] = np.where(np.isfinite(v) & (v >= 0) & (v < 1e12), v, 0.0)
+    return out

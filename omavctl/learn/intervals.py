@@ -38,6 +38,7 @@ from omavctl.physics.effects import get_effect
 
 __all__ = [
     "PHYSICAL_BOUNDS",
+    "SPREAD_WORDS",
     "Z95",
     "bandwidth",
     "bound_note",
@@ -54,6 +55,9 @@ __all__ = [
     "segment_ids",
     "unpinned_words",
 ]
+
+#: Why an interval that the flight alone would pin down does not: the rotors' spread.
+SPREAD_WORDS = "a thrust spread within the rotors' tolerance makes this torque too"
 
 #: Two-sided 95 % normal quantile.
 Z95 = 1.959963984540054

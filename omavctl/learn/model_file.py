@@ -53,7 +53,10 @@ effects            ()          JSON ``{"name": {"P": [..], "P_stderr": [..],
                                ``theta_fitted``: the coefficients the model
                                predicts with where they differ from the
                                parameters' (a torque effect beside
-                               ``inertia_error``, physical parameters)
+                               ``inertia_error``, physical parameters);
+                               optional ``P_systematic`` (the rotors' thrust
+                               spread, in ``P_ci95``; ``P_ci95_statistical``
+                               without it: omavctl.learn.spread)
 vehicle            ()          JSON vehicle tree (``Vehicle.to_json()``)
 provenance         ()          JSON: sources (name, sha256), filter, k-medoids,
                                GP fitting settings, seed, omavctl version
@@ -93,6 +96,7 @@ import numpy as np
 
 from omavctl.base.atomic import atomic_path
 from omavctl.base.errors import ModelError, library_reason
+from omavctl.learn.estimate import systematic_from_json
 from omavctl.learn.model import (
     SCHEMA_FITTED,
     SCHEMA_NAME,
@@ -301,7 +305,9 @@ def _effects_from_json(tree: Any, path: Path, version: int) -> dict[str, EffectE
                 f"(known: {', '.join(STDERR_METHODS)})",
                 path,
             )
-        out[name] = EffectEstimate(name, values, stderr, method, _fitted(params, effect, path))
+        fitted = _fitted(params, effect, path)
+        systematic = systematic_from_json(params, effect)
+        out[name] = EffectEstimate(name, values, stderr, method, fitted, systematic)
     return out
 
 

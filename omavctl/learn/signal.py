@@ -25,7 +25,7 @@ Arrays are time-major: shape (N, k) for N grid samples of a k-vector.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -149,6 +149,23 @@ class ResidualSamples:
         effect = get_effect(name)
         parts = [self.sg.hold(effect.exact(ctx, value))[keep] for ctx, keep in self.contexts]
         out = np.concatenate(parts) if parts else np.empty((0, 3))
+        return out if self.mask is None else out[self.mask]
+
+    def held_of(self, fn: Callable[[EffectContext], np.ndarray | None]) -> np.ndarray | None:
+        """``fn`` of each segment's effect context (per grid sample, (N_seg, ...)), held
+        and kept like the residual: (n, ...); None when ``fn`` gives None for a segment
+        or the samples were built without effect contexts."""
+        if self.sg is None or (not self.contexts and self.n > 0):
+            return None
+        parts = []
+        for ctx, keep in self.contexts:
+            raw = fn(ctx)
+            if raw is None:
+                return None
+            parts.append(self.sg.hold(raw)[keep])
+        if not parts:
+            return None
+        out = np.concatenate(parts)
         return out if self.mask is None else out[self.mask]
 
     def select(self, keep: np.ndarray) -> ResidualSamples:

@@ -47,7 +47,7 @@ def _param_lines(
     why it is not pinned down where ``P_pinned`` says so, in words that follow the
     interval: :func:`omavctl.learn.intervals.unpinned_words`); components
     whose ``excited`` flag is false are left out (and named as such)."""
-    derived = ("_stderr", "_ci95", "_pinned")
+    derived = ("_stderr", "_ci95", "_pinned", "_systematic", "_ci95_statistical")
     names = [
         k for k in params if k not in ("excited", "stderr_method") and not str(k).endswith(derived)
     ]

@@ -149,6 +149,14 @@ def fit_json(summary: Any, out: Path) -> dict[str, Any]:
                 "ci95": est.interval95(),
                 "pinned": est.pinned(),
                 "stderr_method": est.stderr_method,
+                **(
+                    {
+                        "systematic": dict(est.systematic),
+                        "ci95_statistical": est.interval95(systematic=False),
+                    }
+                    if est.systematic is not None
+                    else {}
+                ),
             }
             for name, est in summary.effects.items()
         },
