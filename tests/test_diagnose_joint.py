@@ -170,6 +170,11 @@ def test_the_fit_command_adds_every_missing_effect_in_one_fit():
         "--out m0+com_offset+rotational_drag.npz --seed 0"
     )
     assert fit_command("m0.npz", model, "com_offset").endswith("--out m0+com_offset.npz --seed 0")
+    # a model holds its effects in the registry's order; the command keeps its name's
+    model.effects = {"inertia_error": None, "rotational_drag": None}
+    command = fit_command("m0+rotational_drag+inertia_error.npz", model, ["com_offset"])
+    assert "--effects rotational_drag,inertia_error,com_offset " in command
+    assert "--out m0+rotational_drag+inertia_error+com_offset.npz" in command
 
 
 def test_a_small_effect_beside_a_large_one_waits_for_the_next_round():

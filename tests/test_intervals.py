@@ -281,7 +281,6 @@ def test_the_rotors_thrust_spread_is_in_the_interval_not_in_the_standard_error()
     from omavctl.learn.effect_fit import estimate_effects
     from omavctl.learn.estimate import systematic_from_json
     from omavctl.learn.intervals import SPREAD_WORDS
-
     from omavctl.learn.spread import rotor_sensitivity
 
     vehicle = default_vehicle()

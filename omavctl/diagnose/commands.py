@@ -148,8 +148,11 @@ def fit_command(model_path: str, model: ResidualGP, effect: str | Sequence[str])
         if s.get("path") or s.get("name")
     ]
     added = [effect] if isinstance(effect, str) else [e for e in effect if e not in model.effects]
-    effects = [*model.effects, *added]
     stem = Path(display_path(model_path)).with_suffix("")
+    # the model's effects in the order its name gives them (m0+rotational_drag+inertia_error
+    # holds them in the registry's order), then the rest, then the new ones
+    named = [e for e in stem.name.split("+")[1:] if e in model.effects]
+    effects = [*named, *(e for e in model.effects if e not in named), *added]
     parts = ["omavctl", "fit", *sources]
     parts += ["--effects", ",".join(effects), "--out", f"{stem}+{'+'.join(added)}.npz"]
     kmed = prov.get("kmedoids", {})
