@@ -63,6 +63,10 @@ def test_a_claim_that_took_a_held_back_lags_joint_step_says_whose_share_it_is():
         "removes 17 % of the squared physics-only error on held-out data (the model's GP has "
         f"absorbed it: it explains 2 % of the model's remaining error); {RIVAL}."
     )
+    # no command printed (several models evaluated): no "fit command" to point at
+    bare = _rival_tree(["rotor_interference", "command_delay"])
+    del bare["diagnosis"]["fit_command"]
+    assert "Also: command_delay (fit them together: estimated jointly" in verdict(bare)[0].text
     # a step claimed under its own name says nothing of the sort
     own = _rival_tree(["rotor_interference", "motor_lag"])
     assert "share is that of" not in verdict(own)[0].text

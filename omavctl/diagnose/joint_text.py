@@ -71,14 +71,26 @@ def joint_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
     shares = [
         _num(steps.get(replaced_step(diag, m) or m, {}).get("share_of_total")) for m in missing
     ]
+    together = together_words(diag)
     if any(v is None for v in shares):
-        return " (the fit command adds them together)"
+        return f" ({together})"
     parts = ", ".join(f"{m} {_pct(v)}" for m, v in zip(missing, shares, strict=True) if v)
     why = "".join(f"; {clause}" for m in missing if (clause := replaced_text(diag, m)))
     return (
-        " (the fit command adds them together: estimated jointly from the fit flight as "
+        f" ({together}: estimated jointly from the fit flight as "
         f"fit --effects would, they remove {_pct(sum(v for v in shares if v))} of the "
         f"squared physics-only error on held-out data, {parts}{why})"
+    )
+
+
+def together_words(diag: Mapping[str, Any]) -> str:
+    """'the fit command adds them together', or without a printed command (several
+    models evaluated, a model whose fit flight is unknown) 'fit them together'."""
+    cmd = diag.get("fit_command")
+    return (
+        "the fit command adds them together"
+        if isinstance(cmd, str) and cmd
+        else ("fit them together")
     )
 
 

@@ -30,6 +30,7 @@ from omavctl.diagnose.joint_text import (
     min_explained,
     named_later,
     replaced_text,
+    together_words,
 )
 from omavctl.diagnose.verdict_lines import (
     AXES,
@@ -150,8 +151,8 @@ def _also_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
         return ""
     together = joint_text(diag, missing)
     later = [why for name, (_, why) in named_later(diag).items() if name in missing[1:]]
-    if later and together == " (the fit command adds them together)":
-        together = f" (the fit command adds them together; {'; '.join(later)})"
+    if later and together == f" ({together_words(diag)})":
+        together = f" ({together_words(diag)}; {'; '.join(later)})"
     return f" Also: {', '.join(missing[1:])}{together}."
 
 
