@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Collection, Mapping
 from typing import Any
 
-__all__ = ["AXIS_CLAIM", "estimate_sentence"]
+__all__ = ["AXIS_CLAIM", "estimate_sentence", "unpinned_text"]
 
 #: Share of an axis's error an effect must explain for its per-axis parameter on that
 #: axis to be quoted as an estimate (below it: "D_z not claimed").
@@ -55,7 +55,7 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             if note := _bound_note(str(entry.get("name")), name, ci[0], v):
                 text += f", {note}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:
-                text += f", {_unpinned(str(entry.get('name')), name, ci, i, est)}"
+                text += f", {unpinned_text(str(entry.get('name')), name, ci, i, est)}"
             parts.append(text + ")")
     text = f" Estimated on this flight as fit would: {'; '.join(parts)}." if parts else ""
     if unclaimed:
@@ -95,7 +95,7 @@ def _value(v: Any) -> float | None:
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
-def _unpinned(
+def unpinned_text(
     effect: str, param: str, ci: list[Any], i: int, est: Mapping[str, Any] | None = None
 ) -> str:
     """Why the interval does not pin the parameter down, in words that follow it
@@ -110,6 +110,6 @@ def _unpinned(
         if isinstance(flight, list) and i < len(flight) and None not in (flight[i] or [None]):
             if pinned_down(effect, param, np.asarray([flight[i]], float))[0]:
                 return SPREAD_WORDS
-        return unpinned_words(effect, param, ci, i)
-    except (KeyError, ValueError):  # an effect or parameter this version does not know
+        return unpinned_words(effect, param, [float(v) for v in ci], i)
+    except (KeyError, ValueError, TypeError):  # an effect or parameter this version does not know
         return "cannot be pinned down from this flight"

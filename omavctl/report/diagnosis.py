@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from omavctl.diagnose.estimate_text import unpinned_text
 from omavctl.diagnose.joint_text import named_later
 from omavctl.report.document import (
     Block,
@@ -74,6 +75,9 @@ def _param_lines(
                 skipped.append(labels[i])
                 continue
             err = f" ± {num(errs[i], 2)}" if i < len(errs) else ""
+            spread = as_list(params.get(f"{k}_systematic", []))
+            if err and i < len(spread) and finite(spread[i]) and spread[i] > 0:
+                err += f" (± {num(spread[i], 2)} spread)"
             note = ""
             if i < len(errs) and finite(errs[i]) and finite(v) and errs[i] <= 1e-9 * max(1, abs(v)):
                 # the jackknife spread collapses (to 0 or rounding) at a bound of the
@@ -126,7 +130,7 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") 
     if note := _bound_note(effect, k, lo, value):
         text += f" ({note})"
     if i < len(pinned) and pinned[i] is False:
-        text += f": {_unpinned(effect, k, ci[i], i)}"
+        text += f": {unpinned_text(effect, k, ci[i], i, params)}"
     return text
 
 
@@ -149,17 +153,6 @@ def _bound_note(effect: str, param: str, low: Any, value: Any = None) -> str:
     from omavctl.learn.intervals import bound_note
 
     return bound_note(effect, param, float(low), value) if finite(low) else ""
-
-
-def _unpinned(effect: str, param: str, ci: list[Any], i: int) -> str:
-    """Why the interval does not pin the parameter down (the default words for an
-    effect or parameter this version does not know)."""
-    from omavctl.learn.intervals import unpinned_words
-
-    try:
-        return unpinned_words(effect, param, [float(v) for v in ci], i)
-    except (KeyError, ValueError, TypeError):
-        return "cannot be pinned down from this flight"
 
 
 def _flag(v: Any) -> str:
