@@ -67,3 +67,24 @@ def test_the_verdict_sentence_and_the_report_say_the_unit():
     assert "r_x = 0.01 ± 0.001 [torque unit]/[force unit]" in text
     text = str(fitted_effect_items(model_effects, False)[0])
     assert "r_x = 0.01 ± 0.001 m" in text
+
+
+def test_the_report_gives_the_spreads_part_and_says_why_the_interval_is_wide():
+    """A fitted CoM offset whose interval the rotors' thrust spread widens: the report
+    gives the spread's part beside the standard error, and where the flight's own
+    interval excludes 0 it names the spread, not the flight, as the reason."""
+    from omavctl.learn.intervals import SPREAD_WORDS
+
+    effects = {
+        "com_offset": {
+            "r": [0.0036, 0.0, 0.0],
+            "r_stderr": [0.0003, 0.0, 0.0],
+            "r_systematic": [0.0018, 0.0, 0.0],
+            "r_ci95": [[-0.00006, 0.0073], [0.0, 0.0], [0.0, 0.0]],
+            "r_ci95_statistical": [[0.003, 0.0042], [0.0, 0.0], [0.0, 0.0]],
+            "r_pinned": [False, False, False],
+            "excited": [True, False, False],
+        }
+    }
+    text = str(fitted_effect_items(effects, False)[0])
+    assert f"r_x = 0.0036 ± 0.0003 (± 0.0018 spread) m [-6e-05, 0.0073]: {SPREAD_WORDS}" in text
