@@ -88,3 +88,16 @@ def test_the_report_gives_the_spreads_part_and_says_why_the_interval_is_wide():
     }
     text = str(fitted_effect_items(effects, False)[0])
     assert f"r_x = 0.0036 ± 0.0003 (± 0.0018 spread) m [-6e-05, 0.0073]: {SPREAD_WORDS}" in text
+
+
+def test_the_ranking_tables_say_which_residual_their_parameters_were_fitted_to():
+    """The report quoted r_y three times with three values (the verdict's estimate, the
+    fitted model, the ranking): each ranking's header says what its numbers are."""
+    from omavctl.report.diagnosis import _ranking_table
+
+    entry = {"name": "com_offset", "parameters": {"r": [0.004, -0.008, 0.0]}}
+    columns = _ranking_table([entry], False, "missing").columns
+    assert "parameters on the model's remaining error, each effect alone" in columns[4]
+    fitted = {**entry, "estimate": {"r": [0.0036, -0.003, 0.0]}}
+    columns = _ranking_table([fitted], False, "learned").columns
+    assert "parameters on the nominal residual, as fit --effects estimates them" in columns[4]

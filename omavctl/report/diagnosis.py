@@ -222,7 +222,7 @@ def _ranking_table(
         "effect",
         "explained variance",
         "per axis",
-        "parameters ± std. error [95 % interval]",
+        _parameters_header(entries, what),
         "t value",
         "significant",
         "plausible",
@@ -233,6 +233,16 @@ def _ranking_table(
     if what == "missing":
         columns.insert(-2, "explained as fit --effects would fit it")
     return Table(columns=columns, rows=rows, align="rlrrrrlll" + "r" * (what == "missing") + "ll")
+
+
+def _parameters_header(entries: Sequence[Any], what: str) -> str:
+    """The parameters column's header, saying which residual they were fitted to: the
+    same effect is quoted from several (the verdict's estimate, the fitted model, this
+    ranking) and the numbers differ."""
+    fit_like = any(isinstance(e, Mapping) and e.get("estimate") for e in entries)
+    on = "the nominal residual" if what == "learned" else "the model's remaining error"
+    how = "as fit --effects estimates them" if fit_like else "each effect alone"
+    return f"parameters on {on}, {how}: ± std. error [95 % interval]"
 
 
 def _claimed_cell(what: str, claimed: Any, later: tuple[str, str] | None) -> Cell:
