@@ -8,9 +8,10 @@ the kept first model ``m0.npz`` on the kept held-out log, run the ``fit_command`
 the verdict prints, evaluate again, two rounds (as
 :func:`benchmarks.scorecard_draws.loop`), and score the result with
 :mod:`benchmarks.scorecard_score`. Fits are cached in the draw directory by
-their arguments (fitting does not depend on the diagnosis), so a second replay
-runs only the evaluations. Evaluations skip the open-loop horizon table
-(``--horizons none``), which no score reads.
+their arguments and the omavctl sources (fitting does not depend on the diagnosis,
+but a change to the fit's code, as session 19's intervals, is another fit), so a
+second replay of the same code runs only the evaluations. Evaluations skip the
+open-loop horizon table (``--horizons none``), which no score reads.
 
     python benchmarks/scorecard_replay.py draw --draws 16 --workdir build/sc   # run once
     python benchmarks/scorecard_replay.py replay build/sc/tune.jsonl --label after
@@ -44,7 +45,15 @@ if __package__ in (None, ""):
 
 from benchmarks import scorecard_score as sc
 from benchmarks.scorecard import by_effect, failures, read_records, table
-from benchmarks.scorecard_draws import ROUNDS, SPLITS, StepFailed, fit_argv, omavctl, round_record
+from benchmarks.scorecard_draws import (
+    ROOT,
+    ROUNDS,
+    SPLITS,
+    StepFailed,
+    fit_argv,
+    omavctl,
+    round_record,
+)
 
 #: Draws of one's own (not the report split): the held-back ``steps`` family on one
 #: side as the report draws, other seeds; for finding causes, never for the report.
@@ -145,9 +154,25 @@ REPLAY_DIR = "replay"
 CACHE_DIR = "fitcache"
 
 
+def _code_hash() -> str:
+    """Hash of the omavctl sources the fits run (ROOT/omavctl/**/*.py and its data):
+    a fit cached by one version of the code is not another's."""
+    if not _CODE:
+        h = hashlib.sha256()
+        for path in sorted((ROOT / "omavctl").rglob("*")):
+            if path.suffix in (".py", ".yaml") and "__pycache__" not in path.parts:
+                h.update(str(path.relative_to(ROOT)).encode() + b"\0" + path.read_bytes())
+        _CODE.append(h.hexdigest()[:16])
+    return _CODE[0]
+
+
+_CODE: list[str] = []
+
+
 def _fit_key(argv: Sequence[str]) -> str:
-    """Cache key of a fit: its arguments without ``--out`` (effects sorted)."""
-    words = list(argv)
+    """Cache key of a fit: its arguments without ``--out`` (effects sorted) and the
+    code that runs it (:func:`_code_hash`)."""
+    words = [_code_hash(), *argv]
     if "--out" in words:
         i = words.index("--out")
         del words[i : i + 2]
