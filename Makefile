@@ -55,8 +55,9 @@ lint: $(STAMP)
 # PYTHONDONTWRITEBYTECODE unset: the omavctl processes the tests start (about 40) then
 # reuse compiled modules instead of compiling omavctl's 138 files each (about 0.1 CPU s
 # a start, docs/testing.md); __pycache__/ is git-ignored
+# --no-loadscope-reorder: files in tests/conftest.py's order, the slowest first (pytest-xdist 3.8)
 test: lint
-	PYTHONDONTWRITEBYTECODE= $(BIN)/pytest -q -n 2 --dist loadfile
+	PYTHONDONTWRITEBYTECODE= $(BIN)/pytest -q -n 2 --dist loadfile --no-loadscope-reorder
 
 fuzz: $(STAMP)
 	nice -n 10 $(BIN)/python tools/fuzz_campaign.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED) \

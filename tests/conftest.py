@@ -24,6 +24,45 @@ BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
 for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 
+#: Test files by their time on one worker, slowest first (session 18's `--durations`
+#: runs on the 2-core CI machine: test_evaluate 220-330 s, the next ones 40-130 s each,
+#: docs/testing.md "Session 19"). `make test` runs `pytest -n 2 --dist loadfile
+#: --no-loadscope-reorder`: xdist then hands whole files to its two workers in collection
+#: order, which :func:`pytest_collection_modifyitems` makes this order (the other files
+#: after them, alphabetically). xdist's default order, most tests first, left these
+#: one-to-six-test files (the two-flights test 78 s, test_fuzz 40-67 s, test_demo 40-70 s)
+#: to the end, where one worker ran them while the other had nothing left.
+SLOW_FIRST = (
+    "test_evaluate.py",
+    "test_generalise.py",
+    "test_plan_fast.py",
+    "test_motor_effects.py",
+    "test_kill9.py",
+    "test_generalise_two_flights.py",
+    "test_plan_effects.py",
+    "test_timing_and_control_loss.py",
+    "test_demo.py",
+    "test_fuzz.py",
+    "test_report.py",
+    "test_scripting.py",
+    "test_browser.py",
+    "test_intervals.py",
+    "test_horizons.py",
+    "test_robust.py",
+    "test_motors.py",
+    "test_control_loss.py",
+    "test_never_hurts.py",
+    "test_informative_bench.py",
+    "test_real_logs.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The slowest files first (:data:`SLOW_FIRST`), each file's tests in their order."""
+    rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 NO_NOISE = {"gyro": 0.0, "attitude": 0.0, "position": 0.0, "velocity": 0.0}
 
 

@@ -213,3 +213,15 @@ def test_the_savitzky_golay_filter_sits_below_the_residual():
     assert "omavctl.learn.savgol" in lever and "omavctl.learn.signal" not in lever
     for name in ("SavitzkyGolay", "usable_segments", "DEFAULT_SG_WINDOW", "DEFAULT_SG_ORDER"):
         assert getattr(signal, name) is getattr(savgol, name) and name in signal.__all__
+
+
+def test_the_slowest_test_files_are_handed_out_first():
+    """`make test` keeps the file order of tests/conftest.py (slowest first), which
+    xdist's default reorder (most tests first) would undo; every file named exists."""
+    from conftest import SLOW_FIRST
+
+    tests = PACKAGE.parent / "tests"
+    assert [name for name in SLOW_FIRST if not (tests / name).is_file()] == []
+    assert len(set(SLOW_FIRST)) == len(SLOW_FIRST)
+    recipe = (PACKAGE.parent / "Makefile").read_text().split("\ntest: lint\n")[1].splitlines()[0]
+    assert "-n 2 --dist loadfile --no-loadscope-reorder" in recipe

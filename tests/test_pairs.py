@@ -7,6 +7,7 @@ two timing forms searched together get the profile interval of the pair
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -107,6 +108,22 @@ def test_the_model_file_keeps_the_coefficients_it_predicts_with(drag_beside_iner
     tree["rotational_drag"]["theta_fitted"] = [0.1, 0.2]
     with pytest.raises(ModelError, match="theta_fitted is not 3 finite number"):
         _effects_from_json(tree, Path("m.npz"), 2)
+
+
+def test_the_exact_forms_memo_gives_what_a_fresh_computation_gives(drag_beside_inertia):
+    """ResidualSamples.exact remembers its results (the lag searches ask for the same
+    values again): the same array as samples that remember nothing, per value, through
+    a mask, and a caller that writes into its result changes nothing remembered."""
+    s, _ = drag_beside_inertia
+    fresh = replace(s)  # a new object: nothing remembered
+    first = s.exact("motor_lag", 0.05)
+    first += 1.0
+    np.testing.assert_array_equal(s.exact("motor_lag", 0.05), fresh.exact("motor_lag", 0.05))
+    assert not np.array_equal(s.exact("motor_lag", 0.05), s.exact("motor_lag", 0.06))
+    keep = np.arange(s.n) % 3 > 0
+    np.testing.assert_array_equal(
+        s.select(keep).exact("motor_lag", 0.06), replace(s).exact("motor_lag", 0.06)[keep]
+    )
 
 
 def test_a_delay_beside_a_servo_lag_has_the_profile_interval_of_the_pair():

@@ -91,6 +91,10 @@ def feature_names(features: str) -> tuple[str, ...]:
     raise ConfigError(f"unknown --features '{features}' (known: {', '.join(FEATURES)})")
 
 
+#: Memory for :meth:`ResidualSamples.exact`'s results per samples object (bytes).
+EXACT_MEMO_BYTES = 64 * 2**20
+
+
 @dataclass
 class ResidualSamples:
     """The residual of one log on the kept grid samples (n of them).
@@ -136,6 +140,12 @@ class ResidualSamples:
     #: force (:mod:`.imu_lever`); None without one (no such effect, no accelerometer, or
     #: too short a log)
     lever: LeverArm | None = field(default=None, repr=False)
+    #: :meth:`exact`'s results before the mask, by (effect name, value's bits): the lag
+    #: and delay searches of fit and of the diagnosis ask for the same grid values again
+    #: and again (a 16 s log's diagnosis: 3166 calls, 819 distinct, 3.4 of its 9.6 CPU s)
+    _exact_memo: dict[tuple[str, str], np.ndarray] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @property
     def n(self) -> int:
@@ -146,10 +156,16 @@ class ResidualSamples:
         held like the measured residual (:meth:`omavctl.physics.effects.Effect.exact`)."""
         if self.sg is None or (not self.contexts and self.n > 0):
             raise ValueError("these samples were built without effect contexts")
-        effect = get_effect(name)
-        parts = [self.sg.hold(effect.exact(ctx, value))[keep] for ctx, keep in self.contexts]
-        out = np.concatenate(parts) if parts else np.empty((0, 3))
-        return out if self.mask is None else out[self.mask]
+        key = (name, float(value).hex())
+        out = self._exact_memo.get(key)
+        if out is None:
+            effect = get_effect(name)
+            parts = [self.sg.hold(effect.exact(ctx, value))[keep] for ctx, keep in self.contexts]
+            out = np.concatenate(parts) if parts else np.empty((0, 3))
+            if out.nbytes * (len(self._exact_memo) + 1) > EXACT_MEMO_BYTES:
+                self._exact_memo.clear()  # a long log: keep at most that much
+            self._exact_memo[key] = out
+        return out.copy() if self.mask is None else out[self.mask]
 
     def held_of(self, fn: Callable[[EffectContext], np.ndarray | None]) -> np.ndarray | None:
         """``fn`` of each segment's effect context (per grid sample, (N_seg, ...)), held

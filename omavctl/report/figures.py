@@ -46,9 +46,27 @@ MISSING_COLOUR = "#7b4fa6"
 
 
 def png(fig: Figure) -> bytes:
-    """The figure as PNG bytes without metadata that changes between runs."""
+    """The figure as PNG bytes without metadata that changes between runs.
+
+    Drawn once: ``savefig`` on a figure with a layout engine first draws the whole
+    figure with rendering switched off (to run the layout) and then again with it on;
+    ``FigureCanvasAgg.draw`` runs the layout engine and draws in one pass, and the
+    PNG is written as ``savefig`` writes it (the same bytes, checked on the figures of
+    three reports, docs/testing.md "Session 19").
+    """
+    import matplotlib.image
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    if fig.dpi != DPI:
+        fig.set_dpi(DPI)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
+    no_software: dict[str, Any] = {"Software": None}  # as savefig: no version stamp
+    matplotlib.image.imsave(
+        buf, canvas.buffer_rgba(), format="png", origin="upper", dpi=DPI,
+        metadata=no_software,
+    )  # fmt: skip
     return buf.getvalue()
 
 
