@@ -49,9 +49,10 @@ def _param_lines(
     interval: :func:`omavctl.learn.intervals.unpinned_words`); components
     whose ``excited`` flag is false are left out (and named as such)."""
     derived = ("_stderr", "_ci95", "_pinned", "_systematic", "_ci95_statistical")
-    names = [
-        k for k in params if k not in ("excited", "stderr_method") and not str(k).endswith(derived)
-    ]
+    # not parameters: the flags and the coefficients the model predicts with
+    # (``theta_fitted``, printed as "theta_fitted_x = ..." under r_x before)
+    other = ("excited", "stderr_method", "theta_fitted")
+    names = [k for k in params if k not in other and not str(k).endswith(derived)]
     values = {k: as_list(params[k]) for k in names}
     excited = params.get("excited")
     total = sum(len(v) for v in values.values())
