@@ -101,3 +101,37 @@ def test_the_ranking_tables_say_which_residual_their_parameters_were_fitted_to()
     fitted = {**entry, "estimate": {"r": [0.0036, -0.003, 0.0]}}
     columns = _ranking_table([fitted], False, "learned").columns
     assert "parameters on the nominal residual, as fit --effects estimates them" in columns[4]
+
+
+def test_the_report_says_what_a_spread_is_and_which_interval_held_an_effect_back():
+    """Seen in a rendered report (session 19): '(± 0.0019 spread)' beside every fitted
+    parameter, never said what it was; and 'Not claimed, cannot be pinned down (the 95 %
+    interval holds the value of no effect): inertia_error' above a table whose scale_y
+    interval [1.02, 1.04] excludes 1 (that table fits each effect alone)."""
+    from omavctl.learn.intervals import SPREAD_MEANING
+    from omavctl.report.diagnosis import diagnosis_section, spread_legend
+    from omavctl.report.document import Document, to_markdown
+
+    fitted = {
+        "scale": [1.0167, 0.9886, 0.992],
+        "scale_stderr": [0.0253, 0.0664, 0.07],
+        "scale_systematic": [0.0169, 0.0356, 0.0302],
+        "scale_ci95": [[0.957, 1.076], [0.841, 1.136], [0.843, 1.141]],
+        "scale_pinned": [False, False, False],
+    }
+    alone = {"scale": [1.012, 1.03, 0.9912], "scale_stderr": [0.0063, 0.0043, 0.0032]}
+    alone["scale_ci95"] = [[0.999, 1.02], [1.02, 1.04], [0.985, 0.998]]
+    diag = {
+        "not_pinned": [{"name": "inertia_error", "units": {"scale": "1"}, "estimate": fitted}],
+        "missing_effects": [{"name": "inertia_error", "parameters": alone}],
+        "learned": [{"name": "com_offset", "estimate": {"r": [0.0155], "r_systematic": [0.0018]}}],
+    }
+    doc = Document("t", diagnosis_section({"diagnosis": diag}, 0, "eval.json"))
+    text = to_markdown(doc).replace("\\", "")
+    assert "Not claimed, cannot be pinned down from this flight: inertia_error (scale_x = " in text
+    assert "scale_y = 0.9886 ± 0.066 (± 0.036 spread) [0.84, 1.1]; scale_z" in text
+    assert "the table below fits each effect alone" in text
+    assert text.count(SPREAD_MEANING) == 1  # under the ranking that shows a spread only
+    # the same words under a model's fitted effects (the report's summary)
+    assert spread_legend([alone, fitted]) == [SPREAD_MEANING + "."]
+    assert spread_legend([alone, {"r": [0.1], "r_systematic": [0.0]}]) == []
