@@ -142,7 +142,7 @@ def test_a_band_that_holds_every_sample_is_called_cautious():
     line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
     assert line == (
         "Uncertainty can be trusted: within 2σ x 95 %, y 90 %, z 100 % (95 % expected); "
-        "the band is cautious on z: z 100 % inside, wider than needed."
+        "the band is cautious on z (100 % inside): wider than needed."
     )
     tree["metrics"]["model"]["coverage_2sigma"]["z"] = 0.994  # 99 %: nothing more said
     line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
