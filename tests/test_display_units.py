@@ -132,6 +132,10 @@ def test_the_report_says_what_a_spread_is_and_which_interval_held_an_effect_back
     assert "scale_y = 0.9886 ± 0.066 (± 0.036 spread) [0.84, 1.1]; scale_z" in text
     assert "the table below fits each effect alone" in text
     assert text.count(SPREAD_MEANING) == 1  # under the ranking that shows a spread only
+    # nothing missing: no 'after the top missing effect' above what the error keeps
+    diag["unexplained"] = [{"axis": "y", "kind": "feature correlation", "correlation": -0.45}]
+    text = to_markdown(Document("t", diagnosis_section({"diagnosis": diag}, 0, "e")))
+    assert "Structure the model's error keeps, which no registered effect explains:" in text
     # the same words under a model's fitted effects (the report's summary)
     assert spread_legend([alone, fitted]) == [SPREAD_MEANING + "."]
     assert spread_legend([alone, {"r": [0.1], "r_systematic": [0.0]}]) == []

@@ -218,11 +218,9 @@ def diagnosis_section(
     unexplained = _unexplained_items(diag.get("unexplained") or [])
     blocks.append(Heading(4, "Unexplained structure"))
     if unexplained:
+        after = f" with {', '.join(missing)} added" if missing else ""  # none: as it is
         blocks.append(
-            Para(
-                "Structure the model's error keeps after the top missing effect, which no "
-                "registered effect explains:"
-            )
+            Para(f"Structure the model's error keeps{after}, which no registered effect explains:")
         )
         blocks.append(Bullets(unexplained))
     else:
