@@ -218,7 +218,10 @@ def diagnosis_section(
     unexplained = _unexplained_items(diag.get("unexplained") or [])
     blocks.append(Heading(4, "Unexplained structure"))
     if unexplained:
-        after = f" with {', '.join(missing)} added" if missing else ""  # none: as it is
+        steps = [
+            str(m.get("name")) for m in diag.get("missing_steps") or [] if isinstance(m, Mapping)
+        ]
+        after = f" with {', '.join(steps)} added" if steps else ""  # the selection's, if any
         blocks.append(
             Para(f"Structure the model's error keeps{after}, which no registered effect explains:")
         )
