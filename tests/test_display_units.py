@@ -139,3 +139,25 @@ def test_the_report_says_what_a_spread_is_and_which_interval_held_an_effect_back
     # the same words under a model's fitted effects (the report's summary)
     assert spread_legend([alone, fitted]) == [SPREAD_MEANING + "."]
     assert spread_legend([alone, {"r": [0.1], "r_systematic": [0.0]}]) == []
+
+
+def test_a_component_no_flight_excites_is_not_called_at_its_bound():
+    """Crazyflie log16 with a log15 model (session 19): fit's estimate of com_offset
+    carries no 'excited' flags, and a quad's r_z (no force along z moves it) read
+    'r_z = 0 m (at its bound: no std. error)' in the ranking and the held-back line;
+    the same effect's ranking entry on the same log has the flags."""
+    from omavctl.report.diagnosis import diagnosis_section
+    from omavctl.report.document import Document, to_markdown
+
+    est = {"r": [0.001, 0.0003, 0.0], "r_stderr": [0.0022, 0.002, 0.0]}
+    est["r_ci95"] = [[-0.007, 0.009], [-0.008, 0.009], [0.0, 0.0]]
+    learned = {"name": "com_offset", "estimate": est, "units": {"r": "m"}}
+    learned["parameters"] = {"r": [0.00099, 0.00049, 0.0], "excited": [True, True, False]}
+    diag = {
+        "not_pinned": [{"name": "com_offset", "units": {"r": "m"}, "estimate": est}],
+        "learned": [learned],
+    }
+    text = to_markdown(Document("t", diagnosis_section({"diagnosis": diag}, 0, "e")))
+    text = text.replace("\\", "")
+    assert "at its bound" not in text
+    assert text.count("not excited: r_z") == 2  # the held-back line and the ranking

@@ -27,7 +27,13 @@ from omavctl.report.document import (
     Table,
 )
 from omavctl.report.numfmt import AXES, axes_of, num, pct, torque_unit_unknown
-from omavctl.report.params import _estimates, _param_lines, fitted_effect_items, spread_legend
+from omavctl.report.params import (
+    _estimates,
+    _param_lines,
+    entry_parameters,
+    fitted_effect_items,
+    spread_legend,
+)
 
 __all__ = ["diagnosis_section", "fitted_effect_items", "spread_legend"]
 
@@ -78,7 +84,7 @@ def _ranking_table(
                 per_axis,
                 Lines(
                     _param_lines(
-                        e.get("estimate") or e.get("parameters") or {},
+                        entry_parameters(e),
                         e.get("units") or {},
                         torque_unknown,
                         str(e.get("name", "?")),  # the effect, not its cell
@@ -196,7 +202,10 @@ def diagnosis_section(
         names = (s for name in learned for s in (Span(name, "strong"), " "))
         blocks.append(Para(("Learned by the GP, not yet in the physics: ", *names)[:-1]))
     held_back = [e for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)]
-    blocks += _held_paras([e for e in held_back if not e.get("not_physical")], torque_unknown)
+    ranked = [*(diag.get("missing_effects") or []), *(diag.get("learned") or [])]
+    blocks += _held_paras(
+        [e for e in held_back if not e.get("not_physical")], ranked, torque_unknown
+    )
     unphysical = [str(e.get("name")) for e in held_back if e.get("not_physical")]
     if unphysical:
         blocks.append(
@@ -233,7 +242,9 @@ def diagnosis_section(
     return blocks
 
 
-def _held_paras(held: Sequence[Mapping[str, Any]], torque_unknown: bool) -> list[Block]:
+def _held_paras(
+    held: Sequence[Mapping[str, Any]], ranked: Sequence[Any], torque_unknown: bool
+) -> list[Block]:
     """The effects held back as not pinned down, each with the estimate that decided it
     (fit's, as the verdict quotes it): the ranking's intervals fit each effect alone
     to the model's remaining error and may exclude the no-effect value where this
@@ -242,10 +253,11 @@ def _held_paras(held: Sequence[Mapping[str, Any]], torque_unknown: bool) -> list
         return []
     parts = []
     for e in held:
-        name, est = str(e.get("name")), e.get("estimate")
+        name, est = str(e.get("name")), entry_parameters(e, *ranked)  # flags: ``ranked``'s
         lines = _param_lines(est, e.get("units") or {}, torque_unknown, name) if est else ()
         said = ": cannot be pinned down from this flight"  # the sentence says it once
-        text = "; ".join(str(x).removesuffix(said) for x in lines if isinstance(x, str))
+        words = [x if isinstance(x, str) else x.text for x in lines if isinstance(x, str | Span)]
+        text = "; ".join(x.removesuffix(said) for x in words)
         parts.append(f"{name} ({text})" if text else name)
     return [
         Para(

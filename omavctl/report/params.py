@@ -12,7 +12,7 @@ from omavctl.diagnose.estimate_text import unpinned_text
 from omavctl.report.document import Content, Span
 from omavctl.report.numfmt import AXES, as_list, finite, num
 
-__all__ = ["fitted_effect_items", "spread_legend"]
+__all__ = ["entry_parameters", "fitted_effect_items", "spread_legend"]
 
 
 def _unit(unit: str, torque_unknown: bool) -> str:
@@ -119,7 +119,24 @@ def spread_legend(param_sets: Sequence[Any]) -> list[str]:
 
 def _estimates(entries: Sequence[Any]) -> list[Any]:
     """The parameter mappings of ranking ``entries``, as :func:`_ranking_table` shows them."""
-    return [e.get("estimate") or e.get("parameters") for e in entries if isinstance(e, Mapping)]
+    return [entry_parameters(e) for e in entries if isinstance(e, Mapping)]
+
+
+def entry_parameters(e: Mapping[str, Any], *others: Any) -> Mapping[str, Any]:
+    """A ranking entry's parameters as shown: its ``estimate`` (fit's) where it has
+    one, else its ``parameters``; with the ``excited`` flags of its own or ``others``'
+    ``parameters`` for the same effect where the estimate has none (the flight's
+    regressors decide them, not the residual): a quad's r_z, which no force along z
+    excites, read 'r_z = 0 m (at its bound: no std. error)'."""
+    est = e.get("estimate") or e.get("parameters") or {}
+    if not isinstance(est, Mapping) or "excited" in est:
+        return est
+    for o in (e, *others):
+        if isinstance(o, Mapping) and o.get("name") == e.get("name"):
+            flags = (o.get("parameters") or {}).get("excited")
+            if isinstance(flags, list):
+                return {**est, "excited": flags}
+    return est
 
 
 def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") -> str:
