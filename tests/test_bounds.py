@@ -16,7 +16,7 @@ from omavctl.diagnose.estimate_text import estimate_sentence
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.intervals import Z95, interval95, pinned_down, unpinned_words
 from omavctl.learn.model_file import _effects_from_json
-from omavctl.report.diagnosis import _interval_note
+from omavctl.report.params import _interval_note
 
 # the Crazyflie hover window's motor lag (docs/intervals.md): 9.4 +- 18.5 ms
 LAG = EffectEstimate("motor_lag", {"T_m": np.array([0.0094])}, {"T_m": np.array([0.0185])})

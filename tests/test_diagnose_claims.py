@@ -222,8 +222,8 @@ def test_a_claim_held_back_says_it_cannot_be_pinned_down_with_its_interval():
     (line,) = [ln for ln in verdict(_tree(diag)) if ln.key == "missing"]
     assert line.text.startswith(
         "Nothing claimed as missing. Not claimed: inertia_error, which cannot be pinned "
-        "down from this flight: on no axis it is claimed on does its 95 % interval exclude "
-        "scale = 1 (the value at which it is absent)"
+        "down from this flight: its 95 % interval holds scale = 1 (the value at which it is "
+        "absent) on every axis that matters"
     )
     assert "scale_x = 1.02 (95 %: 0.97 to 1.07" in line.text
     assert line.command == "omavctl fit f.bag --effects inertia_error"

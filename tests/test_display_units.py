@@ -101,3 +101,63 @@ def test_the_ranking_tables_say_which_residual_their_parameters_were_fitted_to()
     fitted = {**entry, "estimate": {"r": [0.0036, -0.003, 0.0]}}
     columns = _ranking_table([fitted], False, "learned").columns
     assert "parameters on the nominal residual, as fit --effects estimates them" in columns[4]
+
+
+def test_the_report_says_what_a_spread_is_and_which_interval_held_an_effect_back():
+    """Seen in a rendered report (session 19): '(± 0.0019 spread)' beside every fitted
+    parameter, never said what it was; and 'Not claimed, cannot be pinned down (the 95 %
+    interval holds the value of no effect): inertia_error' above a table whose scale_y
+    interval [1.02, 1.04] excludes 1 (that table fits each effect alone)."""
+    from omavctl.learn.intervals import SPREAD_MEANING
+    from omavctl.report.diagnosis import diagnosis_section, spread_legend
+    from omavctl.report.document import Document, to_markdown
+
+    fitted = {
+        "scale": [1.0167, 0.9886, 0.992],
+        "scale_stderr": [0.0253, 0.0664, 0.07],
+        "scale_systematic": [0.0169, 0.0356, 0.0302],
+        "scale_ci95": [[0.957, 1.076], [0.841, 1.136], [0.843, 1.141]],
+        "scale_pinned": [False, False, False],
+    }
+    alone = {"scale": [1.012, 1.03, 0.9912], "scale_stderr": [0.0063, 0.0043, 0.0032]}
+    alone["scale_ci95"] = [[0.999, 1.02], [1.02, 1.04], [0.985, 0.998]]
+    diag = {
+        "not_pinned": [{"name": "inertia_error", "units": {"scale": "1"}, "estimate": fitted}],
+        "missing_effects": [{"name": "inertia_error", "parameters": alone}],
+        "learned": [{"name": "com_offset", "estimate": {"r": [0.0155], "r_systematic": [0.0018]}}],
+    }
+    doc = Document("t", diagnosis_section({"diagnosis": diag}, 0, "eval.json"))
+    text = to_markdown(doc).replace("\\", "")
+    assert "Not claimed, cannot be pinned down from this flight: inertia_error (scale_x = " in text
+    assert "scale_y = 0.9886 ± 0.066 (± 0.036 spread) [0.84, 1.1]; scale_z" in text
+    assert "the table below fits each effect alone" in text
+    assert text.count(SPREAD_MEANING) == 1  # under the ranking that shows a spread only
+    # nothing missing: no 'after the top missing effect' above what the error keeps
+    diag["unexplained"] = [{"axis": "y", "kind": "feature correlation", "correlation": -0.45}]
+    text = to_markdown(Document("t", diagnosis_section({"diagnosis": diag}, 0, "e")))
+    assert "Structure the model's error keeps, which no registered effect explains:" in text
+    # the same words under a model's fitted effects (the report's summary)
+    assert spread_legend([alone, fitted]) == [SPREAD_MEANING + "."]
+    assert spread_legend([alone, {"r": [0.1], "r_systematic": [0.0]}]) == []
+
+
+def test_a_component_no_flight_excites_is_not_called_at_its_bound():
+    """Crazyflie log16 with a log15 model (session 19): fit's estimate of com_offset
+    carries no 'excited' flags, and a quad's r_z (no force along z moves it) read
+    'r_z = 0 m (at its bound: no std. error)' in the ranking and the held-back line;
+    the same effect's ranking entry on the same log has the flags."""
+    from omavctl.report.diagnosis import diagnosis_section
+    from omavctl.report.document import Document, to_markdown
+
+    est = {"r": [0.001, 0.0003, 0.0], "r_stderr": [0.0022, 0.002, 0.0]}
+    est["r_ci95"] = [[-0.007, 0.009], [-0.008, 0.009], [0.0, 0.0]]
+    learned = {"name": "com_offset", "estimate": est, "units": {"r": "m"}}
+    learned["parameters"] = {"r": [0.00099, 0.00049, 0.0], "excited": [True, True, False]}
+    diag = {
+        "not_pinned": [{"name": "com_offset", "units": {"r": "m"}, "estimate": est}],
+        "learned": [learned],
+    }
+    text = to_markdown(Document("t", diagnosis_section({"diagnosis": diag}, 0, "e")))
+    text = text.replace("\\", "")
+    assert "at its bound" not in text
+    assert text.count("not excited: r_z") == 2  # the held-back line and the ranking

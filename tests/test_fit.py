@@ -226,6 +226,8 @@ def test_same_inputs_and_seed_give_the_same_bytes(flights, tmp_path):
         if not quiet:
             text = " ".join(result.output.split())
             assert "rotational_drag" in text and "N m s^2" in text and "training R^2" in text
+            # what '± 0.0019 spread' is: one standard deviation, not a bound it could shift by
+            assert "± spread: one standard deviation that the rotors' thrust tolerance" in text
             assert f"wrote {tmp_path / name} (40 training points, 1191 samples)" in text
     assert outs[0] == outs[1]
     assert train.read_bytes() == before

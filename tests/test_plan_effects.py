@@ -169,6 +169,12 @@ def test_variance_plan_also_reports_the_effects_numbers(setup):
     text = " ".join(result.output.split())
     tau_d = float(setup[3].effects["command_delay"].stderr["tau_d"][0])
     assert f"± {tau_d:.3g} now (fit's)" in text
+    # the rotors' thrust spread stays whatever is flown: the forecast, under it, said
+    # nothing of it, so a new user read 'r_x ± 0.000946 after the flight' beside fit's
+    # interval of ± 0.0043 m (± 0.0019 of it the spread)
+    spread = float(setup[3].effects["rotational_drag"].systematic["D"][0])
+    assert spread > 0
+    assert f"± {spread:.3g} spread beside each: the rotors' thrust spread, the same" in text
     lines = scores.read_text().splitlines()
     header = lines[0].split(",")
     for line in lines[1:]:

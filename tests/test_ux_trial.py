@@ -183,7 +183,7 @@ def test_an_unpinned_interval_is_worded_by_what_it_holds():
     assert "D_z = 1.08 N m s^2 (95 %: 0.809 to 1.34, outside the plausible 0 to 1:" in text
     assert "pinned down" not in text
     # the report's parameter lines say the same
-    from omavctl.report.diagnosis import _interval_note
+    from omavctl.report.params import _interval_note
 
     params = {"D": [0.0375, 0.0322, 1.08], "D_ci95": entry["estimate"]["D_ci95"],
               "D_pinned": [True, True, False]}  # fmt: skip

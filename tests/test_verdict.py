@@ -142,7 +142,7 @@ def test_a_band_that_holds_every_sample_is_called_cautious():
     line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
     assert line == (
         "Uncertainty can be trusted: within 2σ x 95 %, y 90 %, z 100 % (95 % expected); "
-        "the band is cautious on z: z 100 % inside, wider than needed."
+        "the band is cautious on z (100 % inside): wider than needed."
     )
     tree["metrics"]["model"]["coverage_2sigma"]["z"] = 0.994  # 99 %: nothing more said
     line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
@@ -497,3 +497,16 @@ def test_a_claim_of_the_joint_selection_quotes_its_share_of_the_physics_only_err
     # a claim of the ranking keeps its share of the model's remaining error
     (line,) = [ln for ln in verdict(BEFORE) if ln.key == "missing"]
     assert line.text.startswith("Missing: rotational_drag — it explains 51 % of the model's")
+
+
+def test_the_coefficients_the_model_predicts_with_are_no_parameter():
+    # a learned com_offset in the ranking of the nominal residual (Crazyflie log16,
+    # session 19) carries theta_fitted: it was printed as 'theta_fitted_x = 0.0001226'
+    estimate = {
+        "r": [0.001, 0.0003, 0.0],
+        "r_stderr": [0.0022, 0.002, 0.0],
+        "stderr_method": "hac",
+        "theta_fitted": [0.0001226, 2.8e-05, 0.0],
+    }
+    lines = _param_lines(estimate, {"r": "m"}, False, "com_offset")
+    assert [str(x).split(" =")[0] for x in lines] == ["r_x", "r_y", "r_z"]

@@ -97,7 +97,7 @@ def test_a_pinned_interval_never_prints_an_end_at_the_null():
     }
     assert "scale = 1.1031 (95 %: 1.0001 to 1.2061)" in estimate_sentence(entry)
     # the report's model lines (2 digits) too
-    from omavctl.report.diagnosis import _interval_note
+    from omavctl.report.params import _interval_note
 
     params = {"scale_ci95": [list(ends)], "scale_pinned": [True]}
     assert _interval_note(params, "scale", 0, "inertia_error") == " [1.0001, 1.2061]"

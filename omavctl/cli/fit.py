@@ -185,18 +185,14 @@ def _effects_table(summary: Any) -> Any:
     from rich.text import Text
 
     from omavctl.learn.fit_notes import effect_unit
-    from omavctl.learn.intervals import SPREAD_WORDS, interval95
+    from omavctl.learn.intervals import SPREAD_MEANING, SPREAD_WORDS, interval95
     from omavctl.physics.effects import get_effect
 
     units = summary.command_units
     has_spread = any(est.systematic is not None for est in summary.effects.values())
     eff = Table(
         title="effects (value ± standard error, robust to autocorrelated residuals"
-        + (
-            "; ± spread: what the rotors' thrust tolerance could shift it by, in the interval)"
-            if has_spread
-            else ")"
-        ),
+        + (f"; {SPREAD_MEANING})" if has_spread else ")"),
         title_justify="left",
     )
     for col in ("effect", "parameter", "value ± std. error", "95 % interval", "unit"):

@@ -159,10 +159,10 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
             )
             continue
         out += (
-            f" Not claimed: {name}, which cannot be pinned down from this flight: on no axis "
-            f"it is claimed on does its 95 % interval exclude {_null_words(name)} (the value "
-            "at which it is absent) by a part of the error above the claim floor that the "
-            f"fit flight's estimate confirms.{said}"
+            f" Not claimed: {name}, which cannot be pinned down from this flight: its 95 % "
+            f"interval holds {_null_words(name)} (the value at which it is absent) on every "
+            "axis that matters, or excludes it only where its part of the error is under "
+            f"the claim floor or the fit flight's estimate does not confirm it.{said}"
         )
     return out
 

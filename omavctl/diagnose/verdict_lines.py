@@ -201,9 +201,9 @@ def uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
     # wider band outside the fit inputs), but the user should know
     cautious = [a for a in AXES if a in cov and round(100 * cov[a]) >= 100 and a not in under]
     if cautious:
-        text = (
-            f"{text[:-1]}; the band is cautious on {', '.join(cautious)}: "
-            f"{_shares(cov, cautious)} inside, wider than needed."
+        text = (  # the shares are in the text already ('x 100 %, y 100 %' said twice)
+            f"{text[:-1]}; the band is cautious on {', '.join(cautious)} (100 % inside): "
+            "wider than needed."
         )
     return Line("uncertainty", f"{text[:-1]}; {hor}." if hor else text)
 

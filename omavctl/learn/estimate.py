@@ -94,9 +94,22 @@ class EffectEstimate:
         """Standard errors (p,) of :attr:`theta`: each parameter moved by its standard
         error through ``to_theta`` (exact where theta is the parameter); NaN when a
         parameter's is not finite."""
+        return self._through_theta(self.stderr)
+
+    @property
+    def theta_systematic(self) -> np.ndarray:
+        """The systematic part (p,) of :attr:`theta`'s uncertainty (the rotors' thrust
+        spread), as :attr:`theta_stderr` carries the standard errors; 0 without one."""
+        if self.systematic is None:
+            return np.zeros_like(self.effect.to_theta(self.values))
+        return self._through_theta(self.systematic)
+
+    def _through_theta(self, sds: dict[str, np.ndarray]) -> np.ndarray:
+        """Standard deviations ``sds`` per parameter carried to theta (p,) through
+        ``to_theta``, one parameter component at a time."""
         base = self.effect.to_theta(self.values)
         var = np.zeros_like(base)
-        for name, se in self.stderr.items():
+        for name, se in sds.items():
             for j in range(np.size(se)):
                 if not np.isfinite(se[j]):
                     var[:] = np.nan

@@ -38,6 +38,7 @@ from omavctl.physics.effects import get_effect
 
 __all__ = [
     "PHYSICAL_BOUNDS",
+    "SPREAD_MEANING",
     "SPREAD_WORDS",
     "Z95",
     "bandwidth",
@@ -58,6 +59,12 @@ __all__ = [
 
 #: Why an interval that the flight alone would pin down does not: the rotors' spread.
 SPREAD_WORDS = "a thrust spread within the rotors' tolerance makes this torque too"
+#: What "± 0.0019 spread" beside a standard error is, wherever it is printed.
+SPREAD_MEANING = (
+    "± spread: one standard deviation that the rotors' thrust tolerance (vehicle "
+    "rotor.thrust_tolerance) adds, the same on every flight of this vehicle; "
+    "the 95 % interval holds it and the standard error together"
+)
 
 #: Two-sided 95 % normal quantile.
 Z95 = 1.959963984540054

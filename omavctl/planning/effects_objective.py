@@ -163,6 +163,9 @@ class EffectsPrior:
     #: standard errors (p,) of theta that ``fit`` stored (a lag's or delay's from its
     #: 1-D search over every sample); NaN where not fitted or not determined
     fit_stderr: np.ndarray | None = None
+    #: the part (p,) of theta's uncertainty that the rotors' thrust spread gives it (0
+    #: where none): the same for every flight of the vehicle, no plan lowers it
+    fit_systematic: np.ndarray | None = None
 
     @classmethod
     def from_model(cls, model, gp: GPAxes, names: Sequence[str]) -> EffectsPrior:
@@ -195,7 +198,14 @@ class EffectsPrior:
                 for n in names
             ]
         )
-        return cls(tuple(names), np.concatenate(values), s, info * np.outer(s, s), fitted, fit_se)
+        spread = np.concatenate(
+            [
+                model.effects[n].theta_systematic if n in model.effects else np.zeros(len(t))
+                for n, t in zip(names, values, strict=True)
+            ]
+        )
+        theta = np.concatenate(values)
+        return cls(tuple(names), theta, s, info * np.outer(s, s), fitted, fit_se, spread)
 
     def standard_errors(self, information: np.ndarray) -> np.ndarray:
         """Standard errors (..., p) of theta in its units from scaled information (..., p, p)."""
@@ -373,6 +383,10 @@ def correlation_remark(before: float, after: float) -> str:
     return " (a little more correlated after it, still told apart)"
 
 
+#: Why a planned flight does not narrow an interval below the spread.
+_SPREAD_STAYS = "the rotors' thrust spread, the same on every flight, no flight lowers it"
+
+
 def effects_summary(result) -> dict | None:
     """What a plan (:class:`~omavctl.planning.planner.PlanResult`) expects for the
     effects: per parameter the standard errors before, after the chosen flight and
@@ -407,6 +421,8 @@ def effects_summary(result) -> dict | None:
     with np.errstate(divide="ignore", invalid="ignore"):
         allowance = np.where(np.isfinite(fit_se) & (before > 0), fit_se / before, 1.0)
     allowance = np.maximum(np.nan_to_num(allowance, nan=1.0, posinf=1.0), 1.0)
+    spread = np.zeros(before.size) if prior.fit_systematic is None else prior.fit_systematic
+    spread = np.nan_to_num(spread, nan=0.0, posinf=0.0)
     for i, label in enumerate(labels):
         times = (
             f"; x{allowance[i]:.2g} for autocorrelation as fit measured it"
@@ -423,6 +439,7 @@ def effects_summary(result) -> dict | None:
         lines.append(
             f"  {label}: {now}, ± {after[i] * allowance[i]:.3g} after the flight, "
             f"± {task[i] * allowance[i]:.3g} after the task (planner's linearisation{times})"
+            + (f"; ± {spread[i]:.3g} spread beside each: {_SPREAD_STAYS}" if spread[i] > 0 else "")
         )
     return {
         "names": list(prior.names),
@@ -434,6 +451,8 @@ def effects_summary(result) -> dict | None:
         "stderr_task": _finite(task),
         # what the lines show: the planner's standard errors x fit's autocorrelation factor
         "autocorrelation_factor": _finite(allowance),
+        # the rotors' thrust spread: beside every standard error above, lowered by none
+        "systematic": _finite(spread),
         "relative_stderr": {key: v if math.isfinite(v) else None for key, v in rel.items()},
         "max_correlation": {key: v if math.isfinite(v) else None for key, v in corr.items()},
         "lines": lines,

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from omavctl.diagnose.estimate_text import unpinned_text
 from omavctl.diagnose.joint_text import named_later
 from omavctl.report.document import (
     Block,
@@ -27,132 +26,16 @@ from omavctl.report.document import (
     Span,
     Table,
 )
-from omavctl.report.numfmt import AXES, as_list, axes_of, finite, num, pct, torque_unit_unknown
+from omavctl.report.numfmt import AXES, axes_of, num, pct, torque_unit_unknown
+from omavctl.report.params import (
+    _estimates,
+    _param_lines,
+    entry_parameters,
+    fitted_effect_items,
+    spread_legend,
+)
 
-__all__ = ["diagnosis_section", "fitted_effect_items"]
-
-
-def _unit(unit: str, torque_unknown: bool) -> str:
-    """A parameter unit for display ('' for dimensionless)."""
-    if unit == "1":
-        return ""
-    if torque_unknown and "N m" in unit:
-        return unit.replace("N m", "[torque unit]")
-    return unit
-
-
-def _param_lines(
-    params: Mapping[str, Any], units: Mapping[str, str], torque_unknown: bool, effect: str = ""
-) -> tuple[Content, ...]:
-    """'name_axis = value ± stderr unit [95 % interval]' per parameter component (with
-    why it is not pinned down where ``P_pinned`` says so, in words that follow the
-    interval: :func:`omavctl.learn.intervals.unpinned_words`); components
-    whose ``excited`` flag is false are left out (and named as such)."""
-    derived = ("_stderr", "_ci95", "_pinned", "_systematic", "_ci95_statistical")
-    names = [
-        k for k in params if k not in ("excited", "stderr_method") and not str(k).endswith(derived)
-    ]
-    values = {k: as_list(params[k]) for k in names}
-    excited = params.get("excited")
-    total = sum(len(v) for v in values.values())
-    if not (isinstance(excited, list) and len(excited) == total):
-        excited = [True] * total
-    lines: list[Content] = []
-    skipped: list[str] = []
-    offset = 0
-    for k in names:
-        vals = values[k]
-        errs = as_list(params.get(f"{k}_stderr", []))
-        if len(vals) == 3:
-            labels = [f"{k}_{a}" for a in AXES]
-        elif len(vals) == 1:
-            labels = [str(k)]
-        else:
-            labels = [f"{k}_{i}" for i in range(len(vals))]
-        unit = _unit(str(units.get(k, "")), torque_unknown)
-        for i, v in enumerate(vals):
-            if not excited[offset + i]:
-                skipped.append(labels[i])
-                continue
-            err = f" ± {num(errs[i], 2)}" if i < len(errs) else ""
-            spread = as_list(params.get(f"{k}_systematic", []))
-            if err and i < len(spread) and finite(spread[i]) and spread[i] > 0:
-                err += f" (± {num(spread[i], 2)} spread)"
-            note = ""
-            if i < len(errs) and finite(errs[i]) and finite(v) and errs[i] <= 1e-9 * max(1, abs(v)):
-                # the jackknife spread collapses (to 0 or rounding) at a bound of the
-                # plausible range, 0 included (drag, lags)
-                err, note = "", " (at its bound: no std. error)"
-            if not note:
-                note = _interval_note(params, k, i, effect)
-            lines.append(f"{labels[i]} = {num(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
-        offset += len(vals)
-    if skipped:
-        lines.append(Span(f"not excited: {', '.join(skipped)}", "em"))
-    return tuple(lines)
-
-
-def fitted_effect_items(
-    effects: Mapping[str, Any], torque_unknown: bool, force_unknown: bool = False
-) -> list[Content]:
-    """One item per effect a model fitted: its parameters ± standard errors and 95 %
-    intervals (the model file's ``P``, ``P_stderr``, ``P_ci95``, ``P_pinned``), in the
-    units ``fit`` shows for the commands' units (:func:`omavctl.learn.fit_notes.effect_unit`)."""
-    from omavctl.learn.fit_notes import effect_unit
-    from omavctl.physics.effects import EFFECTS
-    from omavctl.vehicle import NORMALISED
-
-    command_units = {
-        k: NORMALISED
-        for k, unknown in (("torque", torque_unknown), ("force", force_unknown))
-        if unknown
-    }
-    out: list[Content] = []
-    for name, params in effects.items():
-        if not isinstance(params, Mapping) or name not in EFFECTS:
-            continue
-        units = {p.name: effect_unit(name, p.unit, command_units) for p in EFFECTS[name].parameters}
-        lines = _param_lines(params, units, torque_unknown, name)
-        out.append(f"fitted {name}: " + "; ".join(str(x) for x in lines if isinstance(x, str)))
-    return out
-
-
-def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") -> str:
-    """' [low, high]' of component i's 95 % interval, and whether it pins it down."""
-    ci = as_list(params.get(f"{k}_ci95", []))
-    pinned = as_list(params.get(f"{k}_pinned", []))
-    if i >= len(ci) or not isinstance(ci[i], list) or len(ci[i]) != 2:
-        return ""
-    lo, hi = ci[i]
-    text = f" [{_ends(lo, hi, effect, k, i)}]" if finite(lo) and finite(hi) else " [unbounded]"
-    values = as_list(params.get(k, []))
-    value = values[i] if i < len(values) and finite(values[i]) else None
-    if note := _bound_note(effect, k, lo, value):
-        text += f" ({note})"
-    if i < len(pinned) and pinned[i] is False:
-        text += f": {unpinned_text(effect, k, ci[i], i, params)}"
-    return text
-
-
-def _ends(lo: float, hi: float, effect: str, param: str, i: int) -> str:
-    """'low, high' in 2 significant digits, more where these print the ends alike or
-    an end as the effect's null that it is not (scale [1.00009, 1.21] as "1, 1.2")."""
-    from omavctl.diagnose.estimate_text import null_component
-    from omavctl.learn.intervals import interval_ends
-
-    a, b, null = num(lo, 2), num(hi, 2), null_component(effect, param, i)
-    n = num(null, 2) if null is not None else None
-    if a == b or (n is not None and ((a == n and lo != null) or (b == n and hi != null))):
-        a, b, _ = interval_ends(float(lo), float(hi), null)
-    return f"{a}, {b}"
-
-
-def _bound_note(effect: str, param: str, low: Any, value: Any = None) -> str:
-    """'cut at T_m ≥ 0' where the interval ends at the parameter's physical bound (and
-    '; the estimate is below it' where ``value`` is)."""
-    from omavctl.learn.intervals import bound_note
-
-    return bound_note(effect, param, float(low), value) if finite(low) else ""
+__all__ = ["diagnosis_section", "fitted_effect_items", "spread_legend"]
 
 
 def _flag(v: Any) -> str:
@@ -201,7 +84,7 @@ def _ranking_table(
                 per_axis,
                 Lines(
                     _param_lines(
-                        e.get("estimate") or e.get("parameters") or {},
+                        entry_parameters(e),
                         e.get("units") or {},
                         torque_unknown,
                         str(e.get("name", "?")),  # the effect, not its cell
@@ -319,14 +202,10 @@ def diagnosis_section(
         names = (s for name in learned for s in (Span(name, "strong"), " "))
         blocks.append(Para(("Learned by the GP, not yet in the physics: ", *names)[:-1]))
     held_back = [e for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)]
-    held = [str(e.get("name")) for e in held_back if not e.get("not_physical")]
-    if held:
-        blocks.append(
-            Para(
-                f"Not claimed, cannot be pinned down from this flight (the 95 % interval holds "
-                f"the value of no effect): {', '.join(held)}."
-            )
-        )
+    ranked = [*(diag.get("missing_effects") or []), *(diag.get("learned") or [])]
+    blocks += _held_paras(
+        [e for e in held_back if not e.get("not_physical")], ranked, torque_unknown
+    )
     unphysical = [str(e.get("name")) for e in held_back if e.get("not_physical")]
     if unphysical:
         blocks.append(
@@ -339,6 +218,7 @@ def diagnosis_section(
     if entries:
         blocks.append(Heading(4, "Candidate missing effects, best first"))
         blocks.append(_ranking_table(entries, torque_unknown, "missing", later=later))
+        blocks += [Para(x, note=True) for x in spread_legend(_estimates(entries))]
     command = diag.get("fit_command")
     if isinstance(command, str) and command:
         top = ", ".join(missing) if missing else (learned or ["the top effect"])[0]
@@ -347,11 +227,12 @@ def diagnosis_section(
     unexplained = _unexplained_items(diag.get("unexplained") or [])
     blocks.append(Heading(4, "Unexplained structure"))
     if unexplained:
+        steps = [
+            str(m.get("name")) for m in diag.get("missing_steps") or [] if isinstance(m, Mapping)
+        ]
+        after = f" with {', '.join(steps)} added" if steps else ""  # the selection's, if any
         blocks.append(
-            Para(
-                "Structure the model's error keeps after the top missing effect, which no "
-                "registered effect explains:"
-            )
+            Para(f"Structure the model's error keeps{after}, which no registered effect explains:")
         )
         blocks.append(Bullets(unexplained))
     else:
@@ -359,6 +240,34 @@ def diagnosis_section(
     blocks += _learned_blocks(tree, diag, learned_as, torque_unknown)
     blocks += _learned_commands(tree, diag)
     return blocks
+
+
+def _held_paras(
+    held: Sequence[Mapping[str, Any]], ranked: Sequence[Any], torque_unknown: bool
+) -> list[Block]:
+    """The effects held back as not pinned down, each with the estimate that decided it
+    (fit's, as the verdict quotes it): the ranking's intervals fit each effect alone
+    to the model's remaining error and may exclude the no-effect value where this
+    one does not (inertia_error, scale_y [1.02, 1.04] in the table beside 0.84..1.14)."""
+    if not held:
+        return []
+    parts = []
+    for e in held:
+        name, est = str(e.get("name")), entry_parameters(e, *ranked)  # flags: ``ranked``'s
+        lines = _param_lines(est, e.get("units") or {}, torque_unknown, name) if est else ()
+        said = ": cannot be pinned down from this flight"  # the sentence says it once
+        words = [x if isinstance(x, str) else x.text for x in lines if isinstance(x, str | Span)]
+        text = "; ".join(x.removesuffix(said) for x in words)
+        parts.append(f"{name} ({text})" if text else name)
+    return [
+        Para(
+            "Not claimed, cannot be pinned down from this flight: "
+            + ", ".join(parts)
+            + ". Estimated as fit --effects would, as the verdict quotes it; the table "
+            "below fits each effect alone to the model's remaining error, and its "
+            "intervals can differ."
+        )
+    ]
 
 
 def _missing_paras(missing: Sequence[str], later: Mapping[str, tuple[str, str]]) -> list[Block]:
@@ -467,5 +376,6 @@ def _learned_blocks(
             text += " Resembles most: " + ", ".join(found) + "."
         blocks.append(Para(text))
         blocks.append(_ranking_table(learned, torque_unknown, "learned", held))
+        blocks += [Para(x, note=True) for x in spread_legend(_estimates(learned))]
         blocks += _order_note(learned, held, diag)
     return blocks

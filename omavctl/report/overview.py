@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.verdict import get_path as _get
-from omavctl.report.diagnosis import fitted_effect_items
+from omavctl.report.diagnosis import fitted_effect_items, spread_legend
 from omavctl.report.document import Block, Bullets, Cell, Content, Heading, Lines, Para, Span, Table
 from omavctl.report.load import Evaluation
 from omavctl.report.numfmt import AXES, axes_of, force_unit_unknown, num, torque_unit_unknown
@@ -138,6 +138,27 @@ def _units_unknown(tree: Mapping[str, Any]) -> tuple[bool, bool]:
     return torque_unit_unknown(tree), force_unit_unknown(tree)
 
 
+def _model_items(tree: Mapping[str, Any]) -> list[Content]:
+    """Per model its file, effects, GP inputs and fitted parameters; then what their
+    "± spread" means where one shows it."""
+    items: list[Content] = []
+    for m in tree.get("models", []) or []:
+        effects = ", ".join((m.get("effects") or {}).keys()) or "none"
+        items.append(
+            (
+                "model ",
+                Span(str(m.get("path", m.get("name", "?"))), "code"),
+                f": effects {effects}; GP inputs {m.get('features', '?')}; "
+                f"{m.get('n_train', '?')} training points",
+            )
+        )
+        items += fitted_effect_items(m.get("effects") or {}, *_units_unknown(tree))
+    items += spread_legend(
+        [p for m in tree.get("models") or [] for p in (m.get("effects") or {}).values()]
+    )
+    return items
+
+
 def summary_of(
     tree: Mapping[str, Any], series: Mapping[str, np.ndarray], k: int, label: str
 ) -> list[Block]:
@@ -155,17 +176,7 @@ def summary_of(
         items.append(("log ", Span(str(lg.get("path", lg.get("name", "?"))), "code"), ": " + text))
         for note in lg.get("notes", []) or []:
             items.append(f"note on {lg.get('name', '?')}: {note}")
-    for m in tree.get("models", []) or []:
-        effects = ", ".join((m.get("effects") or {}).keys()) or "none"
-        items.append(
-            (
-                "model ",
-                Span(str(m.get("path", m.get("name", "?"))), "code"),
-                f": effects {effects}; GP inputs {m.get('features', '?')}; "
-                f"{m.get('n_train', '?')} training points",
-            )
-        )
-        items += fitted_effect_items(m.get("effects") or {}, *_units_unknown(tree))
+    items += _model_items(tree)
     sg = tree.get("savitzky_golay") or {}
     items.append(
         f"{int(np.asarray(series['t']).size)} samples on a "
