@@ -21,8 +21,9 @@ flights: ``com_offset`` fitted at -0.92 ... 3.8 mm on r_x, r_y with standard err
 1.85 mm from this module.
 
 Effects whose parameters *are* the spread (``motor_loss``) get no systematic part.
-A log without what the rotors' thrusts can be computed from (a fixed-rotor vehicle
-without per-motor outputs, a normalised command) gets none either.
+A log without per-motor outputs gets none when the rotors' thrusts cannot be
+computed from its commands (a fixed-rotor vehicle, a normalised command); with them
+it gets one whatever the command's units (the wrench was mixed from those outputs).
 """
 
 from __future__ import annotations
