@@ -44,7 +44,7 @@ def test_a_lag_interval_is_cut_at_zero_and_its_standard_error_kept():
         estimate_sentence(entry)
     )
     assert _interval_note(delay, "tau_d", 0, "command_delay").startswith(
-        " [0, 0.00064] (cut at tau_d ≥ 0; the estimate is below it): "
+        " [0, 0.000637] (cut at tau_d ≥ 0; the estimate is below it): "
     )
     # a parameter of either sign (a CoM offset) is never cut
     assert interval95(np.array([0.001]), np.array([0.01]), None)[0, 0] < 0
@@ -65,7 +65,7 @@ def test_every_place_that_shows_the_interval_shows_the_cut_one():
         estimate_sentence(entry)
     )
     assert _interval_note(js, "T_m", 0, "motor_lag") == (
-        " [0, 0.046] (cut at T_m ≥ 0): cannot be pinned down from this flight"
+        " [0, 0.0457] (cut at T_m ≥ 0): cannot be pinned down from this flight"
     )
 
 

@@ -129,7 +129,7 @@ def test_the_report_says_what_a_spread_is_and_which_interval_held_an_effect_back
     doc = Document("t", diagnosis_section({"diagnosis": diag}, 0, "eval.json"))
     text = to_markdown(doc).replace("\\", "")
     assert "Not claimed, cannot be pinned down from this flight: inertia_error (scale_x = " in text
-    assert "scale_y = 0.9886 ± 0.066 (± 0.036 spread) [0.84, 1.1]; scale_z" in text
+    assert "scale_y = 0.9886 ± 0.066 (± 0.036 spread) [0.841, 1.14]; scale_z" in text
     assert "the table below fits each effect alone" in text
     assert text.count(SPREAD_MEANING) == 1  # under the ranking that shows a spread only
     # nothing missing: no 'after the top missing effect' above what the error keeps

@@ -188,7 +188,7 @@ def test_an_unpinned_interval_is_worded_by_what_it_holds():
     params = {"D": [0.0375, 0.0322, 1.08], "D_ci95": entry["estimate"]["D_ci95"],
               "D_pinned": [True, True, False]}  # fmt: skip
     assert _interval_note(params, "D", 2, "rotational_drag") == (
-        " [0.81, 1.3]: outside the plausible 0 to 1: not this effect alone, something else "
+        " [0.809, 1.34]: outside the plausible 0 to 1: not this effect alone, something else "
         "on this axis"
     )
 

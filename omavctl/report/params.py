@@ -157,15 +157,14 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") 
 
 
 def _ends(lo: float, hi: float, effect: str, param: str, i: int) -> str:
-    """'low, high' in 2 significant digits, more where these print the ends alike or
-    an end as the effect's null that it is not (scale [1.00009, 1.21] as "1, 1.2")."""
+    """'low, high' with the digits the verdict and ``fit`` print (3 significant, more
+    where these print the ends alike or an end as the effect's null that it is not:
+    :func:`omavctl.learn.intervals.interval_ends`); 2 digits printed scale [0.957, 1.076]
+    as "0.96, 1.1", and two different intervals alike."""
     from omavctl.diagnose.estimate_text import null_component
     from omavctl.learn.intervals import interval_ends
 
-    a, b, null = num(lo, 2), num(hi, 2), null_component(effect, param, i)
-    n = num(null, 2) if null is not None else None
-    if a == b or (n is not None and ((a == n and lo != null) or (b == n and hi != null))):
-        a, b, _ = interval_ends(float(lo), float(hi), null)
+    a, b, _ = interval_ends(float(lo), float(hi), null_component(effect, param, i))
     return f"{a}, {b}"
 
 
