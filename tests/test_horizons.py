@@ -479,7 +479,7 @@ def test_the_verdict_band_sentence_says_where_the_open_loop_band_is_too_narrow()
         "expected); the open-loop 2σ band is too narrow: it holds 43 % of the body rates at "
         "0.01 s (85 % needed; the horizon table)."
     )
-    # 89 % is "a little narrow" (80-90 %), also beside an underconfident axis
+    # 89 % is "a little narrow" (80-90 %), also beside a cautious axis
     tree["metrics"]["model"] = {
         "coverage_2sigma": {"x": 1.0, "y": 0.96, "z": 0.89},
         "mean_std": {"x": 3.0, "y": 1.0, "z": 1.0},
@@ -487,6 +487,7 @@ def test_the_verdict_band_sentence_says_where_the_open_loop_band_is_too_narrow()
     }
     line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
     assert line.startswith(
-        "Uncertainty underconfident on x: the predicted σ is more than twice the actual "
-        "error (within 2σ: x 100 %, y 96 %, z 89 %); a little narrow on z; the open-loop"
+        "Uncertainty cautious on x: the band is wider than needed, the predicted σ more than "
+        "twice the actual error (within 2σ: x 100 %, y 96 %, z 89 %); a little narrow on z; "
+        "the open-loop"
     )

@@ -147,11 +147,12 @@ def test_a_band_that_holds_every_sample_is_called_cautious():
     tree["metrics"]["model"]["coverage_2sigma"]["z"] = 0.994  # 99 %: nothing more said
     line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
     assert line.endswith("z 99 % (95 % expected).")
-    # underconfident (the predicted σ more than twice the error) already says it
+    # a band with the predicted σ more than twice the error already says it is cautious
     tree["metrics"]["model"]["coverage_2sigma"]["z"] = 1.0
     tree["metrics"]["model"]["mean_std"]["z"] = 0.5
     line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
-    assert line.startswith("Uncertainty underconfident on z") and "cautious" not in line
+    assert line.startswith("Uncertainty cautious on z: the band is wider than needed")
+    assert line.count("cautious") == 1  # said once, not again as '(100 % inside)'
 
 
 def test_before_after_per_axis_with_the_reason_for_the_worse_axis():

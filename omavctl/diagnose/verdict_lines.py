@@ -41,7 +41,7 @@ __all__ = [
 AXES = ("x", "y", "z")
 #: Below this fraction of samples within 2 sigma the uncertainty is overconfident.
 COVERAGE_MIN = 0.8
-#: Above this fraction, with a predicted std far above the error, underconfident.
+#: Above this fraction, with a predicted std far above the error, cautious (underconfident).
 COVERAGE_UNDER = 0.995
 #: From this fraction up the uncertainty "can be trusted"; between COVERAGE_MIN and
 #: it, it is called a little narrow.
@@ -182,8 +182,8 @@ def uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
         )
     elif under:
         text = (
-            f"Uncertainty underconfident on {', '.join(under)}: the predicted σ is more "
-            f"than twice the actual error (within 2σ: {shown})"
+            f"Uncertainty cautious on {', '.join(under)}: the band is wider than needed, "
+            f"the predicted σ more than twice the actual error (within 2σ: {shown})"
             + (f"; a little narrow on {', '.join(narrow)}." if narrow else ".")
         )
     elif narrow:
