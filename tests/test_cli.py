@@ -255,3 +255,27 @@ def test_simulate_says_when_the_actuators_could_not_follow(task_csv, tmp_path):
     result = runner.invoke(app, ["simulate", "-r", str(wild), "-o", str(tmp_path / "w.csv")])
     assert result.exit_code == 0, result.output
     assert "% of the steps asked for more than the actuators give" in result.output
+
+
+def test_simulate_says_what_the_steps_beyond_the_limits_are():
+    """'49/2401 steps beyond actuator limits' said nothing of what that means (eyes4)."""
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from omavctl.cli.simulate import _render_simulation
+
+    def said(infeasible: int) -> str:
+        con = Console(file=io.StringIO(), width=300)
+        run = SimpleNamespace(
+            duration=24.0, max_attitude_error=0.01, infeasible_steps=infeasible, steps=2401,
+            diverged=False,
+        )  # fmt: skip
+        _render_simulation(con, run, "f.csv")
+        return con.file.getvalue()
+
+    assert "49/2401 steps beyond actuator limits (thrust or tilt rate: the wrench clipped" in (
+        said(49)
+    )
+    assert "0/2401 steps beyond actuator limits\n" in said(0)

@@ -95,6 +95,7 @@ def _render_simulation(con: Any, result: Any, out: Path) -> None:
         f"wrote {out}: {result.duration:.2f} s flown, "
         f"max attitude error {math.degrees(result.max_attitude_error):.2f} deg, "
         f"{result.infeasible_steps}/{result.steps} steps beyond actuator limits"
+        + (" (thrust or tilt rate: the wrench clipped there)" if result.infeasible_steps else "")
     )
     if result.steps and result.infeasible_steps > 0.05 * result.steps:
         con.print(
