@@ -210,11 +210,13 @@ def _effects_table(summary: Any) -> Any:
                     "not excited by these logs"
                     if v == 0.0
                     else _interval_text(
-                        intervals[p.name][i], bool(pinned[p.name][i]), (name, p.name, i), v
+                        intervals[p.name][i],
+                        bool(pinned[p.name][i]),
+                        (name, p.name, i),
+                        v,
+                        SPREAD_WORDS if by_flight[p.name][i] else None,
                     )
                 )
-                if by_flight[p.name][i] and not pinned[p.name][i]:
-                    interval = interval.split(": ")[0] + f": {SPREAD_WORDS}"
                 spread = est.systematic[p.name][i] if est.systematic is not None else 0.0
                 value = f"{v:.4g} ± {e:.2g}" + (f" (± {spread:.2g} spread)" if spread > 0 else "")
                 eff.add_row(name, label, value, interval, Text(unit))
@@ -255,11 +257,16 @@ def gain_interval(low: float, high: float) -> tuple[float, float]:
 
 
 def _interval_text(
-    interval: Any, pinned: bool, which: tuple[str, str, int], value: float | None = None
+    interval: Any,
+    pinned: bool,
+    which: tuple[str, str, int],
+    value: float | None = None,
+    why: str | None = None,
 ) -> str:
     """'[low, high]' of a 95 % interval (and '(cut at T_m ≥ 0)' where it ends at the
     parameter's physical bound), and, when it does not pin the parameter (effect,
-    parameter, component) down, why, in words that follow the interval."""
+    parameter, component) down, why, in words that follow the interval (``why``, or
+    :func:`omavctl.learn.intervals.unpinned_words`)."""
     from omavctl.diagnose.estimate_text import null_component
     from omavctl.learn.intervals import bound_note, interval_ends, unpinned_words
 
@@ -268,7 +275,9 @@ def _interval_text(
     text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
     if note := bound_note(which[0], which[1], lo, value):
         text += f" ({note})"
-    return text if pinned else f"{text}: {unpinned_words(*which[:2], (lo, hi), which[2])}"
+    if pinned:
+        return text
+    return f"{text}: {why or unpinned_words(*which[:2], (lo, hi), which[2])}"
 
 
 def _gp_table(summary: Any) -> Any:

@@ -160,8 +160,8 @@ class ResidualSamples:
         out = self._exact_memo.get(key)
         if out is None:
             effect = get_effect(name)
-            parts = [self.sg.hold(effect.exact(ctx, value))[keep] for ctx, keep in self.contexts]
-            out = np.concatenate(parts) if parts else np.empty((0, 3))
+            out = self._held(lambda ctx: effect.exact(ctx, value))
+            out = np.empty((0, 3)) if out is None else out
             if out.nbytes * (len(self._exact_memo) + 1) > EXACT_MEMO_BYTES:
                 self._exact_memo.clear()  # a long log: keep at most that much
             self._exact_memo[key] = out
@@ -173,16 +173,20 @@ class ResidualSamples:
         or the samples were built without effect contexts."""
         if self.sg is None or (not self.contexts and self.n > 0):
             return None
+        out = self._held(fn)
+        return out if out is None or self.mask is None else out[self.mask]
+
+    def _held(self, fn: Callable[[EffectContext], np.ndarray | None]) -> np.ndarray | None:
+        """``fn`` of each context, held and kept per segment, before the mask (None: no
+        segment, or ``fn`` gave None for one)."""
+        assert self.sg is not None
         parts = []
         for ctx, keep in self.contexts:
             raw = fn(ctx)
             if raw is None:
                 return None
             parts.append(self.sg.hold(raw)[keep])
-        if not parts:
-            return None
-        out = np.concatenate(parts)
-        return out if self.mask is None else out[self.mask]
+        return np.concatenate(parts) if parts else None
 
     def select(self, keep: np.ndarray) -> ResidualSamples:
         """The samples where ``keep`` (n,) bool is True (counts and noise kept)."""

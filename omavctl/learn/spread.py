@@ -35,6 +35,7 @@ import numpy as np
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effect_base import EffectContext
 from omavctl.physics.effects import get_effect
+from omavctl.physics.motor_effects import rotor_residuals
 
 __all__ = ["SPREAD_ESTIMANDS", "rotor_sensitivity", "spread_covariance"]
 
@@ -49,31 +50,20 @@ def rotor_sensitivity(ctx: EffectContext) -> np.ndarray | None:
     split equally); None for a fixed-rotor vehicle without per-motor outputs or a
     normalised command (its wrench is in unknown units)."""
     if ctx.motor is not None:
-        thrust = ctx.motor.thrust
-        out = np.empty((thrust.shape[0], 3, thrust.shape[1]))
-        for i in range(thrust.shape[1]):
-            one = np.zeros_like(thrust)
-            one[:, i] = thrust[:, i]
-            out[:, :, i] = ctx.motor.torque(one) @ ctx.inertia_inv.T
-        return out
+        return rotor_residuals(ctx.motor.thrust, ctx.motor.torque, ctx.inertia_inv)
     vehicle = ctx.allocation.vehicle
     if ctx.fixed_rotors or ctx.torque_normalised or vehicle.force_normalised:
         return None  # no thrusts, or commands in unknown units: no thrusts to spread
     tilt, arm = ctx.allocated
     rotor = np.repeat(arm / 2.0, 2, axis=-1)
-    out = np.empty((rotor.shape[0], 3, rotor.shape[1]))
-    for i in range(rotor.shape[1]):
-        one = np.zeros_like(rotor)
-        one[:, i] = rotor[:, i]
-        out[:, :, i] = ctx.allocation.forward(tilt, one)[:, 3:] @ ctx.inertia_inv.T
-    return out
+    return rotor_residuals(rotor, lambda t: ctx.allocation.forward(tilt, t)[:, 3:], ctx.inertia_inv)
 
 
 def _tolerance(samples: Sequence[ResidualSamples]) -> float:
     """The vehicle's thrust tolerance (0 without effect contexts)."""
     for s in samples:
         for ctx, _ in s.contexts[:1]:
-            return float(getattr(ctx.allocation.vehicle, "thrust_tolerance", 0.0))
+            return ctx.allocation.vehicle.thrust_tolerance
     return 0.0
 
 

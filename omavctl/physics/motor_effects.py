@@ -15,12 +15,36 @@ battery voltage they need, mixed by the ``omav-rotors`` preset.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from omavctl.base.errors import ConfigError
 from omavctl.physics.effect_base import Effect, EffectContext, Parameter
 
-__all__ = ["MAX_LOSS_ROTORS", "BatterySag", "MotorLoss", "ThrustCurve", "loss_contrasts"]
+__all__ = [
+    "MAX_LOSS_ROTORS",
+    "BatterySag",
+    "MotorLoss",
+    "ThrustCurve",
+    "loss_contrasts",
+    "rotor_residuals",
+]
+
+
+def rotor_residuals(
+    thrust: np.ndarray, torque_of: Callable[[np.ndarray], np.ndarray], inertia_inv: np.ndarray
+) -> np.ndarray:
+    """Angular acceleration (N, 3, R) of each rotor's thrust alone: ``I^-1
+    torque_of(T e_i)`` for the thrusts (N, R), every other rotor's zeroed
+    (``torque_of``, (N, R) -> (N, 3) N m, linear in the thrusts)."""
+    out = np.empty((thrust.shape[0], 3, thrust.shape[1]))
+    for i in range(thrust.shape[1]):
+        one = np.zeros_like(thrust)
+        one[:, i] = thrust[:, i]
+        out[:, :, i] = torque_of(one) @ inertia_inv.T
+    return out
+
 
 #: Rotors ``motor_loss`` has a parameter for (the omav's 12, an octo-X's, a coaxial X8's).
 MAX_LOSS_ROTORS = 12
@@ -143,11 +167,7 @@ class MotorLoss(Effect):
         rotors = 0 if motor is None else motor.thrust.shape[1]
         if motor is None or not 2 <= rotors <= MAX_LOSS_ROTORS:
             return out
-        each = np.empty((n, 3, rotors))
-        for i in range(rotors):
-            delta = np.zeros_like(motor.thrust)
-            delta[:, i] = motor.thrust[:, i]
-            each[:, :, i] = -(motor.torque(delta) @ ctx.inertia_inv.T)
+        each = -rotor_residuals(motor.thrust, motor.torque, ctx.inertia_inv)
         out[:, :, 1:rotors] = each @ loss_contrasts()[:rotors, 1:rotors]
         return out
 
