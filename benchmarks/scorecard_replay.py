@@ -147,6 +147,17 @@ OWN_SPLIT = {
         "effects": ("com_offset", "rotational_drag"),
         "version": 2,
     },
+    # issue 26 "inertia" (session 20): report11's inventions and misses around
+    # inertia_error (beside a large drag or motor lag; held back by the guard) and the
+    # rotors' interference it looks like; the steps family on either side, version 2;
+    # declared before any draw was flown; fresh seeds
+    "own-inertia": {
+        "seed_base": 9_810_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "effects": ("inertia_error", "rotational_drag", "motor_lag", "rotor_interference"),
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 
