@@ -4,17 +4,19 @@ on the held-out flight.
 The ranking of :mod:`omavctl.diagnose.scoring` judges the model's remaining
 error, after its GP. Where the GP has absorbed an effect on the fit flight, that
 remaining error can fall under the claim floor although the physics still lacks
-the effect, and the loop stops (issue 26). Here each candidate is estimated as
-``fit --effects`` would estimate it from the model's own training points
-(:meth:`ResidualGP.basis_estimate`: GLS with the model's kernel), *jointly* with
-the candidates accepted before it, and judged by how much of the model's
+the effect, and the loop stops (issue 26). Here each candidate is estimated by
+``fit``'s first pass from the model's own training points (ordinary least squares,
+:func:`first_pass_theta`; the GLS with the model's kernel, which has learned part of
+the effect, shrinks that part toward zero, and a look-alike took the rest), *jointly*
+with the candidates accepted before it, and judged by how much of the model's
 physics-only error on the held-out flight (nominal + the model's effects; the
 quantity a user's next fit improves) the estimate removes. Forward selection,
 best first; a candidate is accepted when, fitted jointly with those before it,
 
 - its parameters lie in their plausible range (:data:`THETA_RANGE`),
 - its part of the held-out error may be material: the upper end of the part's 95 %
-  interval (RMS, from the estimate's covariance) reaches the claim floor (the GLS
+  interval (RMS, from the covariance of the GLS with the model's kernel,
+  :func:`joint_theta`) reaches the claim floor (the GLS
   point shrinks toward zero what the kernel can represent: a hidden 50 ms delay or
   a 2x motor lag after ``com_offset`` came out at 0.72-0.99x the floor while removing
   45-47 % of what the offset left, at t 4.6-5.8; docs/effects.md),
@@ -80,6 +82,7 @@ __all__ = [
     "JointStep",
     "block_sums",
     "block_t",
+    "first_pass_theta",
     "hac_t",
     "joint_selection",
     "joint_theta",
@@ -191,6 +194,25 @@ def joint_theta(
     return out, cov[k - p : k, k - p : k]
 
 
+def first_pass_theta(model: ResidualGP, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """theta of each of ``names`` estimated jointly by ``fit``'s first pass: ordinary
+    least squares on the model's training points and targets, before any GP (as
+    :func:`learned_step`). The GLS of :func:`joint_theta` uses the kernel of a model
+    fitted *without* the effects, which has learned part of them, and shrinks that
+    part toward zero: a hidden 0.47-0.54 N m s^2 drag came out at 0.25-0.28 (the
+    first pass: 0.53-0.59, ``fit --effects``: 0.43-0.53), and the inertia error the
+    vehicle lacked took the rest (own-drag 7, docs/scorecard.md, session 20)."""
+    values = [model.train_regressors[n] for n in names]
+    x = np.concatenate(values, axis=2)
+    n, _, p = x.shape
+    theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), model.targets.reshape(3 * n), rcond=None)
+    out, k = {}, 0
+    for name, v in zip(names, values, strict=True):
+        out[name] = theta[k : k + v.shape[2]]
+        k += v.shape[2]
+    return out
+
+
 def part_high(regressor: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> float:
     """Upper end of the 95 % interval of an effect's part of the error, the RMS over
     samples and axes of ``regressor`` (n, 3, p) @ theta (p,), with theta's covariance
@@ -260,7 +282,8 @@ def _trial(
     sq_before: np.ndarray,
     blocks: np.ndarray,
 ) -> _Trial:
-    thetas, cov = joint_theta(model, [*accepted, name])
+    names = [*accepted, name]
+    thetas, cov = first_pass_theta(model, names), joint_theta(model, names)[1]
     pred = sum((regressors[n] @ thetas[n] for n in thetas), np.zeros_like(physics))
     sq_after = ((physics - pred) ** 2).sum(axis=1)
     own = regressors[name] @ thetas[name]
