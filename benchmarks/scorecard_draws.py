@@ -123,6 +123,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report11's records were read (2026-11-27, session 19): the next changes are reported
+    # on report12 (13 000 000; declared in session 20 before any of its draws was flown)
+    "report12": {
+        "seed_base": 13_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
