@@ -124,3 +124,39 @@ def test_a_delay_claimed_without_a_lag_gives_way_to_the_lag_that_leaves_it_nothi
     out = beside_lag([s], SimpleNamespace(effects={}), physics, guarded, FLOOR, refuse)  # type: ignore[arg-type]
     assert out.kept == ["com_offset"]
     assert out.held_back[0]["beside_lag"]["claimed_instead"] is False
+
+
+def _drag_flight(drag: float, gain: float = 0.0) -> tuple[_Samples, np.ndarray]:
+    """:func:`_flight`'s 120 ms lag with a rate damping ``drag`` (1/s: the drag torque
+    over the inertia) instead of a gain loss, or beside one; the samples also hold the
+    damping's first-order regressor (``rotational_drag``: minus the body rate, the
+    integral of the measured acceleration)."""
+    s, physics = _flight(gain)
+    rate = np.cumsum(physics + s.u, axis=0) * DT
+    rate -= rate.mean(axis=0)
+    s.regressors["rotational_drag"] = -rate[:, :, None] * np.eye(3)[None]
+    return s, physics - drag * rate
+
+
+def test_a_drag_beside_the_lag_takes_the_place_of_the_inertia_scale_that_stood_in_for_it():
+    s, physics = _drag_flight(drag=3.0)
+    model = SimpleNamespace(effects={})
+    inertia = lag_profile([s], model, physics, "motor_lag", "inertia_error", ["com_offset"])  # type: ignore[arg-type]
+    drag = lag_profile([s], model, physics, "motor_lag", "rotational_drag", ["com_offset"])  # type: ignore[arg-type]
+    assert drag.share > 0.9 > inertia.share
+    assert drag.value_with == pytest.approx(TRUE_LAG, abs=0.005)
+    assert drag.values["D"] == pytest.approx([3.0] * 3, rel=0.02)
+    out = beside_lag([s], model, physics, _guard(["motor_lag", "inertia_error"]), FLOOR, _guard)  # type: ignore[arg-type]
+    assert out.kept == ["motor_lag", "rotational_drag"]
+    (held,) = out.held_back
+    assert held["name"] == "inertia_error"
+    assert held["beside_lag"]["rival"]["name"] == "rotational_drag"
+    text = not_pinned_text({"not_pinned": out.held_back})
+    assert text.endswith(
+        "; rotational_drag, in its place, removes 100 % of what is left with motor_lag at "
+        "120.0 ms (fitted so: D = 3, 3, 3), is claimed instead."
+    )
+    # a real gain error beside the lag and no damping: the scale stays, no rival
+    s, physics = _drag_flight(drag=0.0, gain=0.2)
+    out = beside_lag([s], model, physics, _guard(["motor_lag", "inertia_error"]), FLOOR, _guard)  # type: ignore[arg-type]
+    assert out.kept == ["motor_lag", "inertia_error"] and out.held_back == []

@@ -105,9 +105,12 @@ def beside_lag_sentence(name: str, lag: Mapping[str, Any]) -> str:
         there = f" (fitted so: {there})" if there else ""
     said = (
         f" Not claimed: {name}, which this flight does not tell from {which}: with {which}'s "
-        f"exact form{at} and the default look-alikes, {name}{cut}{there}, short of a claim's "
-        "bars (15 % of what is left and a part at the claim floor)"
+        f"exact form{at} and the default look-alikes, {name}{cut}{there}"
     )
+    rival = lag.get("rival")
+    if isinstance(rival, Mapping) and rival.get("name"):
+        return f"{said}; {_rival_words(which, rival)}"
+    said += ", short of a claim's bars (15 % of what is left and a part at the claim floor)"
     instead = lag.get("claimed_instead")
     if instead is True:
         return f"{said}; {which}, which every rotorcraft's motors have, is claimed in its place."
@@ -117,6 +120,24 @@ def beside_lag_sentence(name: str, lag: Mapping[str, Any]) -> str:
         f"{said}: a lag estimated too short leaves a loss of gain and phase that {name} "
         f"absorbs. Fit {which} first; judge {name} on the next flight."
     )
+
+
+def _rival_words(which: str, rival: Mapping[str, Any]) -> str:
+    """'rotational_drag, in its place, removes 88 % of what is left with motor_lag at
+    119.0 ms (fitted so: D = ...), is claimed instead.'"""
+    value, share = _num(rival.get("value_with")), _num(rival.get("share"))
+    at = f" with {which} at {1000 * value:.1f} ms" if value is not None else ""
+    cut = f" removes {_pct(share)} of what is left" if share is not None else ""
+    values = rival.get("values")
+    there = ""
+    if isinstance(values, Mapping):
+        there = "; ".join(
+            f"{k} = {', '.join(f'{x:.3g}' for x in v)}"
+            for k, v in values.items()
+            if isinstance(v, list) and all(_num(x) is not None for x in v)
+        )
+        there = f" (fitted so: {there})" if there else ""
+    return f"{rival['name']}, in its place,{cut}{at}{there}, is claimed instead."
 
 
 def not_pinned_text(diag: Mapping[str, Any]) -> str:

@@ -63,6 +63,8 @@ class LagProfile:
     part: float
     #: the claim's parameters there (name -> values, physical units)
     values: dict[str, list[float]]
+    #: the claim profiled
+    claim: str = ""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -147,17 +149,25 @@ def lag_profile(
         share=max(ss0 - ss1, 0.0) / ss0 if ss0 > 0 else 0.0,
         part=float(np.sqrt(np.mean(part**2))),
         values={k: [float(x) for x in v] for k, (v, _) in params.items()},
+        claim=claim,
     )
 
 
 def _held(
-    claim: str, prof: LagProfile, floor: float, swapped: bool | None = None
+    claim: str,
+    prof: LagProfile,
+    floor: float,
+    swapped: bool | None = None,
+    rival: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """A held-back claim's entry (``not_pinned``): no estimate (the guard's, made with
     the lag short, would mislead), the profile's JSON and the claim ``floor`` in
     ``beside_lag``; ``claimed_instead``: whether the lag, not claimed before, took its
-    place (None: the lag was claimed)."""
-    more = {} if swapped is None else {"claimed_instead": swapped}
+    place (None: the lag was claimed); ``rival``: the profile of the effect claimed in
+    its place (:func:`_best_rival`, with its ``name``)."""
+    more: dict[str, Any] = {} if swapped is None else {"claimed_instead": swapped}
+    if rival is not None:
+        more["rival"] = rival
     return {
         "name": claim,
         "units": {p.name: p.unit for p in get_effect(claim).parameters},
@@ -208,16 +218,53 @@ def beside_lag(
     lag = lags[0]
     look = [a for a in sorted(DEFAULT_LOOK_ALIKES) if a not in model.effects]
     held: list[dict[str, Any]] = []
+    names = list(guarded.kept)
     for claim in tested:
-        rest = [n for n in guarded.kept if n not in (lag, claim) and n not in look]
+        rest = [n for n in names if n not in (lag, claim) and n not in look]
         prof = lag_profile(samples, model, physics, lag, claim, [*look, *rest])
-        if _fails(prof, floor):
+        rival = _best_rival(samples, model, physics, lag, prof, [*look, *rest], names, floor)
+        if rival is not None:
+            held.append(_held(claim, prof, floor, rival=rival.to_json() | {"name": rival.claim}))
+            names = [rival.claim if n == claim else n for n in names]
+        elif _fails(prof, floor):
             held.append(_held(claim, prof, floor))
+            names.remove(claim)
     if not held:
         return guarded
-    out = guard([n for n in guarded.kept if n not in {h["name"] for h in held}])
+    out = guard(names)
     out.held_back = [*guarded.held_back, *held, *out.held_back]
     return out
+
+
+def _best_rival(
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    physics: np.ndarray,
+    lag: str,
+    prof: LagProfile,
+    others: Sequence[str],
+    claimed: Sequence[str],
+    floor: float,
+) -> LagProfile | None:
+    """The effect that, in the place of ``prof``'s claim beside the lag's exact form,
+    removes more of what the lag and ``others`` leave and passes the claim's bars (the
+    best such), else None. A claim chosen beside a lag's first-order regressor can be
+    the stand-in of another effect: on an own-inertia tune draw (a hidden 120 ms motor
+    lag and a 0.19/0.13/0.11 N m s^2 drag, steps -> planned) ``inertia_error`` removed
+    24 % of what the lag's exact form left, pulling the lag to 69 ms, while
+    ``rotational_drag`` in its place removed 88 % with the lag at 119 ms and D 0.23,
+    0.18, 0.11 (docs/scorecard.md, session 20). Candidates: every effect the samples
+    hold that is not a lag or delay, a default look-alike, claimed or in the model."""
+    skip = {*TIMING, *DEFAULT_LOOK_ALIKES, *claimed, *model.effects}
+    best: LagProfile | None = None
+    for name in samples[0].regressors:
+        if name in skip:
+            continue
+        alt = lag_profile(samples, model, physics, lag, name, others)
+        bar = prof.share if best is None else best.share
+        if alt.share > bar and not _fails(alt, floor):
+            best = alt
+    return best
 
 
 def _delay_for_lag(
