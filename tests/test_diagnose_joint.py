@@ -175,6 +175,14 @@ def test_the_fit_command_adds_every_missing_effect_in_one_fit():
     command = fit_command("m0+rotational_drag+inertia_error.npz", model, ["com_offset"])
     assert "--effects rotational_drag,inertia_error,com_offset " in command
     assert "--out m0+rotational_drag+inertia_error+com_offset.npz" in command
+    # without an effect neither flight confirms: its name with "-", never the model's own
+    command = fit_command("m0+rotational_drag+inertia_error.npz", model, [], ["inertia_error"])
+    assert "--effects rotational_drag --out m0+rotational_drag+inertia_error-inertia_error.npz" in (
+        command
+    )
+    assert "--out m0+rotational_drag+inertia_error+refit.npz" in fit_command(
+        "m0+rotational_drag+inertia_error.npz", model, []
+    )
 
 
 def test_a_small_effect_beside_a_large_one_waits_for_the_next_round():

@@ -47,6 +47,7 @@ __all__ = [
     "LargeCutStep",
     "beyond_bound",
     "claimed_axes",
+    "claimed_rows",
     "excludes_null",
     "guard_claims",
     "large_cut_step",
@@ -82,7 +83,7 @@ def excludes_null(name: str, estimate: Mapping[str, Any], axes: Collection[str] 
     excludes 0 only where no delay can be: :func:`beyond_bound`). A per-axis parameter
     (three components) counts only on ``axes`` (None: all); an interval that is not
     finite excludes nothing."""
-    for param, _, at, (low, high) in _claimed_rows(name, estimate, axes):
+    for param, _, at, (low, high) in claimed_rows(name, estimate, axes):
         bound = physical_bound(name, param)
         if bound is not None:
             if high < bound:
@@ -98,14 +99,14 @@ def beyond_bound(name: str, estimate: Mapping[str, Any], axes: Collection[str] |
     interval lies wholly beyond the physical bound (below 0 for a lag, a delay, a drag:
     the claim is not physical there)."""
     out = []
-    for param, label, _, (_, high) in _claimed_rows(name, estimate, axes):
+    for param, label, _, (_, high) in claimed_rows(name, estimate, axes):
         bound = physical_bound(name, param)
         if bound is not None and high < bound:
             out.append(label)
     return out
 
 
-def _claimed_rows(
+def claimed_rows(
     name: str, estimate: Mapping[str, Any], axes: Collection[str] | None
 ) -> list[tuple[str, str, float, tuple[float, float]]]:
     """(parameter, label, null, (low, high)) of every finite interval of ``name``'s

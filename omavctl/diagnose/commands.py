@@ -132,9 +132,12 @@ def _where(given: str, absolute: str | None) -> str:
     return display_path(given) if Path(given).exists() else given
 
 
-def fit_command(model_path: str, model: ResidualGP, effect: str | Sequence[str]) -> str:
+def fit_command(
+    model_path: str, model: ResidualGP, effect: str | Sequence[str], drop: Sequence[str] = ()
+) -> str:
     """The ``omavctl fit`` command that refits ``model`` with ``effect`` added (one
-    name, or several estimated jointly in one fit).
+    name, or several estimated jointly in one fit) and the effects ``drop`` left out
+    (the model's name with ``-NAME`` for each, e.g. ``m0+rotational_drag-inertia_error``).
 
     Paths are valid from the current directory (the logs and vehicle file that fit
     read, the new model beside ``model_path``) and every word is shell-quoted.
@@ -153,8 +156,13 @@ def fit_command(model_path: str, model: ResidualGP, effect: str | Sequence[str])
     # holds them in the registry's order), then the rest, then the new ones
     named = [e for e in stem.name.split("+")[1:] if e in model.effects]
     effects = [*named, *(e for e in model.effects if e not in named), *added]
+    effects = [e for e in effects if e not in drop]
+    # never the model's own name: nothing added nor dropped is a refit beside it
+    suffix = "".join("+" + e for e in added) + "".join("-" + e for e in drop) or "+refit"
+    out = f"{stem}{suffix}.npz"
     parts = ["omavctl", "fit", *sources]
-    parts += ["--effects", ",".join(effects), "--out", f"{stem}+{'+'.join(added)}.npz"]
+    parts += ["--effects", ",".join(effects)] if effects else []
+    parts += ["--out", out]
     kmed = prov.get("kmedoids", {})
     if "points" in kmed:
         parts += ["--points", str(kmed["points"])]

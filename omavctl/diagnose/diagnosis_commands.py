@@ -14,6 +14,7 @@ from omavctl.diagnose.axis_share import axis_held, named_effects
 from omavctl.diagnose.commands import effect_commands, fit_command, separation
 from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
+from omavctl.diagnose.unconfirmed import unconfirmed
 from omavctl.learn.fit_notes import effect_unit
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
@@ -52,6 +53,10 @@ def diagnosis_with_commands(
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
+    effects = {n: e.to_json() for n, e in model.effects.items()}
+    drop = [n for n, _, _ in unconfirmed(effects, diagnosis.get("learned"))]
+    diagnosis["unconfirmed"] = drop
+    diagnosis["without_command"] = fit_command(model_path, model, [], drop) if drop else None
     for held in axis_held(diagnosis, list(model.effects)):  # material on one axis only
         diagnosis["effect_commands"].setdefault(
             held["name"], fit_command(model_path, model, held["name"])

@@ -32,6 +32,7 @@ from omavctl.diagnose.joint_text import (
     replaced_text,
     together_words,
 )
+from omavctl.diagnose.unconfirmed import unconfirmed_line
 from omavctl.diagnose.verdict_lines import (
     AXES,
     COVERAGE_MIN,
@@ -348,6 +349,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
         _learned_line(tree),
         axis_held_line(tree),
         disagree_line(tree),
+        unconfirmed_line(tree),
         fails_line(tree),
         uncertainty_line(tree),
         envelope_line(tree),

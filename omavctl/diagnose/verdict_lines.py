@@ -70,9 +70,12 @@ class Line:
 
     @property
     def add_words(self) -> str:
-        """'Add it with' ('Add them with': several effects; 'Test it with': unconfirmed)."""
+        """'Add it with' ('Add them with': several effects; 'Test it with': unconfirmed;
+        'Without it': a model effect neither flight confirms)."""
         return (
-            "Test it with"
+            "Without it"
+            if self.key == "unconfirmed"
+            else "Test it with"
             if self.test
             else "Add them with"
             if " Also: " in self.text

@@ -29,6 +29,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "missing": "What is missing",
         "learned": "Not modelled as physics",
         "disagree": "Fit and flight disagree",
+        "unconfirmed": "Not confirmed by either flight",
         "axis": "Held back on one axis",
         "change": "Error change",
         "fails": "Where it fails",

@@ -1,0 +1,88 @@
+"""Effects a model holds that neither its fit flight nor the evaluated one confirms.
+
+The loop adds what a verdict claims, and a later fit can show that an effect added on
+one round's evidence is not there: on a tune draw (own-drag 7, a hidden 0.47-0.54
+N m s^2 drag) the first verdict claimed ``inertia_error`` beside the drag, and after
+the next round's fit the scale was 1.02, 1.05, 1.15 with every 95 % interval holding 1;
+on this flight too. The claims guard would not claim it on either flight, yet the model
+keeps it and every later fit command with it (docs/scorecard.md, session 20).
+
+:func:`unconfirmed` names the first model's effects whose statistical 95 % interval
+(the one the claims guard reads, :func:`omavctl.diagnose.claims.excludes_null`) holds
+the effect's null on every component, both as fitted (the model file) and as estimated
+on the evaluated flight (``diagnosis.learned``); :func:`unconfirmed_line` says so with
+the command that fits the model without them (``diagnosis.without_command``). It is
+advice, not a claim: the fit commands the verdict prints keep the model's effects.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from omavctl.diagnose.claims import claimed_rows, excludes_null
+from omavctl.diagnose.fit_vs_flight import flight_words
+from omavctl.diagnose.verdict_lines import Line, get_path
+
+__all__ = ["unconfirmed", "unconfirmed_line"]
+
+
+def _holds_null(name: str, estimate: Any) -> bool:
+    """Every component's interval of ``estimate`` (an estimate's JSON) holds the null;
+    False when it has no finite interval."""
+    if not isinstance(estimate, Mapping) or not claimed_rows(name, estimate, None):
+        return False
+    return not excludes_null(name, estimate, None)
+
+
+def unconfirmed(
+    effects: Mapping[str, Any], learned: list[Any] | None
+) -> list[tuple[str, Any, Any]]:
+    """(name, fitted estimate JSON, this flight's estimate JSON) of each of a model's
+    ``effects`` (name -> estimate JSON) whose fitted and evaluated-flight intervals
+    (``learned``: the diagnosis's entries) both hold its null on every component."""
+    here = {str(e.get("name")): e.get("estimate") for e in learned or [] if isinstance(e, Mapping)}
+    return [
+        (str(name), fitted, here[str(name)])
+        for name, fitted in effects.items()
+        if _holds_null(str(name), fitted) and _holds_null(str(name), here.get(str(name)))
+    ]
+
+
+def _rows(name: str, estimate: Mapping[str, Any]) -> str:
+    """'scale 0.838 to 1.21, 0.949 to 1.15, 0.587 to 1.72' (the statistical intervals)."""
+    by: dict[str, list[str]] = {}
+    for param, _, _, (lo, hi) in claimed_rows(name, estimate, None):
+        by.setdefault(param, []).append(f"{lo:.3g} to {hi:.3g}")
+    return "; ".join(f"{p} {', '.join(v)}" for p, v in by.items())
+
+
+def unconfirmed_line(tree: Mapping[str, Any]) -> Line | None:
+    """'Not confirmed by either flight: inertia_error — ...' for the first model's
+    unconfirmed effects, with ``diagnosis.without_command``; None when there are none."""
+    model = get_path(tree, "models", 0, default={})
+    effects = model.get("effects") if isinstance(model, Mapping) else None
+    if not isinstance(effects, Mapping):
+        return None
+    found = unconfirmed(effects, get_path(tree, "diagnosis", "learned", default=[]))
+    if not found:
+        return None
+    from omavctl.learn.intervals import null_values
+
+    fit = model.get("fit_flight") if isinstance(model.get("fit_flight"), Mapping) else {}
+    there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
+    said = []
+    for name, fitted, here in found:
+        nulls = {f"{float(v.flat[0]):g}" for v in null_values(name).values()}
+        said.append(
+            f"{name}, whose 95 % intervals hold {' / '.join(sorted(nulls))} (its value without "
+            f"the effect) on every axis as fitted on {there} ({_rows(name, fitted)}) and on "
+            f"this flight ({_rows(name, here)})"
+        )
+    it = "it" if len(found) == 1 else "them"
+    text = (
+        f"Not confirmed by either flight: {'; '.join(said)}. The claims guard would not "
+        f"claim {it} on either; the model may hold an effect the vehicle lacks. To compare, "
+        f"fit without {it} and evaluate both models on a flight neither saw"
+    )
+    return Line("unconfirmed", text, command=get_path(tree, "diagnosis", "without_command"))

@@ -1,0 +1,64 @@
+"""An effect the model holds that neither its fit flight nor the evaluated one confirms
+(omavctl/diagnose/unconfirmed.py; issue 26: keep nothing the vehicle does not have)."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from omavctl.diagnose.unconfirmed import unconfirmed_line
+from omavctl.diagnose.verdict import verdict
+
+WITHOUT = "omavctl fit fit --effects rotational_drag --out m1-inertia_error.npz"
+
+
+def _tree() -> dict[str, Any]:
+    """own-drag 7's last round: a drag and an inertia scale fitted, both judged here."""
+    drag = {"D": [0.43, 0.53, 0.28], "D_ci95": [[0.35, 0.51], [0.50, 0.57], [0.0, 0.73]]}
+    scale = {
+        "scale": [1.02, 1.05, 1.15],
+        "scale_ci95": [[0.8, 1.25], [0.9, 1.2], [0.5, 1.8]],
+        "scale_ci95_statistical": [[0.838, 1.21], [0.949, 1.15], [0.587, 1.72]],
+    }
+    here = {"scale": [1.02, 1.1, 1.03], "scale_ci95": [[0.925, 1.12], [0.928, 1.27], [0.939, 1.12]]}
+    return {
+        "models": [
+            {
+                "name": "m1.npz",
+                "effects": {"rotational_drag": drag, "inertia_error": scale},
+                "fit_flight": {"logs": ["fit"]},
+            }
+        ],
+        "diagnosis": {
+            "missing": [],
+            "learned": [
+                {"name": "rotational_drag", "estimate": copy.deepcopy(drag)},
+                {"name": "inertia_error", "estimate": here},
+            ],
+            "without_command": WITHOUT,
+        },
+    }
+
+
+def test_an_effect_neither_flight_confirms_is_said_with_the_fit_without_it():
+    line = unconfirmed_line(_tree())
+    assert line is not None
+    assert line.text == (
+        "Not confirmed by either flight: inertia_error, whose 95 % intervals hold 1 (its "
+        "value without the effect) on every axis as fitted on fit (scale 0.838 to 1.21, "
+        "0.949 to 1.15, 0.587 to 1.72) and on this flight (scale 0.925 to 1.12, 0.928 to "
+        "1.27, 0.939 to 1.12). The claims guard would not claim it on either; the model may "
+        "hold an effect the vehicle lacks. To compare, fit without it and evaluate both "
+        "models on a flight neither saw"
+    )
+    assert line.plain().endswith(f"neither saw. Without it: {WITHOUT}")
+    assert any(ln.key == "unconfirmed" for ln in verdict(_tree()))
+
+
+def test_one_flight_that_pins_it_down_or_no_interval_says_nothing():
+    tree = _tree()
+    tree["diagnosis"]["learned"][1]["estimate"]["scale_ci95"][0] = [1.05, 1.3]
+    assert unconfirmed_line(tree) is None
+    tree = _tree()
+    tree["models"][0]["effects"]["inertia_error"] = {"scale": [1.02, 1.05, 1.15]}  # old file
+    assert unconfirmed_line(tree) is None
