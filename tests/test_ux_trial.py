@@ -65,11 +65,12 @@ def _betaflight_log(tmp_path: Path, motor_output: str) -> Path:
     return path
 
 
-def test_inspect_suggests_the_battery_voltage_and_the_headers_motor_range(tmp_path: Path):
+def test_inspect_suggests_the_battery_voltage_and_keeps_dshots_zero_at_48(tmp_path: Path):
     """On the Betaflight CSV inspect left out battery_voltage although vbatLatest is
-    read in volts, and kept the preset's DShot 48..2047 where the header says
-    motorOutput 138,2047: the suggestion maps vbatLatest and gives the preset's rotor
-    list with the header's range, which then reads the log."""
+    read in volts; then (session 19) it gave the header's motorOutput 138,2047 as the
+    rotor list's range, taking the armed idle for zero thrust. Betaflight sets
+    motorOutput's low end to 48 + (2047 - 48) x digitalIdleOffset (4.5 %: 138), where
+    the motors spin: the suggestion keeps the preset's DShot 48..2047 and says why."""
     from omavctl.logs.inspection import inspect_log
     from omavctl.vehicle import load_vehicle
 
@@ -78,20 +79,20 @@ def test_inspect_suggests_the_battery_voltage_and_the_headers_motor_range(tmp_pa
     assert ins.suggested_columns["battery_voltage"] == "vbatLatest"
     text = ins.suggestion
     assert (
-        "# motor commands look like dshot; the log's header says motorOutput 138.0..2047.0, "
-        "not the 48.0..2047.0 of preset quad-x-betaflight: its rotor list with the header's "
-        "range follows (motors: replaces the preset's whole list; docs/logs.md)\nmotors:\n"
+        "# the log's header says motorOutput 138.0..2047.0: the firmware's output window, "
+        "from its armed idle (idle offset 4.50 % of 48.0..2047.0) to full, not the command "
+        "of zero thrust: keep the range [48.0, 2047.0] (docs/logs.md)\ncolumns:\n"
     ) in text
-    assert "  range: [138.0, 2047.0]\n" in text
+    assert "\nmotors:" not in text and "138.0, 2047.0" not in text
     vfile = tmp_path / "v.yaml"
     vfile.write_text(text)
     veh = load_vehicle(vfile)
     assert veh.motors is not None and len(veh.motors.rotors) == 4
-    assert {r.span for r in veh.motors.rotors} == {(138.0, 2047.0)}
+    assert {r.span for r in veh.motors.rotors} == {(48.0, 2047.0)}
     assert veh.columns["battery_voltage"] == "vbatLatest"
-    # the header agreeing with the preset: nothing to add, no rotor list
+    # the header agreeing with the preset: nothing to add, no header line
     same = inspect_log(_betaflight_log(tmp_path, "48,2047")).suggestion
-    assert "nothing to add" in same and "\nmotors:" not in same
+    assert "nothing to add" in same and "motorOutput" not in same
 
 
 def test_report_says_every_effect_its_fit_command_adds(tmp_path: Path):
