@@ -223,3 +223,19 @@ def test_report_prints_the_verdicts_commands_as_evaluate_does(tmp_path: Path):
     con = Console(record=True, width=400)
     render_evaluation(con, tree, {})
     assert f"\n    test it with: {cmd}\n" in con.export_text()
+
+
+def test_the_verdict_names_each_rotors_loss_as_fit_and_the_report_do():
+    """The Betaflight verdict (smooth tune + motor_lag, evaluated on the better tune)
+    said "l = 0.0169 (...); l = -0.0173 (...); l = -0.0169 (...); l = 0.0173 (...)":
+    four losses, no rotor named, where fit's table and the report's ranking say l_0 ..
+    l_3. A rotor beyond the vehicle's (its interval of zero width) is left out."""
+    from omavctl.diagnose.estimate_text import estimate_sentence
+
+    values = [0.0169, -0.0173, -0.0169, 0.0173] + [0.0] * 8
+    cis = [[-0.0183, 0.0521], [-0.0525, 0.0179], [-0.0376, 0.00385], [-0.0138, 0.0484]]
+    est = {"l": values, "l_ci95": cis + [[0.0, 0.0]] * 8, "l_pinned": [False] * 12}
+    text = estimate_sentence({"name": "motor_loss", "estimate": est, "units": {"l": "1"}})
+    for i, v in enumerate(values[:4]):
+        assert f"l_{i} = {v:.3g} (95 %: " in text
+    assert "l_4" not in text and "; l = " not in text and ": l = " not in text
