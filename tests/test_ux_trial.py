@@ -239,3 +239,42 @@ def test_the_verdict_names_each_rotors_loss_as_fit_and_the_report_do():
     for i, v in enumerate(values[:4]):
         assert f"l_{i} = {v:.3g} (95 %: " in text
     assert "l_4" not in text and "; l = " not in text and ": l = " not in text
+
+
+def test_a_model_written_before_the_thrust_tolerance_is_flagged_where_intervals_are(
+    tmp_path: Path, vehicle
+):
+    """A model file from before session 19 holds a vehicle without
+    rotor.thrust_tolerance, read as 0: evaluate quoted its intervals without the
+    systematic part and said nothing. Now one flag, in the verdict, names the file; a
+    current file (the tolerance stored, 0.03) and a normalised vehicle without rotors
+    (nothing to spread) get none."""
+    import json
+
+    import numpy as np
+
+    from omavctl.diagnose.model_flags import spread_flags
+    from omavctl.diagnose.verdict_lines import flag_lines
+    from omavctl.learn.model_file import load_model, save_model
+    from omavctl.vehicle import _build
+    from tests.test_horizons import _model
+
+    save_model(current := tmp_path / "current.npz", _model(vehicle))
+    arrays = dict(np.load(current))
+    tree = json.loads(str(arrays["vehicle"]))
+    del tree["rotor"]["thrust_tolerance"]
+    arrays["vehicle"] = np.array(json.dumps(tree))
+    np.savez(old := tmp_path / "old.npz", **arrays)
+    models = [load_model(current), load_model(old)]
+    assert [m.vehicle.thrust_tolerance for m in models] == [0.03, 0.0]
+    (flag,) = spread_flags(models, [current, old])
+    assert flag["code"] == "no_thrust_tolerance" and flag["message"] == (
+        f"{old}: written before omavctl read the rotors' thrust tolerance (its vehicle has "
+        "no rotor.thrust_tolerance), so the 95 % intervals quoted for it hold no "
+        "thrust-spread part and may be too narrow: refit the model (omavctl fit on the same "
+        "logs) to add it"
+    )
+    assert [ln.text for ln in flag_lines({"flags": [flag]})] == [flag["message"]]
+    tree["command_units"] = {"torque": "normalised", "force": "normalised"}
+    normalised = _model(_build(tree, None, "test"))
+    assert spread_flags([normalised], ["px4.npz"]) == []

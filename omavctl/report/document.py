@@ -102,7 +102,7 @@ class Table:
 
     def wraps(self, i: int) -> bool:
         """Whether column ``i`` is right-aligned text that may wrap."""
-        return bool(self.align) and self.align[i] == "w"
+        return self.align is not None and self.align[i] == "w"
 
     caption: str | None = None
 
