@@ -131,3 +131,31 @@ def test_verdict_is_what_a_reader_sees_first(reports, browser):
     top = page.evaluate("document.getElementById('verdict').getBoundingClientRect().top")
     assert top < 900
     page.close()
+
+
+def test_a_ranking_table_fits_a_1280_px_window(browser, tmp_path):
+    """The ranking of what the nominal residual resembles on the Crazyflie (log15's
+    halves) was 1877 px wide in a 1240 px page: every parameter line with why it is not
+    pinned down stayed on one line (the column was a number column, never wrapped)."""
+    from omavctl.report.diagnosis import _ranking_table
+    from omavctl.report.document import Document, Heading, to_html
+
+    est = {"stderr_method": "hac", "scale": [4.154, 4.928, 3.561],
+           "scale_stderr": [5.40, 7.06, 0.627], "scale_pinned": [False, False, False],
+           "scale_ci95": [[0.0, 14.76], [0.0, 18.79], [0.0, 8.716]],
+           "scale_systematic": [0.296, 0.464, 2.55],
+           "scale_ci95_statistical": [[0.0, 14.74], [0.0, 18.76], [2.33, 4.79]]}  # fmt: skip
+    entry = {"name": "inertia_error", "explained_variance": 0.661, "t_value": 0.0,
+             "explained_variance_per_axis": {"x": 0.673, "y": 0.687, "z": 0.608},
+             "parameters": {"scale": [2.0, 2.0, 2.0]}, "units": {"scale": "1"},
+             "contribution_rms": 42.1, "significant": False, "plausible": False,
+             "missing": False, "ambiguous_with": [], "estimate": est}  # fmt: skip
+    table = _ranking_table([entry], False, "learned", held=["inertia_error"])
+    path = tmp_path / "ranking.html"
+    path.write_text(to_html(Document("ranking", [Heading(1, "ranking"), table])))
+    page = browser.new_page(viewport={"width": 1280, "height": 900})
+    page.goto(path.as_uri(), wait_until="load")
+    width = page.evaluate("document.querySelector('table').getBoundingClientRect().width")
+    room = page.evaluate("document.querySelector('div.tw').clientWidth")
+    assert 0 < width <= room <= 1240
+    page.close()

@@ -65,11 +65,12 @@ def _betaflight_log(tmp_path: Path, motor_output: str) -> Path:
     return path
 
 
-def test_inspect_suggests_the_battery_voltage_and_the_headers_motor_range(tmp_path: Path):
+def test_inspect_suggests_the_battery_voltage_and_keeps_dshots_zero_at_48(tmp_path: Path):
     """On the Betaflight CSV inspect left out battery_voltage although vbatLatest is
-    read in volts, and kept the preset's DShot 48..2047 where the header says
-    motorOutput 138,2047: the suggestion maps vbatLatest and gives the preset's rotor
-    list with the header's range, which then reads the log."""
+    read in volts; then (session 19) it gave the header's motorOutput 138,2047 as the
+    rotor list's range, taking the armed idle for zero thrust. Betaflight sets
+    motorOutput's low end to 48 + (2047 - 48) x digitalIdleOffset (4.5 %: 138), where
+    the motors spin: the suggestion keeps the preset's DShot 48..2047 and says why."""
     from omavctl.logs.inspection import inspect_log
     from omavctl.vehicle import load_vehicle
 
@@ -78,20 +79,20 @@ def test_inspect_suggests_the_battery_voltage_and_the_headers_motor_range(tmp_pa
     assert ins.suggested_columns["battery_voltage"] == "vbatLatest"
     text = ins.suggestion
     assert (
-        "# motor commands look like dshot; the log's header says motorOutput 138.0..2047.0, "
-        "not the 48.0..2047.0 of preset quad-x-betaflight: its rotor list with the header's "
-        "range follows (motors: replaces the preset's whole list; docs/logs.md)\nmotors:\n"
+        "# the log's header says motorOutput 138.0..2047.0: the firmware's output window, "
+        "from its armed idle (idle offset 4.50 % of 48.0..2047.0) to full, not the command "
+        "of zero thrust: keep the range [48.0, 2047.0] (docs/logs.md)\ncolumns:\n"
     ) in text
-    assert "  range: [138.0, 2047.0]\n" in text
+    assert "\nmotors:" not in text and "138.0, 2047.0" not in text
     vfile = tmp_path / "v.yaml"
     vfile.write_text(text)
     veh = load_vehicle(vfile)
     assert veh.motors is not None and len(veh.motors.rotors) == 4
-    assert {r.span for r in veh.motors.rotors} == {(138.0, 2047.0)}
+    assert {r.span for r in veh.motors.rotors} == {(48.0, 2047.0)}
     assert veh.columns["battery_voltage"] == "vbatLatest"
-    # the header agreeing with the preset: nothing to add, no rotor list
+    # the header agreeing with the preset: nothing to add, no header line
     same = inspect_log(_betaflight_log(tmp_path, "48,2047")).suggestion
-    assert "nothing to add" in same and "\nmotors:" not in same
+    assert "nothing to add" in same and "motorOutput" not in same
 
 
 def test_report_says_every_effect_its_fit_command_adds(tmp_path: Path):
@@ -222,3 +223,58 @@ def test_report_prints_the_verdicts_commands_as_evaluate_does(tmp_path: Path):
     con = Console(record=True, width=400)
     render_evaluation(con, tree, {})
     assert f"\n    test it with: {cmd}\n" in con.export_text()
+
+
+def test_the_verdict_names_each_rotors_loss_as_fit_and_the_report_do():
+    """The Betaflight verdict (smooth tune + motor_lag, evaluated on the better tune)
+    said "l = 0.0169 (...); l = -0.0173 (...); l = -0.0169 (...); l = 0.0173 (...)":
+    four losses, no rotor named, where fit's table and the report's ranking say l_0 ..
+    l_3. A rotor beyond the vehicle's (its interval of zero width) is left out."""
+    from omavctl.diagnose.estimate_text import estimate_sentence
+
+    values = [0.0169, -0.0173, -0.0169, 0.0173] + [0.0] * 8
+    cis = [[-0.0183, 0.0521], [-0.0525, 0.0179], [-0.0376, 0.00385], [-0.0138, 0.0484]]
+    est = {"l": values, "l_ci95": cis + [[0.0, 0.0]] * 8, "l_pinned": [False] * 12}
+    text = estimate_sentence({"name": "motor_loss", "estimate": est, "units": {"l": "1"}})
+    for i, v in enumerate(values[:4]):
+        assert f"l_{i} = {v:.3g} (95 %: " in text
+    assert "l_4" not in text and "; l = " not in text and ": l = " not in text
+
+
+def test_a_model_written_before_the_thrust_tolerance_is_flagged_where_intervals_are(
+    tmp_path: Path, vehicle
+):
+    """A model file from before session 19 holds a vehicle without
+    rotor.thrust_tolerance, read as 0: evaluate quoted its intervals without the
+    systematic part and said nothing. Now one flag, in the verdict, names the file; a
+    current file (the tolerance stored, 0.03) and a normalised vehicle without rotors
+    (nothing to spread) get none."""
+    import json
+
+    import numpy as np
+
+    from omavctl.diagnose.model_flags import spread_flags
+    from omavctl.diagnose.verdict_lines import flag_lines
+    from omavctl.learn.model_file import load_model, save_model
+    from omavctl.vehicle import _build
+    from tests.test_horizons import _model
+
+    save_model(current := tmp_path / "current.npz", _model(vehicle))
+    arrays = dict(np.load(current))
+    tree = json.loads(str(arrays["vehicle"]))
+    del tree["rotor"]["thrust_tolerance"]
+    arrays["vehicle"] = np.array(json.dumps(tree))
+    np.savez(old := tmp_path / "old.npz", **arrays)
+    models = [load_model(current), load_model(old)]
+    assert [m.vehicle.thrust_tolerance for m in models] == [0.03, 0.0]
+    (flag,) = spread_flags(models, [current, old])
+    assert flag["code"] == "no_thrust_tolerance" and flag["message"] == (
+        f"{old}: written before omavctl read the rotors' thrust tolerance (its vehicle has "
+        "no rotor.thrust_tolerance), so the 95 % intervals quoted for it hold no "
+        "thrust-spread part and may be too narrow: refit the model (omavctl fit on the same "
+        "logs) to add it"
+    )
+    assert [ln.text for ln in flag_lines({"flags": [flag]})] == [flag["message"]]
+    tree["command_units"] = {"torque": "normalised", "force": "normalised"}
+    normalised = _model(_build(tree, None, "test"))
+    assert spread_flags([normalised], ["px4.npz"]) == []

@@ -271,3 +271,47 @@ def test_a_worse_axis_and_the_disagree_line_say_one_parameters_disagreement_once
     other["metrics"]["nominal"]["rmse"]["z"] = 0.2
     texts = [ln.text for ln in report_verdict([(other, "a.json"), (last, "b.json")])]
     assert sum("0.036 ± 0.005" in t for t in texts) == 2
+
+
+def test_a_change_that_does_not_hold_rolled_out_says_so_in_the_verdict():
+    """Crazyflie halves, `evaluate --model base.npz --model base+motor_lag.npz`: the
+    verdict said "With motor_lag added: the model error falls by 44.8 %", and only
+    below the horizons table did it say that the lag model's 0.5 s body-rate error was
+    1.97 -> 5.16 (x) and 2.35 -> 7 (y) rad/s. The verdict now says it after the
+    change; without that finding (or for physics + effects alone) nothing is added."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    def rows(x: tuple[float, ...], y: tuple[float, ...]) -> list[dict[str, Any]]:
+        return [{"rate_error": {"x": a, "y": b, "z": 0.01}} for a, b in zip(x, y, strict=True)]
+
+    lag = {"motor_lag": {"T_m": [0.064], "T_m_stderr": [0.0097]}}
+    before = _file({"x": 26.4, "y": 39.9, "z": 1.46}, {"x": 36.4, "y": 42.2, "z": 1.51}, {})
+    after = _file({"x": 15.6, "y": 19.8, "z": 2.07}, {"x": 16.1, "y": 20.4, "z": 2.24}, lag)
+    tree = copy.deepcopy(before)
+    tree["models"] = [{"name": "base.npz", "effects": {}}, {"name": "lag.npz", "effects": lag}]
+    tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
+    hurts = [
+        {"code": "effect_added_hurts_long", "model": 1, "axis": a, "value": 2.6,
+         "message": f"model 1: {a}: the full model of model 1 against model 0 lowers ..."}
+        for a in ("x", "y")
+    ]  # fmt: skip
+    tree["horizons"] = {
+        "seconds": [0.01, 0.1, 0.5],
+        "table": {"model": rows((0.244, 1.51, 1.97), (0.247, 1.8, 2.35)),
+                  "model_1": rows((0.127, 1.22, 5.16), (0.15, 1.46, 7.0))},
+        "findings": hurts,
+    }  # fmt: skip
+    texts = [ln.text for ln in verdict_of_models(tree)]
+    fall = next(i for i, t in enumerate(texts) if t.startswith("With motor_lag added"))
+    (rolled,) = [t for t in texts if t.startswith("Rolled out open loop")]
+    assert texts.index(rolled) > fall
+    assert rolled == (
+        "Rolled out open loop, lag.npz does worse than base.npz on x, y, although better "
+        "one step ahead: the body-rate error at 0.5 s goes x 1.97 → 5.16, y 2.35 → 7 rad/s "
+        "(at 0.01 s x 0.244 → 0.127, y 0.247 → 0.15; beyond 2 standard errors): the change "
+        "above is the one-step angular acceleration's and does not hold that far ahead (the "
+        "horizons table; docs/horizons.md)."
+    )
+    for f in hurts:  # physics + effects only: the full model is what the change quotes
+        f["message"] = f["message"].replace("the full model", "physics + effects")
+    assert not [t for t in verdict_of_models(tree) if t.text.startswith("Rolled out")]

@@ -865,3 +865,51 @@ def test_two_models_the_first_models_own_sentence_names_its_model():
     texts = [ln.text for ln in verdict_of_models(tree)]
     assert texts[0].startswith("With old.npz: Missing: com_offset — it explains 25 %"), texts
     assert texts[2] == "The lines below are about old.npz (the first --model), with no effects."
+
+
+def test_a_later_model_with_other_effects_is_not_said_to_disagree_with_this_flight():
+    """Crazyflie halves, `evaluate --model base.npz --model base+motor_lag.npz`: "With
+    base+motor_lag.npz: the fit flight and this one disagree: inertia_error's scale_z =
+    1.51 ± 0.29 as fitted, 3.56 ± 0.63 on this flight": 3.56 is the estimate with the
+    first model's effects (no lag), 1.51 was fitted beside the lag. The models differ,
+    not the flights: a parameter is compared only where its estimate was made with the
+    model's own effects (the lag the later model adds, not the scale both hold)."""
+    from omavctl.diagnose.fit_vs_flight import disagree_line, disagreeing
+
+    base = {"scale": [1.2, 1.1, 3.3], "scale_stderr": [0.1, 0.1, 0.6]}
+    lag = {"scale": [1.10, 1.15, 1.51], "scale_stderr": [0.053, 0.11, 0.29]}
+    here = {"scale": [1.2, 1.1, 3.56], "scale_stderr": [0.1, 0.1, 0.63]}
+    entry = {"name": "inertia_error", "units": {"scale": "1"}, "estimate": here,
+             "explained_variance_per_axis": {"x": 0.67, "y": 0.69, "z": 0.61}}  # fmt: skip
+    tree = {
+        "models": [
+            {"name": "base.npz", "effects": {"inertia_error": base}},
+            {
+                "name": "base+motor_lag.npz",
+                "effects": {"inertia_error": lag, "motor_lag": {"T_m": [0.064]}},
+            },
+        ],
+        "logs": [{"name": "log15"}],
+        "diagnosis": {"learned": [entry]},
+    }
+    assert disagree_line(tree) is None
+    assert disagreeing(tree, 1) == set()
+    # the effect the later model adds was estimated with its set: compared
+    tree["models"][1]["effects"]["motor_lag"] = {"T_m": [0.064], "T_m_stderr": [0.0097]}
+    lag_here = {"T_m": [0.021], "T_m_stderr": [0.0017]}
+    tree["diagnosis"]["learned"].append(
+        {"name": "motor_lag", "units": {"T_m": "s"}, "estimate": lag_here}
+    )
+    line = disagree_line(tree)
+    assert line is not None and "motor_lag's T_m = 0.064 ± 0.0097 s as fitted" in line.text
+    assert "inertia_error" not in line.text
+    assert disagreeing(tree, 1) == {("motor_lag", "T_m")}
+    # the same effects as the first model: compared (the first model's too)
+    tree["models"][1]["effects"] = {"inertia_error": lag}
+    line = disagree_line(tree)
+    assert line is not None and line.text.startswith(
+        "With base+motor_lag.npz: the fit flight and this one disagree: inertia_error's "
+        "scale_z = 1.51 ± 0.29 as fitted, 3.56 ± 0.63 on this flight (3.0 combined "
+        "standard errors apart)."
+    )
+    assert disagreeing(tree, 1) == {("inertia_error", "scale_z")}

@@ -16,6 +16,7 @@ from typing import Any
 from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.claim_text import not_pinned_names
 from omavctl.diagnose.fit_vs_flight import disagreeing
+from omavctl.diagnose.horizon_findings import added_rollout_sentence
 from omavctl.diagnose.metrics import quality_flags
 from omavctl.diagnose.verdict import verdict
 from omavctl.diagnose.verdict_lines import (
@@ -405,6 +406,9 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
         f"{_effects_words(models[0])}.",
     )
     changes = change_lines(models, shown=tree)
+    labels = (models[0].label, models[-1].label)
+    rolled = added_rollout_sentence(tree.get("horizons"), labels, len(models) - 1)
+    changes += [Line("change", rolled)] if rolled else []
     return [own[0], *changes, *_later_flags(tree, models), which, *rest]
 
 

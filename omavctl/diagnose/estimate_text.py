@@ -41,7 +41,14 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
         pinned = est.get(f"{name}_pinned")
         if not isinstance(values, list) or not isinstance(intervals, list):
             continue
-        labels = [f"{name}_{a}" for a in "xyz"] if len(values) == 3 else [name] * len(values)
+        # as fit's table and the report's ranking name them: motor_loss's l_0 .. l_3
+        labels = (
+            [f"{name}_{a}" for a in "xyz"]
+            if len(values) == 3
+            else [name]
+            if len(values) == 1
+            else [f"{name}_{i}" for i in range(len(values))]
+        )
         for i, (v, ci) in enumerate(zip(values, intervals, strict=False)):
             if not isinstance(ci, list) or None in ci or ci[0] == ci[1]:
                 continue  # not excited (no spread) or not finite

@@ -46,7 +46,7 @@ from omavctl.diagnose.metrics import (
     training_envelope,
     worst_segments,
 )
-from omavctl.diagnose.model_flags import lever_flags
+from omavctl.diagnose.model_flags import file_flags
 from omavctl.learn.control_loss import flight_control_loss
 from omavctl.learn.effect_fit import check_available
 from omavctl.learn.flights import body_rate_rate, sha256_of
@@ -463,7 +463,7 @@ def evaluate(
         ),
         "diagnosis": diagnosis,
         "excluded_spans": excluded,
-        "flags": lever_flags(models, mpaths)
+        "flags": file_flags(models, mpaths)
         + training_data_flags(model, logs_json, time_window)
         + quality_flags(per_model[0]["metrics"], excluded, claimed(diagnosis))
         + envelope_flags(envelope),

@@ -39,6 +39,7 @@ __all__ = [
     "MIN_COVERAGE",
     "SIGNIFICANT",
     "TOLERANCE",
+    "added_rollout_sentence",
     "findings",
     "label",
     "open_loop_narrow",
@@ -285,3 +286,39 @@ def findings(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
                 f["message"] = f"model {j}: {f['message']}"
         out += found
     return out + _ranking(tree)
+
+
+def added_rollout_sentence(horizons: Any, labels: tuple[str, str], j: int) -> str | None:
+    """The verdict's word on ``effect_added_hurts_long`` of the full model ``j`` against
+    model 0 (``labels``: theirs), or None without one: the one-step change the verdict
+    quotes does not hold rolled out. On the Crazyflie halves (``--model base.npz
+    --model base+motor_lag.npz``) the verdict said the model error falls 44.8 % while
+    the horizons below it said the lag model's 0.5 s body-rate error was 2.6-3x the
+    base model's, a line a reader of the verdict alone never saw."""
+    if not isinstance(horizons, Mapping):
+        return None
+    found = [
+        f.get("axis")
+        for f in horizons.get("findings") or []
+        if isinstance(f, Mapping)
+        and f.get("code") == "effect_added_hurts_long"
+        and f.get("model") == j
+        and "the full model" in str(f.get("message", ""))
+    ]
+    table, secs = horizons.get("table") or {}, horizons.get("seconds") or []
+    a_rows, b_rows = table.get("model"), table.get(f"model_{j}")
+    axes = [a for a in AXES if a in found]
+    if not axes or not a_rows or not b_rows or len(secs) < 2:
+        return None
+
+    def pair(k: int, axis: str) -> str:
+        return f"{axis} {_err(a_rows[k], axis):.3g} → {_err(b_rows[k], axis):.3g}"
+
+    return (
+        f"Rolled out open loop, {labels[1]} does worse than {labels[0]} on "
+        f"{', '.join(axes)}, although better one step ahead: the body-rate error at "
+        f"{secs[-1]:g} s goes {', '.join(pair(-1, a) for a in axes)} rad/s (at {secs[0]:g} "
+        f"s {', '.join(pair(0, a) for a in axes)}; beyond 2 standard errors): the change "
+        "above is the one-step angular acceleration's and does not hold that far ahead "
+        "(the horizons table; docs/horizons.md)."
+    )

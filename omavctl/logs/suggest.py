@@ -393,30 +393,31 @@ def _preset_motors(name: str) -> tuple[str, list[float]] | None:
 
 
 def _motor_unit_lines(m: MotorGuess, header: tuple[float, float] | None) -> list[str]:
-    """The motor unit comment and, when the log's header declares a command range the
-    preset's rotor list does not, the preset's rotor list with that range (``motors:``
-    replaces the preset's as a whole)."""
+    """The motor unit comment and, when the log's header declares an output range the
+    preset's rotor list does not, why the preset's range stays: Betaflight's
+    ``motorOutput`` runs from the armed idle (``48 + (2047 - 48) x digitalIdleOffset``
+    for DShot: 138 at 4.5 %, motors spinning) to full, while the rotor list's range is
+    the commands of zero and full throttle (DShot 48 and 2047), where the thrust curve
+    takes 0 and 1. Taking the idle for zero thrust would shift every thrust."""
+    line = _motor_unit_line(m.unit, m.range, m.preset)
     own = _preset_motors(m.preset) if m.preset else None
     if header is None or own is None or own[0] != m.unit:
-        return [_motor_unit_line(m.unit, m.range, m.preset)]
-    if [float(v) for v in own[1]] == [float(v) for v in header]:
-        return [_motor_unit_line(m.unit, m.range, m.preset)]
-    lo, hi = (_fmt(v) for v in header)
-    plo, phi = (_fmt(float(v)) for v in own[1])
-    rotors = _preset_rotors(m.preset)
-    lines = [
-        f"# motor commands look like {m.unit}; the log's header says motorOutput {lo}..{hi}, "
-        f"not the {plo}..{phi} of preset {m.preset}: its rotor list with the header's "
-        "range follows (motors: replaces the preset's whole list; docs/logs.md)",
-        "motors:",
+        return [line]
+    plo, phi = (float(v) for v in own[1])
+    if [plo, phi] == [float(v) for v in header]:
+        return [line]
+    lo, hi = header
+    idle = (
+        f" (idle offset {100 * (lo - plo) / (phi - plo):.2f} % of {_fmt(plo)}..{_fmt(phi)})"
+        if phi > lo > plo
+        else ""
+    )
+    return [
+        line,
+        f"# the log's header says motorOutput {_fmt(lo)}..{_fmt(hi)}: the firmware's output "
+        f"window, from its armed idle{idle} to full, not the command of zero thrust: keep "
+        f"the range [{_fmt(plo)}, {_fmt(phi)}] (docs/logs.md)",
     ]
-    for key, value in rotors.items():
-        if key == "rotors":
-            lines.append("  rotors:")
-            lines += [f"    - {_flow(r)}" for r in value]
-        else:
-            lines.append(f"  {key}: {_flow(list(header) if key == 'range' else value)}")
-    return lines
 
 
 def _motor_unit_line(unit: str, span: tuple[float, float], preset: str) -> str:

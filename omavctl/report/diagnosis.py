@@ -115,7 +115,7 @@ def _ranking_table(
     ]
     if what == "missing":
         columns.insert(-2, "explained as fit --effects would fit it")
-    return Table(columns=columns, rows=rows, align="rlrrrrlll" + "r" * (what == "missing") + "ll")
+    return Table(columns=columns, rows=rows, align="rlrrwrlll" + "r" * (what == "missing") + "ll")
 
 
 def _parameters_header(entries: Sequence[Any], what: str) -> str:

@@ -86,8 +86,10 @@ class Bullets:
 @dataclass
 class Table:
     """A table; ``groups`` (title, span) is an optional header row above ``columns``.
-    ``align`` has one letter per column, 'l' (text) or 'r' (numbers); default: the
-    first column left, the others right."""
+    ``align`` has one letter per column, 'l' (text), 'r' (numbers, kept on one line)
+    or 'w' (numbers followed by words, right-aligned and wrapped: an effect's parameters
+    with why they are not pinned down); default: the first column left, the others
+    right."""
 
     columns: list[str]
     rows: list[list[Cell]]
@@ -96,7 +98,11 @@ class Table:
 
     def right(self, i: int) -> bool:
         """Whether column ``i`` is right-aligned."""
-        return self.align[i] == "r" if self.align else i > 0
+        return self.align[i] in "rw" if self.align else i > 0
+
+    def wraps(self, i: int) -> bool:
+        """Whether column ``i`` is right-aligned text that may wrap."""
+        return self.align is not None and self.align[i] == "w"
 
     caption: str | None = None
 
@@ -143,6 +149,7 @@ div.tw{max-width:100%;overflow-x:auto}
 table{border-collapse:collapse;margin:.6em 0;font-size:.85em}
 th,td{border:1px solid #ccc;padding:.2em .5em;vertical-align:top;text-align:left}
 th{background:#f2f2f2}td.n{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
+td.w{text-align:right;font-variant-numeric:tabular-nums;min-width:16em;max-width:30em}
 pre{background:#f6f6f6;border:1px solid #ddd;padding:.6em;white-space:pre-wrap;
 overflow-wrap:anywhere}
 code{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:.95em}
@@ -192,7 +199,9 @@ def _html_table(t: Table) -> str:
     out.append("</thead><tbody>")
     for row in t.rows:
         cells = "".join(
-            f'<td class="n">{_html_cell(c)}</td>' if t.right(i) else f"<td>{_html_cell(c)}</td>"
+            f'<td class="{"w" if t.wraps(i) else "n"}">{_html_cell(c)}</td>'
+            if t.right(i)
+            else f"<td>{_html_cell(c)}</td>"
             for i, c in enumerate(row)
         )
         out.append(f"<tr>{cells}</tr>")
