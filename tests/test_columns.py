@@ -501,7 +501,9 @@ def test_gaps_in_a_jittered_csv_split_segments(tmp_path: Path) -> None:
 # --- segmentation rule ---------------------------------------------------------------
 
 
-def _thrust_log(tmp_path: Path, thrust: np.ndarray, rate: float = 100.0) -> Path:
+def _thrust_log(
+    tmp_path: Path, thrust: np.ndarray, rate: float = 100.0, roll_rate: np.ndarray | None = None
+) -> Path:
     t = np.arange(thrust.size) / rate
     zeros = np.zeros_like(t)
     header = [
@@ -509,7 +511,8 @@ def _thrust_log(tmp_path: Path, thrust: np.ndarray, rate: float = 100.0) -> Path
         *[f"{r}_{a}" for r in ("body_rate", "force_command", "torque_command") for a in "xyz"],
     ]
     header += ["attitude_roll", "attitude_pitch", "attitude_yaw"]
-    cols = [t, zeros, zeros, zeros, zeros, zeros, thrust, zeros, zeros, zeros, zeros, zeros, zeros]
+    wx = zeros if roll_rate is None else roll_rate
+    cols = [t, wx, zeros, zeros, zeros, zeros, thrust, zeros, zeros, zeros, zeros, zeros, zeros]
     return _write_rows(tmp_path / "thrust.csv", header, cols)
 
 
@@ -568,6 +571,21 @@ def test_idle_dip_mid_flight_is_excluded_but_normal_manoeuvres_are_not(tmp_path:
     (_, b0), (a1, _) = log.segments
     assert log.t[b0 - 1] == pytest.approx(7.0 - 0.2, abs=0.011)
     assert log.t[a1] == pytest.approx(7.5 + 0.2, abs=0.011)
+
+
+def test_a_flight_that_ends_in_a_crash_keeps_its_flight(tmp_path: Path) -> None:
+    # a simulated omav's log (a report12 draw that failed to fit): 40 N for 8 s, then
+    # the controller's wound-up commands while it tumbles and falls, 200-845 N at 31-34
+    # rad/s for 1.3 s, which set the in-flight level (285 N) and made the flight "idle"
+    t = np.arange(931) / 100.0
+    crash = t >= 8.0
+    thrust = np.where(crash, np.interp(t, [8.0, 9.3], [200.0, 845.0]), 40.0 + np.sin(t))
+    rate = np.where(crash, 32.0, 0.3 * np.sin(3 * t))
+    log = read_vehicle_log(_thrust_log(tmp_path, thrust, roll_rate=rate), default_vehicle())
+    assert log.valid.all() and not any(n.startswith("ground/idle") for n in log.notes)
+    # without the rates the wound-up commands still set the level: the flight is idle
+    log = read_vehicle_log(_thrust_log(tmp_path, thrust), default_vehicle())
+    assert not log.valid[:800].any()
 
 
 def test_zero_thrust_throughout_is_an_error(tmp_path: Path) -> None:

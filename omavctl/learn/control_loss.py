@@ -50,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omavctl.logs.segment import MAX_BODY_RATE
 from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
 from omavctl.physics.rigid_body import rotation_matrix
@@ -71,8 +72,6 @@ __all__ = [
     "wrench_saturated",
 ]
 
-#: rad/s, body rate beyond which the vehicle is taken to be out of control.
-MAX_BODY_RATE = 10.0
 #: Measured angular acceleration beyond this multiple of the vehicle's maximum.
 ACCELERATION_MARGIN = 2.0
 #: rad, attitude error a controlled vehicle may show whatever its reference does

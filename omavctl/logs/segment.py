@@ -6,7 +6,11 @@ it is logged (N, or normalised 0..1):
 
 1. ``thrust = |force_command|`` per grid sample; the *in-flight level* is its
    90th percentile over the valid samples (robust to the idle part, which is
-   normally well under 10 % of a log worth fitting).
+   normally well under 10 % of a log worth fitting) where the vehicle does not
+   tumble (body rate up to :data:`MAX_BODY_RATE` on every axis, when logged): a log that ends
+   in a crash holds the controller's wound-up commands, which set the level
+   otherwise (a simulated omav hovering at 40 N for 8.7 s, then 200-845 N for
+   0.6 s while falling: level 285 N, the whole flight "idle" below 71 N).
 2. *Idle*: ``thrust < 0.25 x level`` (motors off, idling or spooling up).
 3. *Before take-off / after landing*: a vehicle cannot leave the ground before
    its thrust reaches roughly its weight. ``hover`` is the median of the
@@ -38,6 +42,7 @@ __all__ = [
     "IDLE_FRACTION",
     "LEVEL_PERCENTILE",
     "MARGIN",
+    "MAX_BODY_RATE",
     "TAKEOFF_FRACTION",
     "ground_mask",
     "parse_time_window",
@@ -57,6 +62,10 @@ GROUND_FRACTION = 0.5
 TAKEOFF_FRACTION = 0.9
 #: Excluded runs are widened by this much on each side, s.
 MARGIN = 0.2
+#: rad/s, body rate beyond which the vehicle is taken to be out of control (here: its
+#: thrust commands do not set the in-flight level; omavctl.learn.control_loss: its
+#: samples are not fitted).
+MAX_BODY_RATE = 10.0
 
 
 def _dilate(mask: np.ndarray, n: int) -> np.ndarray:
@@ -137,9 +146,13 @@ def segment_flight(
     if "force_command" not in log.signals:
         return replace(log, notes=[*log.notes, "no force_command: flight segmentation skipped"])
     thrust = np.linalg.norm(log.signals["force_command"], axis=1)
+    steady = log.valid.copy()
+    if "body_rate" in log.signals:  # a tumble's wound-up commands set no level
+        with np.errstate(invalid="ignore"):
+            steady &= ~(np.abs(log.signals["body_rate"]).max(axis=1) > MAX_BODY_RATE)
     ground, level, hover = ground_mask(
         thrust,
-        log.valid,
+        steady if steady.any() else log.valid,
         log.rate,
         idle_fraction,
         takeoff_fraction,
