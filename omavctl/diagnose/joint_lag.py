@@ -19,7 +19,10 @@ regressors) by least squares, with and without the claim. The claim is kept only
 at the best time constant for each, it removes at least
 :data:`omavctl.diagnose.joint.MIN_SHARE` of what the lag and the rest leave and its part
 reaches the claim floor (the joint selection's own tests); otherwise it is held back as
-one the flight cannot tell from the lag's time constant.
+one the flight cannot tell from the lag's time constant. Every other effect (not a lag,
+delay or look-alike, not claimed) is profiled in the claim's place too: one that removes
+more of what is left, past the same bars, is claimed instead (:func:`_best_rival`; a
+gain error that stood in for a drag beside a long lag, session 20).
 """
 
 from __future__ import annotations
