@@ -418,10 +418,10 @@ def test_an_undetermined_parameter_is_named_as_the_reports_write_it():
     }
     eff = EffectFit(np.zeros(9), np.eye(9), estimates, np.zeros(3), np.zeros(3))
     assert effect_notes(eff) == [
-        "rotational_drag: D_z within 2 standard errors of zero: the logs barely excite it or "
-        "the effect is absent",
-        "rotor_interference: rotor_arm within 2 standard errors of zero: the logs barely "
-        "excite it or the effect is absent",
-        "inertia_error: scale_x within 2 standard errors of 1: the logs barely excite it or "
-        "the effect is absent",
+        "rotational_drag: D_z within 2 standard errors of zero: these logs do not tell it "
+        "from the effect's absence (small, absent, or barely excited)",
+        "rotor_interference: rotor_arm within 2 standard errors of zero: these logs do not "
+        "tell it from the effect's absence (small, absent, or barely excited)",
+        "inertia_error: scale_x within 2 standard errors of 1: these logs do not tell it "
+        "from the effect's absence (small, absent, or barely excited)",
     ]

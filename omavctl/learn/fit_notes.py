@@ -137,8 +137,8 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
                 )
                 at = "zero" if not null[weak].any() else f"{float(null[weak][0]):g}"
                 notes.append(
-                    f"{name}: {which} within 2 standard errors of {at}: the logs barely "
-                    "excite it or the effect is absent"
+                    f"{name}: {which} within 2 standard errors of {at}: these logs do not "
+                    "tell it from the effect's absence (small, absent, or barely excited)"
                 )
     return notes
 
