@@ -270,6 +270,12 @@ class Vehicle:
         return self.command_units.get("force") == NORMALISED
 
     @property
+    def weight(self) -> float | None:
+        """The vehicle's weight in the thrust command's unit (N), None when the force
+        command is normalised (its unit unknown)."""
+        return None if self.force_normalised else self.mass * self.gravity
+
+    @property
     def fixed_rotors(self) -> bool:
         """Whether the vehicle is a rotor list without tilt servos (``motors:``)."""
         return self.motors is not None and not self.motors.tilting

@@ -588,6 +588,21 @@ def test_a_flight_that_ends_in_a_crash_keeps_its_flight(tmp_path: Path) -> None:
     assert not log.valid[:800].any()
 
 
+def test_a_struggling_vehicles_commands_do_not_make_its_hover_idle(tmp_path: Path) -> None:
+    # a report12 draw's fit flight (strong rotor interference and a servo lag): 40 N to
+    # hover for 5 s, then 150-200 N for 4 s while it no longer follows its reference, its
+    # rates under 10 rad/s: level 174 N and the hover "idle" (0-5 s excluded); at most
+    # twice the weight (4 kg: 39.2 N) the level keeps the hover
+    t = np.arange(901) / 100.0
+    thrust = np.where(t < 5.0, 40.0 + np.sin(t), 175.0 + 25.0 * np.sin(3 * t))
+    path = _thrust_log(tmp_path, thrust)
+    vehicle = default_vehicle()
+    log = read_vehicle_log(path, vehicle, weight=vehicle.weight)
+    assert vehicle.weight == pytest.approx(39.24, abs=0.01)
+    assert log.valid.all()
+    assert not read_vehicle_log(path, vehicle).valid[:480].any()
+
+
 def test_zero_thrust_throughout_is_an_error(tmp_path: Path) -> None:
     path = _thrust_log(tmp_path, np.zeros(500))
     with pytest.raises(LogError) as err:

@@ -140,6 +140,7 @@ def _read_log(
         time_window=time_window,
         required=required_roles(vehicle),
         wrench=wrench_hook(vehicle),
+        weight=vehicle.weight,
     )
     _check_rate(flight, vehicle, rate)
     extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}

@@ -95,6 +95,7 @@ def read_flights(
                 required=required_roles(vehicle),
                 time_window=time_window,
                 wrench=wrench_hook(vehicle),
+                weight=vehicle.weight,
             )
         _check_body_rate(flight, vehicle)
         note = upsampling_note(flight, vehicle)

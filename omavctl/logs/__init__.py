@@ -106,6 +106,7 @@ def read_vehicle_log(
     time_window: tuple[float | None, float | None] | None = None,
     trim: bool = True,
     wrench: WrenchHook | None = None,
+    weight: float | None = None,
 ) -> FlightLog:
     """Read a flight log of ``vehicle`` the way ``fit`` and ``evaluate`` need it.
 
@@ -114,7 +115,8 @@ def read_vehicle_log(
     vehicle's ``frame`` to FLU body / z-up world; align on a uniform grid at
     ``rate`` Hz (linear interpolation at ``start + k / rate``, gaps split
     segments); with ``trim``, mark ground / motors-idle samples invalid
-    (:func:`segment_flight`, level computed over the whole log); with
+    (:func:`segment_flight`, level computed over the whole log, at most twice the
+    vehicle's ``weight`` in the thrust command's unit when given); with
     ``wrench`` (a vehicle with a rotor list, :func:`omavctl.physics.mixer.wrench_hook`)
     and a log whose roles it can mix (``motor_command``), that role replaces the
     force and torque commands in ``required`` and the hook adds them after
@@ -142,7 +144,7 @@ def read_vehicle_log(
         need = [r for r in required if r not in ("force_command", "torque_command")]
         log = add(align(raw, rate=rate, required=[*need, source]))
     if trim:
-        log = segment_flight(log)
+        log = segment_flight(log, weight=weight)
     if time_window is not None:
         log = restrict_window(log, time_window)
     return log

@@ -10,7 +10,11 @@ it is logged (N, or normalised 0..1):
    tumble (body rate up to :data:`MAX_BODY_RATE` on every axis, when logged): a log that ends
    in a crash holds the controller's wound-up commands, which set the level
    otherwise (a simulated omav hovering at 40 N for 8.7 s, then 200-845 N for
-   0.6 s while falling: level 285 N, the whole flight "idle" below 71 N).
+   0.6 s while falling: level 285 N, the whole flight "idle" below 71 N). With
+   the vehicle's weight in the thrust command's unit (N), the level is at most
+   :data:`LEVEL_OVER_WEIGHT` x the weight: a struggling vehicle's commands
+   (an omav with strong rotor interference, 40 N to hover, level 174 N) no
+   longer make its hover "idle".
 2. *Idle*: ``thrust < 0.25 x level`` (motors off, idling or spooling up).
 3. *Before take-off / after landing*: a vehicle cannot leave the ground before
    its thrust reaches roughly its weight. ``hover`` is the median of the
@@ -40,6 +44,7 @@ from omavctl.logs.types import FlightLog
 __all__ = [
     "GROUND_FRACTION",
     "IDLE_FRACTION",
+    "LEVEL_OVER_WEIGHT",
     "LEVEL_PERCENTILE",
     "MARGIN",
     "MAX_BODY_RATE",
@@ -62,6 +67,9 @@ GROUND_FRACTION = 0.5
 TAKEOFF_FRACTION = 0.9
 #: Excluded runs are widened by this much on each side, s.
 MARGIN = 0.2
+#: With the weight known (thrust in N), the in-flight level is at most this multiple of
+#: it (a flight's 90th percentile is 1.1-1.5x its weight; idle is then below half of it).
+LEVEL_OVER_WEIGHT = 2.0
 #: rad/s, body rate beyond which the vehicle is taken to be out of control (here: its
 #: thrust commands do not set the in-flight level; omavctl.learn.control_loss: its
 #: samples are not fitted).
@@ -93,6 +101,7 @@ def ground_mask(
     margin: float = MARGIN,
     percentile: float = LEVEL_PERCENTILE,
     ground_fraction: float = GROUND_FRACTION,
+    weight: float | None = None,
 ) -> tuple[np.ndarray, float, float]:
     """Samples on the ground or idle by the rule of the module docs.
 
@@ -109,6 +118,8 @@ def ground_mask(
     if not use.any():
         return np.zeros(thrust.size, dtype=bool), 0.0, 0.0
     level = float(np.percentile(thrust[use], percentile))
+    if weight is not None and weight > 0:
+        level = min(level, LEVEL_OVER_WEIGHT * weight)
     if not level > 0:
         return np.ones(thrust.size, dtype=bool), level, 0.0
     idle = ~(thrust >= idle_fraction * level)  # NaN counts as idle
@@ -133,8 +144,10 @@ def segment_flight(
     margin: float = MARGIN,
     percentile: float = LEVEL_PERCENTILE,
     ground_fraction: float = GROUND_FRACTION,
+    weight: float | None = None,
 ) -> FlightLog:
-    """``log`` with ground / motors-idle samples invalid (rule in the module docs).
+    """``log`` with ground / motors-idle samples invalid (rule in the module docs);
+    ``weight``: the vehicle's weight in the thrust command's unit (N), or None.
 
     Segments are recomputed and the excluded spans noted, e.g.
     ``"ground/idle: 0.00-5.31 s excluded (...)"``. A log without
@@ -159,6 +172,7 @@ def segment_flight(
         margin,
         percentile,
         ground_fraction,
+        weight,
     )
     if not (ground & log.valid).any():
         return log
@@ -167,10 +181,15 @@ def segment_flight(
             "no flight: the thrust command (|force_command|) is zero throughout", log.path
         )
     valid = log.valid & ~ground
+    capped = (
+        f", at most {LEVEL_OVER_WEIGHT:g}x the weight {weight:.4g}"
+        if weight is not None and level == LEVEL_OVER_WEIGHT * weight
+        else ""
+    )
     note = (
         f"ground/idle: {_spans(log.t, ground)} excluded (thrust command |force_command| "
         f"below {idle_fraction:.0%} of the in-flight level {level:.4g} "
-        f"[{percentile:g}th percentile], or before reaching / after leaving "
+        f"[{percentile:g}th percentile{capped}], or before reaching / after leaving "
         f"{takeoff_fraction:.0%} of the hover thrust {hover:.4g} [median] at a start / end "
         f"on the ground; {margin:g} s margin)"
     )
