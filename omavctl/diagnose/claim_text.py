@@ -94,15 +94,7 @@ def beside_lag_sentence(name: str, lag: Mapping[str, Any]) -> str:
     cut = f" removes {_pct(share)} of what is left" if share is not None else " adds nothing"
     if part is not None and floor:
         cut += f", a part {part / floor:.2f}x the claim floor"
-    values = lag.get("values")
-    there = ""
-    if isinstance(values, Mapping):
-        there = "; ".join(
-            f"{k} = {', '.join(f'{x:.3g}' for x in v)}"
-            for k, v in values.items()
-            if isinstance(v, list) and all(_num(x) is not None for x in v)
-        )
-        there = f" (fitted so: {there})" if there else ""
+    there = _fitted_so(lag.get("values"))
     said = (
         f" Not claimed: {name}, which this flight does not tell from {which}: with {which}'s "
         f"exact form{at} and the default look-alikes, {name}{cut}{there}"
@@ -122,21 +114,26 @@ def beside_lag_sentence(name: str, lag: Mapping[str, Any]) -> str:
     )
 
 
+def _fitted_so(values: Any) -> str:
+    """' (fitted so: D = 0.229, 0.18, 0.108)' of a profile's ``values`` (name -> list),
+    '' when none is finite."""
+    if not isinstance(values, Mapping):
+        return ""
+    there = "; ".join(
+        f"{k} = {', '.join(f'{x:.3g}' for x in v)}"
+        for k, v in values.items()
+        if isinstance(v, list) and all(_num(x) is not None for x in v)
+    )
+    return f" (fitted so: {there})" if there else ""
+
+
 def _rival_words(which: str, rival: Mapping[str, Any]) -> str:
     """'rotational_drag, in its place, removes 88 % of what is left with motor_lag at
     119.0 ms (fitted so: D = ...), is claimed instead.'"""
     value, share = _num(rival.get("value_with")), _num(rival.get("share"))
     at = f" with {which} at {1000 * value:.1f} ms" if value is not None else ""
     cut = f" removes {_pct(share)} of what is left" if share is not None else ""
-    values = rival.get("values")
-    there = ""
-    if isinstance(values, Mapping):
-        there = "; ".join(
-            f"{k} = {', '.join(f'{x:.3g}' for x in v)}"
-            for k, v in values.items()
-            if isinstance(v, list) and all(_num(x) is not None for x in v)
-        )
-        there = f" (fitted so: {there})" if there else ""
+    there = _fitted_so(rival.get("values"))
     return f"{rival['name']}, in its place,{cut}{at}{there}, is claimed instead."
 
 
