@@ -45,7 +45,7 @@ def test_an_effect_neither_flight_confirms_is_said_with_the_fit_without_it():
     assert line is not None
     assert line.text == (
         "Not confirmed by either flight: inertia_error, whose 95 % intervals hold 1 (its "
-        "value without the effect) on every axis as fitted on fit (scale 0.838 to 1.21, "
+        "value without the effect) on every component as fitted on fit (scale 0.838 to 1.21, "
         "0.949 to 1.15, 0.587 to 1.72) and on this flight (scale 0.925 to 1.12, 0.928 to "
         "1.27, 0.939 to 1.12). The claims guard would not claim it on either; the model may "
         "hold an effect the vehicle lacks. To compare, fit without it and evaluate both "

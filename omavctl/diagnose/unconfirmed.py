@@ -76,7 +76,7 @@ def unconfirmed_line(tree: Mapping[str, Any]) -> Line | None:
         nulls = {f"{float(v.flat[0]):g}" for v in null_values(name).values()}
         said.append(
             f"{name}, whose 95 % intervals hold {' / '.join(sorted(nulls))} (its value without "
-            f"the effect) on every axis as fitted on {there} ({_rows(name, fitted)}) and on "
+            f"the effect) on every component as fitted on {there} ({_rows(name, fitted)}) and on "
             f"this flight ({_rows(name, here)})"
         )
     it = "it" if len(found) == 1 else "them"
