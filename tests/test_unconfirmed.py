@@ -49,7 +49,7 @@ def test_an_effect_neither_flight_confirms_is_said_with_the_fit_without_it():
         "0.949 to 1.15, 0.587 to 1.72) and on this flight (scale 0.925 to 1.12, 0.928 to "
         "1.27, 0.939 to 1.12). The claims guard would not claim it on either; the model may "
         "hold an effect the vehicle lacks. To compare, fit without it and evaluate both "
-        "models on a flight neither saw"
+        "models on a flight neither saw."
     )
     assert line.plain().endswith(f"neither saw. Without it: {WITHOUT}")
     assert any(ln.key == "unconfirmed" for ln in verdict(_tree()))

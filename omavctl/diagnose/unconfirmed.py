@@ -83,6 +83,6 @@ def unconfirmed_line(tree: Mapping[str, Any]) -> Line | None:
     text = (
         f"Not confirmed by either flight: {'; '.join(said)}. The claims guard would not "
         f"claim {it} on either; the model may hold an effect the vehicle lacks. To compare, "
-        f"fit without {it} and evaluate both models on a flight neither saw"
+        f"fit without {it} and evaluate both models on a flight neither saw."
     )
     return Line("unconfirmed", text, command=get_path(tree, "diagnosis", "without_command"))
