@@ -95,9 +95,14 @@ def test_the_ranking_tables_say_which_residual_their_parameters_were_fitted_to()
     fitted model, the ranking): each ranking's header says what its numbers are."""
     from omavctl.report.diagnosis import _ranking_table
 
-    entry = {"name": "com_offset", "parameters": {"r": [0.004, -0.008, 0.0]}}
-    columns = _ranking_table([entry], False, "missing").columns
-    assert "parameters on the model's remaining error, each effect alone" in columns[4]
+    alone = {"r": [0.004, -0.008, 0.0], "r_stderr": [0.0003] * 3, "r_ci95": [[0.0034, 0.0046]] * 3}
+    entry = {"name": "com_offset", "parameters": alone}
+    table = _ranking_table([entry], False, "missing")
+    assert table.columns[4] == (
+        "parameters on the model's remaining error, each effect alone: a size of what the GP "
+        "left, not the vehicle's value (no interval)"
+    )
+    assert table.rows[0][4].lines == ("r_x = 0.004", "r_y = -0.008", "r_z = 0")  # no ±, no [ ]
     fitted = {**entry, "estimate": {"r": [0.0036, -0.003, 0.0]}}
     columns = _ranking_table([fitted], False, "learned").columns
     assert "parameters on the nominal residual, as fit --effects estimates them" in columns[4]
