@@ -156,6 +156,14 @@ def test_a_drag_beside_the_lag_takes_the_place_of_the_inertia_scale_that_stood_i
         "; rotational_drag, in its place, removes 100 % of what is left with motor_lag at "
         "120.0 ms (fitted so: D = 3, 3, 3), is claimed instead."
     )
+    # the verdict's "Also:" says where the drag came from
+    from omavctl.diagnose.joint_text import named_later
+
+    diag = {"missing": out.kept, "joint_steps": [{"name": "motor_lag"}], "not_pinned": [held]}
+    assert named_later(diag)["rotational_drag"] == (
+        "beside the lag",
+        "rotational_drag: in the place of inertia_error, beside motor_lag's exact form",
+    )
     # a real gain error beside the lag and no damping: the scale stays, no rival
     s, physics = _drag_flight(drag=0.0, gain=0.2)
     out = beside_lag([s], model, physics, _guard(["motor_lag", "inertia_error"]), FLOOR, _guard)  # type: ignore[arg-type]

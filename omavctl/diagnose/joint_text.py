@@ -175,17 +175,14 @@ def _joint_words(diag: Mapping[str, Any], name: str) -> tuple[str, str]:
     """:func:`named_later`'s words for an effect the joint selection named."""
     step = replaced_step(diag, name) or name
     joint = next((e for e in _entries(diag, "joint_steps") if e.get("name") == step), None)
-    for e in _entries(diag, "not_pinned"):
-        lag = e.get("beside_lag")
-        if joint is not None or not isinstance(lag, Mapping):
-            continue
-        rival = lag.get("rival")
-        if isinstance(rival, Mapping) and rival.get("name") == name:
-            return (
-                "beside the lag",
-                f"{name}: in the place of {e.get('name')}, beside {lag.get('lag')}'s exact form",
-            )
     if joint is None:
+        for e in _entries(diag, "not_pinned"):
+            lag = e.get("beside_lag")
+            rival = lag.get("rival") if isinstance(lag, Mapping) else None
+            if isinstance(rival, Mapping) and rival.get("name") == name:
+                which = lag.get("lag") if isinstance(lag, Mapping) else "the lag"
+                said = f"{name}: in the place of {e.get('name')}, beside {which}'s exact form"
+                return ("beside the lag", said)
         return ("a later step", f"{name}: named by a later step of the selection")
     removed, total = _num(joint.get("share")), _num(joint.get("share_of_total"))
     numbers = ""
