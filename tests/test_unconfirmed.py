@@ -6,7 +6,7 @@ from __future__ import annotations
 import copy
 from typing import Any
 
-from omavctl.diagnose.unconfirmed import unconfirmed_line
+from omavctl.diagnose.unconfirmed import unconfirmed, unconfirmed_line
 from omavctl.diagnose.verdict import verdict
 
 WITHOUT = "omavctl fit fit --effects rotational_drag --out m1-inertia_error.npz"
@@ -40,8 +40,16 @@ def _tree() -> dict[str, Any]:
     }
 
 
+def _decided(tree: dict[str, Any]) -> dict[str, Any]:
+    """``tree`` with ``diagnosis.unconfirmed`` as evaluate decides it."""
+    found = unconfirmed(tree["models"][0]["effects"], tree["diagnosis"]["learned"])
+    tree["diagnosis"]["unconfirmed"] = [name for name, _, _ in found]
+    return tree
+
+
 def test_an_effect_neither_flight_confirms_is_said_with_the_fit_without_it():
-    line = unconfirmed_line(_tree())
+    assert _decided(_tree())["diagnosis"]["unconfirmed"] == ["inertia_error"]
+    line = unconfirmed_line(_decided(_tree()))
     assert line is not None
     assert line.text == (
         "Not confirmed by either flight: inertia_error, whose 95 % intervals hold 1 (its "
@@ -52,13 +60,16 @@ def test_an_effect_neither_flight_confirms_is_said_with_the_fit_without_it():
         "models on a flight neither saw."
     )
     assert line.plain().endswith(f"neither saw. Without it: {WITHOUT}")
-    assert any(ln.key == "unconfirmed" for ln in verdict(_tree()))
+    assert any(ln.key == "unconfirmed" for ln in verdict(_decided(_tree())))
+    assert unconfirmed_line(_tree()) is None  # a file before diagnosis.unconfirmed
 
 
 def test_one_flight_that_pins_it_down_or_no_interval_says_nothing():
     tree = _tree()
     tree["diagnosis"]["learned"][1]["estimate"]["scale_ci95"][0] = [1.05, 1.3]
+    assert _decided(tree)["diagnosis"]["unconfirmed"] == []
     assert unconfirmed_line(tree) is None
     tree = _tree()
     tree["models"][0]["effects"]["inertia_error"] = {"scale": [1.02, 1.05, 1.15]}  # old file
+    assert _decided(tree)["diagnosis"]["unconfirmed"] == []
     assert unconfirmed_line(tree) is None

@@ -417,9 +417,7 @@ def learned_step(
     total = float((physics**2).sum())
     if train is None or model.n_train == 0 or total <= 0:
         return None
-    n, _, p = train.shape
-    targets = model.targets.reshape(3 * n)
-    theta, *_ = np.linalg.lstsq(train.reshape(3 * n, p), targets, rcond=None)
+    theta = first_pass_theta(model, [name])[name]
     own = regressor @ theta if exact is None else exact(float(theta[0]))
     sq_before = (physics**2).sum(axis=1)
     sq_after = ((physics - own) ** 2).sum(axis=1)

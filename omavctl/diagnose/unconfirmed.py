@@ -10,7 +10,8 @@ keeps it and every later fit command with it (docs/scorecard.md, session 20).
 :func:`unconfirmed` names the first model's effects whose statistical 95 % interval
 (the one the claims guard reads, :func:`omavctl.diagnose.claims.excludes_null`) holds
 the effect's null on every component, both as fitted (the model file) and as estimated
-on the evaluated flight (``diagnosis.learned``); :func:`unconfirmed_line` says so with
+on the evaluated flight (``diagnosis.learned``), into ``diagnosis.unconfirmed``;
+:func:`unconfirmed_line` says so from the evaluation JSON with
 the command that fits the model without them (``diagnosis.without_command``). It is
 advice, not a claim: the fit commands the verdict prints keep the model's effects.
 """
@@ -49,7 +50,7 @@ def unconfirmed(
     ]
 
 
-def _rows(name: str, estimate: Mapping[str, Any]) -> str:
+def _rows(name: str, estimate: Any) -> str:
     """'scale 0.838 to 1.21, 0.949 to 1.15, 0.587 to 1.72' (the statistical intervals)."""
     by: dict[str, list[str]] = {}
     for param, _, _, (lo, hi) in claimed_rows(name, estimate, None):
@@ -59,12 +60,18 @@ def _rows(name: str, estimate: Mapping[str, Any]) -> str:
 
 def unconfirmed_line(tree: Mapping[str, Any]) -> Line | None:
     """'Not confirmed by either flight: inertia_error — ...' for the first model's
-    unconfirmed effects, with ``diagnosis.without_command``; None when there are none."""
+    effects ``diagnosis.unconfirmed`` names (:func:`unconfirmed`, decided once when the
+    evaluation was made), with ``diagnosis.without_command``; None when it names none
+    (or the file predates it)."""
+    names = get_path(tree, "diagnosis", "unconfirmed", default=[]) or []
     model = get_path(tree, "models", 0, default={})
     effects = model.get("effects") if isinstance(model, Mapping) else None
-    if not isinstance(effects, Mapping):
+    if not names or not isinstance(effects, Mapping):
         return None
-    found = unconfirmed(effects, get_path(tree, "diagnosis", "learned", default=[]))
+    learned = get_path(tree, "diagnosis", "learned", default=[]) or []
+    estimated = {str(e.get("name")): e.get("estimate") for e in learned if isinstance(e, Mapping)}
+    found = [(str(n), effects.get(n), estimated.get(n)) for n in names]
+    found = [(n, f, h) for n, f, h in found if isinstance(f, Mapping) and isinstance(h, Mapping)]
     if not found:
         return None
     from omavctl.learn.intervals import null_values
