@@ -131,6 +131,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report12's records were read (2026-11-27, session 20): the next changes are reported
+    # on report13 (14 000 000; declared in session 21 before any of its draws was flown)
+    "report13": {
+        "seed_base": 14_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}

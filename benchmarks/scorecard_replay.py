@@ -158,6 +158,16 @@ OWN_SPLIT = {
         "effects": ("inertia_error", "rotational_drag", "motor_lag", "rotor_interference"),
         "version": 2,
     },
+    # issue 26 "invent" (session 21): the report design (every effect, the steps family on
+    # either side, version 2), to find draws that end with an effect the vehicle lacks
+    # or none draws with a claim (report12: 2/57 and 1/11, not read to tune); declared
+    # before any draw was flown; fresh seeds
+    "own-invent": {
+        "seed_base": 9_820_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 
