@@ -396,6 +396,9 @@ def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
         "claim_floor": diag.get("method", {}).get("min_contribution_rms"),
         "noise": diag.get("method", {}).get("measurement_noise_std"),
         "fit_command": out.get("fit_command"),
+        # the fit without the model's effects neither flight confirms (session 21), the
+        # verdict's command when it claims nothing
+        "without_command": diag.get("without_command"),
         "flags": out.get("flags", []),
         "verdict": [v.get("text", "")[:400] for v in out.get("verdict", [])],
     }
@@ -427,13 +430,20 @@ def loop(
     fits = [{"command": "fit (defaults)", **_fit_summary(first)}]
     rounds = [_evaluate("m0.npz", d, log, held, extra)]
     for _ in range(ROUNDS):
-        cmd = rounds[-1]["fit_command"]
+        cmd = next_command(rounds[-1])
         if not cmd:
             break
         argv, model = fit_argv(cmd)
         fits.append({"command": cmd, **_fit_summary(omavctl(argv, d, log))})
         rounds.append(_evaluate(model, d, log, held, extra))
     return rounds, fits
+
+
+def next_command(round_: dict[str, Any]) -> str | None:
+    """The fit command a round's verdict prints to act on: the one that adds its claims
+    (leaving out what neither flight confirms), else the one without the model's effects
+    neither flight confirms (``without_command``, session 21), else None."""
+    return round_.get("fit_command") or round_.get("without_command") or None
 
 
 def _fit_summary(out: dict[str, Any]) -> dict[str, Any]:

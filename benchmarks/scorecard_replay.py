@@ -51,6 +51,7 @@ from benchmarks.scorecard_draws import (
     SPLITS,
     StepFailed,
     fit_argv,
+    next_command,
     omavctl,
     round_record,
 )
@@ -246,7 +247,7 @@ def replay_draw(record: dict[str, Any], workdir: Path, label: str = "") -> dict[
         rounds = [_evaluate("m0.npz", r, held, log)]
         fits = [record["fits"][0]]
         for _ in range(ROUNDS):
-            cmd = rounds[-1]["fit_command"]
+            cmd = next_command(rounds[-1])
             if not cmd:
                 break
             argv, model = fit_argv(cmd)

@@ -180,6 +180,12 @@ def test_the_fit_command_adds_every_missing_effect_in_one_fit():
     assert "--effects rotational_drag --out m0+rotational_drag+inertia_error-inertia_error.npz" in (
         command
     )
+    # a claim added and the unconfirmed effect left out, in one fit
+    command = fit_command(
+        "m0+rotational_drag+inertia_error.npz", model, ["com_offset"], ["inertia_error"]
+    )
+    assert "--effects rotational_drag,com_offset --out " in command
+    assert "--out m0+rotational_drag+inertia_error+com_offset-inertia_error.npz" in command
     assert "--out m0+rotational_drag+inertia_error+refit.npz" in fit_command(
         "m0+rotational_drag+inertia_error.npz", model, []
     )

@@ -584,3 +584,37 @@ def test_each_report_split_is_fresh(old: str, new: str) -> None:
         assert r3["seed"] != r2["seed"] and r3["version"] == 2
         assert "steps" in [f.get("base", f["family"]) for f in r3["flights"]]
         assert [f["seed"] for f in r3["flights"]] != [f["seed"] for f in r2["flights"]]
+
+
+def test_with_nothing_claimed_the_loop_fits_without_what_neither_flight_confirms(
+    tmp_path, monkeypatch
+):
+    """When a round claims nothing and the model holds an effect neither flight confirms,
+    the loop runs the verdict's command without it (``diagnosis.without_command``)."""
+    import benchmarks.scorecard_draws as draws
+
+    without = "omavctl fit fit.bag --effects com_offset --out m1-inertia_error.npz"
+    replies = {
+        "m0.npz": _eval_output(
+            ["inertia_error"], "omavctl fit fit.bag --effects com_offset,inertia_error --out m1.npz"
+        ),
+        "m1.npz": _eval_output([], None, ["com_offset", "inertia_error"]),
+        "m1-inertia_error.npz": _eval_output([], None, ["com_offset"]),
+    }
+    calls = []
+
+    def fake(args, cwd, log):
+        calls.append(args)
+        if args[0] == "fit":
+            return {"effects": {}}
+        model = args[args.index("--model") + 1]
+        diag = {"method": {}, "without_command": without if model == "m1.npz" else None}
+        (cwd / args[args.index("--out") + 1]).write_text(json.dumps({"diagnosis": diag}))
+        return replies[model]
+
+    monkeypatch.setattr(draws, "omavctl", fake)
+    spec = {"flights": [{"log": "fit.bag"}, {"log": "held.mcap"}]}
+    rounds, fits = draws.loop(spec, tmp_path, [])
+    assert [f["command"] for f in fits[1:]] == [replies["m0.npz"]["fit_command"], without]
+    assert rounds[-1]["model_effects"] == ["com_offset"]
+    assert rounds[1]["without_command"] == without and rounds[0]["without_command"] is None

@@ -56,10 +56,16 @@ def test_an_effect_neither_flight_confirms_is_said_with_the_fit_without_it():
         "value without the effect) on every component as fitted on fit (scale 0.838 to 1.21, "
         "0.949 to 1.15, 0.587 to 1.72) and on this flight (scale 0.925 to 1.12, 0.928 to "
         "1.27, 0.939 to 1.12). The claims guard would not claim it on either; the model may "
-        "hold an effect the vehicle lacks. To compare, fit without it and evaluate both "
-        "models on a flight neither saw."
+        "hold an effect the vehicle lacks. Fit without it, and evaluate both models on a "
+        "flight neither saw."
     )
     assert line.plain().endswith(f"neither saw. Without it: {WITHOUT}")
+    # beside a claim, the fit that adds it leaves the unconfirmed effect out
+    tree = _decided(_tree())
+    tree["diagnosis"]["fit_command"] = "omavctl fit fit --effects rotational_drag,com_offset"
+    line = unconfirmed_line(tree)
+    assert line is not None and line.command is None
+    assert line.plain().endswith("vehicle lacks. The fit command above leaves it out.")
     assert any(ln.key == "unconfirmed" for ln in verdict(_decided(_tree())))
     assert unconfirmed_line(_tree()) is None  # a file before diagnosis.unconfirmed
 

@@ -48,15 +48,17 @@ def diagnosis_with_commands(
     # every missing effect, estimated jointly in one fit; else the effect the GP learned
     # that the held-out flight confirms (learned_claims), so that a loop goes on
     claimed = diagnosis["missing"] or diagnosis["learned_claims"]
-    diagnosis["fit_command"] = fit_command(model_path, model, claimed) if claimed else None
+    # the model's effects neither flight confirms (advice to fit without them), left out
+    # of the fit that adds the claims too: keep nothing the vehicle may lack
+    effects = {n: e.to_json() for n, e in model.effects.items()}
+    drop = [n for n, _, _ in unconfirmed(effects, diagnosis.get("learned")) if n not in claimed]
+    diagnosis["unconfirmed"] = drop
+    diagnosis["without_command"] = fit_command(model_path, model, [], drop) if drop else None
+    diagnosis["fit_command"] = fit_command(model_path, model, claimed, drop) if claimed else None
     near = diagnosis.get("below_noise")
     # the fit that tests an effect held back only by the noise floor
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
-    effects = {n: e.to_json() for n, e in model.effects.items()}
-    drop = [n for n, _, _ in unconfirmed(effects, diagnosis.get("learned"))]
-    diagnosis["unconfirmed"] = drop
-    diagnosis["without_command"] = fit_command(model_path, model, [], drop) if drop else None
     for held in axis_held(diagnosis, list(model.effects)):  # material on one axis only
         diagnosis["effect_commands"].setdefault(
             held["name"], fit_command(model_path, model, held["name"])

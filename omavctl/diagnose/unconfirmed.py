@@ -12,8 +12,9 @@ keeps it and every later fit command with it (docs/scorecard.md, session 20).
 the effect's null on every component, both as fitted (the model file) and as estimated
 on the evaluated flight (``diagnosis.learned``), into ``diagnosis.unconfirmed``;
 :func:`unconfirmed_line` says so from the evaluation JSON with
-the command that fits the model without them (``diagnosis.without_command``). It is
-advice, not a claim: the fit commands the verdict prints keep the model's effects.
+the command that fits the model without them (``diagnosis.without_command``). The fit
+that adds a claim (``diagnosis.fit_command``) leaves them out too (session 21): a loop
+that follows the verdict keeps nothing neither flight confirms.
 """
 
 from __future__ import annotations
@@ -89,7 +90,9 @@ def unconfirmed_line(tree: Mapping[str, Any]) -> Line | None:
     it = "it" if len(found) == 1 else "them"
     text = (
         f"Not confirmed by either flight: {'; '.join(said)}. The claims guard would not "
-        f"claim {it} on either; the model may hold an effect the vehicle lacks. To compare, "
-        f"fit without {it} and evaluate both models on a flight neither saw."
+        f"claim {it} on either; the model may hold an effect the vehicle lacks."
     )
+    if get_path(tree, "diagnosis", "fit_command"):  # the fit that adds the claims drops it
+        return Line("unconfirmed", f"{text} The fit command above leaves {it} out.")
+    text += f" Fit without {it}, and evaluate both models on a flight neither saw."
     return Line("unconfirmed", text, command=get_path(tree, "diagnosis", "without_command"))
