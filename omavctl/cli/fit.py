@@ -219,7 +219,8 @@ def _effects_table(summary: Any) -> Any:
                 )
                 spread = est.systematic[p.name][i] if est.systematic is not None else 0.0
                 value = f"{v:.4g} ± {e:.2g}" + (f" (± {spread:.2g} spread)" if spread > 0 else "")
-                eff.add_row(name, label, value, interval, Text(unit))
+                # Text: rich reads '[below 0.0457]' as a markup tag and drops it
+                eff.add_row(name, label, value, Text(interval), Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         scale = summary.effects.get("inertia_error")
@@ -268,11 +269,11 @@ def _interval_text(
     parameter, component) down, why, in words that follow the interval (``why``, or
     :func:`omavctl.learn.intervals.unpinned_words`)."""
     from omavctl.diagnose.estimate_text import null_component
-    from omavctl.learn.intervals import bound_note, interval_ends, unpinned_words
+    from omavctl.learn.intervals import bound_note, interval_span, unpinned_words
 
     lo, hi = (float(x) for x in interval)
-    a, b, _ = interval_ends(lo, hi, null_component(*which))
-    text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
+    span, _ = interval_span(which[0], which[1], lo, hi, null_component(*which), ", ")
+    text = f"[{span}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
     if note := bound_note(which[0], which[1], lo, value):
         text += f" ({note})"
     if pinned:

@@ -160,12 +160,15 @@ def _ends(lo: float, hi: float, effect: str, param: str, i: int) -> str:
     """'low, high' with the digits the verdict and ``fit`` print (3 significant, more
     where these print the ends alike or an end as the effect's null that it is not:
     :func:`omavctl.learn.intervals.interval_ends`); 2 digits printed scale [0.957, 1.076]
-    as "0.96, 1.1", and two different intervals alike."""
+    as "0.96, 1.1", and two different intervals alike; 'below high' where cut at the
+    parameter's physical bound: :func:`omavctl.learn.intervals.interval_span`)."""
     from omavctl.diagnose.estimate_text import null_component
-    from omavctl.learn.intervals import interval_ends
+    from omavctl.learn.intervals import interval_span
 
-    a, b, _ = interval_ends(float(lo), float(hi), null_component(effect, param, i))
-    return f"{a}, {b}"
+    span, _ = interval_span(
+        effect, param, float(lo), float(hi), null_component(effect, param, i), ", "
+    )
+    return span
 
 
 def _bound_note(effect: str, param: str, low: Any, value: Any = None) -> str:
