@@ -199,15 +199,20 @@ def _effects_table(summary: Any) -> Any:
         eff.add_column(col)
     for name, est in summary.effects.items():
         intervals, pinned, by_flight = est.interval95(), est.pinned(), est.pinned(False)
-        for p in get_effect(name).parameters:
+        effect = get_effect(name)
+        for p in effect.parameters:
             labels = "xyz" if p.size == 3 else [str(i) for i in range(p.size)]
             for i, (v, e) in enumerate(zip(est.values[p.name], est.stderr[p.name], strict=True)):
                 label = p.name if p.size == 1 else f"{p.name}_{labels[i]}"
                 unit = effect_unit(name, p.unit, units)
                 # exactly 0: its regressor is zero on these logs (motor_loss beyond the
-                # vehicle's rotors, com_offset r_z of a thrust along z): never excited
+                # vehicle's rotors, com_offset r_z of a thrust along z): never excited;
+                # a rotor the vehicle lacks is no row of it (eyes6: a quad's l_4 .. l_11)
+                if v == 0.0 and e == 0.0 and p.name in effect.absent_when_unexcited:
+                    continue
+                why = effect.unexcited_why.get(label)
                 interval = (
-                    "not excited by these logs"
+                    "not excited by these logs" + (f": {why}" if why else "")
                     if v == 0.0
                     else _interval_text(
                         intervals[p.name][i],
