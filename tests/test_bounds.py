@@ -164,3 +164,18 @@ def test_a_torque_gain_interval_is_its_scale_interval_inverted():
     lo, hi = 1.25 - Z95 * 0.05, 1.25 + Z95 * 0.05
     assert f"[{1 / hi:.3g}, {1 / lo:.3g}]" in rows["gain_y = 1/scale_y"]
     assert "cannot" not in rows["gain_y = 1/scale_y"]
+    # a negative scale's gain lies below the interval its cut scale gives (Betaflight:
+    # gain_x -0.126 +- 0.82 beside [0.0106, inf), with no word of it): it says so
+    summary.effects["inertia_error"] = EffectEstimate(
+        "inertia_error", {"scale": np.array([-7.9, 1.25, 0.5])}, {"scale": se}
+    )
+    summary.torque_gain = 1.0 / np.array([-7.9, 1.25, 0.5])
+    con = Console(width=300, record=True, file=io.StringIO())
+    con.print(_effects_table(summary))
+    rows = {ln.split("│")[2].strip(): ln for ln in con.export_text().splitlines() if "│" in ln}
+    hi = -7.9 + Z95 * 22.0
+    assert (
+        f"[{1 / hi:.3g}, ∞) (the estimate is below it): cannot be pinned down"
+        in (rows["gain_x = 1/scale_x"])
+    )
+    assert "below it" not in rows["gain_y = 1/scale_y"]

@@ -242,6 +242,8 @@ def _effects_table(summary: Any) -> Any:
                 f"{g:.4g} ± {e:.2g}",
                 f"[{lo:.3g}, {hi:.3g}]".replace("inf]", "∞)")
                 + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
+                # Betaflight: gain_x -0.126 beside [0.0106, inf), said of the scale only
+                + (" (the estimate is below it)" if g < lo else "")
                 + ("" if pinned else ": cannot be pinned down from this flight"),
                 Text("N m per command unit (assumed inertia)"),
             )
