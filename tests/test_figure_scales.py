@@ -28,3 +28,17 @@ def test_each_axis_of_the_error_figure_has_its_own_scale():
     # a column of NaN only (an axis the log lacks) gets the floor, not an error
     err[:, 2] = np.nan
     assert error_limits(err)[2] == 1e-6
+
+
+def test_each_axis_of_the_before_after_figure_has_its_own_panel_and_scale():
+    """The Crazyflie halves' z (1.46 -> 2.07 rad/s², 42 % worse) was a sliver under y's
+    39.9 on the one scale the three axes' bars shared."""
+    from omavctl.report.figures import _before_after_fig
+
+    with style():
+        rmse = [[26.43, 39.92, 1.458], [15.58, 19.79, 2.072]]
+        fig = _before_after_fig(["base.json", "lag.json"], rmse)
+    tops = [ax.get_ylim()[1] for ax in fig.axes]
+    np.testing.assert_allclose(tops, [26.43 * 1.3, 39.92 * 1.3, 2.072 * 1.3])
+    assert [ax.get_title() for ax in fig.axes] == ["axis x", "axis y", "axis z"]
+    assert "+42.1 %" in [t.get_text().split("\n")[-1] for t in fig.axes[2].texts]
