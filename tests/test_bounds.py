@@ -37,14 +37,17 @@ def test_a_lag_interval_is_cut_at_zero_and_its_standard_error_kept():
     assert scales[:, 0].tolist() == [0.0, 0.0]
     assert scales[:, 1].tolist() == [-7.9 + Z95 * 54.0, 2.5 + Z95 * 2.96]
     # the estimate then lies outside its interval, and the words say so (the Crazyflie's
-    # tau_d = -0.617 ms, 95 %: 0 to 0.637 ms)
+    # tau_d = -0.617 ms, 95 %: 0 to 0.637 ms); an interval cut at the bound reads
+    # 'below' its high end, not '0 to 0.000637', which read as a delay pinned near 0
+    # (eyes6), and where the bound is the effect's absence it says so
     delay = {"tau_d": [-0.000617], "tau_d_ci95": [[0.0, 0.000637]], "tau_d_pinned": [False]}
     entry = {"name": "command_delay", "estimate": delay, "units": {"tau_d": "s"}}
-    assert "(95 %: 0 to 0.000637, cut at tau_d ≥ 0; the estimate is below it, cannot" in (
-        estimate_sentence(entry)
-    )
+    assert (
+        "tau_d = -0.000617 s (95 %: below 0.000637, cut at tau_d ≥ 0, not told from absent; "
+        "the estimate is below it, cannot be pinned down from this flight)"
+    ) in (estimate_sentence(entry))
     assert _interval_note(delay, "tau_d", 0, "command_delay").startswith(
-        " [0, 0.000637] (cut at tau_d ≥ 0; the estimate is below it): "
+        " [below 0.000637] (cut at tau_d ≥ 0, not told from absent; the estimate is below it): "
     )
     # a parameter of either sign (a CoM offset) is never cut
     assert interval95(np.array([0.001]), np.array([0.01]), None)[0, 0] < 0
@@ -58,14 +61,16 @@ def test_every_place_that_shows_the_interval_shows_the_cut_one():
     assert read.interval95()["T_m"].tolist() == LAG.interval95()["T_m"].tolist()
     ci = js["T_m_ci95"][0]
     assert _interval_text(ci, False, ("motor_lag", "T_m", 0)) == (
-        "[0, 0.0457] (cut at T_m ≥ 0): cannot be pinned down from this flight"
+        "[below 0.0457] (cut at T_m ≥ 0, not told from absent): cannot be pinned down from "
+        "this flight"
     )
     entry = {"name": "motor_lag", "estimate": js, "units": {"T_m": "s"}}
-    assert "T_m = 0.0094 s (95 %: 0 to 0.0457, cut at T_m ≥ 0, cannot be pinned down" in (
+    assert "T_m = 0.0094 s (95 %: below 0.0457, cut at T_m ≥ 0, not told from absent, cannot" in (
         estimate_sentence(entry)
     )
     assert _interval_note(js, "T_m", 0, "motor_lag") == (
-        " [0, 0.0457] (cut at T_m ≥ 0): cannot be pinned down from this flight"
+        " [below 0.0457] (cut at T_m ≥ 0, not told from absent): cannot be pinned down from "
+        "this flight"
     )
 
 
@@ -152,9 +157,25 @@ def test_a_torque_gain_interval_is_its_scale_interval_inverted():
     con.print(_effects_table(summary))
     rows = {ln.split("│")[2].strip(): ln for ln in con.export_text().splitlines() if "│" in ln}
     hi = 8.2 + Z95 * 22.0
-    assert f"[0, {hi:.3g}] (cut at scale ≥ 0)" in rows["scale_x"]
+    # cut at 0, not at its absence (1): no 'not told from absent' there
+    assert f"[below {hi:.3g}] (cut at scale ≥ 0): cannot be pinned down" in rows["scale_x"]
     gain_x = rows["gain_x = 1/scale_x"]
     assert f"[{1 / hi:.3g}, ∞): cannot be pinned down from this flight" in gain_x
     lo, hi = 1.25 - Z95 * 0.05, 1.25 + Z95 * 0.05
     assert f"[{1 / hi:.3g}, {1 / lo:.3g}]" in rows["gain_y = 1/scale_y"]
     assert "cannot" not in rows["gain_y = 1/scale_y"]
+    # a negative scale's gain lies below the interval its cut scale gives (Betaflight:
+    # gain_x -0.126 +- 0.82 beside [0.0106, inf), with no word of it): it says so
+    summary.effects["inertia_error"] = EffectEstimate(
+        "inertia_error", {"scale": np.array([-7.9, 1.25, 0.5])}, {"scale": se}
+    )
+    summary.torque_gain = 1.0 / np.array([-7.9, 1.25, 0.5])
+    con = Console(width=300, record=True, file=io.StringIO())
+    con.print(_effects_table(summary))
+    rows = {ln.split("│")[2].strip(): ln for ln in con.export_text().splitlines() if "│" in ln}
+    hi = -7.9 + Z95 * 22.0
+    assert (
+        f"[{1 / hi:.3g}, ∞) (the estimate is below it): cannot be pinned down"
+        in (rows["gain_x = 1/scale_x"])
+    )
+    assert "below it" not in rows["gain_y = 1/scale_y"]

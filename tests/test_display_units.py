@@ -39,9 +39,39 @@ def test_normalised_torque_units_in_every_entry_at_any_depth():
         "rotational_drag": {"D": "[torque unit] s^2"},
         "inertia_error": {"scale": "1"},
         "drag_moment": {"h": "[torque unit]/N"},
-        "motor_lag": {"T_m": "s (x torque gain)"},
+        "motor_lag": {"T_m": "s"},  # a time whatever the command's unit (eyes6)
     }
     assert tree["fit_command"] == TREE["fit_command"]
+
+
+def test_a_lag_on_normalised_commands_is_a_time_and_fit_gives_the_unit_free_value():
+    """T_m was shown "s (x torque gain)". A simulated 50 ms motor lag whose torque
+    command was logged divided by 0.2 gave T_m = 9.6 ms in the form the model predicts
+    with (lag + (g - 1) x command: about T_m x gain) and 50.4 ms with the gain on the
+    timed torque (g x lag); divided by 5, 213 and 49.6 ms. The unit is s, and on a
+    normalised command fit says which value is the time, however small its gap."""
+    from omavctl.learn.effect_search import SearchResult
+    from omavctl.learn.fit_notes import effect_unit, search_notes
+
+    normalised = {"torque": "normalised", "force": "normalised"}
+    assert effect_unit("motor_lag", "s", normalised) == "s"
+    assert effect_unit("servo_lag", "s", normalised) == "s"
+    found = {"motor_lag": SearchResult("motor_lag", 0.0096, 0.029, False, coupled=0.0504,
+                                       gain_allowance=0.029)}  # fmt: skip
+    (_, note) = search_notes(found, normalised=True)
+    assert note == (
+        "motor_lag: T_m = 50.4 ms with the torque gain on the timed torque (g x lag): the "
+        "time in s whatever the command's unit; the 9.6 ms above is of the form the model "
+        "predicts with (lag + (g - 1) x command), which on normalised commands scales with "
+        "their unit (about T_m x gain), and its standard error allows 29.0 ms for the "
+        "difference"
+    )
+    # a small gap on N m commands says nothing (the forms agree where the gain is ~1);
+    # on normalised ones the unit-free value is still given
+    close = {"motor_lag": SearchResult("motor_lag", 0.049, 0.001, False, coupled=0.0496,
+                                       gain_allowance=0.0004)}  # fmt: skip
+    assert len(search_notes(close)) == 1
+    assert "T_m = 49.6 ms with the torque gain" in search_notes(close, normalised=True)[1]
 
 
 def test_physical_units_unchanged_and_force_normalised_offset():

@@ -315,3 +315,54 @@ def test_a_change_that_does_not_hold_rolled_out_says_so_in_the_verdict():
     for f in hurts:  # physics + effects only: the full model is what the change quotes
         f["message"] = f["message"].replace("the full model", "physics + effects")
     assert not [t for t in verdict_of_models(tree) if t.text.startswith("Rolled out")]
+
+
+def test_a_two_file_report_says_the_change_does_not_hold_rolled_out_as_one_file_does():
+    """`report base.json lag.json` (the Crazyflie halves, each file one model on log15's
+    second half) said "With motor_lag added: the model error falls by 44.8 %" and not
+    the line `evaluate --model base.npz --model lag.npz` gives after it (eyes6): the
+    lag model's 0.5 s body-rate error x 1.97 -> 5.16, y 2.35 -> 7 rad/s. Said from
+    the two files' full models when they are of the same samples and their paired
+    chunk means put the rise beyond 2 standard errors; not on z (within them)."""
+    from omavctl.diagnose.change import report_verdict
+
+    def rows(x: tuple[float, ...], y: tuple[float, ...], dz: float) -> list[dict[str, Any]]:
+        # chunk means: x and y rise by about their mean at every chunk, z scatters
+        return [
+            {
+                "rate_error": {"x": a, "y": b, "z": 0.1 + dz},
+                "rate_error_chunks": {
+                    "x": [a * (1 + 0.01 * k) for k in range(6)],
+                    "y": [b * (1 + 0.01 * k) for k in range(6)],
+                    "z": [0.1 + dz * (-1) ** k * 5 for k in range(6)],
+                },
+            }
+            for a, b in zip(x, y, strict=True)
+        ]
+
+    lag = {"motor_lag": {"T_m": [0.064], "T_m_stderr": [0.0097]}}
+    before = _file({"x": 26.4, "y": 39.9, "z": 1.46}, {"x": 36.4, "y": 42.2, "z": 1.51}, {})
+    after = _file({"x": 15.6, "y": 19.8, "z": 2.07}, {"x": 16.1, "y": 20.4, "z": 2.24}, lag)
+    secs = [0.01, 0.1, 0.5]
+    base_rows = rows((0.244, 1.51, 1.97), (0.247, 1.8, 2.35), 0.0)
+    lag_rows = rows((0.127, 1.22, 5.16), (0.15, 1.46, 7.0), -0.01)
+    before["horizons"] = {"seconds": secs, "table": {"model": base_rows}}
+    after["horizons"] = {"seconds": secs, "table": {"model": lag_rows}}
+    # the z error falls at 0.01 s and rises at 0.5 s, but within its standard error
+    after["horizons"]["table"]["model"][-1]["rate_error"]["z"] = 0.12
+    lines = report_verdict([(before, "base.json"), (after, "lag.json")])
+    texts = [ln.text for ln in lines]
+    fall = next(i for i, t in enumerate(texts) if t.startswith("With motor_lag added"))
+    (rolled,) = [ln for ln in lines if ln.text.startswith("Rolled out open loop")]
+    assert texts.index(rolled.text) > fall and rolled.who == "base.json → lag.json"
+    assert rolled.text.startswith(
+        "Rolled out open loop, lag.json does worse than base.json on x, y, although better "
+        "one step ahead: the body-rate error at 0.5 s goes x 1.97 → 5.16, y 2.35 → 7 rad/s "
+        "(at 0.01 s x 0.244 → 0.127, y 0.247 → 0.15; beyond 2 standard errors): "
+    )
+    # the files given the other way round: the same line (the change is effects added)
+    back = report_verdict([(after, "lag.json"), (before, "base.json")])
+    assert rolled.text in [ln.text for ln in back]
+    # not of the same samples: the files compare flights, and nothing is said
+    after["metrics"]["nominal"]["rmse"]["z"] = 0.2
+    assert not [ln for ln in report_verdict([(before, "b"), (after, "l")]) if "Rolled" in ln.text]

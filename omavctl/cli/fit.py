@@ -199,15 +199,20 @@ def _effects_table(summary: Any) -> Any:
         eff.add_column(col)
     for name, est in summary.effects.items():
         intervals, pinned, by_flight = est.interval95(), est.pinned(), est.pinned(False)
-        for p in get_effect(name).parameters:
+        effect = get_effect(name)
+        for p in effect.parameters:
             labels = "xyz" if p.size == 3 else [str(i) for i in range(p.size)]
             for i, (v, e) in enumerate(zip(est.values[p.name], est.stderr[p.name], strict=True)):
                 label = p.name if p.size == 1 else f"{p.name}_{labels[i]}"
                 unit = effect_unit(name, p.unit, units)
                 # exactly 0: its regressor is zero on these logs (motor_loss beyond the
-                # vehicle's rotors, com_offset r_z of a thrust along z): never excited
+                # vehicle's rotors, com_offset r_z of a thrust along z): never excited;
+                # a rotor the vehicle lacks is no row of it (eyes6: a quad's l_4 .. l_11)
+                if v == 0.0 and e == 0.0 and p.name in effect.absent_when_unexcited:
+                    continue
+                why = effect.unexcited_why.get(label)
                 interval = (
-                    "not excited by these logs"
+                    "not excited by these logs" + (f": {why}" if why else "")
                     if v == 0.0
                     else _interval_text(
                         intervals[p.name][i],
@@ -219,7 +224,8 @@ def _effects_table(summary: Any) -> Any:
                 )
                 spread = est.systematic[p.name][i] if est.systematic is not None else 0.0
                 value = f"{v:.4g} ± {e:.2g}" + (f" (± {spread:.2g} spread)" if spread > 0 else "")
-                eff.add_row(name, label, value, interval, Text(unit))
+                # Text: rich reads '[below 0.0457]' as a markup tag and drops it
+                eff.add_row(name, label, value, Text(interval), Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         scale = summary.effects.get("inertia_error")
@@ -236,6 +242,8 @@ def _effects_table(summary: Any) -> Any:
                 f"{g:.4g} ± {e:.2g}",
                 f"[{lo:.3g}, {hi:.3g}]".replace("inf]", "∞)")
                 + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
+                # Betaflight: gain_x -0.126 beside [0.0106, inf), said of the scale only
+                + (" (the estimate is below it)" if g < lo else "")
                 + ("" if pinned else ": cannot be pinned down from this flight"),
                 Text("N m per command unit (assumed inertia)"),
             )
@@ -268,11 +276,11 @@ def _interval_text(
     parameter, component) down, why, in words that follow the interval (``why``, or
     :func:`omavctl.learn.intervals.unpinned_words`)."""
     from omavctl.diagnose.estimate_text import null_component
-    from omavctl.learn.intervals import bound_note, interval_ends, unpinned_words
+    from omavctl.learn.intervals import bound_note, interval_span, unpinned_words
 
     lo, hi = (float(x) for x in interval)
-    a, b, _ = interval_ends(lo, hi, null_component(*which))
-    text = f"[{a}, {b}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
+    span, _ = interval_span(which[0], which[1], lo, hi, null_component(*which), ", ")
+    text = f"[{span}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
     if note := bound_note(which[0], which[1], lo, value):
         text += f" ({note})"
     if pinned:

@@ -16,7 +16,7 @@ from typing import Any
 from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.claim_text import not_pinned_names
 from omavctl.diagnose.fit_vs_flight import disagreeing
-from omavctl.diagnose.horizon_findings import added_rollout_sentence
+from omavctl.diagnose.horizon_findings import added_rollout_sentence, files_rollout_sentence
 from omavctl.diagnose.metrics import quality_flags
 from omavctl.diagnose.verdict import verdict
 from omavctl.diagnose.verdict_lines import (
@@ -469,5 +469,17 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
         if len(evals) > 2:
             lines += step(i, i + 1)
     lines += step(0, len(evals) - 1)
+    lines += _files_rolled(scores[0], scores[-1])
     lines += [replace(ln, who=label1) for ln in verdict(last)]
     return lines
+
+
+def _files_rolled(first: ModelScore, last: ModelScore) -> list[Line]:
+    """The first-to-last change's rolled-out line of a report of several files on the
+    same samples, as one file evaluated with both models gives it
+    (:func:`omavctl.diagnose.horizon_findings.files_rollout_sentence`)."""
+    before, after = ordered(first, last)
+    if not _same_flight(before, after):
+        return []
+    rolled = files_rollout_sentence(before.tree, after.tree, (before.label, after.label))
+    return [Line("change", rolled, f"{before.label} → {after.label}")] if rolled else []

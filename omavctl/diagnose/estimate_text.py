@@ -28,8 +28,9 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
     estimate by more than it, which ``fit`` on both flights then shows. Its ends are
     printed with as many digits as it takes to tell them apart (3 to 6): "0.0123 to
     0.0123" read as an interval of zero width, nor an end as the effect's null that it
-    is not (:func:`omavctl.learn.intervals.interval_ends`)."""
-    from omavctl.learn.intervals import interval_ends
+    is not (:func:`omavctl.learn.intervals.interval_ends`); one cut at a physical bound
+    reads 'below 0.0457' (:func:`omavctl.learn.intervals.interval_span`)."""
+    from omavctl.learn.intervals import interval_span
 
     est = entry.get("estimate")
     if not isinstance(est, Mapping):
@@ -57,8 +58,10 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
                 continue
             u = "" if unit == "1" else f" {unit}"
             null = null_component(str(entry.get("name")), name, i)
-            lo, hi, digits = interval_ends(float(ci[0]), float(ci[1]), null)
-            text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {lo} to {hi}"
+            span, digits = interval_span(
+                str(entry.get("name")), name, float(ci[0]), float(ci[1]), null
+            )
+            text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {span}"
             if note := _bound_note(str(entry.get("name")), name, ci[0], v):
                 text += f", {note}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:

@@ -40,6 +40,7 @@ __all__ = [
     "SIGNIFICANT",
     "TOLERANCE",
     "added_rollout_sentence",
+    "files_rollout_sentence",
     "findings",
     "label",
     "open_loop_narrow",
@@ -310,6 +311,42 @@ def added_rollout_sentence(horizons: Any, labels: tuple[str, str], j: int) -> st
     axes = [a for a in AXES if a in found]
     if not axes or not a_rows or not b_rows or len(secs) < 2:
         return None
+    return _rolled_text(labels, axes, (a_rows, b_rows), secs)
+
+
+def files_rollout_sentence(
+    before: Mapping[str, Any], after: Mapping[str, Any], labels: tuple[str, str]
+) -> str | None:
+    """:func:`added_rollout_sentence` for two evaluation files of the same samples
+    (``report before.json after.json``; the caller checks the samples): the full model
+    of ``after`` beats ``before``'s at the first horizon and loses at the last beyond
+    2 paired standard errors on an axis (their chunk means, so only where both files
+    hold them for the same windows). The two-file report said "With motor_lag added:
+    the model error falls by 44.8 %" on the Crazyflie halves without it, where the
+    one-file report of the same two models said it (eyes6)."""
+    hb, ha = before.get("horizons"), after.get("horizons")
+    if not isinstance(hb, Mapping) or not isinstance(ha, Mapping):
+        return None
+    secs = [float(s) for s in hb.get("seconds") or []]
+    if len(secs) < 2 or [float(s) for s in ha.get("seconds") or []] != secs:
+        return None
+    a_rows = (hb.get("table") or {}).get("model")
+    b_rows = (ha.get("table") or {}).get("model")
+    if not a_rows or not b_rows or len(a_rows) != len(secs) or len(b_rows) != len(secs):
+        return None
+    try:
+        found = _crossings((a_rows, b_rows), "effect_added_hurts_long", "", {"seconds": secs})
+        paired = {a for a in AXES if paired_se(a_rows[-1], b_rows[-1], a) is not None}
+    except (KeyError, TypeError, ValueError):  # a file this version does not read
+        return None
+    axes = [f["axis"] for f in found if f["axis"] in paired]
+    return _rolled_text(labels, axes, (a_rows, b_rows), secs) if axes else None
+
+
+def _rolled_text(labels: tuple[str, str], axes: list[str], rows: tuple[Any, Any], secs: Any) -> str:
+    """The sentence of :func:`added_rollout_sentence`: ``rows`` the table rows per
+    horizon of the model before (``labels[0]``) and after (``labels[1]``)."""
+    a_rows, b_rows = rows
 
     def pair(k: int, axis: str) -> str:
         return f"{axis} {_err(a_rows[k], axis):.3g} → {_err(b_rows[k], axis):.3g}"

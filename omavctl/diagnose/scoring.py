@@ -267,7 +267,8 @@ def _parameters(
             for k, (v, s) in phys.items()
         }
     )  # fmt: skip
-    params["excited"] = excited.tolist()
+    # per parameter component, as shown (motor_loss's contrasts are not its l's)
+    params["excited"] = effect.excited_parameters(excited).tolist()
     return params
 
 

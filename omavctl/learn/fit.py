@@ -364,7 +364,7 @@ def _summary(
         axes=gp.axes,
         effects=_effects(opts, res, eff),
         timings=timings,
-        notes=search_notes(res.found) + notes + gp.notes,
+        notes=search_notes(res.found, opts.vehicle.torque_normalised) + notes + gp.notes,
         command_units=dict(opts.vehicle.command_units),
         added_effects=opts.added,
         torque_gain=None if gain is None else gain[0],

@@ -17,10 +17,6 @@ from omavctl.vehicle import NORMALISED, Vehicle
 
 __all__ = ["effect_notes", "effect_unit", "search_notes", "unit_notes"]
 
-#: Effects whose regressor is a lag of the commanded wrench: with a normalised
-#: torque their time constant is estimated times the command gain.
-_COMMAND_LAGS = ("servo_lag", "motor_lag")
-
 
 def effect_unit(name: str, unit: str, command_units: Mapping[str, str]) -> str:
     """The unit of a parameter of effect ``name`` for display, given the command units.
@@ -28,9 +24,13 @@ def effect_unit(name: str, unit: str, command_units: Mapping[str, str]) -> str:
     With a normalised torque command, ``N m`` becomes ``[torque unit]`` (as in
     the report); ``com_offset``'s ``r`` (a torque per force) becomes
     ``[torque unit]/N``, ``N m/[force unit]`` or ``[torque unit]/[force unit]``;
-    ``drag_moment``'s ``h`` (a torque per *measured* force, N) ``[torque unit]/N``;
-    the lags of effects that act through the commanded wrench (``servo_lag``,
-    ``motor_lag``) come out multiplied by the unknown gain: ``s (x torque gain)``.
+    ``drag_moment``'s ``h`` (a torque per *measured* force, N) ``[torque unit]/N``.
+    A time constant or a delay stays in s: the rotors lag in time whatever unit their
+    command is logged in. (It was shown "s (x torque gain)": the form the model
+    predicts with, ``lag(tau, T) + theta tau``, gives a value that scales with the
+    command's unit to first order, T x gain: 9.6 ms at gain 0.2 and 213 ms at gain 5
+    for a simulated 50 ms motor lag, where the gain on the timed torque, ``g lag(tau,
+    T)``, finds 50.4 and 49.6 ms; :func:`search_notes` gives that value.)
     """
     torque = command_units.get("torque") == NORMALISED
     force = command_units.get("force") == NORMALISED
@@ -40,8 +40,6 @@ def effect_unit(name: str, unit: str, command_units: Mapping[str, str]) -> str:
     if name == "com_offset" and unit == "m" and (torque or force):
         num = "[torque unit]" if torque else "N m"
         return f"{num}/{'[force unit]' if force else 'N'}"
-    if name in _COMMAND_LAGS and torque:
-        return f"{unit} (x torque gain)"
     if torque:
         return unit.replace("N m", "[torque unit]")
     return unit
@@ -143,8 +141,10 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
     return notes
 
 
-def search_notes(found: Mapping[str, SearchResult]) -> list[str]:
-    """What the summary says about effects estimated by a 1-D search."""
+def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) -> list[str]:
+    """What the summary says about effects estimated by a 1-D search; ``normalised``:
+    the torque command is, and the value with the gain on the timed torque is then
+    always given, as the time in s that does not depend on the command's unit."""
     notes = []
     for r in found.values():
         p = get_effect(r.name).parameters[0]
@@ -159,7 +159,16 @@ def search_notes(found: Mapping[str, SearchResult]) -> list[str]:
                 f"{r.form_allowance * 1e3:.1f} ms for it (try --effects with "
                 f"{r.better_form} instead)"
             )
-        if r.coupled is not None and r.gain_allowance >= 0.5 * r.stderr:
+        if r.coupled is not None and normalised:
+            notes.append(
+                f"{r.name}: {p.name} = {r.coupled * 1e3:.1f} ms with the torque gain on the "
+                "timed torque (g x lag): the time in s whatever the command's unit; the "
+                f"{r.value * 1e3:.1f} ms above is of the form the model predicts with (lag + "
+                "(g - 1) x command), which on normalised commands scales with their unit "
+                f"(about {p.name} x gain), and its standard error allows "
+                f"{r.gain_allowance * 1e3:.1f} ms for the difference"
+            )
+        elif r.coupled is not None and r.gain_allowance >= 0.5 * r.stderr:
             notes.append(
                 f"{r.name}: with the torque gain on the timed torque (g x lag, not lag + "
                 f"(g - 1) x command) the search finds {p.name} = {r.coupled * 1e3:.1f} ms: "

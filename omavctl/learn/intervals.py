@@ -48,6 +48,7 @@ __all__ = [
     "hac_meat",
     "interval95",
     "interval_ends",
+    "interval_span",
     "null_values",
     "physical_bound",
     "physical_side",
@@ -201,7 +202,15 @@ def bound_note(name: str, param: str, low: float, value: float | None = None) ->
         return ""
     bound = physical_bound(name, param)
     below = value is not None and bound is not None and float(value) < bound
-    return f"cut at {param} ≥ {bound:g}" + ("; the estimate is below it" if below else "")
+    # cut at the value where the effect is absent (a lag, a delay, a drag at 0): the
+    # interval reaches absence, so its narrowness says nothing of a size (eyes6)
+    null = np.asarray(null_values(name).get(param, np.array([np.nan])), float).reshape(-1)
+    absent = bool(null.size) and bool(np.all(null == bound))
+    return (
+        f"cut at {param} ≥ {bound:g}"
+        + (", not told from absent" if absent else "")
+        + ("; the estimate is below it" if below else "")
+    )
 
 
 def physical_side(name: str, param: str, interval: np.ndarray) -> np.ndarray:
@@ -291,6 +300,20 @@ def unpinned_words(name: str, param: str, interval: Sequence[float], i: int = 0)
     if name != "inertia_error" and hi - lo >= phi - plo:
         return f"wider than the plausible {plo:.3g} to {phi:.3g}: cannot be pinned down"
     return "cannot be pinned down from this flight"
+
+
+def interval_span(
+    name: str, param: str, lo: float, hi: float, null: float | None = None, joiner: str = " to "
+) -> tuple[str, int]:
+    """A 95 % interval as shown, 'low to high' (:func:`interval_ends`; ``joiner`` between
+    the ends), or 'below high' where its low end is the physical bound it was cut at
+    (:func:`cut_at_bound`): "0 to 5.99e-06" read as a value pinned near 0, when all the
+    interval says is that the parameter, a delay that cannot be negative, is below its
+    high end (eyes6). With the number of significant digits used."""
+    a, b, digits = interval_ends(lo, hi, null)
+    if cut_at_bound(name, param, lo) and math.isfinite(hi):
+        return f"below {b}", digits
+    return f"{a}{joiner}{b}", digits
 
 
 def interval_ends(lo: float, hi: float, null: float | None = None) -> tuple[str, str, int]:

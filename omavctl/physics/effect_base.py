@@ -168,6 +168,12 @@ class Effect(ABC):
     #: (the accelerometer's force): an open-loop rollout holds it at the window's start
     #: (:mod:`omavctl.learn.rollout_residual`) instead of reading the window's future.
     measured_state: ClassVar[bool] = False
+    #: Parameters of which a component no flight excites is one the vehicle does not
+    #: have (``motor_loss``'s ``l`` beyond its rotors): left out where shown, not named
+    #: "not excited" (a quad's report listed l_4 .. l_11).
+    absent_when_unexcited: ClassVar[tuple[str, ...]] = ()
+    #: Why a component (its label, "r_z") may stay unexcited, said beside it.
+    unexcited_why: ClassVar[dict[str, str]] = {}
 
     # --- estimation --------------------------------------------------------
     @property
@@ -191,6 +197,12 @@ class Effect(ABC):
         kernel. Only for effects with :attr:`search`.
         """
         raise NotImplementedError(f"{self.name} has no exact nonlinear form")
+
+    def excited_parameters(self, excited: np.ndarray) -> np.ndarray:
+        """Which parameter components (bool, concatenated in :attr:`parameters` order) an
+        estimate whose theta components ``excited`` (bool (n_theta,)) were excited
+        determines. Default: theta are the parameters."""
+        return np.asarray(excited, bool).copy()
 
     def to_parameters(
         self, theta: np.ndarray, cov: np.ndarray

@@ -14,6 +14,8 @@ for each effect ``residual ~= X(theta)`` with ``X = regressor(ctx)`` of shape
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from omavctl.base.errors import ConfigError
@@ -81,6 +83,10 @@ class ComOffset(Effect):
         "a thrust spread between the rotors and the rotors' interference at small tilts "
         "(rotor_interference), which also shift where the thrust acts"
     )
+    unexcited_why: ClassVar[dict[str, str]] = {
+        "r_z": "only a force along x or y shows it, which a multirotor's thrust along z "
+        "never gives",
+    }
 
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         eye = np.eye(3)

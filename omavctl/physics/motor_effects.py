@@ -181,6 +181,17 @@ class MotorLoss(Effect):
             return f"{self.name} needs two rotors or more: one rotor's loss is a gain"
         return None
 
+    #: l beyond the vehicle's rotors is never excited: those rotors do not exist
+    absent_when_unexcited = ("l",)
+
+    def excited_parameters(self, excited: np.ndarray) -> np.ndarray:
+        """l_i is determined where a contrast that touches rotor i was excited: on a
+        quad contrasts 1..3 give l_0 .. l_3 (l_0 = -(l_1 + l_2 + l_3)); the common
+        contrast 0 is never excited and l_4 .. l_11 are rotors it lacks. (The flags of
+        the contrasts were read as l's: "not excited: l_0", eyes6.)"""
+        touches = (np.abs(loss_contrasts()) > 0).astype(int)
+        return np.asarray(touches @ np.asarray(excited, bool).astype(int) > 0)
+
     def to_parameters(self, theta, cov):
         h = loss_contrasts()
         # a contrast no regressor excites (the common loss, rotors the vehicle lacks)

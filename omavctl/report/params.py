@@ -8,6 +8,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 from omavctl.diagnose.estimate_text import unpinned_text
 from omavctl.report.document import Content, Span
 from omavctl.report.numfmt import AXES, as_list, finite, num
@@ -30,7 +32,10 @@ def _param_lines(
     """'name_axis = value ± stderr unit [95 % interval]' per parameter component (with
     why it is not pinned down where ``P_pinned`` says so, in words that follow the
     interval: :func:`omavctl.learn.intervals.unpinned_words`); components
-    whose ``excited`` flag is false are left out (and named as such)."""
+    whose ``excited`` flag is false are left out, and named as such with why they may
+    be where the effect says (:attr:`~omavctl.physics.effect_base.Effect.unexcited_why`),
+    except those the vehicle does not have (``absent_when_unexcited``: a quad's
+    motor_loss l_4 .. l_11)."""
     derived = ("_stderr", "_ci95", "_pinned", "_systematic", "_ci95_statistical")
     # not parameters: the flags and the coefficients the model predicts with
     # (``theta_fitted``, printed as "theta_fitted_x = ..." under r_x before)
@@ -41,6 +46,12 @@ def _param_lines(
     total = sum(len(v) for v in values.values())
     if not (isinstance(excited, list) and len(excited) == total):
         excited = [True] * total
+    known = _effect(effect)
+    if known is not None and known.n_theta == total:
+        # per parameter component; idempotent, so a file written before (motor_loss's
+        # contrast flags, which hid l_0 as 'not excited') reads alike
+        excited = known.excited_parameters(np.asarray(excited, bool)).tolist()
+    absent = known.absent_when_unexcited if known is not None else ()
     lines: list[Content] = []
     skipped: list[str] = []
     offset = 0
@@ -56,7 +67,8 @@ def _param_lines(
         unit = _unit(str(units.get(k, "")), torque_unknown)
         for i, v in enumerate(vals):
             if not excited[offset + i]:
-                skipped.append(labels[i])
+                if k not in absent:  # a rotor the vehicle lacks is no parameter of it
+                    skipped.append(labels[i])
                 continue
             err = f" ± {num(errs[i], 2)}" if i < len(errs) else ""
             spread = as_list(params.get(f"{k}_systematic", []))
@@ -72,8 +84,17 @@ def _param_lines(
             lines.append(f"{labels[i]} = {num(v)}{err}{' ' + unit if unit else ''}{note}".rstrip())
         offset += len(vals)
     if skipped:
-        lines.append(Span(f"not excited: {', '.join(skipped)}", "em"))
+        why = known.unexcited_why if known is not None else {}
+        said = [f"{lb} ({why[lb]})" if lb in why else lb for lb in skipped]
+        lines.append(Span(f"not excited: {', '.join(said)}", "em"))
     return tuple(lines)
+
+
+def _effect(name: str) -> Any:
+    """The registered effect ``name``, or None (a name this version does not know)."""
+    from omavctl.physics.effects import EFFECTS
+
+    return EFFECTS.get(name)
 
 
 def fitted_effect_items(
@@ -160,12 +181,15 @@ def _ends(lo: float, hi: float, effect: str, param: str, i: int) -> str:
     """'low, high' with the digits the verdict and ``fit`` print (3 significant, more
     where these print the ends alike or an end as the effect's null that it is not:
     :func:`omavctl.learn.intervals.interval_ends`); 2 digits printed scale [0.957, 1.076]
-    as "0.96, 1.1", and two different intervals alike."""
+    as "0.96, 1.1", and two different intervals alike; 'below high' where cut at the
+    parameter's physical bound: :func:`omavctl.learn.intervals.interval_span`)."""
     from omavctl.diagnose.estimate_text import null_component
-    from omavctl.learn.intervals import interval_ends
+    from omavctl.learn.intervals import interval_span
 
-    a, b, _ = interval_ends(float(lo), float(hi), null_component(effect, param, i))
-    return f"{a}, {b}"
+    span, _ = interval_span(
+        effect, param, float(lo), float(hi), null_component(effect, param, i), ", "
+    )
+    return span
 
 
 def _bound_note(effect: str, param: str, low: Any, value: Any = None) -> str:

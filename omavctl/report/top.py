@@ -233,7 +233,8 @@ def figure_sections(evals: Sequence[Evaluation], figures: bool) -> list[Block]:
             FigureBlock(
                 data,
                 "model RMSE per axis before and after",
-                "Model RMSE per axis per evaluation file, with the change from the first.",
+                "Model RMSE per axis per evaluation file, with the change from the first; "
+                "each axis on its own scale.",
             )
         )
     for tree, series, label in evals:
