@@ -79,3 +79,13 @@ def test_one_flight_that_pins_it_down_or_no_interval_says_nothing():
     tree["models"][0]["effects"]["inertia_error"] = {"scale": [1.02, 1.05, 1.15]}  # old file
     assert _decided(tree)["diagnosis"]["unconfirmed"] == []
     assert unconfirmed_line(tree) is None
+
+
+def test_an_interval_cut_at_the_physical_bound_reads_below_its_high_end():
+    from omavctl.diagnose.unconfirmed import _rows
+
+    drag = {"D": [0.01, 0.02, 0.0], "D_ci95": [[0.0, 0.05], [0.0, 0.06], [0.0, 0.03]]}
+    assert _rows("rotational_drag", drag) == "D below 0.05, below 0.06, below 0.03"
+    assert _rows("inertia_error", _tree()["diagnosis"]["learned"][1]["estimate"]) == (
+        "scale 0.925 to 1.12, 0.928 to 1.27, 0.939 to 1.12"
+    )

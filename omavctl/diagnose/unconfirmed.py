@@ -53,9 +53,11 @@ def unconfirmed(
 
 def _rows(name: str, estimate: Any) -> str:
     """'scale 0.838 to 1.21, 0.949 to 1.15, 0.587 to 1.72' (the statistical intervals)."""
+    from omavctl.learn.intervals import interval_span
+
     by: dict[str, list[str]] = {}
     for param, _, _, (lo, hi) in claimed_rows(name, estimate, None):
-        by.setdefault(param, []).append(f"{lo:.3g} to {hi:.3g}")
+        by.setdefault(param, []).append(interval_span(name, param, lo, hi)[0])
     return "; ".join(f"{p} {', '.join(v)}" for p, v in by.items())
 
 
