@@ -109,7 +109,8 @@ def rebuilt(model: ResidualGP, **changes) -> ResidualGP:
         for k in (
             "vehicle", "features", "input_names", "inputs", "targets", "input_mean",
             "input_scale", "target_mean", "signal_variance", "length_scales",
-            "noise_variance", "band_noise", "torque_growth", "range_growth", "latent_scale",
+            "noise_variance", "band_noise", "band_scale", "band_slope", "torque_growth",
+            "range_growth", "latent_scale",
             "beyond_scale", "mean_shrink", "effects",
         )
     }  # fmt: skip

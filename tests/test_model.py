@@ -556,6 +556,38 @@ def test_the_band_noise_rises_to_the_floor_only_beyond_the_fit_inputs(vehicle, t
     _check_optional_key(path, tmp_path, "band_noise", band, model.noise_variance, bad)
 
 
+def test_the_band_inside_follows_the_gps_distance_from_its_data(vehicle, tmp_path):
+    """Inside the fit inputs the band's latent variance and noise are multiplied by
+    ``band_scale (1 + band_slope rho)``, ``rho`` the latent variance over its prior (at
+    most 1; fit's blocked cross-validation sets both,
+    :func:`omavctl.learn.validation.band_slope`); from half a training range beyond the
+    box the band is as before; the mean and the latent band (horizons, planning) never
+    move. Files without the keys read 1 and 0 (the band as it was)."""
+    model = make_model(vehicle)
+    lo, hi = model.inputs.min(0), model.inputs.max(0)
+    far = np.where(np.arange(6) == 3, hi + 0.6 * (hi - lo), model.inputs[0])
+    z = np.vstack([model.inputs[:4], 0.5 * (lo + hi), far])  # points, the box's centre, far
+    mean0, var0 = model.gp_predict(z, noise=True)
+    _, latent = model.gp_predict(z)
+    a, beta = np.array([0.5, 1.0, 2.0]), np.array([10.0, 0.0, 3.0])
+    model.band_scale, model.band_slope = a, beta
+    mean1, var1 = model.gp_predict(z, noise=True)
+    np.testing.assert_array_equal(mean1, mean0)
+    np.testing.assert_array_equal(model.gp_predict(z)[1], latent)
+    rho = np.minimum(latent / model.signal_variance, 1.0)
+    assert rho[:4].max() < 0.01 and rho[4, 0] > 0.3  # at the data, and away from it (x)
+    factor = a * (1.0 + beta * rho[:5])
+    np.testing.assert_allclose(var1[:5], factor * (latent[:5] + model.band_noise), rtol=1e-12)
+    np.testing.assert_allclose(var1[5], var0[5], rtol=1e-12)
+    path = tmp_path / "m.npz"
+    save_model(path, model)
+    _check_optional_key(path, tmp_path, "band_slope", beta, np.zeros(3), -beta)
+    np.testing.assert_array_equal(load_model(path).band_scale, a)
+    zero = tmp_path / "zero.npz"
+    _rewrite(path, zero, band_scale=np.array([0.5, 0.0, 2.0]))
+    assert _refused(zero) == f"{zero}: key 'band_scale' must be positive"
+
+
 def test_the_band_grows_with_the_torque_beyond_the_fit_flights(vehicle, tmp_path):
     """Beyond the fit flight's commanded angular accelerations the band gains
     ``(torque_growth ||e||)^2``, ``e`` how far each axis' ``I^-1 tau`` lies beyond the

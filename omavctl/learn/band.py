@@ -10,7 +10,12 @@ variance, its growth beyond the training box, what weighing the mean adds:
   cross-validation calibrated it, with which the band already covers the fit flight's
   held-out time blocks. Counting the held-out error a second time there (the floor
   below) made the band cover every sample of a new flight inside those inputs
-  (docs/intervals.md, "The model's band inside the fit flight's inputs");
+  (docs/intervals.md, "The model's band inside the fit flight's inputs"). There the
+  calibrated latent variance and noise are multiplied by ``a (1 + beta rho)``
+  (``band_scale``, ``band_slope``; :func:`band_factor`), ``rho`` the latent variance's
+  share of its prior: the fit flight's held-out errors outgrow the latent std where
+  the GP is far from its training points, and one factor for the whole flight was
+  set by those samples alone (:func:`omavctl.learn.validation.band_slope`);
 - **beyond them** it rises to ``noise_variance`` (``fit``'s floor from the held-out
   error of time blocks and input ends), fully at twice the margin
   (:func:`~omavctl.learn.effects_band.beyond_weight`, as the effects' robust term);
@@ -47,7 +52,14 @@ import numpy as np
 
 from omavctl.learn.effects_band import beyond_weight
 
-__all__ = ["RANGE_GROWTH", "TORQUE_GROWTH", "band_variance", "range_reach", "torque_excess"]
+__all__ = [
+    "RANGE_GROWTH",
+    "TORQUE_GROWTH",
+    "band_factor",
+    "band_variance",
+    "range_reach",
+    "torque_excess",
+]
 
 #: ``g``: the band's std beyond the fit flight's torques grows by this fraction of how
 #: far the commanded angular acceleration lies beyond them (a model error of up to
@@ -91,21 +103,39 @@ def range_reach(train: np.ndarray, z: np.ndarray) -> np.ndarray:
     return np.asarray(reach.max(axis=1, initial=0.0))
 
 
-def band_variance(model: Any, z: np.ndarray, var: np.ndarray) -> np.ndarray:
+def band_factor(model: Any, latent: np.ndarray) -> np.ndarray:
+    """Factor (B, 3) ``band_scale (1 + band_slope rho)`` on the band's calibrated latent
+    variance and noise inside the fit inputs, at the latent variance ``latent`` (B, 3)
+    (:meth:`~omavctl.learn.model.ResidualGP.latent`); ``rho`` = ``latent / (latent_scale
+    s^2)`` at most 1, the GP's distance from its training points (0 at them, 1 at the
+    prior; 0 on an axis whose GP is off)."""
+    prior = np.asarray(model.latent_scale * model.signal_variance, dtype=float)
+    on = prior > 0
+    rho = np.where(on, np.minimum(latent / np.where(on, prior, 1.0), 1.0), 0.0)
+    return np.asarray(model.band_scale * (1.0 + model.band_slope * rho))
+
+
+def band_variance(
+    model: Any, z: np.ndarray, var: np.ndarray, latent: np.ndarray | None = None
+) -> np.ndarray:
     """Predictive variance (B, 3) of a new measurement at GP inputs z (B, d), from the
-    GP's variance ``var`` (B, 3) there (see the module docstring): ``var + band_noise``
-    inside the fit flight's inputs; beyond them, weighted by ``w`` rising from 0 to 1
-    between a quarter and half a training range beyond the box
-    (:func:`~omavctl.learn.effects_band.beyond_weight`), the noise rises to
-    ``noise_variance`` and the band gains ``(torque_growth ||e||)^2`` and
-    ``(range_growth reach)^2``."""
+    GP's variance ``var`` (B, 3) there (latent and what weighing the mean adds; see the
+    module docstring): ``var + band_noise`` inside the fit flight's inputs, the latent
+    variance ``latent`` (B, 3; None: ``var``) and the noise times :func:`band_factor`;
+    beyond them, weighted by ``w`` rising from 0 to 1 between a quarter and half a
+    training range beyond the box (:func:`~omavctl.learn.effects_band.beyond_weight`),
+    the factor fades to 1, the noise rises to ``noise_variance`` and the band gains
+    ``(torque_growth ||e||)^2`` and ``(range_growth reach)^2``."""
     z = np.atleast_2d(np.asarray(z, dtype=float))
-    rho = beyond_weight(model.inputs, z)[:, None]  # 0 inside, 1 from half a range beyond
-    out = var + model.band_noise + rho * (model.noise_variance - model.band_noise)
+    w = beyond_weight(model.inputs, z)[:, None]  # 0 inside, 1 from half a range beyond
+    out = var + model.band_noise + w * (model.noise_variance - model.band_noise)
+    if np.any(model.band_scale != 1.0) or np.any(model.band_slope != 0.0):
+        lat = var if latent is None else latent
+        out = out + (1.0 - w) * (band_factor(model, lat) - 1.0) * (lat + model.band_noise)
     growth = np.asarray(model.torque_growth, dtype=float)
     if np.any(growth > 0):
-        out = out + rho * (growth[None, :] * torque_excess(model, z)[:, None]) ** 2
+        out = out + w * (growth[None, :] * torque_excess(model, z)[:, None]) ** 2
     per_range = np.asarray(model.range_growth, dtype=float)
     if np.any(per_range > 0):
-        out = out + rho * (per_range[None, :] * range_reach(model.inputs, z)[:, None]) ** 2
+        out = out + w * (per_range[None, :] * range_reach(model.inputs, z)[:, None]) ** 2
     return np.asarray(out)

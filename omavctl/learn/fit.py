@@ -288,6 +288,8 @@ def _model(
         length_scales=gp.ls,
         noise_variance=gp.nv,
         band_noise=gp.band_noise,
+        band_scale=np.array([a.band_scale for a in gp.axes]),
+        band_slope=np.array([a.band_slope for a in gp.axes]),
         torque_growth=np.full(3, TORQUE_GROWTH),
         range_growth=RANGE_GROWTH * np.std(train.y, axis=0),
         latent_scale=gp.latent,

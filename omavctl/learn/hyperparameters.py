@@ -80,6 +80,10 @@ class AxisFit:
     #: noise std of the band inside the fit flight's inputs (rad/s^2): the calibrated
     #: noise before the held-out floor (:data:`HELD_OUT_NOISE`); nan: ``noise_std``
     band_noise_std: float = float("nan")
+    #: the band inside the fit inputs: ``band_scale (1 + band_slope rho)`` times its
+    #: calibrated latent variance and noise (:func:`omavctl.learn.validation.band_slope`)
+    band_scale: float = 1.0
+    band_slope: float = 0.0
 
 
 def fit_hyperparameters(
@@ -247,6 +251,7 @@ def apply_validation(
             nv[a] = max(nv[a] * v.std_factor**2, HELD_OUT_NOISE * v.mse_gp)
         ax.signal_std, ax.noise_std = math.sqrt(sv[a]), math.sqrt(nv[a])
         ax.latent_factor, ax.beyond_scale = v.latent_factor, v.beyond_scale
+        ax.band_scale, ax.band_slope = v.band_scale, v.band_slope
         notes += _axis_notes(name, v)
     return t_mean, sv, nv, latent, beyond, notes
 
@@ -263,6 +268,14 @@ def _axis_notes(name: str, v: AxisValidation) -> list[str]:
         notes.append(
             f"axis {name}: the band grows beyond the training inputs with weight "
             f"{v.beyond_scale:.2f} (held-out ends of the inputs; {BEYOND_PRIOR:g} at least)"
+        )
+    if v.band_slope > 0:
+        near, far = (
+            v.std_factor * math.sqrt(v.band_scale * (1.0 + r * v.band_slope)) for r in (0, 1)
+        )
+        notes.append(
+            f"axis {name}: inside the fit inputs the band's std is x{near:.2f} at the training "
+            f"points, x{far:.2f} at the GP's prior (held-out errors grow with its variance)"
         )
     if round(v.latent_factor, 2) > 1.0:
         notes.append(

@@ -58,7 +58,7 @@ class ResidualGP:
     (read-only by convention): ``vehicle``, ``features``, ``input_names`` (d,), ``inputs``
     (n, d), ``targets`` (n, 3), ``input_mean``/``input_scale`` (d,), ``target_mean``,
     ``signal_variance``, ``noise_variance`` (3,) (the GP's; the band's:
-    ``band_noise``, ``torque_growth``, ``range_growth`` (3,), :mod:`omavctl.learn.band`),
+    ``band_noise``, ``band_scale``, ``band_slope``, ``*_growth`` (3,), :mod:`.band`),
     ``length_scales`` (3, d), ``effects``
     (name -> :class:`EffectEstimate`), ``provenance`` (dict).
     """
@@ -78,6 +78,8 @@ class ResidualGP:
         length_scales: np.ndarray,
         noise_variance: np.ndarray,
         band_noise: np.ndarray | None = None,
+        band_scale: np.ndarray | None = None,
+        band_slope: np.ndarray | None = None,
         torque_growth: np.ndarray | None = None,
         range_growth: np.ndarray | None = None,
         latent_scale: np.ndarray | None = None,
@@ -102,6 +104,9 @@ class ResidualGP:
         #: (3,) the band's noise variance inside the fit inputs (:mod:`omavctl.learn.band`)
         band = self.noise_variance if band_noise is None else np.asarray(band_noise, float)
         self.band_noise = np.minimum(band, self.noise_variance)
+        #: (3,) the band inside the fit inputs (:mod:`omavctl.learn.band`; 1 and 0: as is)
+        self.band_scale = np.ones(3) if band_scale is None else np.asarray(band_scale, float)
+        self.band_slope = np.zeros(3) if band_slope is None else np.asarray(band_slope, float)
         #: (3,) growth of the band's std per rad/s^2 of commanded angular acceleration
         #: beyond the fit flight's (:mod:`omavctl.learn.band`; 0: none, older files)
         self.torque_growth = (
@@ -240,12 +245,13 @@ class ResidualGP:
         (``mean_shrink``, :mod:`omavctl.learn.mean_shrink`).
         """
         shrink = bool(np.any(self.mean_shrink > 0))
-        mean, var = self.latent(z, variance or shrink)
+        mean, latent = self.latent(z, variance or shrink)
+        var = latent
         if shrink:
-            mean, added = shrink_mean(mean, var, self.mean_shrink)
-            var += added
+            mean, added = shrink_mean(mean, latent, self.mean_shrink)
+            var = latent + added
         if variance and noise:
-            var = band_variance(self, z, var)
+            var = band_variance(self, z, var, latent)
         return mean, var if variance else None
 
     def latent(self, z: np.ndarray, variance: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -479,6 +485,8 @@ class ResidualGP:
             "length_scales": self.length_scales,
             "noise_variance": self.noise_variance,
             "band_noise": self.band_noise,
+            "band_scale": self.band_scale,
+            "band_slope": self.band_slope,
             "torque_growth": self.torque_growth,
             "range_growth": self.range_growth,
             "latent_scale": self.latent_scale,

@@ -25,6 +25,10 @@ noise_variance     (3,)        sigma^2 per axis, (rad/s^2)^2
 band_noise         (3,)        optional: noise variance of the band inside the fit
                                flight's inputs (at most noise_variance, which it
                                reaches beyond them; absent: noise_variance)
+band_scale,        (3,)        optional: the band inside the fit flight's inputs is
+band_slope                     band_scale (1 + band_slope rho) times its latent
+                               variance and noise, rho the latent variance's share
+                               of the prior (omavctl.learn.band; absent: 1, 0)
 torque_growth      (3,)        optional: growth of the band's std per rad/s^2 of
                                commanded angular acceleration beyond the fit
                                flight's (omavctl.learn.band; absent: 0)
@@ -417,18 +421,20 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         raise ModelError("scales, variances and length scales must be positive", p)
     if np.any((sv == 0) & (nv <= 0)):
         raise ModelError("an axis with its GP off (signal variance 0) needs a noise variance", p)
-    band = _optional_nonnegative(arrays, "band_noise", p)
-    growth = _optional_nonnegative(arrays, "torque_growth", p)
-    per_range = _optional_nonnegative(arrays, "range_growth", p)
-    latent = _float(arrays, "latent_scale", (3,), p) if "latent_scale" in arrays else None
-    if latent is not None and np.any(latent <= 0):
-        raise ModelError("key 'latent_scale' must be positive", p)
-    beyond = _optional_nonnegative(arrays, "beyond_scale", p)
-    shrink = _optional_nonnegative(arrays, "mean_shrink", p)
+    optional = {
+        key: _optional_nonnegative(arrays, key, p)
+        for key in (
+            "band_noise", "band_slope", "torque_growth", "range_growth", "beyond_scale",
+            "mean_shrink",
+        )
+    }  # fmt: skip
+    for key in ("latent_scale", "band_scale"):
+        optional[key] = value = _float(arrays, key, (3,), p) if key in arrays else None
+        if value is not None and np.any(value <= 0):
+            raise ModelError(f"key '{key}' must be positive", p)
     rollout = _float(arrays, "rollout_gp", (3,), p) if "rollout_gp" in arrays else None
     if rollout is not None and np.any((rollout < 0) | (rollout > 1)):
         raise ModelError("key 'rollout_gp' must be between 0 and 1", p)
-
     return {
         "inputs": inputs,
         "targets": targets,
@@ -436,13 +442,8 @@ def _gp_arrays(arrays: Mapping[str, np.ndarray], d: int, p: Path) -> dict[str, A
         "signal_variance": sv,
         "length_scales": ls,
         "noise_variance": nv,
-        "band_noise": band,
-        "torque_growth": growth,
-        "range_growth": per_range,
-        "latent_scale": latent,
-        "beyond_scale": beyond,
-        "mean_shrink": shrink,
         "rollout_gp": rollout,
+        **optional,
     }
 
 

@@ -90,6 +90,10 @@ def _gp_provenance(opts: FitOptions, gp: GPFit) -> dict[str, Any]:
             "std_factor": [a.std_factor for a in axes],
             "latent_factor": [a.latent_factor for a in axes],
             "beyond_scale": [a.beyond_scale for a in axes],
+            # the band inside the fit inputs: band_scale (1 + band_slope rho) on its
+            # calibrated latent variance and noise, rho the latent share of the prior
+            "band_scale": [a.band_scale for a in axes],
+            "band_slope": [a.band_slope for a in axes],
             "band_noise_std": [
                 a.band_noise_std if math.isfinite(a.band_noise_std) else None for a in axes
             ],

@@ -21,8 +21,9 @@ Per axis (:func:`cross_validate`):
 - **calibration**: the predictive variance (latent + noise, or the off
   variance) is scaled by ``c^2`` with ``c`` the factor that makes the held-out
   2-sigma coverage :data:`TARGET_COVERAGE` (never below 1: the band is only
-  widened). Scaling signal and noise variance together leaves the GP mean
-  unchanged.
+  widened; inside the fit inputs the band then follows the GP's distance from
+  its data, below). Scaling signal and noise variance together leaves the GP
+  mean unchanged.
 
 Time blocks test the GP where the flight already went; a *new* trajectory
 also leaves the training envelope, where a GP with long length scales
@@ -38,6 +39,21 @@ with a weight ``lambda``, and the latent variance gets its own factor ``b``:
 weight from :data:`BEYOND_PRIOR` up, then ``b`` the smallest factor from 1 up,
 that bring the pooled held-out coverage of both kinds of fold to the target.
 The switch-off compares the pooled held-out errors.
+
+One factor ``c`` per axis treats the held-out errors as equally spread over the
+flight, but they are not: where the held-out block's samples lie far from the
+training points (the GP's latent variance a large share of its prior: the sharp
+transitions of attitude steps) the errors outgrow the latent std, and there
+alone ``c`` is set (docs/intervals.md, "A band that follows the GP's own
+distance"). So the band inside the fit inputs gets its own per-sample factor
+(:func:`band_slope`): the standardised held-out errors ``u = err / sqrt(latent +
+noise)`` are modelled as ``N(0, s0^2 (1 + beta rho))``, ``rho`` the latent
+variance over the signal variance (0 at the training points, 1 at the prior),
+``beta >= 0`` and ``s0`` by maximum likelihood, then a factor ``h`` puts 95 % of
+``u / (s0 sqrt(1 + beta rho))`` inside 2 sigma; the band's variance inside is
+``h^2 s0^2 (1 + beta rho) (latent + noise)`` in place of ``c^2 (latent + noise)``
+(:mod:`omavctl.learn.band`). ``c`` still scales the GP's signal variance, so the
+mean (weighed by its latent variance, :mod:`omavctl.learn.mean_shrink`) is as before.
 
 Arrays: n samples, m training points, d inputs; time-major.
 """
@@ -57,6 +73,7 @@ __all__ = [
     "KEEP_RATIO",
     "TARGET_COVERAGE",
     "AxisValidation",
+    "band_slope",
     "beyond_envelope_variance",
     "cholesky_of_k",
     "cross_validate",
@@ -117,6 +134,10 @@ class AxisValidation:
     #: held-out MSE of the GP and of zero on the input-space folds
     mse_gp_region: float = float("nan")
     mse_physics_region: float = float("nan")
+    #: the band inside the fit inputs: factor a on ``c^2 (latent + noise)`` at the training
+    #: points and slope beta on ``rho`` (:func:`band_slope`): ``a (1 + beta rho)``
+    band_scale: float = 1.0
+    band_slope: float = 0.0
     notes: list[str] = field(default_factory=list)
 
 
@@ -370,6 +391,35 @@ def _band_factors(h: HeldOut, c: float, signal_variance: float) -> tuple[float, 
     return _smallest(lambda x: covered(x, lam), 1.0, MAX_STD_FACTOR), lam
 
 
+#: Largest slope beta of the band's variance on the latent share rho (:func:`band_slope`).
+MAX_BAND_SLOPE = 1000.0
+
+
+def band_slope(u: np.ndarray, rho: np.ndarray) -> tuple[float, float]:
+    """Factor ``a = h^2 s0^2`` and slope ``beta`` of the variance ``a (1 + beta rho)`` of
+    standardised held-out errors u (k,) at latent shares rho (k,) in [0, 1] (module
+    docstring): ``beta`` in [0, :data:`MAX_BAND_SLOPE`] and ``s0`` by maximum likelihood
+    of ``u ~ N(0, s0^2 (1 + beta rho))`` (``s0`` profiled out, ``beta`` by a grid in
+    ``log beta``, refined between its neighbours), then ``h`` the factor that puts
+    :data:`TARGET_COVERAGE` of ``u / (s0 sqrt(1 + beta rho))`` inside 2 sigma."""
+    u2, rho = np.asarray(u, float) ** 2, np.clip(np.asarray(rho, float), 0.0, 1.0)
+    if u2.size < 2 or not np.any(u2 > 0):
+        return 1.0, 0.0
+
+    def nll(beta: float) -> float:
+        g = 1.0 + beta * rho
+        return float(np.sum(np.log(g)) + u2.size * np.log(np.mean(u2 / g)))
+
+    grid = np.concatenate([[0.0], np.geomspace(1e-2, MAX_BAND_SLOPE, 51)])
+    best = int(np.argmin([nll(b) for b in grid]))
+    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
+    beta = min((lo, grid[best], hi, *np.linspace(lo, hi, 21)), key=nll)
+    g = 1.0 + beta * rho
+    s0 = float(np.sqrt(np.mean(u2 / g)))
+    h = float(np.quantile(np.sqrt(u2 / g) / s0, TARGET_COVERAGE)) / 2.0
+    return (h * s0) ** 2, float(beta)
+
+
 def _axis_verdict(
     time_cv: HeldOut, region_cv: HeldOut, y_all: np.ndarray, signal_variance: float
 ) -> AxisValidation:
@@ -382,10 +432,13 @@ def _axis_verdict(
     mse_phys = float(np.mean(pooled.y**2))
     coverage = _coverage(time_cv.err, time_cv.lat + time_cv.noise)
     keep = mse_gp < KEEP_RATIO * mse_phys
-    latent, lam = 1.0, 0.0
+    latent, lam, scale, slope = 1.0, 0.0, 1.0, 0.0
     if keep:
-        factor = _std_factor(time_cv.err / np.sqrt(time_cv.lat + time_cv.noise))
+        u = time_cv.err / np.sqrt(time_cv.lat + time_cv.noise)
+        factor = _std_factor(u)
         latent, lam = _band_factors(pooled, factor, signal_variance)
+        scale, slope = band_slope(u, time_cv.lat / signal_variance)
+        scale /= factor**2  # on the band that c already scales
     else:
         factor = _std_factor(pooled.y / np.sqrt(max(off_variance, 1e-300)))
     return AxisValidation(
@@ -399,4 +452,6 @@ def _axis_verdict(
         beyond_scale=lam,
         mse_gp_region=float(np.mean(region_cv.err**2)),
         mse_physics_region=float(np.mean(region_cv.y**2)),
+        band_scale=scale,
+        band_slope=slope,
     )
