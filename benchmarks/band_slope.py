@@ -27,14 +27,13 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks.band_variants import FAMILIES, print_summary
+from benchmarks.band_variants import FAMILIES, band_row, print_summary
 
 
 def judge(model: Any, log: Path) -> list[dict[str, Any]]:
     """Coverage and coverage inside the fit inputs (3 each) of ``model`` on ``log``, with
     one factor inside (``one factor``) and with the band as fitted (``following rho``)."""
     from omavctl.diagnose.evaluate import _grid, _read_log
-    from omavctl.diagnose.metrics import training_envelope
 
     rate, sg = _grid(model)
     samples, *_ = _read_log(log, model.vehicle, rate, sg, None)
@@ -46,18 +45,7 @@ def judge(model: Any, log: Path) -> list[dict[str, Any]]:
         ("following rho", fitted),
     ):
         model.band_scale, model.band_slope = scale, slope
-        mean, var = model.predict_samples(samples, noise=True)
-        err = samples.residual - mean
-        env = training_envelope(model.inputs, z, list(model.input_names), err, np.sqrt(var))
-        rows.append(
-            {
-                "variant": name,
-                "coverage": np.mean(np.abs(err) <= 2.0 * np.sqrt(var), axis=0).tolist(),
-                "inside": [env["coverage_inside"][a] for a in "xyz"],
-                "outside": env["outside_fraction"],
-                "rmse": np.sqrt(np.mean(err**2, axis=0)).tolist(),
-            }
-        )
+        rows.append({"variant": name, **band_row(model, samples, z)})
     return rows
 
 

@@ -48,7 +48,6 @@ def variants(model: Any) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 def judge(model: Any, log: Path) -> list[dict[str, Any]]:
     """Coverage and coverage inside the fit inputs (3 each) of every variant on ``log``."""
     from omavctl.diagnose.evaluate import _grid, _read_log
-    from omavctl.diagnose.metrics import training_envelope
 
     rate, sg = _grid(model)
     samples, *_ = _read_log(log, model.vehicle, rate, sg, None)
@@ -56,18 +55,24 @@ def judge(model: Any, log: Path) -> list[dict[str, Any]]:
     rows = []
     for name, (band, torque, reach) in variants(model).items():
         model.band_noise, model.torque_growth, model.range_growth = band, torque, reach
-        mean, var = model.predict_samples(samples, noise=True)
-        err = samples.residual - mean
-        env = training_envelope(model.inputs, z, list(model.input_names), err, np.sqrt(var))
-        rows.append(
-            {
-                "variant": name,
-                "coverage": np.mean(np.abs(err) <= 2.0 * np.sqrt(var), axis=0).tolist(),
-                "inside": [env["coverage_inside"][a] for a in "xyz"],
-                "outside": env["outside_fraction"],
-            }
-        )
+        rows.append({"variant": name, **band_row(model, samples, z)})
     return rows
+
+
+def band_row(model: Any, samples: Any, z: np.ndarray) -> dict[str, Any]:
+    """The model's band on ``samples`` (GP inputs ``z``): per-axis 2-sigma ``coverage``,
+    coverage ``inside`` the fit inputs, the ``outside`` fraction and the ``rmse``."""
+    from omavctl.diagnose.metrics import training_envelope
+
+    mean, var = model.predict_samples(samples, noise=True)
+    err = samples.residual - mean
+    env = training_envelope(model.inputs, z, list(model.input_names), err, np.sqrt(var))
+    return {
+        "coverage": np.mean(np.abs(err) <= 2.0 * np.sqrt(var), axis=0).tolist(),
+        "inside": [env["coverage_inside"][a] for a in "xyz"],
+        "outside": env["outside_fraction"],
+        "rmse": np.sqrt(np.mean(err**2, axis=0)).tolist(),
+    }
 
 
 def print_summary(rows: list[dict[str, Any]], base_variant: str, width: int) -> None:
