@@ -25,6 +25,7 @@ from typing import Any
 from omavctl.diagnose.claims import claimed_rows, excludes_null
 from omavctl.diagnose.fit_vs_flight import flight_words
 from omavctl.diagnose.verdict_lines import Line, get_path
+from omavctl.learn.intervals import interval_span, null_values
 
 __all__ = ["unconfirmed", "unconfirmed_line"]
 
@@ -53,8 +54,6 @@ def unconfirmed(
 
 def _rows(name: str, estimate: Any) -> str:
     """'scale 0.838 to 1.21, 0.949 to 1.15, 0.587 to 1.72' (the statistical intervals)."""
-    from omavctl.learn.intervals import interval_span
-
     by: dict[str, list[str]] = {}
     for param, _, _, (lo, hi) in claimed_rows(name, estimate, None):
         by.setdefault(param, []).append(interval_span(name, param, lo, hi)[0])
@@ -77,8 +76,6 @@ def unconfirmed_line(tree: Mapping[str, Any]) -> Line | None:
     found = [(n, f, h) for n, f, h in found if isinstance(f, Mapping) and isinstance(h, Mapping)]
     if not found:
         return None
-    from omavctl.learn.intervals import null_values
-
     fit = model.get("fit_flight") if isinstance(model.get("fit_flight"), Mapping) else {}
     there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
     said = []

@@ -413,7 +413,7 @@ def band_slope(u: np.ndarray, rho: np.ndarray) -> tuple[float, float]:
     grid = np.concatenate([[0.0], np.geomspace(1e-2, MAX_BAND_SLOPE, 51)])
     best = int(np.argmin([nll(b) for b in grid]))
     lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
-    beta = min((lo, grid[best], hi, *np.linspace(lo, hi, 21)), key=nll)
+    beta = min((grid[best], *np.linspace(lo, hi, 21)), key=nll)  # the ends are lo, hi
     g = 1.0 + beta * rho
     s0 = float(np.sqrt(np.mean(u2 / g)))
     h = float(np.quantile(np.sqrt(u2 / g) / s0, TARGET_COVERAGE)) / 2.0
