@@ -169,6 +169,17 @@ OWN_SPLIT = {
         "held_back": "steps",
         "version": 2,
     },
+    # issue 26 "fig8" (session 22): report13's commonest wrong first answer (a steps fit
+    # flight judged on a figure-8: the defaults' look-alikes named, the hidden effect
+    # not; draws 1, 28, 32, 40 of report13), every effect, the steps flight always the fit
+    # flight and the figure-8 the held-out one; declared before any draw was flown
+    "own-fig8": {
+        "seed_base": 9_830_000,
+        "families": ("fig8",),
+        "held_back": "steps",
+        "held_back_fits": True,
+        "version": 2,
+    },
 }
 SPLITS.update(OWN_SPLIT)
 
