@@ -84,7 +84,9 @@ METHOD: dict[str, Any] = {
     "held-out physics-only error (the look-alikes refitted at each value); a pair is "
     "claimed when each member passes, beside the other, the bars of a single claim (15 % "
     "share, part at the claim floor, Newey-West t, at least one sample period), else the "
-    "best single one on the same bars; the claims guard then estimates them as the fit "
+    "best single one on the same bars; a pair may also be a lag or delay with an effect "
+    "linear in its parameters (least squares with the look-alikes at each value, in its "
+    "plausible range: timing_claims); the claims guard then estimates them as the fit "
     "command does",
     "learned_claim": "with nothing missing, an effect the GP learned is claimed when its "
     "interval excludes its null and, estimated from the training points by least squares, "
@@ -238,6 +240,8 @@ def diagnose(
         # held back because their interval holds the effect's null (claims.py)
         "claim_estimates": guarded.estimates,
         "not_pinned": guarded.held_back,
+        # the claims a held-out profile of lags and delays found, with its numbers
+        "timing_claims": {n: p for n, p in guarded.profiles.items() if n in names},
     }
     for entry in out["missing_effects"]:
         if any(h["name"] == entry["name"] for h in guarded.held_back):

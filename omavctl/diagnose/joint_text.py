@@ -171,8 +171,33 @@ def named_later(diag: Mapping[str, Any]) -> dict[str, tuple[str, str]]:
     return out
 
 
+def _profile_words(name: str, fit: Mapping[str, Any]) -> str:
+    """:func:`named_later`'s clause for a claim a held-out profile found with a partner
+    (``timing_claims``: :mod:`omavctl.diagnose.timing_pair`, ``timing_mixed``)."""
+    names = [str(n) for n in fit.get("names") or []]
+    values = [_num(v) for v in fit.get("values_s") or []]
+    at = {
+        n: f"{n} ({1000 * v:.1f} ms)" for n, v in zip(names, values, strict=False) if v is not None
+    }
+    together, shares = _num(fit.get("share")), fit.get("member_share") or []
+    mine = _num(shares[names.index(name)]) if name in names and len(shares) == len(names) else None
+    others = [at.get(n, n) for n in names if n != name]
+    out = f"{at.get(name, name)}: profiled on this flight"
+    out += f" together with {' and '.join(others)}" if others else ""
+    if together is not None:
+        out += f": {'together they remove' if others else 'it removes'} {_pct(together)} of"
+        out += " the physics-only error the look-alikes leave"
+    if mine is not None and others:
+        out += f", {name} {_pct(mine)} of what the other alone leaves"
+    return out
+
+
 def _joint_words(diag: Mapping[str, Any], name: str) -> tuple[str, str]:
     """:func:`named_later`'s words for an effect the joint selection named."""
+    profiles = diag.get("timing_claims")
+    fit = profiles.get(name) if isinstance(profiles, Mapping) else None
+    if isinstance(fit, Mapping):
+        return ("held-out profile", _profile_words(name, fit))
     step = replaced_step(diag, name) or name
     joint = next((e for e in _entries(diag, "joint_steps") if e.get("name") == step), None)
     if joint is None:

@@ -35,24 +35,26 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import combinations
-from typing import Any
+from typing import Any, Union
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from omavctl.diagnose.claims import Guarded
 from omavctl.diagnose.joint import (
-    DEFAULT_LOOK_ALIKES,
     MIN_HAC_T,
     MIN_SHARE,
     hac_t,
     plausible_theta,
 )
 from omavctl.diagnose.scoring import EffectScore
+from omavctl.diagnose.timing_mixed import MixedFit, mixed_fits
+from omavctl.diagnose.timing_profile import GRID, TIMING, Profile, profile_for
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
+#: A profiled fit: lags and delays (:class:`TimingFit`) or one with a linear partner.
+Fit = Union["TimingFit", MixedFit]
 #: The claims guard the pair is guarded by: (names, the names found here) -> Guarded.
 PairGuard = Callable[[list[str], Sequence[str]], Guarded]
 
@@ -66,14 +68,6 @@ __all__ = [
     "timing_fits",
     "with_timing_pair",
 ]
-
-#: The lags and delays: their exact forms are searched over their time constants.
-TIMING = ("command_delay", "motor_lag", "servo_lag")
-#: Values on each time constant's grid (from 0 to the end of its search interval), then
-#: refined by bounded searches.
-GRID = 31
-#: The same for each time constant of a pair (its grid has PAIR_GRID² points).
-PAIR_GRID = 16
 
 
 @dataclass
@@ -120,68 +114,7 @@ class TimingFit:
         }
 
 
-class _Profile:
-    """The held-out physics-only error (n, 3) less the look-alikes' least-squares fit,
-    after the exact forms of some lags or delays at given time constants."""
-
-    def __init__(
-        self, samples: Sequence[ResidualSamples], physics: np.ndarray, alikes: Sequence[str]
-    ) -> None:
-        self.samples, self.physics = samples, physics
-        n = physics.shape[0]
-        cols = [np.concatenate([s.regressors[a] for s in samples]) for a in alikes]
-        self.a = np.concatenate(cols, axis=2).reshape(3 * n, -1) if cols else None
-        self.cache: dict[tuple[str, float], np.ndarray] = {}
-
-    def exact(self, name: str, t: float) -> np.ndarray:
-        key = (name, round(float(t), 9))
-        if key not in self.cache:
-            self.cache[key] = (
-                np.concatenate([s.exact(name, float(t)) for s in self.samples])
-                if t > 0
-                else np.zeros_like(self.physics)
-            )
-        return self.cache[key]
-
-    def left(self, names: Sequence[str], values: Sequence[float]) -> np.ndarray:
-        """Per-sample squared error (n,) left at these time constants."""
-        y = self.physics - sum(
-            (self.exact(m, v) for m, v in zip(names, values, strict=True)),
-            np.zeros_like(self.physics),
-        )
-        if self.a is not None:
-            r = y.reshape(-1)
-            coef, *_ = np.linalg.lstsq(self.a, r, rcond=None)
-            y = (r - self.a @ coef).reshape(y.shape)
-        return np.asarray((y**2).sum(axis=1))
-
-    def ss(self, names: Sequence[str], values: Sequence[float]) -> float:
-        return float(self.left(names, values).sum())
-
-    def best(self, names: Sequence[str]) -> tuple[float, ...]:
-        """The time constants (one per name) of least error: grid, then each refined."""
-        ends = [_search_end(n) for n in names]
-        size = GRID if len(names) == 1 else PAIR_GRID
-        axes = [np.linspace(0.0, e, size) for e in ends]
-        grids = np.meshgrid(*axes, indexing="ij")
-        points = np.stack([g.ravel() for g in grids], axis=1)
-        ss = [self.ss(names, p) for p in points]
-        values = [float(v) for v in points[int(np.argmin(ss))]]
-        for _ in range(2):
-            for i in range(len(names)):
-
-                def cost(v: float, i: int = i) -> float:
-                    return self.ss(names, [*values[:i], v, *values[i + 1 :]])
-
-                step = ends[i] / (size - 1)
-                lo, hi = max(values[i] - step, 0.0), min(values[i] + step, ends[i])
-                res = minimize_scalar(cost, bounds=(lo, hi), method="bounded")
-                if res.fun < cost(values[i]):
-                    values[i] = float(res.x)
-        return tuple(values)
-
-
-def _single(prof: _Profile, name: str, before: np.ndarray) -> TimingFit:
+def _single(prof: Profile, name: str, before: np.ndarray) -> TimingFit:
     (v,) = prof.best([name])
     after = prof.left([name], [v])
     left = float(before.sum())
@@ -191,7 +124,7 @@ def _single(prof: _Profile, name: str, before: np.ndarray) -> TimingFit:
     return TimingFit((name,), (v,), share, (share,), (part,), hac, after=after)
 
 
-def _pair(prof: _Profile, a: str, b: str, singles: dict[str, TimingFit], left: float) -> TimingFit:
+def _pair(prof: Profile, a: str, b: str, singles: dict[str, TimingFit], left: float) -> TimingFit:
     va, vb = prof.best([a, b])
     after = prof.left([a, b], [va, vb])
     shares, parts, ts = [], [], []
@@ -210,15 +143,18 @@ def timing_fits(
     physics: np.ndarray,
     floor: float,
     dt: float,
-) -> list[TimingFit]:
-    """The lag, delay or pair to claim (a list of at most one; see the module docstring),
+) -> list[Fit]:
+    """The lag, delay or pair to claim (a list of at most one; see the module docstring;
+    a pair may be a lag or delay with a linear partner, :mod:`~omavctl.diagnose.timing_mixed`),
     with its look-alikes in ``ambiguous_with``. ``physics`` (n, 3): the held-out
     physics-only error (rad/s²); ``floor`` the claim floor (RMS); ``dt`` the log grid's
     sample period (s). Empty when the model has a lag or delay already."""
     if any(get_effect(n).search is not None for n in model.effects) or not samples:
         return []
-    fits = [f for f in profile_fits(samples, model, physics) if f.passes(floor, dt)]
-    fits = [f for f in fits if f.plausible()]
+    profiled: list[Fit] = [*profile_fits(samples, model, physics)]
+    singles = {f.names[0]: f for f in profiled if len(f.names) == 1}
+    profiled += mixed_fits(samples, model, physics, singles)
+    fits = [f for f in profiled if f.passes(floor, dt) and f.plausible()]
     if not fits:
         return []
     best = max(fits, key=lambda f: (len(f.names), f.share))  # a pair that passes first
@@ -237,9 +173,7 @@ def profile_fits(
     if not samples:
         return []
     names = [n for n in TIMING if n in samples[0].regressors]
-    alikes = [a for a in sorted(DEFAULT_LOOK_ALIKES) if a not in model.effects]
-    alikes = [a for a in alikes if a in samples[0].regressors]
-    prof = _Profile(samples, physics, alikes)
+    prof = profile_for(samples, model, physics)
     before = prof.left([], [])
     left = float(before.sum())
     if left <= 0 or not names:
@@ -249,17 +183,12 @@ def profile_fits(
     return [*pairs, *singles.values()]
 
 
-def _alike(other: TimingFit, best: TimingFit) -> bool:
+def _alike(other: Fit, best: Fit) -> bool:
     """Whether the flight cannot tell ``other`` from ``best``: as many members, and
     ``best``'s per-sample advantage under MIN_HAC_T Newey-West standard errors."""
     if other is best or len(other.names) != len(best.names):
         return False
     return hac_t(other.after, best.after) < MIN_HAC_T
-
-
-def _search_end(name: str) -> float:
-    search = get_effect(name).search
-    return float(search[1]) if search is not None else 0.3
 
 
 def with_timing_pair(
@@ -297,6 +226,7 @@ def with_timing_pair(
         held = [{**first[n], "timing_pair": fit.to_json()} for n in fit.names if n in first]
         return Guarded(guarded.kept, guarded.estimates, held_once([*guarded.held_back, *held], []))
     trial.held_back = held_once([*guarded.held_back, *trial.held_back], trial.kept)
+    trial.profiles = {**guarded.profiles, **{n: fit.to_json() for n in fit.names}}
     for s in scores:
         if s.name in fit.names:
             s.ambiguous_with += [n for n in fit.ambiguous_with if n not in s.ambiguous_with]
