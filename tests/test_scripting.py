@@ -76,6 +76,10 @@ def work(tmp_path_factory) -> Path:
         assert isinstance(axis["gp_on"], bool) and 0.0 <= coverage <= 1
         assert axis["held_out_rmse_gp"] > 0 and axis["held_out_rmse_physics"] > 0
         assert axis["std_factor"] >= 1 and axis["beyond_scale"] >= (0.5 if axis["gp_on"] else 0)
+    # the band inside the fit inputs, as the model file holds it
+    with np.load(w / "models/gp.npz", allow_pickle=False) as z:
+        assert [a["band_scale"] for a in fit["axes"].values()] == pytest.approx(z["band_scale"])
+        assert [a["band_slope"] for a in fit["axes"].values()] == pytest.approx(z["band_slope"])
     return w
 
 

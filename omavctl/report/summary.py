@@ -176,6 +176,9 @@ def fit_json(summary: Any, out: Path) -> dict[str, Any]:
                 "held_out_coverage_2sigma_before_widening": a.cv_coverage,
                 "std_factor": a.std_factor,
                 "beyond_scale": a.beyond_scale,
+                # the band inside the fit inputs: band_scale (1 + band_slope rho)
+                "band_scale": a.band_scale,
+                "band_slope": a.band_slope,
             }
             for axis, a in zip("xyz", summary.axes, strict=True)
         },
