@@ -139,6 +139,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report13's records were read (2026-11-27, session 21): the next changes are reported
+    # on report14 (15 000 000; declared in session 22 before any of its draws was flown)
+    "report14": {
+        "seed_base": 15_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
