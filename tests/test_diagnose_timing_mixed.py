@@ -58,12 +58,13 @@ class _Samples:
         return np.zeros_like(self.u)  # the flight has no tilt or rotor commands
 
 
-def _flight(delay: float, drag: float, seed: int = 0) -> tuple[_Samples, np.ndarray]:
-    """The samples and the physics-only error of a delay (s) and a drag (N m s / (kg
-    m²) per axis) with noise 10x under the claim floor."""
+def _flight(delay: float, drag: float | list[float], seed: int = 0) -> tuple[_Samples, np.ndarray]:
+    """The samples and the physics-only error of a delay (s) and a drag (per axis, or
+    the same on each) with noise 10x under the claim floor."""
     s = _Samples(seed)
     physics = s.exact("command_delay", delay) if delay > 0 else np.zeros((N, 3))
-    physics = physics + np.einsum("nap,p->na", s.regressors["rotational_drag"], np.full(3, drag))
+    d = np.broadcast_to(np.asarray(drag, float), (3,))
+    physics = physics + np.einsum("nap,p->na", s.regressors["rotational_drag"], d)
     noise = np.random.default_rng(seed + 100).normal(0.0, FLOOR / 10, size=(N, 3))
     return s, physics + noise
 
@@ -100,6 +101,19 @@ def test_a_partner_outside_its_plausible_range_is_not_claimed():
     )  # type: ignore[arg-type]
 
 
+def test_a_partner_is_fitted_within_its_plausible_range():
+    """own-fig8 draw 5 (a 50 ms delay and a drag of 0.075/0.071/0.026, steps -> a
+    figure-8): the free fit gave the drag -0.21 on the yaw axis the figure-8 hardly
+    excites, so the pair was implausible and nothing was claimed."""
+    s, physics = _flight(0.05, [0.4, 0.4, -0.1], seed=4)
+    (fit,) = timing_fits([s], MODEL, physics, FLOOR, DT)  # type: ignore[arg-type]
+    assert fit.names == ("command_delay", "rotational_drag")
+    assert fit.theta[2] == 0.0  # type: ignore[union-attr]
+    assert fit.theta[:2] == pytest.approx([0.4, 0.4], abs=0.03)  # type: ignore[union-attr]
+    # the yaw axis's unphysical part, left unexplained, pulls the delay a few ms
+    assert fit.values[0] == pytest.approx(0.05, abs=0.006)
+
+
 def test_partners_are_linear_excited_and_missing_from_the_model():
     s, _ = _flight(0.05, 0.4)
     assert linear_partners([s], MODEL) == ["rotational_drag"]  # type: ignore[arg-type]
@@ -126,3 +140,17 @@ def test_the_claim_carries_its_profile_into_the_verdict():
     assert words["rotational_drag"][1].startswith(
         "rotational_drag: profiled on this flight together with command_delay (50.0 ms)"
     )
+
+
+def test_a_stand_in_is_said_beside_the_member_it_replaces():
+    fit = {
+        "names": ["motor_lag", "rotational_drag"],
+        "values_s": [0.0435],
+        "share": 0.68,
+        "member_share": [0.44, 0.68],
+        "alike_of": {"motor_lag": ["command_delay"]},
+    }
+    diag = {"missing": ["motor_lag", "rotational_drag"], "missing_effects": []}
+    words = named_later({**diag, "timing_claims": {"motor_lag": fit, "rotational_drag": fit}})
+    assert words["motor_lag"][1].endswith("; this flight does not tell it from command_delay")
+    assert "does not tell" not in words["rotational_drag"][1]

@@ -189,6 +189,10 @@ def _profile_words(name: str, fit: Mapping[str, Any]) -> str:
         out += " the physics-only error the look-alikes leave"
     if mine is not None and others:
         out += f", {name} {_pct(mine)} of what the other alone leaves"
+    alike_of = fit.get("alike_of")
+    alike = alike_of.get(name) if isinstance(alike_of, Mapping) else None
+    if isinstance(alike, list) and alike:
+        out += f"; this flight does not tell it from {' or '.join(map(str, alike))}"
     return out
 
 

@@ -56,6 +56,8 @@ class MixedFit:
     hac: tuple[float, ...] = ()
     theta: np.ndarray = field(default_factory=lambda: np.zeros(0))
     ambiguous_with: list[str] = field(default_factory=list)
+    #: per member, the lags, delays or partners of ``ambiguous_with`` that replace it
+    alike_of: dict[str, list[str]] = field(default_factory=dict)
     after: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     def passes(self, floor: float, dt: float) -> bool:
@@ -79,6 +81,7 @@ class MixedFit:
             "part": list(self.part),
             "hac_t": [min(t, 1e6) for t in self.hac],
             "ambiguous_with": self.ambiguous_with,
+            "alike_of": self.alike_of,
             "bars": {"min_share": MIN_SHARE, "min_hac_t": MIN_HAC_T},
         }
 

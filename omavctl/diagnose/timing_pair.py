@@ -86,6 +86,8 @@ class TimingFit:
     hac: tuple[float, ...] = ()
     #: the lags or delays of the other passing fits this flight cannot tell from it
     ambiguous_with: list[str] = field(default_factory=list)
+    #: per member, the lags, delays or partners of ``ambiguous_with`` that replace it
+    alike_of: dict[str, list[str]] = field(default_factory=dict)
     #: per-sample squared error (n,) the fit leaves
     after: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
@@ -110,6 +112,7 @@ class TimingFit:
             "part": list(self.part),
             "hac_t": [min(t, 1e6) for t in self.hac],
             "ambiguous_with": self.ambiguous_with,
+            "alike_of": self.alike_of,
             "bars": {"min_share": MIN_SHARE, "min_hac_t": MIN_HAC_T},
         }
 
@@ -158,9 +161,12 @@ def timing_fits(
     if not fits:
         return []
     best = max(fits, key=lambda f: (len(f.names), f.share))  # a pair that passes first
-    best.ambiguous_with = sorted(
-        {n for f in fits if _alike(f, best) for n in f.names if n not in best.names}
-    )
+    alike = [f for f in fits if _alike(f, best)]
+    best.ambiguous_with = sorted({n for f in alike for n in f.names if n not in best.names})
+    for f in alike:  # each stand-in is a look-alike of the members it replaces
+        for m in (m for m in best.names if m not in f.names):
+            mine = best.alike_of.setdefault(m, [])
+            mine += [n for n in f.names if n not in best.names and n not in mine]
     return [best]
 
 
@@ -229,7 +235,8 @@ def with_timing_pair(
     trial.profiles = {**guarded.profiles, **{n: fit.to_json() for n in fit.names}}
     for s in scores:
         if s.name in fit.names:
-            s.ambiguous_with += [n for n in fit.ambiguous_with if n not in s.ambiguous_with]
+            alike = fit.alike_of.get(s.name, [])
+            s.ambiguous_with += [n for n in alike if n not in s.ambiguous_with]
     return trial
 
 

@@ -4,7 +4,9 @@
 At each time constant the exact forms are subtracted and the nuisance effects' (the
 defaults' look-alikes, and a linear partner) regressor columns are fitted by least
 squares. Their design is factored once (an SVD with ``numpy.linalg.lstsq``'s cutoff),
-so each of a profile's hundreds of evaluations is two products, not a new solve.
+so each of a profile's hundreds of evaluations is two products, not a new solve; a
+partner's parameters are held in their plausible range (``theta_range``) by bounded
+least squares (``scipy.optimize.lsq_linear``) where the free fit leaves it.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import lsq_linear, minimize_scalar
 
 from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES
 from omavctl.learn.model import ResidualGP
@@ -35,12 +37,23 @@ class Profile:
     fit, after the exact forms of some lags or delays at given time constants."""
 
     def __init__(
-        self, samples: Sequence[ResidualSamples], physics: np.ndarray, nuisance: Sequence[str]
+        self,
+        samples: Sequence[ResidualSamples],
+        physics: np.ndarray,
+        nuisance: Sequence[str],
+        bounded: Sequence[str] = (),
     ) -> None:
         self.samples, self.physics = samples, physics
         n = physics.shape[0]
         cols = [np.concatenate([s.regressors[a] for s in samples]) for a in nuisance]
         self.a = np.concatenate(cols, axis=2).reshape(3 * n, -1) if cols else None
+        # the columns of ``bounded`` effects stay in their plausible range (theta_range)
+        ranges = [
+            get_effect(a).theta_range if a in bounded else (-np.inf, np.inf) for a in nuisance
+        ]
+        widths = [c.shape[2] for c in cols]
+        self.lo = np.repeat([r[0] for r in ranges], widths).astype(float)
+        self.hi = np.repeat([r[1] for r in ranges], widths).astype(float)
         self.u = self.pinv = None
         if self.a is not None:
             u, sv, vt = np.linalg.svd(self.a, full_matrices=False)
@@ -69,11 +82,15 @@ class Profile:
             np.zeros_like(self.physics),
         )
         coef = np.zeros(0)
-        if self.u is not None and self.pinv is not None:
+        if self.u is not None and self.pinv is not None and self.a is not None:
             r = y.reshape(-1)
             proj = self.u.T @ r
             coef = self.pinv @ proj
-            y = (r - self.u @ proj).reshape(y.shape)
+            if np.all((coef >= self.lo) & (coef <= self.hi)):
+                y = (r - self.u @ proj).reshape(y.shape)
+            else:  # a bounded column beyond its range: bounded least squares
+                coef = lsq_linear(self.a, r, bounds=(self.lo, self.hi), method="bvls").x
+                y = (r - self.a @ coef).reshape(y.shape)
         return np.asarray((y**2).sum(axis=1)), coef
 
     def left(self, names: Sequence[str], values: Sequence[float]) -> np.ndarray:
@@ -113,10 +130,11 @@ def profile_for(
     extra: Sequence[str] = (),
 ) -> Profile:
     """The profile with the defaults' look-alikes the model lacks (and the samples carry)
-    as nuisance effects, then ``extra``."""
+    as nuisance effects, then ``extra``, whose parameters stay in their plausible range
+    (the look-alikes' are free: nuisance, whatever their values)."""
     alikes = [a for a in sorted(DEFAULT_LOOK_ALIKES) if a not in model.effects]
     alikes = [a for a in alikes if a in samples[0].regressors]
-    return Profile(samples, physics, [*alikes, *extra])
+    return Profile(samples, physics, [*alikes, *extra], bounded=extra)
 
 
 def search_end(name: str) -> float:
