@@ -2,8 +2,9 @@
 (omavctl/diagnose/timing_mixed.py; issue 26, report13 draw 11, docs/scorecard.md
 session 22): a command delay and a rotational drag that cancel on a flight are both
 found at their values, where either alone is not; a delay alone gets no partner; a drag
-alone makes no lag or delay; a partner outside its plausible range is not claimed; the
-verdict says how the profile found them."""
+alone makes no lag or delay; a partner is held to its null bounds and is not claimed
+beyond them; the verdict says how the profile found them; the joint selection's first
+pass is held to the same bounds."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 
 from omavctl.diagnose.claims import Guarded
-from omavctl.diagnose.joint import MIN_HAC_T, MIN_SHARE
+from omavctl.diagnose.joint import MIN_HAC_T, MIN_SHARE, first_pass_theta, plausible_theta
 from omavctl.diagnose.joint_text import named_later
 from omavctl.diagnose.timing_mixed import linear_partners
 from omavctl.diagnose.timing_pair import profile_fits, timing_fits, with_timing_pair
@@ -154,3 +155,26 @@ def test_a_stand_in_is_said_beside_the_member_it_replaces():
     words = named_later({**diag, "timing_claims": {"motor_lag": fit, "rotational_drag": fit}})
     assert words["motor_lag"][1].endswith("; this flight does not tell it from command_delay")
     assert "does not tell" not in words["rotational_drag"][1]
+
+
+def test_the_first_pass_holds_a_drag_at_zero_and_leaves_a_far_bound_implausible():
+    """own-fig8 draw 4 (tune; a 0.8 drag and a 100 ms servo lag, steps -> a figure-8):
+    the fit flight's first pass gave the drag 0.79, 0.82, -0.74; the whole effect was
+    rejected as implausible and the verdict said "Nothing missing". A component at a
+    bound that is the effect's null is absent on its axis; beyond a far end of the
+    plausible range (an inertia twice the nominal) it stays implausible."""
+    rng = np.random.default_rng(5)
+    n = 400
+    drag = -rng.normal(0.0, 1.0, size=(n, 3))[:, :, None] * np.eye(3)[None]
+    inertia = rng.normal(0.0, 1.0, size=(n, 3))[:, :, None] * np.eye(3)[None]
+    targets = np.einsum("nap,p->na", drag, [0.8, 0.8, -0.7]) + np.einsum(
+        "nap,p->na", inertia, [-0.8, 0.0, 0.0]
+    )
+    model = SimpleNamespace(
+        train_regressors={"rotational_drag": drag, "inertia_error": inertia}, targets=targets
+    )
+    theta = first_pass_theta(model, ["rotational_drag", "inertia_error"])  # type: ignore[arg-type]
+    assert theta["rotational_drag"] == pytest.approx([0.8, 0.8, 0.0], abs=0.01)
+    assert theta["inertia_error"][0] == pytest.approx(-0.8, abs=0.01)  # beyond -0.5
+    assert plausible_theta("rotational_drag", theta["rotational_drag"])
+    assert not plausible_theta("inertia_error", theta["inertia_error"])

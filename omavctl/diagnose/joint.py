@@ -66,6 +66,7 @@ from statistics import NormalDist
 from typing import Any
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
 from omavctl.learn.intervals import hac_meat
 from omavctl.learn.model import ResidualGP
@@ -88,6 +89,7 @@ __all__ = [
     "joint_theta",
     "learned_step",
     "look_alike_regressors",
+    "null_bounds",
     "part_high",
     "plausible_theta",
     "without_fit",
@@ -197,7 +199,8 @@ def joint_theta(
 def first_pass_theta(model: ResidualGP, names: Sequence[str]) -> dict[str, np.ndarray]:
     """theta of each of ``names`` estimated jointly by ``fit``'s first pass: ordinary
     least squares on the model's training points and targets, before any GP (as
-    :func:`learned_step`). The GLS of :func:`joint_theta` uses the kernel of a model
+    :func:`learned_step`), held to the effects' null bounds (:func:`null_bounds`). The
+    GLS of :func:`joint_theta` uses the kernel of a model
     fitted *without* the effects, which has learned part of them, and shrinks that
     part toward zero: a hidden 0.47-0.54 N m s^2 drag came out at 0.25-0.28 (the
     first pass: 0.53-0.59, ``fit --effects``: 0.43-0.53), and the inertia error the
@@ -205,12 +208,32 @@ def first_pass_theta(model: ResidualGP, names: Sequence[str]) -> dict[str, np.nd
     values = [model.train_regressors[n] for n in names]
     x = np.concatenate(values, axis=2)
     n, _, p = x.shape
-    theta, *_ = np.linalg.lstsq(x.reshape(3 * n, p), model.targets.reshape(3 * n), rcond=None)
+    a, y = x.reshape(3 * n, p), model.targets.reshape(3 * n)
+    theta, *_ = np.linalg.lstsq(a, y, rcond=None)
+    lo, hi = null_bounds(names, [v.shape[2] for v in values])
+    if np.any((theta < lo) | (theta > hi)):
+        theta = lsq_linear(a, y, bounds=(lo, hi), method="bvls").x
     out, k = {}, 0
     for name, v in zip(names, values, strict=True):
         out[name] = theta[k : k + v.shape[2]]
         k += v.shape[2]
     return out
+
+
+def null_bounds(names: Sequence[str], widths: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Per theta component of ``names`` (``widths`` components each), the bounds a least
+    squares estimate is held to: an end of the plausible range (``theta_range``) that is
+    the effect's null, 0 (a drag, a lag, an interference cannot be negative: a component
+    there is absent on its axis, and ``fit``'s interval is cut there); no other bound, so
+    an estimate beyond a far end stays implausible. own-fig8 draw 5 and 4 (tune): a
+    drag the figure-8's yaw hardly excites came out at -0.21 and -0.74 on z, and the
+    whole effect, 0.8 on x and y, was rejected as implausible."""
+    los, his = [], []
+    for name, w in zip(names, widths, strict=True):
+        lo, hi = get_effect(name).theta_range
+        los.append(np.full(w, 0.0 if lo == 0 else -np.inf))
+        his.append(np.full(w, 0.0 if hi == 0 else np.inf))
+    return np.concatenate(los), np.concatenate(his)
 
 
 def part_high(regressor: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> float:

@@ -5,8 +5,9 @@ At each time constant the exact forms are subtracted and the nuisance effects' (
 defaults' look-alikes, and a linear partner) regressor columns are fitted by least
 squares. Their design is factored once (an SVD with ``numpy.linalg.lstsq``'s cutoff),
 so each of a profile's hundreds of evaluations is two products, not a new solve; a
-partner's parameters are held in their plausible range (``theta_range``) by bounded
-least squares (``scipy.optimize.lsq_linear``) where the free fit leaves it.
+partner's parameters are held to their null bounds (:func:`~omavctl.diagnose.joint.null_bounds`:
+a drag is not negative) by bounded least squares (``scipy.optimize.lsq_linear``) where
+the free fit leaves them.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import lsq_linear, minimize_scalar
 
-from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES
+from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES, null_bounds
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
@@ -47,13 +48,12 @@ class Profile:
         n = physics.shape[0]
         cols = [np.concatenate([s.regressors[a] for s in samples]) for a in nuisance]
         self.a = np.concatenate(cols, axis=2).reshape(3 * n, -1) if cols else None
-        # the columns of ``bounded`` effects stay in their plausible range (theta_range)
-        ranges = [
-            get_effect(a).theta_range if a in bounded else (-np.inf, np.inf) for a in nuisance
-        ]
+        # the columns of ``bounded`` effects are held to their null bounds (a drag is not
+        # negative); a far end of their plausible range is left to ``plausible``
         widths = [c.shape[2] for c in cols]
-        self.lo = np.repeat([r[0] for r in ranges], widths).astype(float)
-        self.hi = np.repeat([r[1] for r in ranges], widths).astype(float)
+        self.lo, self.hi = null_bounds(nuisance, widths)
+        free = np.repeat([a not in bounded for a in nuisance], widths)
+        self.lo[free], self.hi[free] = -np.inf, np.inf
         self.u = self.pinv = None
         if self.a is not None:
             u, sv, vt = np.linalg.svd(self.a, full_matrices=False)
@@ -130,7 +130,7 @@ def profile_for(
     extra: Sequence[str] = (),
 ) -> Profile:
     """The profile with the defaults' look-alikes the model lacks (and the samples carry)
-    as nuisance effects, then ``extra``, whose parameters stay in their plausible range
+    as nuisance effects, then ``extra``, whose parameters are held to their null bounds
     (the look-alikes' are free: nuisance, whatever their values)."""
     alikes = [a for a in sorted(DEFAULT_LOOK_ALIKES) if a not in model.effects]
     alikes = [a for a in alikes if a in samples[0].regressors]
