@@ -63,7 +63,9 @@ METHOD: dict[str, Any] = {
     "min_t_value": MIN_T,
     "refit": "parameters fitted to the model's own training points as fit --effects "
     "would (GP hyperparameters kept); a missing effect must lower the error with them",
-    "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values)",
+    "parameter_bounds": "bounded least squares within THETA_RANGE (plausible values); the "
+    "joint selection's first pass and a lag's partner in the held-out profile are held to "
+    "the bounds that are the effect's null (a drag, a lag, an interference is not negative)",
     "selection": "forward: best missing effect removed, others rescored, up to 3; "
     "with the effects that, estimated jointly from the model's training points as fit "
     "--effects would, lower the physics-only error on the held-out flight (joint; the "
