@@ -240,8 +240,7 @@ class Guarded:
     #: ``not_physical``: the components whose interval lies wholly beyond their physical
     #: bound (:func:`beyond_bound`), when that is why
     held_back: list[dict[str, Any]] = field(default_factory=list)
-    #: per kept claim the held-out profile found with its partner, its JSON
-    #: (:mod:`omavctl.diagnose.timing_pair`, :mod:`omavctl.diagnose.timing_mixed`)
+    #: per kept claim, the JSON of the held-out profile that found it (timing_pair)
     profiles: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 

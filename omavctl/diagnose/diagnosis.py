@@ -189,11 +189,10 @@ def diagnose(
 ) -> dict[str, Any]:
     """The ``diagnosis`` section (see module docstring).
 
-    samples: the residual samples of every log built with every registry
-    effect's regressor; model_mean (n, 3) the model's residual prediction on
-    the concatenated samples and model_std (n, 3) its predictive std. ``contributions``
-    receives each candidate's fitted part of the remaining error (n, 3) rad/s².
-    """
+    samples: the residual samples of every log built with every registry effect's
+    regressor; model_mean (n, 3) the model's residual prediction on the concatenated
+    samples, model_std (n, 3) its std. ``contributions`` receives each candidate's
+    fitted part of the remaining error (n, 3) rad/s²."""
     residual = np.concatenate([s.residual for s in samples])
     t = np.concatenate([s.t for s in samples])
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
@@ -238,11 +237,10 @@ def diagnose(
         "joint_steps": [s.to_json() for s in joint],
         "unexplained": unexplained,
         "learned": [{**s.to_json(), "estimate": estimates[s.name]} for s in learned],
-        # the claims' estimates as the printed fit command makes them, and the claims
-        # held back because their interval holds the effect's null (claims.py)
+        # the claims' estimates as the printed fit command makes them, those held back
+        # (their interval holds the null), the held-out profiles that found claims
         "claim_estimates": guarded.estimates,
         "not_pinned": guarded.held_back,
-        # the claims a held-out profile of lags and delays found, with its numbers
         "timing_claims": {n: p for n, p in guarded.profiles.items() if n in names},
     }
     for entry in out["missing_effects"]:
