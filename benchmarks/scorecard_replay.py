@@ -32,8 +32,10 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import shlex
 import shutil
+import subprocess
 import sys
 import time
 from collections.abc import Sequence
@@ -187,12 +189,36 @@ REPLAY_DIR = "replay"
 CACHE_DIR = "fitcache"
 
 
+#: Python that imports what a ``fit`` run loads of omavctl (the CLI, and the two
+#: modules it imports when it writes its JSON and notes) and prints their files
+_FIT_LOADS = (
+    "import sys, omavctl.cli.app, omavctl.report.summary, omavctl.diagnose.estimate_text\n"
+    "print('\\n'.join(m.__file__ for n, m in list(sys.modules.items())"
+    " if n.startswith('omavctl') and getattr(m, '__file__', None)))"
+)
+
+
+def _fit_sources() -> set[Path]:
+    """The omavctl source files a ``fit`` run loads, from ROOT (a subprocess)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run(
+        [sys.executable, "-c", _FIT_LOADS], env=env, capture_output=True, text=True, check=True
+    )
+    return {Path(line).resolve() for line in out.stdout.split()}
+
+
 def _code_hash() -> str:
-    """Hash of the omavctl sources the fits run (ROOT/omavctl/**/*.py and its data):
-    a fit cached by one version of the code is not another's."""
+    """Hash of the omavctl sources a fit can run (ROOT/omavctl/**/*.py and its data, but
+    the diagnosis's and the report's modules a fit run does not load): a fit cached by
+    one version of that code is not another's, and a change to ``evaluate``'s
+    diagnosis alone (omavctl/diagnose/timing_*.py, say) reuses the fits."""
     if not _CODE:
         h = hashlib.sha256()
+        loads = _fit_sources()
         for path in sorted((ROOT / "omavctl").rglob("*")):
+            rel = path.relative_to(ROOT)
+            if rel.parts[1:2] in (("diagnose",), ("report",)) and path.resolve() not in loads:
+                continue
             if path.suffix in (".py", ".yaml") and "__pycache__" not in path.parts:
                 h.update(str(path.relative_to(ROOT)).encode() + b"\0" + path.read_bytes())
         _CODE.append(h.hexdigest()[:16])
