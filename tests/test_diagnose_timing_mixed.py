@@ -178,3 +178,12 @@ def test_the_first_pass_holds_a_drag_at_zero_and_leaves_a_far_bound_implausible(
     assert theta["inertia_error"][0] == pytest.approx(-0.8, abs=0.01)  # beyond -0.5
     assert plausible_theta("rotational_drag", theta["rotational_drag"])
     assert not plausible_theta("inertia_error", theta["inertia_error"])
+
+
+def test_a_model_with_both_look_alikes_profiles_with_no_nuisance():
+    """own-fig8 draw 6's second model (com_offset and rotor_interference fitted): the
+    profile had no nuisance effect and the bounds of none failed ("internal error")."""
+    s, physics = _flight(0.05, 0.4)
+    model = SimpleNamespace(effects={"com_offset": {}, "rotor_interference": {}})
+    (fit,) = timing_fits([s], model, physics, FLOOR, DT)  # type: ignore[arg-type]
+    assert fit.names == ("command_delay", "rotational_drag")

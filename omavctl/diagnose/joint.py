@@ -233,6 +233,8 @@ def null_bounds(names: Sequence[str], widths: Sequence[int]) -> tuple[np.ndarray
         lo, hi = get_effect(name).theta_range
         los.append(np.full(w, 0.0 if lo == 0 else -np.inf))
         his.append(np.full(w, 0.0 if hi == 0 else np.inf))
+    if not los:  # no effect (a model holding both look-alikes profiles with none)
+        return np.zeros(0), np.zeros(0)
     return np.concatenate(los), np.concatenate(his)
 
 

@@ -52,7 +52,7 @@ class Profile:
         # negative); a far end of their plausible range is left to ``plausible``
         widths = [c.shape[2] for c in cols]
         self.lo, self.hi = null_bounds(nuisance, widths)
-        free = np.repeat([a not in bounded for a in nuisance], widths)
+        free = np.repeat(np.array([a not in bounded for a in nuisance], bool), widths)
         self.lo[free], self.hi[free] = -np.inf, np.inf
         self.u = self.pinv = None
         if self.a is not None:
