@@ -138,8 +138,8 @@ def test_the_claim_carries_its_profile_into_the_verdict():
         "command_delay (50.0 ms): profiled on this flight together with rotational_drag"
     )
     assert "together they remove 100 % of the physics-only error the look-alikes leave" in said
-    assert words["rotational_drag"][1].startswith(
-        "rotational_drag: profiled on this flight together with command_delay (50.0 ms)"
+    assert words["rotational_drag"][1] == (
+        "rotational_drag: in the same profile, 100 % of what the other leaves"
     )
 
 

@@ -182,6 +182,8 @@ def _profile_words(name: str, fit: Mapping[str, Any]) -> str:
     together, shares = _num(fit.get("share")), fit.get("member_share") or []
     mine = _num(shares[names.index(name)]) if name in names and len(shares) == len(names) else None
     others = [at.get(n, n) for n in names if n != name]
+    if others and mine is not None and name != names[0]:  # the first member said the rest
+        return f"{at.get(name, name)}: in the same profile, {_pct(mine)} of what the other leaves"
     out = f"{at.get(name, name)}: profiled on this flight"
     out += f" together with {' and '.join(others)}" if others else ""
     if together is not None:
