@@ -27,7 +27,9 @@ does (both searched together, their profile intervals) and keeps what it pins do
 Another lag, delay or pair that passes too, with as many members, whose error the
 claim's beats by less than :data:`~omavctl.diagnose.joint.MIN_HAC_T` Newey-West
 standard errors (per sample) is its look-alike: the flight does not tell them apart
-("ambiguous", both named).
+("ambiguous", both named). A pair may also be a lag or delay with an effect linear in
+its parameters (:mod:`omavctl.diagnose.timing_mixed`: a delay and a drag that cancel),
+on the same bars; the profile (:mod:`omavctl.diagnose.timing_profile`) is shared.
 """
 
 from __future__ import annotations
