@@ -34,7 +34,7 @@ import numpy as np
 
 from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES, MIN_HAC_T, MIN_SHARE, hac_t
 from omavctl.diagnose.joint import plausible_theta as _plausible
-from omavctl.diagnose.timing_profile import TIMING, profile_for
+from omavctl.diagnose.timing_profile import TIMING, TimingFit, profile_for
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
@@ -43,22 +43,12 @@ __all__ = ["MixedFit", "linear_partners", "mixed_fits"]
 
 
 @dataclass
-class MixedFit:
+class MixedFit(TimingFit):
     """A lag or delay (``names[0]``, time constant ``values[0]``) with a linear effect
-    (``names[1]``, parameters ``theta``), profiled on the held-out flight. The fields a
-    :class:`~omavctl.diagnose.timing_pair.TimingFit` has mean the same here."""
+    (``names[1]``, parameters ``theta``), profiled on the held-out flight; the other
+    fields mean what a :class:`~omavctl.diagnose.timing_profile.TimingFit`'s do."""
 
-    names: tuple[str, ...]
-    values: tuple[float, ...]
-    share: float
-    member_share: tuple[float, ...] = ()
-    part: tuple[float, ...] = ()
-    hac: tuple[float, ...] = ()
     theta: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    ambiguous_with: list[str] = field(default_factory=list)
-    #: per member, the lags, delays or partners of ``ambiguous_with`` that replace it
-    alike_of: dict[str, list[str]] = field(default_factory=dict)
-    after: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     def passes(self, floor: float, dt: float) -> bool:
         """Each member's bars (module docstring)."""
@@ -72,18 +62,7 @@ class MixedFit:
         return timing and _plausible(self.names[1], self.theta)
 
     def to_json(self) -> dict[str, Any]:
-        return {
-            "names": list(self.names),
-            "values_s": [float(v) for v in self.values],
-            "theta": [float(x) for x in self.theta],
-            "share": float(self.share),
-            "member_share": list(self.member_share),
-            "part": list(self.part),
-            "hac_t": [min(t, 1e6) for t in self.hac],
-            "ambiguous_with": self.ambiguous_with,
-            "alike_of": self.alike_of,
-            "bars": {"min_share": MIN_SHARE, "min_hac_t": MIN_HAC_T},
-        }
+        return {**super().to_json(), "theta": [float(x) for x in self.theta]}
 
 
 def linear_partners(samples: Sequence[ResidualSamples], model: ResidualGP) -> list[str]:

@@ -35,28 +35,23 @@ on the same bars; the profile (:mod:`omavctl.diagnose.timing_profile`) is shared
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from itertools import combinations
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
 from omavctl.diagnose.claims import Guarded
 from omavctl.diagnose.joint import (
     MIN_HAC_T,
-    MIN_SHARE,
     hac_t,
-    plausible_theta,
 )
 from omavctl.diagnose.scoring import EffectScore
-from omavctl.diagnose.timing_mixed import MixedFit, mixed_fits
-from omavctl.diagnose.timing_profile import GRID, TIMING, Profile, profile_for
+from omavctl.diagnose.timing_mixed import mixed_fits
+from omavctl.diagnose.timing_profile import GRID, TIMING, Profile, TimingFit, profile_for
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
-#: A profiled fit: lags and delays (:class:`TimingFit`) or one with a linear partner.
-Fit = Union["TimingFit", MixedFit]
 #: The claims guard the pair is guarded by: (names, the names found here) -> Guarded.
 PairGuard = Callable[[list[str], Sequence[str]], Guarded]
 
@@ -70,53 +65,6 @@ __all__ = [
     "timing_fits",
     "with_timing_pair",
 ]
-
-
-@dataclass
-class TimingFit:
-    """One lag or delay, or a pair, profiled on the held-out flight."""
-
-    names: tuple[str, ...]
-    #: best time constants (s), one per name
-    values: tuple[float, ...]
-    #: fraction of the error the look-alikes leave that the fit removes
-    share: float
-    #: per member: share of what the other member alone leaves that it removes, the
-    #: RMS of its exact form (rad/s²) and the Newey-West t of its per-sample gain
-    member_share: tuple[float, ...] = ()
-    part: tuple[float, ...] = ()
-    hac: tuple[float, ...] = ()
-    #: the lags or delays of the other passing fits this flight cannot tell from it
-    ambiguous_with: list[str] = field(default_factory=list)
-    #: per member, the lags, delays or partners of ``ambiguous_with`` that replace it
-    alike_of: dict[str, list[str]] = field(default_factory=dict)
-    #: per-sample squared error (n,) the fit leaves
-    after: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
-
-    def passes(self, floor: float, dt: float) -> bool:
-        """Each member's bars (module docstring)."""
-        return all(
-            s >= MIN_SHARE and p >= floor and t >= MIN_HAC_T and v >= dt
-            for s, p, t, v in zip(self.member_share, self.part, self.hac, self.values, strict=True)
-        )
-
-    def plausible(self) -> bool:
-        """Every time constant within its effect's plausible range."""
-        pairs = zip(self.names, self.values, strict=True)
-        return all(plausible_theta(n, np.array([v])) for n, v in pairs)
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "names": list(self.names),
-            "values_s": [float(v) for v in self.values],
-            "share": float(self.share),
-            "member_share": list(self.member_share),
-            "part": list(self.part),
-            "hac_t": [min(t, 1e6) for t in self.hac],
-            "ambiguous_with": self.ambiguous_with,
-            "alike_of": self.alike_of,
-            "bars": {"min_share": MIN_SHARE, "min_hac_t": MIN_HAC_T},
-        }
 
 
 def _single(prof: Profile, name: str, before: np.ndarray) -> TimingFit:
@@ -148,7 +96,7 @@ def timing_fits(
     physics: np.ndarray,
     floor: float,
     dt: float,
-) -> list[Fit]:
+) -> list[TimingFit]:
     """The lag, delay or pair to claim (a list of at most one; see the module docstring;
     a pair may be a lag or delay with a linear partner, :mod:`~omavctl.diagnose.timing_mixed`),
     with its look-alikes in ``ambiguous_with``. ``physics`` (n, 3): the held-out
@@ -156,7 +104,7 @@ def timing_fits(
     sample period (s). Empty when the model has a lag or delay already."""
     if any(get_effect(n).search is not None for n in model.effects) or not samples:
         return []
-    profiled: list[Fit] = [*profile_fits(samples, model, physics)]
+    profiled: list[TimingFit] = [*profile_fits(samples, model, physics)]
     singles = {f.names[0]: f for f in profiled if len(f.names) == 1}
     profiled += mixed_fits(samples, model, physics, singles)
     fits = [f for f in profiled if f.passes(floor, dt) and f.plausible()]
@@ -191,7 +139,7 @@ def profile_fits(
     return [*pairs, *singles.values()]
 
 
-def _alike(other: Fit, best: Fit) -> bool:
+def _alike(other: TimingFit, best: TimingFit) -> bool:
     """Whether the flight cannot tell ``other`` from ``best``: as many members, and
     ``best``'s per-sample advantage under MIN_HAC_T Newey-West standard errors."""
     if other is best or len(other.names) != len(best.names):

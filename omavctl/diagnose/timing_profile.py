@@ -13,16 +13,24 @@ the free fit leaves them.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.optimize import lsq_linear, minimize_scalar
 
-from omavctl.diagnose.joint import DEFAULT_LOOK_ALIKES, null_bounds
+from omavctl.diagnose.joint import (
+    DEFAULT_LOOK_ALIKES,
+    MIN_HAC_T,
+    MIN_SHARE,
+    null_bounds,
+    plausible_theta,
+)
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
 
-__all__ = ["GRID", "PAIR_GRID", "TIMING", "Profile", "profile_for", "search_end"]
+__all__ = ["GRID", "PAIR_GRID", "TIMING", "Profile", "TimingFit", "profile_for", "search_end"]
 
 #: The lags and delays: their exact forms are searched over their time constants.
 TIMING = ("command_delay", "motor_lag", "servo_lag")
@@ -31,6 +39,53 @@ TIMING = ("command_delay", "motor_lag", "servo_lag")
 GRID = 31
 #: The same for each time constant of a pair (its grid has PAIR_GRID² points).
 PAIR_GRID = 16
+
+
+@dataclass
+class TimingFit:
+    """One lag or delay, or a pair, profiled on the held-out flight."""
+
+    names: tuple[str, ...]
+    #: best time constants (s), one per name
+    values: tuple[float, ...]
+    #: fraction of the error the look-alikes leave that the fit removes
+    share: float
+    #: per member: share of what the other member alone leaves that it removes, the
+    #: RMS of its exact form (rad/s²) and the Newey-West t of its per-sample gain
+    member_share: tuple[float, ...] = ()
+    part: tuple[float, ...] = ()
+    hac: tuple[float, ...] = ()
+    #: the lags or delays of the other passing fits this flight cannot tell from it
+    ambiguous_with: list[str] = field(default_factory=list)
+    #: per member, the lags, delays or partners of ``ambiguous_with`` that replace it
+    alike_of: dict[str, list[str]] = field(default_factory=dict)
+    #: per-sample squared error (n,) the fit leaves
+    after: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+
+    def passes(self, floor: float, dt: float) -> bool:
+        """Each member's bars (:mod:`omavctl.diagnose.timing_pair`)."""
+        return all(
+            s >= MIN_SHARE and p >= floor and t >= MIN_HAC_T and v >= dt
+            for s, p, t, v in zip(self.member_share, self.part, self.hac, self.values, strict=True)
+        )
+
+    def plausible(self) -> bool:
+        """Every time constant within its effect's plausible range."""
+        pairs = zip(self.names, self.values, strict=True)
+        return all(plausible_theta(n, np.array([v])) for n, v in pairs)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "names": list(self.names),
+            "values_s": [float(v) for v in self.values],
+            "share": float(self.share),
+            "member_share": list(self.member_share),
+            "part": list(self.part),
+            "hac_t": [min(t, 1e6) for t in self.hac],
+            "ambiguous_with": self.ambiguous_with,
+            "alike_of": self.alike_of,
+            "bars": {"min_share": MIN_SHARE, "min_hac_t": MIN_HAC_T},
+        }
 
 
 class Profile:
