@@ -11,10 +11,12 @@ error); the linearised joint selection found neither, and the verdict named only
 look-alike ``com_offset``. With the drag's regressor among the nuisance parameters,
 the delay at 50 ms removes 79 % of what is left.
 
-Here every lag or delay is profiled (:mod:`omavctl.diagnose.timing_pair`'s grid and
+Here every lag or delay is profiled (:mod:`omavctl.diagnose.timing_profile`'s grid and
 refinement) beside each effect that is linear in its parameters, is neither a lag nor
-a delay nor a look-alike, and the model lacks; the partner's regressor columns are
-fitted by least squares with the look-alikes' at each time constant. The two are
+a delay nor a look-alike, is excited and the model lacks; the partner's regressor
+columns are fitted by least squares with the look-alikes' at each time constant, held
+to the partner's null bounds (:func:`~omavctl.diagnose.joint.null_bounds`: a drag is not
+negative). The two are
 claimed together only when each passes, beside the other, the bars a single claim
 passes: it removes at least :data:`~omavctl.diagnose.joint.MIN_SHARE` of what the
 other (at its own best fit) leaves, its part reaches the claim floor, its per-sample
@@ -82,19 +84,23 @@ def mixed_fits(
     samples: Sequence[ResidualSamples],
     model: ResidualGP,
     physics: np.ndarray,
-    singles: dict[str, Any],
+    singles: dict[str, TimingFit],
 ) -> list[MixedFit]:
     """Every lag or delay beside every linear partner (:func:`linear_partners`),
     profiled on the held-out physics-only error ``physics`` (n, 3) with the look-alikes
     the model lacks. ``singles``: each lag or delay's own profile beside the look-alikes
-    (a :class:`~omavctl.diagnose.timing_pair.TimingFit` per name), the yardstick of the
-    partner's share."""
+    (a :class:`~omavctl.diagnose.timing_profile.TimingFit` per name), the yardstick of
+    the partner's share."""
     timing = [n for n in TIMING if n in samples[0].regressors and n in singles]
     partners = linear_partners(samples, model) if timing else []
     out: list[MixedFit] = []
-    left = float(profile_for(samples, model, physics).left([], []).sum()) if partners else 0.0
+    if not partners:
+        return out
+    base = profile_for(samples, model, physics)
+    left = float(base.left([], []).sum())
     for lin in partners:
         prof = profile_for(samples, model, physics, [lin])
+        prof.cache = base.cache  # the exact forms do not depend on the nuisance effects
         k = prof.a.shape[1] if prof.a is not None else 0
         p = samples[0].regressors[lin].shape[2]
         reg = np.concatenate([s.regressors[lin] for s in samples])  # (n, 3, p)
