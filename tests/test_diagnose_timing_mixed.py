@@ -18,6 +18,7 @@ from omavctl.diagnose.joint import MIN_HAC_T, MIN_SHARE, first_pass_theta, plaus
 from omavctl.diagnose.joint_text import named_later
 from omavctl.diagnose.timing_mixed import linear_partners
 from omavctl.diagnose.timing_pair import profile_fits, timing_fits, with_timing_pair
+from tests.test_diagnose_timing_pair import quiet_regressors
 
 DT = 0.01
 FLOOR = 0.05
@@ -41,13 +42,8 @@ class _Samples:
         w = np.cumsum(self.u, axis=0) * DT
         w -= w.mean(axis=0)
         self.sg = SimpleNamespace(dt=DT)
-        zeros = np.zeros((N, 3, 1))
         self.regressors = {
-            "com_offset": np.zeros((N, 3, 3)),
-            "rotor_interference": np.zeros((N, 3, 2)),
-            "command_delay": zeros,
-            "motor_lag": zeros,
-            "servo_lag": zeros,
+            **quiet_regressors(N),
             "inertia_error": np.zeros((N, 3, 3)),
             "rotational_drag": -w[:, :, None] * np.eye(3)[None],
         }

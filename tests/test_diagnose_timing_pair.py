@@ -28,6 +28,19 @@ def _steps(rng: np.random.Generator) -> np.ndarray:
     return level[np.searchsorted(edges, np.arange(N), side="right")]
 
 
+def quiet_regressors(n: int) -> dict[str, np.ndarray]:
+    """Regressors (n, 3, p) of the look-alikes and the lags and delays, none excited (the
+    lags' and delays' exact forms carry them)."""
+    zeros = np.zeros((n, 3, 1))
+    return {
+        "com_offset": np.zeros((n, 3, 3)),
+        "rotor_interference": np.zeros((n, 3, 2)),
+        "command_delay": zeros,
+        "motor_lag": zeros,
+        "servo_lag": zeros,
+    }
+
+
 class _Samples:
     """Held-out samples: the delay and the motor lag act on the command ``u``, the servo
     lag on a second command ``v`` (the tilt's share of the torque); the look-alikes'
@@ -36,14 +49,7 @@ class _Samples:
     def __init__(self, u: np.ndarray, v: np.ndarray) -> None:
         self.u, self.v = u, v
         self.sg = SimpleNamespace(dt=DT)
-        zeros = np.zeros((N, 3, 1))
-        self.regressors = {
-            "com_offset": np.zeros((N, 3, 3)),
-            "rotor_interference": np.zeros((N, 3, 2)),
-            "command_delay": zeros,
-            "motor_lag": zeros,
-            "servo_lag": zeros,
-        }
+        self.regressors = quiet_regressors(N)
 
     def exact(self, name: str, value: float) -> np.ndarray:
         if name == "command_delay":
