@@ -11,6 +11,7 @@ __all__ = [
     "beside_timing_sentence",
     "joint_share",
     "joint_text",
+    "linear_words",
     "min_explained",
     "named_later",
     "replaced_step",
@@ -224,3 +225,21 @@ def _joint_words(diag: Mapping[str, Any], name: str) -> tuple[str, str]:
         )
         numbers += f" ({_pct(total)} of the whole)" if total is not None else ""
     return ("joint selection", f"{name}: the joint selection{numbers}")
+
+
+def linear_words(diag: Mapping[str, Any], name: str) -> str | None:
+    """The verdict's clause for an effect linear in its parameters that the held-out
+    flight itself found (``timing_claims`` of kind ``linear``:
+    :mod:`omavctl.diagnose.linear_profile`); None for any other claim."""
+    profiles = diag.get("timing_claims")
+    fit = profiles.get(name) if isinstance(profiles, Mapping) else None
+    if not isinstance(fit, Mapping) or fit.get("kind") != "linear":
+        return None
+    share = _num(fit.get("share"))
+    better, blocks = fit.get("blocks_better"), fit.get("blocks")
+    out = "estimated on this flight beside the look-alikes"
+    if share is not None:
+        out += f", it removes {_pct(share)} of the physics-only error they leave"
+    if isinstance(better, int) and isinstance(blocks, int):
+        out += f", judged on 2 s blocks it was not fitted on (lower in {better} of {blocks})"
+    return out

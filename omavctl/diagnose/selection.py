@@ -17,6 +17,7 @@ from omavctl.diagnose.estimates import SecondStage
 from omavctl.diagnose.joint import JointStep
 from omavctl.diagnose.joint_lag import beside_lag
 from omavctl.diagnose.joint_timing import with_timing_rivals
+from omavctl.diagnose.linear_profile import with_linear
 from omavctl.diagnose.scoring import EffectScore
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
@@ -122,13 +123,16 @@ def lag_checked(
     ranking: tuple[Sequence[dict[str, Any]], list[EffectScore], float],
     stage: SecondStage,
 ) -> Guarded:
-    """:func:`.joint_lag.beside_lag` on the physics-only error (n, 3); ``ranking`` as _guard's."""
+    """:func:`.joint_lag.beside_lag` on the physics-only error (n, 3), then, when only the
+    look-alikes are claimed, a linear effect estimated on the held-out flight
+    (:func:`.linear_profile.with_linear`); ``ranking`` as _guard's."""
     again = partial(_guard, samples, model, ranking=ranking, stage=stage)
 
     def paired(names: list[str], held_out: Sequence[str]) -> Guarded:
         return _guard(samples, model, names, ranking, stage, held_out=held_out)
 
-    return beside_lag(samples, model, physics, guarded, ranking[2], again, (ranking[1], paired))
+    out = beside_lag(samples, model, physics, guarded, ranking[2], again, (ranking[1], paired))
+    return with_linear(samples, model, physics, out, ranking[2], paired, ranking[1])
 
 
 def one_at_a_time(guard: Callable[[list[str]], Guarded], names: list[str]) -> Guarded:

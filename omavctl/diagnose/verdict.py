@@ -27,6 +27,7 @@ from omavctl.diagnose.heldout import on_what
 from omavctl.diagnose.joint_text import (
     joint_share,
     joint_text,
+    linear_words,
     min_explained,
     named_later,
     replaced_text,
@@ -106,7 +107,11 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         a for a in AXES if (v := _num(per_axis.get(a))) is not None and v >= AXIS_CLAIM
     }
     joint = joint_share(diag, missing[0])
-    if joint is not None and (ev is None or ev < min_explained(diag)):
+    linear = linear_words(diag, missing[0])
+    if linear is not None and (ev is None or ev < min_explained(diag)):
+        text += f" — {linear}"  # found on the held-out flight itself
+        claimed = None
+    elif joint is not None and (ev is None or ev < min_explained(diag)):
         # claimed by the joint selection on the physics-only error: the model's own
         # share (which can be negative where its GP absorbed the effect) is not the claim
         text += (
