@@ -147,6 +147,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report14's records were read (2026-11-27, session 22): the next changes are reported
+    # on report15 (16 000 000; declared in session 23 before any of its draws was flown)
+    "report15": {
+        "seed_base": 16_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
