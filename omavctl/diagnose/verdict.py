@@ -106,29 +106,9 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     claimed: set[str] | None = {
         a for a in AXES if (v := _num(per_axis.get(a))) is not None and v >= AXIS_CLAIM
     }
-    joint = joint_share(diag, missing[0])
-    linear = linear_words(diag, missing[0])
-    if linear is not None and (ev is None or ev < min_explained(diag)):
-        text += f" — {linear}"  # found on the held-out flight itself
-        claimed = None
-    elif joint is not None and (ev is None or ev < min_explained(diag)):
-        # claimed by the joint selection on the physics-only error: the model's own
-        # share (which can be negative where its GP absorbed the effect) is not the claim
-        text += (
-            f" — estimated from the fit flight as fit --effects would, it removes "
-            f"{_pct(joint)} of the squared physics-only error {on_what(tree)}"
-        )
-        if ev is not None:
-            text += (
-                f" (the model's GP has absorbed it: it explains {_pct(ev)} of the model's "
-                "remaining error)"
-            )
-        if clause := replaced_text(diag, missing[0]):
-            text += f"; {clause}"
-        claimed = None
-    elif ev is not None:
-        text += f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"
-        text += f" ({axes})" if axes else ""
+    how, every_axis = _how_missing(tree, missing[0], ev, axes)
+    text += how
+    claimed = None if every_axis else claimed
     text += "."
     said = estimate_sentence(ct.claim_estimate(diag, missing[0]), claimed)
     text += said + (elsewhere_clause(tree) if said else "")
@@ -147,6 +127,37 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     elif amb and isinstance(sep := diag.get("separate_flight"), str) and sep:
         text += f" {sep[0].upper()}{sep[1:]}"
     return Line("missing", text, command=cmd if isinstance(cmd, str) and cmd else None)
+
+
+def _how_missing(
+    tree: Mapping[str, Any], name: str, ev: float | None, axes: str
+) -> tuple[str, bool]:
+    """The clause after "Missing: name" and whether it is claimed on every axis: found on
+    the held-out flight itself (a linear profile), by the joint selection on the
+    physics-only error (the model's own share can be negative where its GP absorbed the
+    effect: it is not the claim), or by its share of the model's remaining error."""
+    diag = get_path(tree, "diagnosis", default={}) or {}
+    weak = ev is None or ev < min_explained(diag)
+    linear, joint = linear_words(diag, name), joint_share(diag, name)
+    if linear is not None and weak:
+        return f" — {linear}", True
+    if joint is not None and weak:
+        text = (
+            f" — estimated from the fit flight as fit --effects would, it removes "
+            f"{_pct(joint)} of the squared physics-only error {on_what(tree)}"
+        )
+        if ev is not None:
+            text += (
+                f" (the model's GP has absorbed it: it explains {_pct(ev)} of the model's "
+                "remaining error)"
+            )
+        if clause := replaced_text(diag, name):
+            text += f"; {clause}"
+        return text, True
+    if ev is not None:
+        text = f" — it explains {_pct(ev)} of the model's remaining error {on_what(tree)}"
+        return text + (f" ({axes})" if axes else ""), False
+    return "", False
 
 
 def _also_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
