@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from omavctl.diagnose.commands import fit_command, separate_command
-from omavctl.diagnose.diagnosis import _blocks
 from omavctl.diagnose.joint import (
     DEFAULT_LOOK_ALIKES,
     MAX_EFFECTS,
@@ -16,6 +15,7 @@ from omavctl.diagnose.joint import (
     MIN_SHARE_OF_TOTAL,
     joint_selection,
 )
+from omavctl.diagnose.scoring import time_blocks
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import feature_names
 from omavctl.physics.effects import get_effect
@@ -76,7 +76,7 @@ def _case(truth: dict[str, np.ndarray | None], seed: int = 0, alike: dict[str, s
         if theta is not None:
             targets += regs_train[name] @ theta
             physics += regs_held[name] @ theta
-    blocks = _blocks(np.arange(N_HELD) * DT, np.zeros(N_HELD), 2.0)
+    blocks = time_blocks(np.arange(N_HELD) * DT, np.zeros(N_HELD), 2.0)
     return _model(regs_train, targets), physics, regs_held, blocks
 
 

@@ -31,11 +31,13 @@ from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.learned_beside import learned_beside_look_alikes
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
+    BLOCK_SECONDS,
     MIN_EXPLAINED,
     MIN_NOISE_RATIO,
     MIN_T,
     EffectScore,
     score_effects,
+    time_blocks,
 )
 from omavctl.diagnose.selection import lag_checked, select_guarded
 from omavctl.diagnose.timing_beside import timing_beside_look_alikes
@@ -49,9 +51,6 @@ __all__ = [
     "measurement_noise",
     "unexplained_structure",
 ]
-
-#: Alternating train/test blocks of the diagnosis, s.
-BLOCK_SECONDS = 2.0
 
 
 #: How the diagnosis decides (the evaluation JSON's ``diagnosis.method``, with the
@@ -99,18 +98,6 @@ METHOD: dict[str, Any] = {
     "that is not one of them (learned_claims)",
     "learned_estimate": ESTIMATE_METHOD,
 }
-
-
-def _blocks(t: np.ndarray, log_id: np.ndarray, seconds: float) -> np.ndarray:
-    """Block number (n,) of each sample: consecutive ``seconds`` windows per log."""
-    out = np.empty(t.size, dtype=np.int64)
-    offset = 0
-    for lid in np.unique(log_id):
-        sel = log_id == lid
-        b = np.floor((t[sel] - t[sel].min()) / seconds).astype(np.int64)
-        out[sel] = b + offset
-        offset = int(out[sel].max()) + 1
-    return out
 
 
 def unexplained_structure(
@@ -196,7 +183,7 @@ def diagnose(
     residual = np.concatenate([s.residual for s in samples])
     t = np.concatenate([s.t for s in samples])
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
-    blocks = _blocks(t, log_id, BLOCK_SECONDS)
+    blocks = time_blocks(t, log_id, BLOCK_SECONDS)
     regs = {n: np.concatenate([s.regressors[n] for s in samples]) for n in EFFECTS}
     z = np.concatenate([s.inputs(model.features) for s in samples])
     candidates, refit = _candidates(regs, model, z)

@@ -54,16 +54,14 @@ from omavctl.diagnose.joint import (
     block_sums,
     plausible_theta,
 )
-from omavctl.diagnose.scoring import EffectScore
+from omavctl.diagnose.scoring import BLOCK_SECONDS, EffectScore, time_blocks
+from omavctl.diagnose.timing_mixed import linear_partners
 from omavctl.diagnose.timing_profile import profile_for
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
-from omavctl.physics.effects import get_effect
 
-__all__ = ["BLOCK_SECONDS", "PART_FLOOR", "SIGN_P", "LinearFit", "linear_fits", "with_linear"]
+__all__ = ["PART_FLOOR", "SIGN_P", "LinearFit", "linear_fits", "with_linear"]
 
-#: the blocks (s) of the cross-fit and the sign test
-BLOCK_SECONDS = 2.0
 #: one-sided sign-test level over the blocks, corrected for 8 effects
 SIGN_P = 0.05 / 8
 #: the part must reach this many claim floors (module docstring)
@@ -141,33 +139,19 @@ def _cross(physics: np.ndarray, design: np.ndarray | None, half: np.ndarray) -> 
     return out
 
 
-def _candidates(samples: Sequence[ResidualSamples], model: ResidualGP) -> list[str]:
-    """The linear effects the samples carry and the model lacks, look-alikes aside."""
-    regs = samples[0].regressors
-    return [
-        n
-        for n in regs
-        if get_effect(n).search is None
-        and n not in DEFAULT_LOOK_ALIKES
-        and n not in model.effects
-        and all(np.any(s.regressors[n] != 0) for s in samples)
-    ]
-
-
 def linear_fits(
     samples: Sequence[ResidualSamples], model: ResidualGP, physics: np.ndarray, floor: float
 ) -> list[LinearFit]:
     """The linear effect to claim (a list of at most one, its look-alikes in
     ``ambiguous_with``; module docstring). ``physics`` (n, 3): the held-out
     physics-only error (rad/s²); ``floor`` the claim floor (RMS)."""
-    names = _candidates(samples, model) if samples else []
+    names = linear_partners(samples, model) if samples else []
     if not names:
         return []
     t = np.concatenate([s.t for s in samples])
     log = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
-    index = np.floor(t / BLOCK_SECONDS).astype(np.int64)
-    blocks = index + (int(index.max()) + 2) * log
-    half = index % 2
+    blocks = time_blocks(t, log, BLOCK_SECONDS)  # the diagnosis's 2 s blocks
+    half = blocks % 2
     alikes = [a for a in sorted(DEFAULT_LOOK_ALIKES) if a not in model.effects]
     alikes = [a for a in alikes if a in samples[0].regressors]
 

@@ -29,13 +29,31 @@ from omavctl.physics.effects import EFFECTS, Effect, get_effect
 
 __all__ = [
     "AMBIGUOUS_CORRELATION",
+    "BLOCK_SECONDS",
     "MIN_EXPLAINED",
     "MIN_NOISE_RATIO",
     "MIN_T",
     "THETA_RANGE",
     "EffectScore",
     "score_effects",
+    "time_blocks",
 ]
+
+#: Alternating train/test blocks of the diagnosis, s.
+BLOCK_SECONDS = 2.0
+
+
+def time_blocks(t: np.ndarray, log_id: np.ndarray, seconds: float) -> np.ndarray:
+    """Block number (n,) of each sample: consecutive ``seconds`` windows per log."""
+    out = np.empty(t.size, dtype=np.int64)
+    offset = 0
+    for lid in np.unique(log_id):
+        sel = log_id == lid
+        b = np.floor((t[sel] - t[sel].min()) / seconds).astype(np.int64)
+        out[sel] = b + offset
+        offset = int(out[sel].max()) + 1
+    return out
+
 
 #: Held-out explained variance above which a candidate effect counts as missing.
 MIN_EXPLAINED = 0.15
