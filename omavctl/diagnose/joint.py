@@ -55,7 +55,8 @@ standard error (the intervals' standard errors, :func:`omavctl.learn.intervals.h
 instead of the 2 s blocks' t >= :data:`MIN_BLOCK_T`: a hidden 50 ms delay after both
 look-alikes (t 2.2 over 10 blocks, 2.56 with the Newey-West error) and a hidden 98 ms
 motor lag after ``com_offset`` (t 3.4; 3.8) waited a round or were never named
-(docs/scorecard.md, 2026-11-26 session 12).
+(docs/scorecard.md, 2026-11-26 session 12). A look-alike itself also passes the
+blocks' test by their sign test (:data:`SIGN_P`).
 """
 
 from __future__ import annotations
@@ -68,7 +69,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from omavctl.learn.intervals import hac_meat
+from omavctl.diagnose.scoring import block_sums, block_t, hac_t, sign_p
 from omavctl.learn.model import ResidualGP
 from omavctl.physics.effects import get_effect
 
@@ -79,6 +80,7 @@ __all__ = [
     "MIN_HAC_T",
     "MIN_SHARE",
     "MIN_SHARE_OF_TOTAL",
+    "SIGN_P",
     "Z95",
     "JointStep",
     "block_sums",
@@ -119,6 +121,12 @@ DEFAULT_LOOK_ALIKES = frozenset({"com_offset", "rotor_interference"})
 #: best of 8 is what is tested): Phi^-1(1 - 0.05 / 8) = 2.50. At 1.96 an own2 draw
 #: named an inertia_error beside its hidden servo lag (t 2.16).
 MIN_HAC_T = NormalDist().inv_cdf(1 - 0.05 / 8)
+#: A look-alike, which the vehicle has, passes the blocks' test also when it lowers the
+#: error in more 2 s blocks than a one-sided sign test at this level allows (corrected
+#: for 8 effects): a steps flight shows an interference in a few transitions, so the
+#: blocks' t stays under 4 however consistent the gain (82-94 % of the held-out error,
+#: lower in 10 of 10 blocks, at t 1.6-3.9 on tune draws; docs/scorecard.md, session 24).
+SIGN_P = 0.05 / 8
 #: Standard errors of a two-sided 95 % interval.
 Z95 = NormalDist().inv_cdf(0.975)
 
@@ -170,6 +178,8 @@ class _Trial:
     pred: np.ndarray  # (n, 3) joint prediction
     #: upper end of the part's 95 % interval (None: the point, no covariance)
     contribution_high: float | None = None
+    #: one-sided sign-test p of the blocks it lowers the error in
+    sign_p: float = 1.0
 
     @property
     def part_high(self) -> float:
@@ -271,33 +281,6 @@ def plausible_theta(name: str, theta: np.ndarray) -> bool:
     return bool(np.all((theta >= lo - 1e-12) & (theta <= hi + 1e-12)))
 
 
-def block_sums(values: np.ndarray, blocks: np.ndarray) -> np.ndarray:
-    """Sum of ``values`` (n,) over each time block ``blocks`` (n,), in the blocks'
-    sorted order (n_blocks,)."""
-    ub, inv = np.unique(blocks, return_inverse=True)
-    return np.bincount(inv.ravel(), weights=values, minlength=ub.size)
-
-
-def block_t(before: np.ndarray, after: np.ndarray, blocks: np.ndarray) -> float:
-    """Mean over blocks of the drop in the sum of squares, over its standard error."""
-    gains = block_sums(before, blocks) - block_sums(after, blocks)
-    if gains.size < 3:
-        return float("inf") if gains.sum() > 0 else 0.0
-    se = gains.std(ddof=1) / np.sqrt(gains.size)
-    return float(gains.mean() / se) if se > 0 else (float("inf") if gains.mean() > 0 else 0.0)
-
-
-def hac_t(before: np.ndarray, after: np.ndarray) -> float:
-    """Mean over samples of the drop in the squared error (n,) over its Newey-West
-    standard error (Bartlett weights, the intervals' bandwidth rule)."""
-    g = (before - after)[:, None]
-    n = g.shape[0]
-    var = float(hac_meat(g - g.mean(), np.zeros(n, dtype=np.int64))[0, 0]) / n**2 if n else 0.0
-    if var <= 0:
-        return float("inf") if n and g.mean() > 0 else 0.0
-    return float(g.mean() / np.sqrt(var))
-
-
 def _trial(
     model: ResidualGP,
     name: str,
@@ -312,6 +295,7 @@ def _trial(
     pred = sum((regressors[n] @ thetas[n] for n in thetas), np.zeros_like(physics))
     sq_after = ((physics - pred) ** 2).sum(axis=1)
     own = regressors[name] @ thetas[name]
+    gains = block_sums(sq_before, blocks) - block_sums(sq_after, blocks)
     return _Trial(
         name=name,
         gain=float(sq_before.sum() - sq_after.sum()),
@@ -321,18 +305,21 @@ def _trial(
         thetas=thetas,
         pred=pred,
         contribution_high=part_high(regressors[name], thetas[name], cov),
+        sign_p=sign_p(int((gains > 0).sum()), gains.size),
     )
 
 
 def _passes(t: _Trial, left: float, total: float, floor: float, hac_t: float | None = None) -> bool:
     """The acceptance tests; ``hac_t``: judged by the gain's Newey-West t >= MIN_HAC_T
-    instead of the blocks' t >= MIN_BLOCK_T (an effect after the defaults' look-alikes)."""
+    instead of the blocks' t >= MIN_BLOCK_T (an effect after the defaults' look-alikes);
+    a look-alike also by the blocks' sign test."""
+    blocks_ok = t.block_t >= MIN_BLOCK_T or (t.name in DEFAULT_LOOK_ALIKES and t.sign_p <= SIGN_P)
     return (
         t.plausible
         and t.part_high >= floor
         and t.gain >= MIN_SHARE * left
         and t.gain >= MIN_SHARE_OF_TOTAL * total
-        and (t.block_t >= MIN_BLOCK_T if hac_t is None else hac_t >= MIN_HAC_T)
+        and (blocks_ok if hac_t is None else hac_t >= MIN_HAC_T)
     )
 
 

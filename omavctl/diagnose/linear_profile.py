@@ -41,7 +41,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from math import comb
 from typing import Any
 
 import numpy as np
@@ -51,10 +50,11 @@ from omavctl.diagnose.joint import (
     AMBIGUOUS_RATIO,
     DEFAULT_LOOK_ALIKES,
     MIN_SHARE,
+    SIGN_P,
     block_sums,
     plausible_theta,
 )
-from omavctl.diagnose.scoring import BLOCK_SECONDS, EffectScore, time_blocks
+from omavctl.diagnose.scoring import BLOCK_SECONDS, EffectScore, sign_p, time_blocks
 from omavctl.diagnose.timing_mixed import linear_partners
 from omavctl.diagnose.timing_profile import profile_for
 from omavctl.learn.model import ResidualGP
@@ -62,8 +62,6 @@ from omavctl.learn.signal import ResidualSamples
 
 __all__ = ["PART_FLOOR", "SIGN_P", "LinearFit", "linear_fits", "with_linear"]
 
-#: one-sided sign-test level over the blocks, corrected for 8 effects
-SIGN_P = 0.05 / 8
 #: the part must reach this many claim floors (module docstring)
 PART_FLOOR = 2.0
 
@@ -94,8 +92,7 @@ class LinearFit:
     @property
     def sign_p(self) -> float:
         """One-sided sign-test p of ``better`` of ``blocks``."""
-        n = self.blocks
-        return sum(comb(n, j) for j in range(self.better, n + 1)) / 2**n if n else 1.0
+        return sign_p(self.better, self.blocks)
 
     def passes(self, floor: float) -> bool:
         return (

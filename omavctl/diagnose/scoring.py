@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.metrics import AXES
-from omavctl.learn.intervals import interval95, physical_bound
+from omavctl.learn.intervals import hac_meat, interval95, physical_bound
 from omavctl.physics.effects import EFFECTS, Effect, get_effect
 
 __all__ = [
@@ -35,7 +35,11 @@ __all__ = [
     "MIN_T",
     "THETA_RANGE",
     "EffectScore",
+    "block_sums",
+    "block_t",
+    "hac_t",
     "score_effects",
+    "sign_p",
     "time_blocks",
 ]
 
@@ -53,6 +57,41 @@ def time_blocks(t: np.ndarray, log_id: np.ndarray, seconds: float) -> np.ndarray
         out[sel] = b + offset
         offset = int(out[sel].max()) + 1
     return out
+
+
+def sign_p(better: int, blocks: int) -> float:
+    """One-sided sign-test p of ``better`` of ``blocks`` time blocks improved (1 with no
+    block): what a gain that sits in a few transitions of a flight is judged by, where a
+    t on its size is weak however consistent it is."""
+    n = int(blocks)
+    return math.fsum(math.comb(n, j) for j in range(int(better), n + 1)) / 2**n if n else 1.0
+
+
+def block_sums(values: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    """Sum of ``values`` (n,) over each time block ``blocks`` (n,), in the blocks'
+    sorted order (n_blocks,)."""
+    ub, inv = np.unique(blocks, return_inverse=True)
+    return np.bincount(inv.ravel(), weights=values, minlength=ub.size)
+
+
+def block_t(before: np.ndarray, after: np.ndarray, blocks: np.ndarray) -> float:
+    """Mean over blocks of the drop in the sum of squares, over its standard error."""
+    gains = block_sums(before, blocks) - block_sums(after, blocks)
+    if gains.size < 3:
+        return float("inf") if gains.sum() > 0 else 0.0
+    se = gains.std(ddof=1) / np.sqrt(gains.size)
+    return float(gains.mean() / se) if se > 0 else (float("inf") if gains.mean() > 0 else 0.0)
+
+
+def hac_t(before: np.ndarray, after: np.ndarray) -> float:
+    """Mean over samples of the drop in the squared error (n,) over its Newey-West
+    standard error (Bartlett weights, the intervals' bandwidth rule)."""
+    g = (before - after)[:, None]
+    n = g.shape[0]
+    var = float(hac_meat(g - g.mean(), np.zeros(n, dtype=np.int64))[0, 0]) / n**2 if n else 0.0
+    if var <= 0:
+        return float("inf") if n and g.mean() > 0 else 0.0
+    return float(g.mean() / np.sqrt(var))
 
 
 #: Held-out explained variance above which a candidate effect counts as missing.
