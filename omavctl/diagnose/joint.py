@@ -151,6 +151,8 @@ class JointStep:
     #: the other lags and delays that passed at this step, best first (a lag or delay
     #: accepted here: the linearised test cannot tell them apart)
     timing_rivals: list[str] = field(default_factory=list)
+    #: one-sided sign-test p of the 2 s blocks it lowers the error in
+    sign_p: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -162,6 +164,7 @@ class JointStep:
             "ambiguous_with": self.ambiguous_with,
             "contribution_high": self.contribution_high,
             "timing_rivals": self.timing_rivals,
+            **({} if self.sign_p is None else {"sign_p": self.sign_p}),
         }
 
 
@@ -392,6 +395,7 @@ def joint_selection(
                 theta=best.thetas[best.name],
                 contribution_high=best.contribution_high,
                 timing_rivals=[t.name for t in ok[1:] if _both_timing(best.name, t.name)],
+                sign_p=best.sign_p,
             )
         )
         accepted.append(best.name)
