@@ -155,6 +155,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report15's records were read (2026-11-27, session 23/24): the next changes are reported
+    # on report16 (17 000 000; declared in session 24 before any of its draws was flown)
+    "report16": {
+        "seed_base": 17_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
