@@ -27,11 +27,19 @@ import numpy as np
 
 from omavctl.base.atomic import atomic_paths
 from omavctl.base.errors import OmavctlError
+from omavctl.base.replace import head_has, is_npz_with
 
 if TYPE_CHECKING:
     from omavctl.diagnose.evaluate import EvalResult
 
-__all__ = ["load_evaluation", "series_digest", "series_path", "write_evaluation"]
+__all__ = [
+    "is_evaluation_file",
+    "is_series_file",
+    "load_evaluation",
+    "series_digest",
+    "series_path",
+    "write_evaluation",
+]
 
 SCHEMA = "omavctl.eval/1"
 RUN_ID_KEY = "run_id"
@@ -41,6 +49,17 @@ def series_path(out: str | Path) -> Path:
     """Where the time series of ``out`` (eval JSON) are stored: ``<stem>.series.npz``."""
     out = Path(out)
     return out.with_name(out.stem + ".series.npz")
+
+
+def is_evaluation_file(path: Path) -> bool:
+    """Whether ``path`` is an evaluation JSON :func:`write_evaluation` wrote (its first
+    key the schema): what ``evaluate --out`` may replace."""
+    return head_has(path, f'"schema": "{SCHEMA.split("/")[0]}/')
+
+
+def is_series_file(path: Path) -> bool:
+    """Whether ``path`` is the series ``.npz`` :func:`write_evaluation` wrote."""
+    return is_npz_with(path, {"t", RUN_ID_KEY})
 
 
 def series_digest(series: Mapping[str, np.ndarray]) -> str:

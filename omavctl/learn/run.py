@@ -14,8 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
+from omavctl.base.replace import refuse_replacing
 from omavctl.learn.fit import FitResult, Progress, fit_model
-from omavctl.learn.model_file import check_model_paths, save_model
+from omavctl.learn.model_file import check_model_paths, is_model_file, save_model
 from omavctl.logs import parse_time_window
 from omavctl.sim.trajectory import refuse_as_logs
 from omavctl.vehicle import Vehicle, load_vehicle
@@ -87,6 +88,7 @@ def prepare_fit(
     ``--time-window``, :func:`omavctl.logs.parse_time_window`) and read the vehicle."""
     check_model_paths([prior])
     check_outputs([*logs, vehicle, prior], [out])
+    refuse_replacing(out, is_model_file, "an omavctl model")
     refuse_as_logs(list(logs))
     window = parse_time_window(time_window) if time_window else None
     veh = load_vehicle(vehicle)

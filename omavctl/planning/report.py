@@ -16,7 +16,7 @@ from omavctl.planning.candidates import coefficient_names
 from omavctl.planning.planner import PlanResult
 from omavctl.sim.trajectory import Trajectory, format_trajectory
 
-__all__ = ["METRIC_COLUMNS", "format_scores", "task_warning", "write_plan"]
+__all__ = ["METRIC_COLUMNS", "format_scores", "is_scores_file", "task_warning", "write_plan"]
 
 #: Columns after ``cost``: every objective's number for every candidate (empty when
 #: not computed for this model, or infeasible), whichever objective ranks.
@@ -31,6 +31,14 @@ METRIC_COLUMNS = {
 def _num(v: float) -> str:
     """A finite number as text; empty for NaN or infinity (never written)."""
     return f"{v:.9g}" if math.isfinite(v) else ""
+
+
+def is_scores_file(path: Path) -> bool:
+    """Whether ``path`` is a scores CSV :func:`format_scores` wrote (its first line
+    starts ``candidate,f_x1,``): what ``plan --scores`` may replace."""
+    mark = b"candidate,f_x1,"
+    with path.open("rb") as fh:
+        return fh.read(len(mark)) == mark
 
 
 def format_scores(result: PlanResult, reference_sha256: str | None = None) -> str:

@@ -17,10 +17,11 @@ from threadpoolctl import threadpool_limits
 
 from omavctl.base.atomic import check_outputs
 from omavctl.base.errors import OmavctlError
+from omavctl.base.replace import is_report_file, refuse_replacing
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.model_file import check_model_paths, check_vehicle, load_model
 from omavctl.planning.planner import PlanResult, PlanSettings, plan
-from omavctl.planning.report import no_feasible_candidate, write_plan
+from omavctl.planning.report import is_scores_file, no_feasible_candidate, write_plan
 from omavctl.planning.rollout import Progress
 from omavctl.sim.trajectory import Trajectory, check_replaceable, read_trajectory
 from omavctl.vehicle import load_vehicle
@@ -111,6 +112,8 @@ def prepare_plan(
     check_model_paths([model])
     check_outputs([task, model, vehicle, evaluation], [out, scores, report])
     check_replaceable(out)
+    refuse_replacing(scores, is_scores_file, "a plan's scores CSV")
+    refuse_replacing(report, is_report_file, "an omavctl report")
     if not settings.effects and evaluation is not None:
         from omavctl.planning.effects_objective import effects_from_evaluation
 

@@ -14,13 +14,19 @@ from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
 from omavctl.base.errors import ConfigError
-from omavctl.diagnose.evalio import series_path, write_evaluation
+from omavctl.base.replace import is_report_file, refuse_replacing
+from omavctl.diagnose.evalio import (
+    is_evaluation_file,
+    is_series_file,
+    series_path,
+    write_evaluation,
+)
 from omavctl.diagnose.evaluate import EvalResult, evaluate
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, parse_horizons
 from omavctl.learn.model_file import check_model_paths
 from omavctl.logs import parse_time_window
 from omavctl.report.evaluation import ReportSummary, write_report
-from omavctl.report.series_mcap import mcap_path, write_series_mcap
+from omavctl.report.series_mcap import is_series_mcap, mcap_path, write_series_mcap
 from omavctl.sim.trajectory import refuse_as_logs
 
 __all__ = ["EvaluationRun", "default_evaluation_path", "run_evaluation", "run_report"]
@@ -65,6 +71,9 @@ def run_evaluation(
     assert out is not None
     mcap_out = mcap if mcap is not None else mcap_path(out)
     check_outputs([*logs, *models], [out, series_path(out), mcap_out])
+    refuse_replacing(out, is_evaluation_file, "an omavctl evaluation")
+    refuse_replacing(series_path(out), is_series_file, "an evaluation's series")
+    refuse_replacing(mcap_out, is_series_mcap, "an evaluation's series MCAP")
     refuse_as_logs(list(logs))
     result = evaluate(
         models, logs, time_window=window, horizons=spans, horizon_stride=horizon_stride
@@ -78,4 +87,5 @@ def run_evaluation(
 def run_report(evaluations: Sequence[Path], out: Path, fmt: str | None = None) -> ReportSummary:
     """Render the evaluation files (with their series beside them) as one report at ``out``."""
     check_outputs([*evaluations, *(series_path(e) for e in evaluations)], [out])
+    refuse_replacing(out, is_report_file, "an omavctl report")
     return write_report(evaluations, out, fmt)

@@ -26,9 +26,10 @@ from typing import Any
 import numpy as np
 
 from omavctl.base.atomic import atomic_path
+from omavctl.base.replace import is_mcap_from
 from omavctl.diagnose.verdict import activity
 
-__all__ = ["TOPICS", "mcap_path", "write_series_mcap"]
+__all__ = ["TOPICS", "is_series_mcap", "mcap_path", "write_series_mcap"]
 
 AXES = ("x", "y", "z")
 PREFIX = "/omavctl"
@@ -142,6 +143,13 @@ def _schema_of(topic: str) -> tuple[str, dict[str, Any]]:
     if topic.endswith("/worst_segments"):
         return "omavctl.WorstSegment", _SEGMENT
     return "omavctl.AngularAcceleration", _VECTOR
+
+
+def is_series_mcap(path: Path) -> bool:
+    """Whether ``path`` is an MCAP file :func:`write_series_mcap` wrote (library
+    ``omavctl``, no profile; ``simulate``'s logs have the ``ros2`` profile): what
+    ``evaluate --mcap`` may replace."""
+    return is_mcap_from(path, "omavctl", "")
 
 
 def write_series_mcap(
