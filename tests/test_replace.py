@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from omavctl.base.replace import is_mcap_from, is_report_file
 from omavctl.cli import app
 from omavctl.diagnose.evalio import is_evaluation_file, is_series_file
-from omavctl.learn.model_file import is_model_file
+from omavctl.learn.run import is_model_file
 from omavctl.planning.report import is_scores_file
 from omavctl.report.series_mcap import is_series_mcap
 

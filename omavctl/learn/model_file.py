@@ -100,7 +100,6 @@ import numpy as np
 
 from omavctl.base.atomic import atomic_path
 from omavctl.base.errors import ModelError, library_reason
-from omavctl.base.replace import is_npz_with
 from omavctl.learn.estimate import systematic_from_json
 from omavctl.learn.model import (
     SCHEMA_FITTED,
@@ -112,14 +111,7 @@ from omavctl.learn.model import (
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.vehicle import Vehicle
 
-__all__ = [
-    "MAX_MAGNITUDE",
-    "check_model_paths",
-    "check_vehicle",
-    "is_model_file",
-    "load_model",
-    "save_model",
-]
+__all__ = ["MAX_MAGNITUDE", "check_model_paths", "check_vehicle", "load_model", "save_model"]
 
 #: Keys of the model file, in the order they are written.
 _KEYS = (
@@ -184,12 +176,6 @@ def _check_schema(value: str, path: Path) -> int:
     if version < 1:
         raise ModelError(f"unknown schema '{value}' ({reads})", path)
     return version
-
-
-def is_model_file(path: Path) -> bool:
-    """Whether ``path`` is a model file :func:`save_model` wrote (its ``schema`` array
-    names ``omavctl.model``): what ``fit --out`` may replace."""
-    return is_npz_with(path, {"schema"}, SCHEMA_NAME)
 
 
 def check_model_paths(paths: Iterable[str | Path | None]) -> None:

@@ -14,14 +14,21 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
-from omavctl.base.replace import refuse_replacing
+from omavctl.base.replace import is_npz_with, refuse_replacing
 from omavctl.learn.fit import FitResult, Progress, fit_model
-from omavctl.learn.model_file import check_model_paths, is_model_file, save_model
+from omavctl.learn.model import SCHEMA_NAME
+from omavctl.learn.model_file import check_model_paths, save_model
 from omavctl.logs import parse_time_window
 from omavctl.sim.trajectory import refuse_as_logs
 from omavctl.vehicle import Vehicle, load_vehicle
 
-__all__ = ["FitJob", "effect_names", "prepare_fit"]
+__all__ = ["FitJob", "effect_names", "is_model_file", "prepare_fit"]
+
+
+def is_model_file(path: Path) -> bool:
+    """Whether ``path`` is a model file ``fit`` wrote (its ``schema`` array names
+    ``omavctl.model``): what ``fit --out`` may replace."""
+    return is_npz_with(path, {"schema"}, SCHEMA_NAME)
 
 
 def effect_names(text: str | None) -> list[str] | None:
