@@ -14,8 +14,9 @@
 - SIGINT exits 130 and SIGTERM 143, after temporary files are removed;
 - with ``--json`` the failure is also one JSON object on stdout,
   ``{"command": ..., "error": "<file>: <problem>", "exit_code": N}``, so a
-  pipeline that parses stdout reads why instead of nothing (usage errors, found
-  before the command runs, stay on stderr only).
+  pipeline that parses stdout reads why instead of nothing; so is a usage error
+  (an unknown option, a bad value, a missing argument) of a command line that
+  holds ``--json``, with the command its words name.
 
 :func:`run_app` is the console-script entry: SIGTERM cleanup and one-line
 usage errors.
@@ -110,6 +111,10 @@ def run_app(app: typer.Typer, prog_name: str) -> None:
         message = err.format_message()
         if type(err).__name__ == "NoArgsIsHelpError":
             typer.echo(message, err=True)
+        elif "--json" in sys.argv[1:]:
+            ctx = getattr(err, "ctx", None)
+            words = ctx.command_path.split()[1:] if ctx is not None else []
+            _fail(f"error: {message}", err.exit_code, " ".join(words) or prog_name)
         else:
             typer.echo(f"error: {message}", err=True)
         sys.exit(err.exit_code)

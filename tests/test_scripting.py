@@ -326,6 +326,29 @@ def test_a_failing_json_run_says_why_on_stdout(tmp_path):
     assert result.exit_code == 2 and result.stdout == ""
 
 
+@pytest.mark.parametrize(
+    ("args", "command", "error"),
+    [
+        (["fit", "a.bag", "--out", "m.npz", "--effect", "drag"], "fit", "No such option: --effect"),
+        (["task", "fig9"], "task", "No such command 'fig9'. Did you mean 'fig8'?"),
+        (["fit", "--out", "m.npz"], "fit", "Missing argument 'LOG...'."),
+    ],
+)
+def test_a_usage_error_of_a_json_run_says_why_on_stdout(tmp_path, args, command, error):
+    """A usage error (found before the command runs) printed nothing on stdout with
+    --json, so `| jq` read empty input (a new user's trial, 2026-11-27); the console
+    script now prints the same JSON object as any other failure."""
+    run = [sys.executable, "-m", "omavctl", *args, "--json"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}  # this tree's omavctl, from any cwd
+    result = subprocess.run(run, cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert result.returncode == 2
+    assert result.stderr.strip().startswith(f"error: {error}")
+    got = _one_json(result.stdout)
+    assert got["command"] == command and got["exit_code"] == 2
+    assert got["error"] == result.stderr.strip().removeprefix("error: ")
+    assert not list(tmp_path.iterdir())
+
+
 def test_inspect_takes_quiet_like_every_command(tmp_path):
     """`inspect -q` was refused ('No such option: -q') while every other command took
     it; with --json it drops the listing on stderr, without it the listing is kept."""

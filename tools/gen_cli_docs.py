@@ -28,13 +28,16 @@ Generated from `omavctl --help` and every subcommand's `--help` by
 this file is stale). Conventions: every command reads files and writes files; exit
 code 0 on success, 2 with one line `error: <file>: <problem>` on bad input (a
 file that is unreadable, corrupt, implausible or of another format, a bad option
-value, an output that is one of the inputs, a directory or unwritable) and on a
+value, an output that is one of the inputs, a directory, unwritable or an existing
+file of another kind than the command writes: `fit` replaces only a model, `evaluate`
+an evaluation and its series, `report` a report, `task` and `plan` a trajectory,
+`simulate` a log omavctl wrote, never a recorded flight) and on a
 usage error, 1 on any other failure (a reader that closes the pipe early, as
 `omavctl inspect LOG | head -2` does, is not one: the output stops, the command
 runs to its end, its files are written); `--seed` makes sampling commands
 reproducible byte for byte; `-q` silences progress bars and the summary; `--json`
 prints one JSON object on stdout (the files written and the key figures) while the
-human text stays on stderr; a failed `--json` run prints
+human text stays on stderr; a failed `--json` run (a usage error too) prints
 `{"command": ..., "error": "<file>: <problem>", "exit_code": N}` there as well.
 See [getting-started.md](getting-started.md) for a walk-through and
 [design.md](design.md) §5 for the conventions.
