@@ -150,6 +150,20 @@ def test_a_change_between_evaluations_of_different_samples_says_so():
     assert change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))[0].text == same
 
 
+def test_a_fall_of_the_sum_over_axes_names_the_axes_that_rose():
+    """A new user's report read "the model error falls by 2.9 % (sum over axes) — x
+    +9.9 %, y +0.4 %, z −19.0 %": two axes of three got worse under a headline that
+    said it fell; the headline now names them."""
+    before = _file({"x": 0.2, "y": 0.3, "z": 0.5}, {"x": 0.3, "y": 0.4, "z": 0.6}, {})
+    after = _file({"x": 0.22, "y": 0.301, "z": 0.4}, {"x": 0.3, "y": 0.4, "z": 0.6}, {"a": {}})
+    lines = change_lines(scores_of_files([(before, "a.json"), (after, "b.json")]))
+    assert lines[0].text == (
+        "With a added (a.json → b.json): the model error falls by 7.9 % (sum over axes), "
+        "but rises on x and y — x +10.0 %, y +0.3 %, z −20.0 %."
+    )
+    assert [ln.text.split(" (")[0] for ln in lines[1:]] == ["Axis x got worse"]
+
+
 def test_a_fall_measured_after_an_effect_held_back_names_why_it_was_held_back():
     """`evaluate --model gp.npz --model gp-ri.npz` (a new user's trial): "although this
     model's diagnosis claimed nothing missing (rotor_interference: it passed its tests but

@@ -266,6 +266,9 @@ def change_lines(
     if mean is not None:
         verb = "falls" if mean < 0 else "rises"
         text = f"{what}: the model error {verb} by {abs(100 * mean):.1f} % (sum over axes)"
+        worse = [a for a, c in changes.items() if c > 0]
+        if mean < 0 and worse:  # a fall of the sum that hides an axis that rose
+            text += f", but rises on {' and '.join(worse)}"
     else:
         text = f"{what}: model error"
     text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items())

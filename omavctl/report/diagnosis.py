@@ -212,7 +212,13 @@ def diagnosis_section(
                 "physically plausible, its part of the error is at least "
                 f"{num(method.get('min_contribution_rms'), 2)} rad/s² RMS (three times the "
                 "log's measurement noise: less is not claimed), and fitted as fit --effects "
-                "would fit it, it still lowers the error."
+                "would fit it, it still lowers the error. An effect the GP has absorbed "
+                "(so that it explains little of the model's remaining error) is also missing "
+                "when, estimated from the fit flight as fit --effects would, it removes at "
+                "least 15 % of the physics-only error on the held-out flight, consistently "
+                "over its 2 s blocks (the table's 'joint selection'). Either way a claim "
+                "stands only where the 95 % interval of its estimate as the printed fit "
+                "command makes it, on the fit flight, excludes the value at which it is absent."
             )
         )
     missing = [str(x) for x in diag.get("missing", []) or []]
