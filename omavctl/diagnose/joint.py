@@ -124,8 +124,8 @@ MIN_HAC_T = NormalDist().inv_cdf(1 - 0.05 / 8)
 #: A look-alike, which the vehicle has, passes the blocks' test also when it lowers the
 #: error in more 2 s blocks than a one-sided sign test at this level allows (corrected
 #: for 8 effects): a steps flight shows an interference in a few transitions, so the
-#: blocks' t stays under 4 however consistent the gain (82-94 % of the held-out error,
-#: lower in 10 of 10 blocks, at t 1.6-3.9 on tune draws; docs/scorecard.md, session 24).
+#: blocks' t stays under 4 however consistent the gain (report15's draws 1 and 15: 91 and
+#: 94 % of the held-out error, lower in 10 of 10 blocks, t 3.5 and 3.8; docs/scorecard.md).
 SIGN_P = 0.05 / 8
 #: Standard errors of a two-sided 95 % interval.
 Z95 = NormalDist().inv_cdf(0.975)
