@@ -26,6 +26,12 @@ def _ok(args: list[str]) -> None:
     assert result.exit_code == 0, result.output
 
 
+def _evaluate(d: Path) -> None:
+    """``held.bag`` evaluated with ``m.npz`` into ``e.json`` (no horizons: not tested here)."""
+    model, out = str(d / "m.npz"), str(d / "e.json")
+    _ok(["evaluate", str(d / "held.bag"), "--model", model, "--out", out, "--horizons", "none"])
+
+
 @pytest.fixture(scope="module")
 def flown(tmp_path_factory) -> Path:
     """A 4 s figure-8, flown into an MCAP log and a ROS 1 bag, a model fitted on the
@@ -35,18 +41,7 @@ def flown(tmp_path_factory) -> Path:
     for log, seed in (("fit.mcap", "1"), ("held.bag", "2")):
         _ok(["simulate", "-r", str(d / "fig8.csv"), "--seed", seed, "-o", str(d / log)])
     _ok(["fit", str(d / "fit.mcap"), "--out", str(d / "m.npz"), "--points", "40"])
-    _ok(
-        [
-            "evaluate",
-            str(d / "held.bag"),
-            "--model",
-            str(d / "m.npz"),
-            "--out",
-            str(d / "e.json"),
-            "--horizons",
-            "none",
-        ]
-    )
+    _evaluate(d)
     _ok(["report", str(d / "e.json"), "--out", str(d / "r.html")])
     _ok(["report", str(d / "e.json"), "--out", str(d / "r.md")])
     return d
@@ -120,18 +115,7 @@ def test_a_commands_own_earlier_output_is_replaced(flown):
     d = flown
     stamps = {n: (d / n).stat().st_mtime_ns for n in ("m.npz", "e.json", "r.md")}
     _ok(["fit", str(d / "fit.mcap"), "--out", str(d / "m.npz"), "--points", "30"])
-    _ok(
-        [
-            "evaluate",
-            str(d / "held.bag"),
-            "--model",
-            str(d / "m.npz"),
-            "--out",
-            str(d / "e.json"),
-            "--horizons",
-            "none",
-        ]
-    )
+    _evaluate(d)
     _ok(["report", str(d / "e.json"), "--out", str(d / "r.md")])
     assert all((d / n).stat().st_mtime_ns != t for n, t in stamps.items())
     assert is_model_file(d / "m.npz") and is_report_file(d / "r.md")

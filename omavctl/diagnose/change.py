@@ -266,7 +266,7 @@ def change_lines(
     if mean is not None:
         verb = "falls" if mean < 0 else "rises"
         text = f"{what}: the model error {verb} by {abs(100 * mean):.1f} % (sum over axes)"
-        worse = [a for a, c in changes.items() if c > 0]
+        worse = [a for a, c in changes.items() if c >= 0.0005]  # shown as +0.1 % or more
         if mean < 0 and worse:  # a fall of the sum that hides an axis that rose
             text += f", but rises on {' and '.join(worse)}"
     else:
