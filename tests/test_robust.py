@@ -286,9 +286,11 @@ def test_plan_scores_name_their_reference(work: Path, tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_signal_removes_temporary_files(work: Path, tmp_path: Path, sig) -> None:
-    """SIGTERM/SIGINT in the middle of a run: exit 143/130, no temp file, old output kept."""
+    """SIGTERM/SIGINT in the middle of a run: exit 143/130, no temp file, old output kept
+    (an earlier model: fit replaces nothing else, tests/test_replace.py)."""
     out = tmp_path / "m.npz"
-    out.write_bytes(b"old")
+    out.write_bytes((work / "m.npz").read_bytes())
+    old = out.read_bytes()
     proc = subprocess.Popen(
         [OMAVCTL, "fit", str(work / "log.csv"), "--out", str(out), "--points", "150", "-q"],
         stderr=subprocess.PIPE,
@@ -303,7 +305,7 @@ def test_signal_removes_temporary_files(work: Path, tmp_path: Path, sig) -> None
         signal.SIGINT: (130, "error: interrupted"),
     }
     assert (proc.returncode, err.strip()) == expected[sig]
-    assert out.read_bytes() == b"old"
+    assert out.read_bytes() == old
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]
 
 
