@@ -27,6 +27,7 @@ import numpy as np
 
 from omavctl.base.atomic import atomic_dir, atomic_path
 from omavctl.base.errors import LogError
+from omavctl.base.replace import is_mcap_from
 from omavctl.logs.contract import TOPIC_FRAMES, TOPIC_MSGTYPES, TOPIC_SIGNALS, merge_topics
 from omavctl.logs.types import ANGLE_ROLES, ROLE_COLUMNS, RawLog
 
@@ -315,23 +316,12 @@ def _written_here(p: Path) -> bool:
         return isinstance(custom, dict) and custom.get("written_by") == WRITER
     kind = p.suffix.lower()
     if kind == ".mcap":
-        return _mcap_library(p).split(" ")[0] == WRITER
+        return is_mcap_from(p, WRITER, "ros2")  # a series MCAP of evaluate is no log
     if kind == ".bag":
         return _ros1_callers(p) == {f"/{WRITER}"}
     if kind == ".csv":
         return _wide_csv_header(p)
     return False
-
-
-def _mcap_library(p: Path) -> str:
-    """The ``library`` of an MCAP file's header record ('' when it cannot be read)."""
-    from mcap.reader import make_reader
-
-    try:
-        with p.open("rb") as fh:
-            return str(make_reader(fh).get_header().library)
-    except Exception:  # any unreadable file is not one omavctl wrote
-        return ""
 
 
 def _ros1_callers(p: Path) -> set[str]:
