@@ -266,21 +266,28 @@ def _evaluate(model: str, cwd: Path, held: str, log: list[dict[str, Any]]) -> di
     return round_record(omavctl(args, cwd, log), cwd / ev)
 
 
-def replay_draw(record: dict[str, Any], workdir: Path, label: str = "") -> dict[str, Any]:
+def replay_draw(
+    record: dict[str, Any], workdir: Path, label: str = "", refit_first: bool = False
+) -> dict[str, Any]:
     """The draw's diagnosis steps again, in ``DRAW/replay-LABEL`` (logs and ``m0.npz``
-    linked from the draw): the record with new ``rounds``, ``fits``, ``commands``."""
+    linked from the draw): the record with new ``rounds``, ``fits``, ``commands``.
+    ``refit_first``: fit the first model again with this code (cached like the others)
+    instead of linking the draw's: for a change to what a fit stores for the diagnosis
+    (the effects' regressors at the training points)."""
     d = workdir / f"{record['split']}-{record['index']:04d}"
     r = d / f"{REPLAY_DIR}-{label}" if label else d / REPLAY_DIR
     if r.exists():
         shutil.rmtree(r)
     r.mkdir()
     fit_log, held = (f["log"] for f in record["flights"])
-    for name in (fit_log, held, "m0.npz"):
+    for name in (fit_log, held) if refit_first else (fit_log, held, "m0.npz"):
         (r / name).symlink_to(d / name)
     log: list[dict[str, Any]] = []
     out = {**record, "commands": log, "error": None}
     start = time.perf_counter()
     try:
+        if refit_first:
+            cached_fit(["fit", fit_log, "--out", "m0.npz"], d, r, log)
         rounds = [_evaluate("m0.npz", r, held, log)]
         fits = [record["fits"][0]]
         for _ in range(ROUNDS):
@@ -302,7 +309,13 @@ def _tables(records: Sequence[dict[str, Any]]) -> list[str]:
     return [*table(records), "", *by_effect(records), ""]
 
 
-def replay(records_path: Path, label: str, workdir: Path | None, only: set[int] | None) -> Path:
+def replay(
+    records_path: Path,
+    label: str,
+    workdir: Path | None,
+    only: set[int] | None,
+    refit_first: bool = False,
+) -> Path:
     """Replay every kept draw of ``records_path``; writes ``<stem>.<label>.jsonl``."""
     workdir = (workdir or records_path.parent).resolve()
     target = records_path.with_suffix(f".{label}.jsonl")
@@ -314,7 +327,7 @@ def replay(records_path: Path, label: str, workdir: Path | None, only: set[int] 
     kept = [r for r in done if (r["split"], r["index"]) not in keep]
     target.write_text("".join(json.dumps(r, allow_nan=False) + "\n" for r in kept))
     for rec in records:
-        new = replay_draw(rec, workdir, label)
+        new = replay_draw(rec, workdir, label, refit_first)
         with target.open("a") as f:
             f.write(json.dumps(new, allow_nan=False) + "\n")
         print(_line(new), file=sys.stderr, flush=True)
@@ -415,6 +428,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     rp.add_argument("--label", default="replay")
     rp.add_argument("--workdir", type=Path, default=None, help="default: the records' folder")
     rp.add_argument("--only", type=int, nargs="*", default=None, help="draw indices")
+    rp.add_argument(
+        "--refit-first",
+        action="store_true",
+        help="fit the first model again with this code (a change to what fits store)",
+    )
     cp = sub.add_parser("compare", help="per-draw lines and tables of several record files")
     cp.add_argument("records", type=Path, nargs="+")
     args = ap.parse_args(argv)
@@ -427,7 +445,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         draw_large(args.draws, args.start, args.factor, args.workdir.resolve())
     elif args.mode == "replay":
         only = set(args.only) if args.only is not None else None
-        replay(args.records, args.label, args.workdir, only)
+        replay(args.records, args.label, args.workdir, only, args.refit_first)
     else:
         compare(args.records)
 
