@@ -69,6 +69,11 @@ FEATURES = ("wrench", "wrench+rate", "wrench+dtorque", "wrench+rate+dtorque")
 #: any trajectory, and the GP no longer hurts on a flight it has not seen.
 DEFAULT_FEATURES = "wrench+rate+dtorque"
 
+#: Median gap (rad) between a log's arm tilts and the commanded ones above which the
+#: logged tilts are taken for another convention and set aside (:func:`measured_tilt`).
+#: A 0.1 s servo lag on attitude steps or a figure-8 leaves a median gap of 1-4 deg.
+TILT_AGREEMENT = np.deg2rad(15.0)
+
 
 def scaled_wrench(force: np.ndarray, torque: np.ndarray, vehicle: Vehicle) -> np.ndarray:
     """``u = [f / m, I^-1 tau]`` shape (N, 6) from force and torque shape (N, 3) each."""
@@ -140,6 +145,9 @@ class ResidualSamples:
     #: force (:mod:`.imu_lever`); None without one (no such effect, no accelerometer, or
     #: too short a log)
     lever: LeverArm | None = field(default=None, repr=False)
+    #: why the log's measured arm tilts were set aside (the effects then see the
+    #: commanded ones), for the log's notes; None when used or not recorded
+    tilt_note: str | None = None
     #: :meth:`exact`'s results before the mask, by (effect name, value's bits): the lag
     #: and delay searches of fit and of the diagnosis ask for the same grid values again
     #: and again (a 16 s log's diagnosis: 3166 calls, 819 distinct, 3.4 of its 9.6 CPU s)
@@ -268,11 +276,42 @@ def residual_samples(
     extra = dict(extra or {})
     parts = _Parts.empty(effects, extra)
     lever = lever_of(flight, sg, kept) if any(e.measured_state for e in eff) else None
+    tilt, tilt_note = measured_tilt(flight, vehicle, alloc) if eff else (None, None)
     for segment in kept:
-        _add_segment(parts, flight, vehicle, sg, segment, eff, alloc, extra, lever)
+        _add_segment(parts, flight, vehicle, sg, segment, eff, alloc, extra, lever, tilt)
     out = _assemble(flight, parts, extra, sg, (edge, short))
-    out.lever = lever
+    out.lever, out.tilt_note = lever, tilt_note
     return out
+
+
+def measured_tilt(
+    flight: FlightLog, vehicle: Vehicle, alloc: Allocation | None
+) -> tuple[np.ndarray | None, str | None]:
+    """The arms' measured tilts (N, 6) rad for the effects, or None, and a note when
+    the log's tilts were set aside.
+
+    Used on the omav's allocation (not a rotor list) when the log maps ``tilt`` and
+    they follow the commanded tilts: a median gap over the valid samples above
+    :data:`TILT_AGREEMENT` rad is another sign or zero convention, not a servo lag.
+    """
+    if alloc is None or vehicle.motors is not None or not flight.has("tilt"):
+        return None, None
+    tilt = flight.signals["tilt"]
+    if tilt.shape[1] != vehicle.n_arms:
+        return None, None
+    rows = flight.valid & np.all(np.isfinite(tilt), axis=1)
+    if not rows.any():
+        return None, None
+    wrench = np.concatenate([flight.signals["force_command"], flight.signals["torque_command"]], 1)
+    commanded = alloc.allocate(wrench[rows]).tilt
+    gap = np.abs((tilt[rows] - commanded + np.pi) % (2.0 * np.pi) - np.pi)
+    median = float(np.median(gap))
+    if median > TILT_AGREEMENT:
+        return None, (
+            f"tilt: the logged arm tilts are a median {np.degrees(median):.0f} deg from "
+            "the commanded ones (another sign or zero?): the effects use the commanded tilts"
+        )
+    return tilt, None
 
 
 @dataclass
@@ -303,10 +342,12 @@ def _add_segment(
     alloc: Allocation | None,
     extra: Mapping[str, str],
     lever: LeverArm | None = None,
+    tilt: np.ndarray | None = None,
 ) -> None:
     """Append one kept segment ``(start, stop, keep_start, keep_stop)`` to ``parts``:
     derivative, held nominal acceleration, held inputs, effect regressors and roles
-    (the measured force less the accelerometer's ``lever`` term, :mod:`.imu_lever`)."""
+    (the measured force less the accelerometer's ``lever`` term, :mod:`.imu_lever`;
+    the arms' measured ``tilt`` (N, 6) of the whole log, :func:`measured_tilt`)."""
     a, b, ka, kb = segment
     inertia, inertia_inv = vehicle.inertia, vehicle.inertia_inv
     omega = flight.signals["body_rate"][a:b]
@@ -347,6 +388,7 @@ def _add_segment(
                 lever,
                 vehicle.mass,
             ),
+            measured_tilt=None if tilt is None else tilt[a:b],
         )
         for e in eff:
             parts.regressors[e.name].append(sg.hold(e.regressor(ctx))[keep])

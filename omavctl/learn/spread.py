@@ -54,7 +54,7 @@ def rotor_sensitivity(ctx: EffectContext) -> np.ndarray | None:
     vehicle = ctx.allocation.vehicle
     if ctx.fixed_rotors or ctx.torque_normalised or vehicle.force_normalised:
         return None  # no thrusts, or commands in unknown units: no thrusts to spread
-    tilt, arm = ctx.allocated
+    tilt, arm = ctx.arm_tilt, ctx.allocated[1]
     rotor = np.repeat(arm / 2.0, 2, axis=-1)
     return rotor_residuals(rotor, lambda t: ctx.allocation.forward(tilt, t)[:, 3:], ctx.inertia_inv)
 

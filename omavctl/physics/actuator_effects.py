@@ -164,8 +164,11 @@ class RotorInterference(Effect):
     pairs k (pair k tilted towards pair j blows its wake onto it) and the
     pair's own wash on its arm. The wrench lost is linear in the two
     coefficients: residual ``-I^-1 [A(alpha) (F w)]_torque rotor_rotor - I^-1
-    [A(alpha) (F sin^2 alpha)]_torque rotor_arm`` with the commanded tilts
-    ``alpha`` and arm thrusts ``F`` of the allocation. Both dimensionless.
+    [A(alpha) (F sin^2 alpha)]_torque rotor_arm`` with the arm thrusts ``F`` of
+    the allocation and the tilts ``alpha`` where the arms are (``ctx.arm_tilt``:
+    measured where the log records them, else commanded): the wake follows the
+    arms, and a lagging servo moves it (at the commanded tilts the cross term of a
+    servo lag and the interference is left to neither). Both dimensionless.
 
     At small tilts it acts like a thrust-centre offset (a torque growing with
     the force and the tilt): on flights of one kind it is easily taken for a
@@ -185,7 +188,8 @@ class RotorInterference(Effect):
     def regressor(self, ctx: EffectContext) -> np.ndarray:
         if ctx.fixed_rotors:  # the omav's tilting pairs only (never excited)
             return np.zeros((ctx.torque.shape[0], 3, 2))
-        tilt, thrust = ctx.allocated
+        thrust = ctx.allocated[1]
+        tilt = ctx.arm_tilt
         cols = []
         for shape in ctx.allocation.interference(tilt):
             rotor = np.repeat(thrust * shape / 2.0, 2, axis=-1)

@@ -94,7 +94,9 @@ class EffectContext:
     vehicle's mass times the ``specific_force`` role, less its median over the log's
     valid samples: the accelerometer's calibration offset, and less the accelerometer's
     lever-arm term where the log pins it down: ``omavctl.learn.imu_lever``) when the log
-    maps ``specific_force``, else None.
+    maps ``specific_force``, else None. ``measured_tilt`` (N, 6) rad: the arms' tilts
+    the log records (role ``tilt``: where the servos are, not where they were told to
+    go), else None.
     """
 
     omega: np.ndarray
@@ -111,6 +113,7 @@ class EffectContext:
     battery_voltage: np.ndarray | None = None
     battery_reference: float = 0.0
     measured_force: np.ndarray | None = None
+    measured_tilt: np.ndarray | None = None
 
     @property
     def inertia_inv(self) -> np.ndarray:
@@ -122,6 +125,16 @@ class EffectContext:
         wrench = np.concatenate([self.force, self.torque], axis=-1)
         res = self.allocation.allocate(wrench)
         return np.unwrap(res.tilt, axis=0), res.arm_thrust
+
+    @cached_property
+    def arm_tilt(self) -> np.ndarray:
+        """Where the arms are (N, 6) rad: the measured tilts on the commanded tilts'
+        branch (within pi of them) when the log records them, else the commanded tilts."""
+        commanded = self.allocated[0]
+        if self.measured_tilt is None:
+            return commanded
+        gap = (self.measured_tilt - commanded + np.pi) % (2.0 * np.pi) - np.pi
+        return np.asarray(commanded + gap)
 
     def angular(self, wrench_delta: np.ndarray) -> np.ndarray:
         """Angular acceleration (..., 3) caused by a body wrench change (..., 6)."""
