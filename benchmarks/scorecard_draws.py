@@ -163,6 +163,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report16's records were read (2026-11-27, session 24/25): the next changes are reported
+    # on report17 (18 000 000; declared in session 25 before any of its draws was flown)
+    "report17": {
+        "seed_base": 18_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
