@@ -271,7 +271,10 @@ def test_other_bad_files_are_one_clear_error(vehicle, tmp_path):
     assert "key 'length_scales' must be numbers of shape (3, 6)" in _refused(broken)
     truncated = tmp_path / "truncated.npz"
     truncated.write_bytes(good.read_bytes()[:-200])
-    assert _refused(truncated).startswith(f"{truncated}: ")
+    assert _refused(truncated) == (
+        f"{truncated}: truncated or damaged: it begins as an .npz (zip) file but its end is "
+        "missing (an interrupted copy or download?)"
+    )
 
 
 # ------------------------------------------------------------- simulate --model

@@ -198,6 +198,12 @@ def _read_members(path: Path) -> dict[str, np.ndarray]:
     if head[:1] == b"\x80":
         raise ModelError("contains pickled data; refusing to load", path)
     if not zipfile.is_zipfile(path):
+        if head == b"PK\x03\x04":  # a zip's first member, but no directory at its end
+            raise ModelError(
+                "truncated or damaged: it begins as an .npz (zip) file but its end is "
+                "missing (an interrupted copy or download?)",
+                path,
+            )
         raise ModelError("not an omavctl model: expected an .npz (zip) file", path)
     try:
         with zipfile.ZipFile(path) as zf:
