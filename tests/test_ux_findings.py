@@ -327,3 +327,29 @@ def test_the_plan_report_carries_the_terminals_warnings(vehicle: Any) -> None:
     text = htmllib.unescape(html)
     for said in [warning, *envelope_warnings(result)]:
         assert f"warning: {said}" in text, said
+
+
+def test_the_evaluation_tables_and_the_tracking_line_carry_their_units() -> None:
+    tree = _missing_drag("gp+rotational_drag.npz", {"rotor_interference": {}})
+    tree["tracking"] = {"x": 1.21, "y": 0.594, "z": 0.303, "mean": 0.7}
+    text = _terminal(tree)
+    assert "NLPD x/y/z, nats" in text
+    assert (
+        "tracking, mean |a* - w_dot| of the flight (its own controller, whatever model), "
+        "rad/s^2: x 1.21, y 0.594, z 0.303"
+    ) in text
+
+
+def test_every_row_of_fits_gp_table_says_its_unit() -> None:
+    from omavctl.cli.fit import _gp_table
+
+    axis = SimpleNamespace(
+        signal_std=0.02, noise_std=0.01, length_scales=[1.0], r2=0.5, rmse=0.01,
+        rmse_nominal=0.02, gp_on=True, cv_rmse_gp=0.01, cv_rmse_physics=0.02,
+        cv_coverage=0.95, beyond_scale=0.5,
+    )  # fmt: skip
+    summary = SimpleNamespace(features="wrench", input_names=["fx/m"], axes=[axis] * 3)
+    labels = [str(c) for c in _gp_table(summary).columns[0].cells]
+    units = ("rad/s^2", "(normalised)", "R^2", "(held-out blocks)", "2σ", "x GP variance")
+    assert [lab for lab in labels if not any(u in lab for u in units)] == []
+    assert "held-out RMSE physics, rad/s^2" in labels

@@ -308,12 +308,14 @@ def _gp_table(summary: Any) -> Any:
     gp.add_row("RMS without model, rad/s^2", *(f"{a.rmse_nominal:.4g}" for a in summary.axes))
     gp.add_row("GP on (held-out blocks)", *("yes" if a.gp_on else "off" for a in summary.axes))
     gp.add_row("held-out RMSE GP, rad/s^2", *(f"{a.cv_rmse_gp:.4g}" for a in summary.axes))
-    gp.add_row("held-out RMSE physics", *(f"{a.cv_rmse_physics:.4g}" for a in summary.axes))
+    gp.add_row(
+        "held-out RMSE physics, rad/s^2", *(f"{a.cv_rmse_physics:.4g}" for a in summary.axes)
+    )
     gp.add_row(
         "held-out within 2σ, before widening", *(f"{a.cv_coverage:.0%}" for a in summary.axes)
     )
     gp.add_row(
-        "band growth beyond the inputs",
+        "band growth beyond the inputs, x GP variance",
         *(f"{a.beyond_scale:.2g}" if a.gp_on else "—" for a in summary.axes),
     )
     return gp

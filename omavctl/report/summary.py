@@ -50,7 +50,7 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
     for axis in AXES:
         table.add_column(axis, justify="right")
     table.add_column("within 2σ x/y/z", justify="right")
-    table.add_column("NLPD x/y/z", justify="right")
+    table.add_column("NLPD x/y/z, nats", justify="right")
     table.add_column("effects")
     zero = by_model[0].get("zero") or {}
     if zero:  # evaluations written before it lack the row
@@ -81,8 +81,8 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
     tracking = tree.get("tracking")
     if isinstance(tracking, Mapping):
         con.print(
-            "tracking |a* - w_dot| of the flight (its own controller, whatever model): "
-            + ", ".join(f"{a} {_g(tracking[a], 3)}" for a in AXES)
+            "tracking, mean |a* - w_dot| of the flight (its own controller, whatever model), "
+            "rad/s^2: " + ", ".join(f"{a} {_g(tracking[a], 3)}" for a in AXES)
         )
     render_horizons(con, tree)
     for what, path in files.items():
