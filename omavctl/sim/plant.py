@@ -93,6 +93,8 @@ class _Actuators:
         self.shaft = np.zeros(6)
         self.tilt = np.zeros(6)
         self.thrust = np.full(12, hover)
+        #: tilts (n, 6) and rotor thrusts (n, 12) after each step of the last advance
+        self.path = (np.empty((0, 6)), np.empty((0, 12)))
         self.duration = max(duration, 1e-9)
         self.voltage = truth.battery["nominal"] + 0.5 * truth.battery["drop"]
         self.volts = np.full(1, self.voltage)  # battery voltage after each step of a chunk
@@ -162,6 +164,7 @@ class _Actuators:
             thrust = thrust + motor * (thrust_cmd - thrust)
             thrusts[i] = thrust
         self.thrust = thrust
+        self.path = (tilts, thrusts)  # the states after each step, for the log
         eff = np.repeat(self.efficiency(tilts), 2, axis=-1)
         self.volts = self.battery(t0 + dt * np.arange(1, n + 1), thrusts)
         true = self.motor_level(thrusts, self.volts)
@@ -172,8 +175,10 @@ class _Actuators:
         for arm in arms:
             self.health[2 * arm : 2 * arm + 2] = factor
 
-    def rotor_speed(self) -> np.ndarray:
-        return np.sqrt(np.clip(self.thrust, 0.0, None) / self.v.thrust_coefficient)
+    def rotor_speed(self, thrust: np.ndarray | None = None) -> np.ndarray:
+        """Rotor speeds (12,) rad/s of ``thrust`` (12,) N (default: the current state)."""
+        t = self.thrust if thrust is None else thrust
+        return np.sqrt(np.clip(t, 0.0, None) / self.v.thrust_coefficient)
 
 
 _RECORDED = (
@@ -320,8 +325,9 @@ class _Flight:
         if lost and self.diverged_at is None:
             self.diverged_at = k * dt_ctrl
 
-    def record_log(self, t: float) -> None:
-        """A log row at time t: measured state, the latest controller output."""
+    def record_log(self, t: float, actuators: tuple[np.ndarray, np.ndarray]) -> None:
+        """A log row at time t: measured state, the latest controller output, the
+        actuators' state ``(tilts (6,) rad, rotor thrusts (12,) N)`` at t."""
         i, out, meas = self.n_log, self.outputs[-1], self.measure()
         self.rec_t[i] = t
         self.rec["attitude"][i] = meas[3:6]
@@ -331,8 +337,8 @@ class _Flight:
         self.rec["torque_command"][i] = out.torque
         self.rec["desired_acceleration"][i] = out.desired_angular
         self.rec["desired_linear_acceleration"][i] = out.desired_linear
-        self.tilt_log[i] = self.act.tilt
-        self.rotor_log[i] = self.act.rotor_speed()
+        self.tilt_log[i] = actuators[0]
+        self.rotor_log[i] = self.act.rotor_speed(actuators[1])
         self.volt_log[i] = self.act.voltage
         self.n_log += 1
 
@@ -358,7 +364,7 @@ class _Flight:
             if i >= r.steps or not self._airborne(i):
                 finite = bool(np.all(np.isfinite(self.x)))  # a state that blew up is not logged
                 if finite and i % r.log_every == 0 and self.n_log < self.rec_t.size:
-                    self.record_log(i * r.dt)
+                    self.record_log(i * r.dt, (self.act.tilt, self.act.thrust))
                 if finite and i % r.imu_every == 0 and self.n_imu < self.imu_t.size:
                     self.record_imu(i * r.dt)
                 return
@@ -389,7 +395,11 @@ class _Flight:
         """Advance ``n`` physics steps from step i with constant setpoints; returns i + n."""
         r, j = self.r, self.applied(i)
         tilt, thrust = (self.cmd_tilt[j], self.cmd_thrust[j]) if j >= 0 else self.hover_cmd
+        # the log records the actuators where they are at its instant: before the chunk's
+        # first step, after the step before for the others (advance runs the whole chunk)
+        start = (self.act.tilt.copy(), self.act.thrust.copy())
         wrenches = self.act.advance(tilt, thrust, r.dt, n, i * r.dt)
+        path = self.act.path
         forces, torques = wrenches[:, :3].tolist(), wrenches[:, 3:]
         volts = self.act.volts.tolist()
         xs = self.x.tolist()
@@ -399,7 +409,7 @@ class _Flight:
             self.act.voltage = volts[s]
             if step % r.log_every == 0:
                 self.x = np.array(xs)
-                self.record_log(step * r.dt)
+                self.record_log(step * r.dt, start if s == 0 else (path[0][s - 1], path[1][s - 1]))
             if step % r.imu_every == 0:
                 self.x = np.array(xs)
                 self.record_imu(step * r.dt)
