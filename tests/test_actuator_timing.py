@@ -64,3 +64,86 @@ def test_the_model_state_at_a_row_is_what_the_commands_before_it_made() -> None:
     np.testing.assert_allclose(delayed_lag(command, 0.02, 0.0, 0.01)[:, 0], [0, 0, 0, 0, 0, 1])
     lagged = delayed_lag(command, 0.0, 0.01, 0.01)[:, 0]
     np.testing.assert_allclose(lagged[3:], 1.0 - np.exp(-np.arange(1, 4)), rtol=1e-12)
+
+
+# ----------------------------------------------------------- in the diagnosis
+def _fit(kind: str, tau: float, lag: float, none: float = 0.05, left: float = 0.002):
+    from omavctl.learn.actuator_timing import ActuatorFit
+
+    return ActuatorFit(
+        kind=kind, unit="rad" if kind == "tilt" else "N", tau=tau, T=lag,
+        tau_ci95=(max(tau - 0.002, 0.0), tau + 0.002), T_ci95=(max(lag - 0.002, 0.0), lag + 0.002),
+        rms_none=none, rms_fit=left, rms_lag_only=left, rms_delay_only=left, rows=1000,
+    )  # fmt: skip
+
+
+def test_what_the_actuators_show_and_rule_out() -> None:
+    from omavctl.diagnose.actuators import ruled_out, shown_timing
+
+    servo = {"tilt": _fit("tilt", 0.0, 0.09), "rotor": _fit("rotor", 0.0, 0.005)}
+    assert list(shown_timing(servo)) == ["servo_lag"]
+    assert ruled_out(servo) == {"motor_lag", "command_delay"}
+    delay = {"tilt": _fit("tilt", 0.05, 0.005), "rotor": _fit("rotor", 0.05, 0.004)}
+    assert list(shown_timing(delay)) == ["command_delay"]
+    assert shown_timing(delay)["command_delay"]["value"] == pytest.approx(0.05)
+    assert ruled_out(delay) == {"servo_lag", "motor_lag"}
+    # late by different times: no one delay; a fit that leaves most of the mismatch: none
+    assert shown_timing({"tilt": _fit("tilt", 0.05, 0.0), "rotor": _fit("rotor", 0.02, 0.0)}) == {}
+    assert shown_timing({"tilt": _fit("tilt", 0.0, 0.09, none=0.003)}) == {}
+
+
+def test_a_timing_claim_the_actuators_rule_out_gives_way_to_the_one_they_show() -> None:
+    from types import SimpleNamespace
+
+    from omavctl.diagnose.actuators import actuator_sentence, with_actuators
+    from omavctl.diagnose.claims import Guarded
+
+    samples = [SimpleNamespace(exact=lambda name, v: np.full((50, 3), 10.0 * v))]
+    delay = {"tilt": _fit("tilt", 0.05, 0.005), "rotor": _fit("rotor", 0.05, 0.004)}
+    before = Guarded(kept=["com_offset", "motor_lag"], estimates={"motor_lag": {"T_m": [0.04]}})
+    model = SimpleNamespace(effects={})
+    after, info = with_actuators(samples, model, before, delay, floor=0.1)  # type: ignore[arg-type]
+    assert after.kept == ["com_offset", "command_delay"]
+    assert [h["name"] for h in after.held_back] == ["motor_lag"]
+    assert info is not None and info["claimed"] == ["command_delay"]
+    assert actuator_sentence({"actuators": info}) == (
+        " The actuators' own feedback (the logged tilts and rotor speeds): the tilts follow "
+        "their commands 50 ms late (95 %: 48 ms to 52 ms); the rotors' thrusts follow their "
+        "commands 50 ms late (95 %: 48 ms to 52 ms): they show command_delay (tau_d 50 ms); "
+        "claimed from them: command_delay; they rule out motor_lag, claimed from the torque "
+        "alone: held back."
+    )
+    # under the claim floor in this flight's torque: said, not claimed
+    low, info = with_actuators(samples, model, before, delay, floor=10.0)  # type: ignore[arg-type]
+    assert low.kept == ["com_offset"] and info is not None and info["claimed"] == []
+    assert "under the claim floor in this flight's torque: command_delay" in actuator_sentence(
+        {"actuators": info}
+    )
+
+
+def test_evaluate_names_the_servo_lag_its_tilts_show(vehicle, tmp_path) -> None:
+    """A 0.1 s servo lag on the default vehicle, fit on attitude sines, judged on a
+    figure-8: the verdict names it from the logged tilts and says how they follow."""
+    from test_fit import attitude_sines
+
+    from omavctl.diagnose.evaluate import evaluate
+    from omavctl.learn.fit import fit_model
+    from omavctl.learn.model_file import save_model
+    from omavctl.logs import write_log
+
+    truth = truth_from_tree({"seed": 2, "effects": {"servo_lag": {"T_s": 0.1}}}, vehicle)
+    fit_ref = attitude_sines((18, 18, 25), (2.2, 2.9, 3.7), duration=10.0)
+    held_ref = fig8(roll_deg=18, pitch_deg=18, period=5.0, duration=10.0, ramp=1.5)
+    fit_log, held_log = tmp_path / "fit.csv", tmp_path / "held.csv"
+    write_log(fit_log, simulate(fit_ref, vehicle, truth, seed=5).log)
+    write_log(held_log, simulate(held_ref, vehicle, truth, seed=6).log)
+    model = tmp_path / "m0.npz"
+    save_model(model, fit_model([fit_log], vehicle, points=40, restarts=0).model)
+    diag = evaluate([model], [held_log], horizons=()).tree["diagnosis"]
+    shown = diag["actuators"]["shown"]
+    assert list(shown) == ["servo_lag"]
+    assert shown["servo_lag"]["value"] == pytest.approx(0.1, rel=0.05)
+    assert _inside(0.1, shown["servo_lag"]["ci95"])
+    assert "servo_lag" in diag["missing"]
+    assert "motor_lag" in diag["actuators"]["ruled_out"]
+    assert "--effects" in diag["fit_command"] and "servo_lag" in diag["fit_command"]

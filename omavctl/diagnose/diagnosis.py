@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from omavctl.diagnose.actuators import actuator_fits, with_actuators
 from omavctl.diagnose.claims import (
     LARGE_CUT_KEYS,
     Guarded,
@@ -211,6 +212,8 @@ def diagnose(
         (floor, stage),
     )
     guarded = lag_checked(samples, model, physics, guarded, (accepted, missing, floor), stage)
+    fits = actuator_fits(samples, model)
+    guarded, actuators = with_actuators(samples, model, guarded, fits, floor)
     unexplained = unexplained_structure(after, features, sg.dt)
     names = guarded.kept
     estimates = fit_estimates(samples, list(model.effects), [s.name for s in learned], stage)
@@ -229,11 +232,17 @@ def diagnose(
         "claim_estimates": guarded.estimates,
         "not_pinned": guarded.held_back,
         "timing_claims": {n: p for n, p in guarded.profiles.items() if n in names},
+        "actuators": actuators,
     }
+    ruled = set(actuators["ruled_out"]) if actuators else set()
     for entry in out["missing_effects"]:
         if any(h["name"] == entry["name"] for h in guarded.held_back):
             entry["missing"] = False  # claimed by a test, but its interval holds its null
             entry["not_pinned"] = True
+        if actuators and entry["name"] in actuators["claimed"]:
+            entry["missing"] = True  # the actuators show it, above the claim floor
+        # the actuators tell what the torque could not: no ambiguity with what they rule out
+        entry["ambiguous_with"] = [a for a in entry.get("ambiguous_with") or [] if a not in ruled]
     # when nothing else is, a learned effect confirmed on the held-out flight is claimed
     step, pool = None, []
     if not names:

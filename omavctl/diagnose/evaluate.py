@@ -150,6 +150,7 @@ def _read_log(
     spans = [{"log": p.name, "start": a, "end": b, "reason": why} for a, b, why in loss.spans]
     if loss.any:
         s = s.select(~loss.mask)
+    s.flight = flight  # the diagnosis reads the actuators' feedback from it
     if s.n < 10 * sg.window:
         raise LogError(
             f"only {s.n} usable samples after gaps, edges, ground time and loss of control "

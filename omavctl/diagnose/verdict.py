@@ -19,6 +19,7 @@ from typing import Any
 from omavctl.diagnose import claim_text as ct
 from omavctl.diagnose.activity import activity
 from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.actuators import actuator_sentence
 from omavctl.diagnose.axis_share import axis_held_line
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
 from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause
@@ -86,6 +87,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
         elif unpinned := ct.not_pinned_names(diag):
             text = f"Nothing claimed as missing.{ct.not_pinned_text(diag)}"
             test = (diag.get("effect_commands") or {}).get(unpinned[0])
+        text += actuator_sentence(diag)
         structure = _structure(diag.get("unexplained"))
         if structure:
             text += f" Some structure remains that no registered effect explains: {structure}."
@@ -120,6 +122,7 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     if alike:
         text += f" A residual of {missing[0]}'s shape is also left by {alike}."
     text += ct.not_pinned_text(diag)
+    text += actuator_sentence(diag)
     cmd = diag.get("fit_command")
     text += given_sentence(diag, missing[0])
     if amb and isinstance(sep := diag.get("separate_command"), str) and sep:

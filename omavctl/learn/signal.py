@@ -145,6 +145,9 @@ class ResidualSamples:
     #: force (:mod:`.imu_lever`); None without one (no such effect, no accelerometer, or
     #: too short a log)
     lever: LeverArm | None = field(default=None, repr=False)
+    #: the aligned log these samples come from, where a caller keeps it (evaluate: the
+    #: diagnosis reads the actuators' feedback from it, :mod:`.actuator_timing`)
+    flight: FlightLog | None = field(default=None, repr=False, compare=False)
     #: why the log's measured arm tilts were set aside (the effects then see the
     #: commanded ones), for the log's notes; None when used or not recorded
     tilt_note: str | None = None
