@@ -31,6 +31,7 @@ from omavctl.diagnose.claims import Guarded
 from omavctl.learn.actuator_timing import ActuatorFit, actuator_timing
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
+from omavctl.physics.effects import get_effect
 
 __all__ = [
     "DELAY_MIN",
@@ -134,7 +135,15 @@ def with_actuators(
     kept = [n for n in guarded.kept if n not in dropped] + added
     held = [h for h in guarded.held_back if h.get("name") not in added]
     for n in dropped:
-        held.append({"name": n, "estimate": guarded.estimates.get(n), "actuators": "ruled out"})
+        held.append(
+            {
+                "name": n,
+                "units": {p.name: p.unit for p in get_effect(n).parameters},
+                "estimate": guarded.estimates.get(n),
+                "axes": None,
+                "actuators": "ruled out",
+            }
+        )
     estimates = {n: e for n, e in guarded.estimates.items() if n in kept}
     new = Guarded(kept=kept, estimates=estimates, held_back=held, profiles=guarded.profiles)
     info = {

@@ -144,6 +144,8 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
     out = ""
     for e in _held(diag):
         name = str(e.get("name"))
+        if e.get("actuators") == "ruled out":
+            continue  # the actuators' sentence says it (omavctl.diagnose.actuators)
         axes = e.get("axes")
         entry = {"name": name, "estimate": e.get("estimate"), "units": e.get("units")}
         said = estimate_sentence(entry, axes if isinstance(axes, list) and axes else None)
