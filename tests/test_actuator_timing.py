@@ -147,3 +147,11 @@ def test_evaluate_names_the_servo_lag_its_tilts_show(vehicle, tmp_path) -> None:
     assert "servo_lag" in diag["missing"]
     assert "motor_lag" in diag["actuators"]["ruled_out"]
     assert "--effects" in diag["fit_command"] and "servo_lag" in diag["fit_command"]
+
+
+def test_a_gaps_commands_hold_the_last_valid_row() -> None:
+    from omavctl.learn.actuator_timing import _held_over_gaps
+
+    values = np.arange(6.0)[:, None]
+    rows = np.array([False, True, True, False, False, True])
+    assert _held_over_gaps(values, rows)[:, 0].tolist() == [1.0, 1.0, 2.0, 2.0, 2.0, 5.0]

@@ -189,6 +189,15 @@ def fit_timing(
     )
 
 
+def _held_over_gaps(values: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``values`` (N, k) with the rows not in ``rows`` holding the last row before them
+    (the first valid row before any): a gap's commands are not zero."""
+    idx = np.where(rows, np.arange(rows.size), -1)
+    idx = np.maximum.accumulate(idx)
+    first = int(np.argmax(rows)) if rows.any() else 0
+    return np.asarray(values[np.where(idx >= 0, idx, first)])
+
+
 def actuator_timing(flight: FlightLog, vehicle: Vehicle) -> dict[str, ActuatorFit]:
     """The tilts' and the rotors' timing (:func:`fit_timing`) of a log of the omav's
     allocation that records them (roles ``tilt``, ``rotor``); empty for a rotor list, a
@@ -202,7 +211,7 @@ def actuator_timing(flight: FlightLog, vehicle: Vehicle) -> dict[str, ActuatorFi
         return {}
     wrench = np.concatenate([flight.signals["force_command"], flight.signals["torque_command"]], 1)
     rows = flight.valid & np.all(np.isfinite(wrench), axis=1)
-    wrench = np.where(np.isfinite(wrench), wrench, 0.0)
+    wrench = _held_over_gaps(wrench, rows)
     res = Allocation(vehicle).allocate(wrench)
     out: dict[str, ActuatorFit] = {}
     if flight.has("tilt") and flight.signals["tilt"].shape[1] == vehicle.n_arms:
