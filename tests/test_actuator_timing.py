@@ -147,6 +147,14 @@ def test_evaluate_names_the_servo_lag_its_tilts_show(vehicle, tmp_path) -> None:
     assert "servo_lag" in diag["missing"]
     assert "motor_lag" in diag["actuators"]["ruled_out"]
     assert "--effects" in diag["fit_command"] and "servo_lag" in diag["fit_command"]
+    # fit says beside its torque estimate what the tilts of its log show
+    notes = fit_model(
+        [fit_log], vehicle, effects=["servo_lag"], points=40, restarts=0
+    ).summary.notes
+    said = [n for n in notes if n.startswith("servo_lag: the actuators' own feedback of fit.csv")]
+    assert len(said) == 1, notes
+    value = float(said[0].split("T_s = ")[1].split(" ms")[0])
+    assert value == pytest.approx(100.0, rel=0.05)
 
 
 def test_a_gaps_commands_hold_the_last_valid_row() -> None:

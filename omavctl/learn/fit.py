@@ -53,7 +53,7 @@ from omavctl.learn.effect_fit import (
     merged_estimates,
     torque_gain,
 )
-from omavctl.learn.fit_notes import search_notes, unit_notes
+from omavctl.learn.fit_notes import actuator_notes, search_notes, unit_notes
 from omavctl.learn.fit_steps import (
     FitOptions,
     GPFit,
@@ -219,6 +219,7 @@ def fit_model(
         _rollout_check(model, original, train, notes)
     with _timed(timings, "evaluate"):
         _training_fit(model, original, gp.axes)
+    notes = actuator_notes(res.found, original, vehicle) + notes
     timings["total"] = time.perf_counter() - t_start
     report("done", 1.0)
     return FitResult(model, _summary(opts, summaries, res, train, gp, eff, gain, notes, timings))

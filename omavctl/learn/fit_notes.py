@@ -7,6 +7,7 @@ commands are normalised.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -15,7 +16,7 @@ from omavctl.learn.effect_search import SearchResult
 from omavctl.physics.effects import get_effect
 from omavctl.vehicle import NORMALISED, Vehicle
 
-__all__ = ["effect_notes", "effect_unit", "search_notes", "unit_notes"]
+__all__ = ["actuator_notes", "effect_notes", "effect_unit", "search_notes", "unit_notes"]
 
 
 def effect_unit(name: str, unit: str, command_units: Mapping[str, str]) -> str:
@@ -187,5 +188,47 @@ def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) ->
                 f"{r.name}: {p.name} at the edge of its search interval "
                 f"({lo * 1e3:g} to {hi * 1e3:g} ms): the logs do not determine it, or "
                 "the effect is absent"
+            )
+    return notes
+
+
+#: which actuator shows each timing effect, and how: (kinds, "T" lag or "tau" delay)
+_SHOWN_BY = {
+    "servo_lag": (("tilt",), "T"),
+    "motor_lag": (("rotor",), "T"),
+    "command_delay": (("tilt", "rotor"), "tau"),
+}
+
+
+def actuator_notes(
+    found: Mapping[str, SearchResult], samples: Sequence[Any], vehicle: Vehicle
+) -> list[str]:
+    """Beside each fitted lag or delay, what the actuators' own feedback of each log
+    shows for it (:mod:`omavctl.learn.actuator_timing`): the logged tilts' lag for
+    ``servo_lag``, the rotors' for ``motor_lag``, their common delay for
+    ``command_delay``; none for a log that does not record them."""
+    from omavctl.learn.actuator_timing import actuator_timing
+
+    names = [n for n in found if n in _SHOWN_BY]
+    if not names:
+        return []
+    notes = []
+    for s in samples:
+        flight = getattr(s, "flight", None)
+        fits = actuator_timing(flight, vehicle) if flight is not None else {}
+        for name in names:
+            kinds, what = _SHOWN_BY[name]
+            got = [fits[k] for k in kinds if k in fits]
+            if not got:
+                continue
+            value = float(np.mean([getattr(f, what) for f in got]))
+            lo = max((f.T_ci95 if what == "T" else f.tau_ci95)[0] for f in got)
+            hi = min((f.T_ci95 if what == "T" else f.tau_ci95)[1] for f in got)
+            p = get_effect(name).parameters[0].name
+            span = f"95 %: {lo * 1e3:.1f} to {hi * 1e3:.1f} ms" if lo <= hi else "they disagree"
+            which = " and ".join("tilts" if k == "tilt" else "rotors" for k in kinds)
+            notes.append(
+                f"{name}: the actuators' own feedback of {s.path.name} (the logged {which} "
+                f"against their commands) gives {p} = {value * 1e3:.1f} ms ({span})"
             )
     return notes

@@ -269,6 +269,7 @@ def log_samples(
         )
     if s.tilt_note is not None:
         flight = replace(flight, notes=[*flight.notes, s.tilt_note])
+    s.flight = flight  # for what the actuators' own feedback says (fit's notes)
     if s.n == 0:
         longest = max((b - a for a, b in flight.segments), default=0)
         raise LogError(
