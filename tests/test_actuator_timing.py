@@ -163,3 +163,13 @@ def test_a_gaps_commands_hold_the_last_valid_row() -> None:
     values = np.arange(6.0)[:, None]
     rows = np.array([False, True, True, False, False, True])
     assert _held_over_gaps(values, rows)[:, 0].tolist() == [1.0, 1.0, 2.0, 2.0, 2.0, 5.0]
+
+
+def test_actuators_that_follow_at_once_are_not_said_unless_a_lag_is_in_question() -> None:
+    from omavctl.diagnose.actuators import actuator_sentence
+
+    quick = {k: _fit(k, 0.0, 0.005).to_json() for k in ("tilt", "rotor")}
+    info = {"fits": quick, "shown": {}, "held_back": [], "claimed": []}
+    assert actuator_sentence({"actuators": info, "missing": ["rotational_drag"]}) == ""
+    said = actuator_sentence({"actuators": info, "missing": ["motor_lag"]})
+    assert said.endswith("the rotors' thrusts follow their commands within 5.0 ms.")

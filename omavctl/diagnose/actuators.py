@@ -173,13 +173,26 @@ def _kind_words(fit: Mapping[str, Any]) -> str:
     return f"the {what} follow their commands {how} (95 %: {_ms(lo)} to {_ms(hi)})"
 
 
+def _timing_discussed(diag: Mapping[str, Any]) -> bool:
+    """Whether the verdict names a lag or delay: claimed, held back, or ambiguous with
+    the top claim."""
+    named = {str(n) for n in diag.get("missing") or []}
+    named |= {str(h.get("name")) for h in diag.get("not_pinned") or [] if isinstance(h, Mapping)}
+    for e in (diag.get("missing_effects") or [])[:1]:
+        named |= {str(a) for a in e.get("ambiguous_with") or []}
+    return bool(named & set(_PARAM))
+
+
 def actuator_sentence(diag: Mapping[str, Any]) -> str:
     """' The actuators' own feedback ...' for the verdict: how the logged tilts and rotors
     follow their commands, what that shows and what was claimed or held back from it;
-    '' without recorded actuators."""
+    '' without recorded actuators, or when they show nothing and the verdict names no
+    lag or delay (every omav verdict said its servos follow within 6 ms)."""
     info = diag.get("actuators")
     if not isinstance(info, Mapping) or not info.get("fits"):
         return ""
+    if not (info.get("shown") or info.get("held_back") or _timing_discussed(diag)):
+        return ""  # actuators that follow at once, and no lag or delay in question
     fits = info["fits"]
     text = " The actuators' own feedback (the logged tilts and rotor speeds): " + "; ".join(
         _kind_words(fits[k]) for k in ("tilt", "rotor") if k in fits
