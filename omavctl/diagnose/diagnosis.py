@@ -234,15 +234,7 @@ def diagnose(
         "timing_claims": {n: p for n, p in guarded.profiles.items() if n in names},
         "actuators": actuators,
     }
-    ruled = set(actuators["ruled_out"]) if actuators else set()
-    for entry in out["missing_effects"]:
-        if any(h["name"] == entry["name"] for h in guarded.held_back):
-            entry["missing"] = False  # claimed by a test, but its interval holds its null
-            entry["not_pinned"] = True
-        if actuators and entry["name"] in actuators["claimed"]:
-            entry["missing"] = True  # the actuators show it, above the claim floor
-        # the actuators tell what the torque could not: no ambiguity with what they rule out
-        entry["ambiguous_with"] = [a for a in entry.get("ambiguous_with") or [] if a not in ruled]
+    _mark_entries(out["missing_effects"], guarded, actuators)
     # when nothing else is, a learned effect confirmed on the held-out flight is claimed
     step, pool = None, []
     if not names:
@@ -254,6 +246,23 @@ def diagnose(
         "learned_steps": [_learned_json(*step)] if step else [],
         **({} if names or step else {"learned_held": _learned_held(pool, model, raw)}),
     }
+
+
+def _mark_entries(
+    entries: Sequence[dict[str, Any]], guarded: Guarded, actuators: Mapping[str, Any] | None
+) -> None:
+    """The ranking's entries as the claims ended: held back (not pinned down), claimed
+    from the actuators' feedback, and without what the actuators rule out in their
+    ambiguous sets (the actuators tell what the torque could not)."""
+    ruled = set(actuators["ruled_out"]) if actuators else set()
+    claimed = set(actuators["claimed"]) if actuators else set()
+    for entry in entries:
+        if any(h["name"] == entry["name"] for h in guarded.held_back):
+            entry["missing"] = False  # claimed by a test, but its interval holds its null
+            entry["not_pinned"] = True
+        if entry["name"] in claimed:
+            entry["missing"] = True  # the actuators show it, above the claim floor
+        entry["ambiguous_with"] = [a for a in entry.get("ambiguous_with") or [] if a not in ruled]
 
 
 def _learned_held(

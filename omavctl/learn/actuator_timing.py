@@ -162,16 +162,16 @@ def fit_timing(
 
     taus = np.arange(0.0, MAX_DELAY + 1e-9, dt / 4.0)
     lags = np.concatenate([[0.0], np.geomspace(1e-3, MAX_LAG, 40)])
-    tau_only = min(taus, key=lambda v: cost(np.array([v, 0.0])))
+    tau_only = min(taus[::2], key=lambda v: cost(np.array([v, 0.0])))
     lag_only = min(lags, key=lambda v: cost(np.array([0.0, v])))
-    coarse = min(((t, g) for t in taus[::8] for g in lags[::4]), key=lambda p: cost(np.array(p)))
+    coarse = min(((t, g) for t in taus[::16] for g in lags[::8]), key=lambda p: cost(np.array(p)))
     start = min((np.array(coarse), np.array([tau_only, 0.0]), np.array([0.0, lag_only])), key=cost)
     res = minimize(cost, start, method="Nelder-Mead", options={"xatol": 1e-5, "fatol": 1e-12})
     best = np.asarray(res.x if res.fun <= cost(start) else start, float)
     resid = mismatch(float(best[0]), float(best[1]))
     limit = float((resid**2).mean()) * math.exp(_CHI2_95 / max(_effective(resid), 1.0))
     tau_ci = _interval(cost, best, 0, taus, limit)
-    lag_ci = _interval(cost, best, 1, np.linspace(0.0, MAX_LAG, 201), limit)
+    lag_ci = _interval(cost, best, 1, np.linspace(0.0, MAX_LAG, 101), limit)
     if best[1] < dt:  # no lag to smooth it: a delay is known to the log's period only
         tau_ci = (max(min(tau_ci[0], best[0] - dt), 0.0), max(tau_ci[1], best[0] + dt))
     return ActuatorFit(

@@ -70,19 +70,17 @@ regressor_<name>   (n, 3, p)   optional, one per registered effect: its regresso
                                have partly absorbed
 =================  ==========  ==================================================
 
-Version history: ``omavctl.model/1`` (omavctl 0.1); the optional
-``regressor_<name>`` keys were added within version 1 (readers that do not
-know them ignore them; files without them load, their diagnosis then ignores
-what the GP absorbed). ``omavctl.model/2``: the effects' standard errors are
-autocorrelation-robust (``stderr_method`` ``"hac"``,
-:mod:`omavctl.learn.intervals`) and each parameter carries ``P_ci95`` and
-``P_pinned``. Version 1 files are still read: their standard errors were
-white-residual least squares (``stderr_method`` ``"white"``, optimistic), and
-their intervals are derived from them (omavctl derives ``P_ci95`` from ``P``
-and ``P_stderr`` on reading, whatever the file holds).
+Version history: ``omavctl.model/1`` (omavctl 0.1); the optional ``regressor_<name>``
+keys were added within version 1 (readers that do not know them ignore them; files
+without them load, their diagnosis then ignores what the GP absorbed).
+``omavctl.model/2``: the effects' standard errors are autocorrelation-robust
+(``stderr_method`` ``"hac"``, :mod:`omavctl.learn.intervals`) and each parameter carries
+``P_ci95`` and ``P_pinned``. Version 1 files are still read: their standard errors were
+white-residual least squares (``stderr_method`` ``"white"``, optimistic), and their
+intervals are derived from them (omavctl derives ``P_ci95`` from ``P`` and ``P_stderr``
+on reading, whatever the file holds).
 
-Files are written deterministically (fixed zip timestamps, sorted JSON):
-the same inputs give the same bytes.
+Files are written deterministically (fixed zip timestamps, sorted JSON): same inputs, same bytes.
 """
 
 from __future__ import annotations
@@ -198,12 +196,9 @@ def _read_members(path: Path) -> dict[str, np.ndarray]:
     if head[:1] == b"\x80":
         raise ModelError("contains pickled data; refusing to load", path)
     if not zipfile.is_zipfile(path):
+        cut = "truncated or damaged: it begins as an .npz (zip) file but its end is missing"
         if head == b"PK\x03\x04":  # a zip's first member, but no directory at its end
-            raise ModelError(
-                "truncated or damaged: it begins as an .npz (zip) file but its end is "
-                "missing (an interrupted copy or download?)",
-                path,
-            )
+            raise ModelError(f"{cut} (an interrupted copy or download?)", path)
         raise ModelError("not an omavctl model: expected an .npz (zip) file", path)
     try:
         with zipfile.ZipFile(path) as zf:

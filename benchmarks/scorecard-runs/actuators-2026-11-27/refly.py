@@ -1,6 +1,7 @@
-"""Fly the own tune draws' logs again (session 25; FROZEN: a tree with the plant of 778d8e0 or later, run as
-``python refly.py /work/sc19/own-drag.jsonl ...``) with the plant whose log records the actuators at
-each row's instant (the dynamics are the same; only the logged tilts and rotor speeds move)."""
+"""Fly the own tune draws' logs again (session 25) with the plant whose log records the
+actuators at each row's instant: the dynamics are the same, only the logged tilts and rotor
+speeds move. FROZEN: a tree with the plant of 778d8e0 or later; run as
+``python refly.py /work/sc19/own-drag.jsonl ...``."""
 
 import json
 import shlex
