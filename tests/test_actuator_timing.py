@@ -173,3 +173,28 @@ def test_actuators_that_follow_at_once_are_not_said_unless_a_lag_is_in_question(
     assert actuator_sentence({"actuators": info, "missing": ["rotational_drag"]}) == ""
     said = actuator_sentence({"actuators": info, "missing": ["motor_lag"]})
     assert said.endswith("the rotors' thrusts follow their commands within 5.0 ms.")
+
+
+def test_a_lag_the_actuators_rule_out_is_said_once() -> None:
+    from omavctl.diagnose.actuators import actuator_sentence
+    from omavctl.diagnose.claim_text import not_pinned_text
+
+    servo = {
+        "tilt": _fit("tilt", 0.0, 0.09).to_json(),
+        "rotor": _fit("rotor", 0.0, 0.004).to_json(),
+    }
+    info = {
+        "fits": servo,
+        "shown": {"servo_lag": {"value": 0.09, "ci95": [0.088, 0.092], "parameter": "T_s",
+                                "part_over_floor": 1.8}},
+        "ruled_out": ["command_delay", "motor_lag"],
+        "claimed": ["servo_lag"],
+        "held_back": [],
+    }  # fmt: skip
+    held = [{"name": "motor_lag", "units": {"T_m": "s"}, "estimate": None}]
+    diag = {"actuators": info, "missing": ["servo_lag"], "not_pinned": held}
+    assert not_pinned_text(diag) == ""
+    assert actuator_sentence(diag).endswith(
+        "claimed from them: servo_lag; they rule out motor_lag, which the torque could not "
+        "pin down."
+    )

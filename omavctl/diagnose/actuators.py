@@ -212,4 +212,12 @@ def actuator_sentence(diag: Mapping[str, Any]) -> str:
     held = info.get("held_back") or []
     if held:
         text += f"; they rule out {', '.join(held)}, claimed from the torque alone: held back"
+    ruled = set(info.get("ruled_out") or [])
+    others = sorted(
+        str(h.get("name"))
+        for h in diag.get("not_pinned") or []
+        if isinstance(h, Mapping) and h.get("name") in ruled and h.get("name") not in held
+    )
+    if others:
+        text += f"; they rule out {', '.join(others)}, which the torque could not pin down"
     return text + "."

@@ -142,9 +142,11 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
     for every claim held back ('' when none was), with the interval that holds the
     null and the look-alike it stays ambiguous with."""
     out = ""
+    acts = diag.get("actuators")
+    ruled = set(acts.get("ruled_out") or []) if isinstance(acts, Mapping) else set()
     for e in _held(diag):
         name = str(e.get("name"))
-        if e.get("actuators") == "ruled out":
+        if e.get("actuators") == "ruled out" or name in ruled:
             continue  # the actuators' sentence says it (omavctl.diagnose.actuators)
         axes = e.get("axes")
         entry = {"name": name, "estimate": e.get("estimate"), "units": e.get("units")}
