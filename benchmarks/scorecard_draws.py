@@ -171,6 +171,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report17's records were read (2026-11-27, session 25): the next changes are reported
+    # on report18 (19 000 000; declared in session 25 before any of its draws was flown)
+    "report18": {
+        "seed_base": 19_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
