@@ -41,7 +41,7 @@ from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
 from omavctl.vehicle import Vehicle
 
-__all__ = ["ActuatorFit", "actuator_timing", "delayed_lag", "fit_timing"]
+__all__ = ["SHOWN_BY", "ActuatorFit", "actuator_timing", "delayed_lag", "fit_timing"]
 
 #: Delays (s) searched, and lags (s): beyond them a vehicle is not flying on its commands.
 MAX_DELAY, MAX_LAG = 0.2, 0.5
@@ -49,6 +49,12 @@ MAX_DELAY, MAX_LAG = 0.2, 0.5
 #: first command are unknown).
 MIN_ROWS, SETTLE = 200, 20
 _CHI2_95 = 3.841458820694124
+#: which actuators show each timing effect, and by what: (kinds, "T" lag or "tau" delay)
+SHOWN_BY = {
+    "servo_lag": (("tilt",), "T"),
+    "motor_lag": (("rotor",), "T"),
+    "command_delay": (("tilt", "rotor"), "tau"),
+}
 
 
 @dataclass

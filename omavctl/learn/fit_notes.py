@@ -192,14 +192,6 @@ def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) ->
     return notes
 
 
-#: which actuator shows each timing effect, and how: (kinds, "T" lag or "tau" delay)
-_SHOWN_BY = {
-    "servo_lag": (("tilt",), "T"),
-    "motor_lag": (("rotor",), "T"),
-    "command_delay": (("tilt", "rotor"), "tau"),
-}
-
-
 def actuator_notes(
     found: Mapping[str, SearchResult], samples: Sequence[Any], vehicle: Vehicle
 ) -> list[str]:
@@ -207,9 +199,9 @@ def actuator_notes(
     shows for it (:mod:`omavctl.learn.actuator_timing`): the logged tilts' lag for
     ``servo_lag``, the rotors' for ``motor_lag``, their common delay for
     ``command_delay``; none for a log that does not record them."""
-    from omavctl.learn.actuator_timing import actuator_timing
+    from omavctl.learn.actuator_timing import SHOWN_BY, actuator_timing
 
-    names = [n for n in found if n in _SHOWN_BY]
+    names = [n for n in found if n in SHOWN_BY]
     if not names:
         return []
     notes = []
@@ -217,7 +209,7 @@ def actuator_notes(
         flight = getattr(s, "flight", None)
         fits = actuator_timing(flight, vehicle) if flight is not None else {}
         for name in names:
-            kinds, what = _SHOWN_BY[name]
+            kinds, what = SHOWN_BY[name]
             got = [fits[k] for k in kinds if k in fits]
             if not got:
                 continue
