@@ -67,30 +67,52 @@ def _fits_well(fit: ActuatorFit) -> bool:
     return fit.rms_fit <= FIT_SHARE * fit.rms_none
 
 
+def _delay(fit: ActuatorFit) -> tuple[float, tuple[float, float]]:
+    """The delay a fit shows, with its interval: how late in all (``late``) where the
+    log's commands are samples of a faster controller (the split is not read there)."""
+    return (fit.late, fit.late_ci95) if fit.undersampled else (fit.tau, fit.tau_ci95)
+
+
+def _lag(fit: ActuatorFit) -> tuple[float, tuple[float, float]]:
+    """The lag a fit shows, with its interval (``late`` where undersampled, as
+    :func:`_delay`)."""
+    return (fit.late, fit.late_ci95) if fit.undersampled else (fit.T, fit.T_ci95)
+
+
 def shown_timing(fits: Mapping[str, ActuatorFit]) -> dict[str, dict[str, Any]]:
-    """Effect name -> {"value", "ci95", "kinds"} of the timing effects the actuators show."""
+    """Effect name -> {"value", "ci95", "kinds"} of the timing effects the actuators show.
+    Where the commands are samples of a faster controller, tilts and rotors late by one
+    time show the command late (``command_delay``), not two lags of that time."""
     out: dict[str, dict[str, Any]] = {}
     tilt, rotor = fits.get("tilt"), fits.get("rotor")
     late = [f for f in (tilt, rotor) if f is not None]
-    if late and all(f.tau >= DELAY_MIN and _fits_well(f) for f in late):
-        lo = max(f.tau_ci95[0] for f in late)
-        hi = min(f.tau_ci95[1] for f in late)
+    common = any(f.undersampled for f in late)
+    if (
+        late
+        and (len(late) == 2 or not common)
+        and all(_delay(f)[0] >= DELAY_MIN and _fits_well(f) for f in late)
+    ):
+        lo = max(_delay(f)[1][0] for f in late)
+        hi = min(_delay(f)[1][1] for f in late)
         if lo <= hi:  # one delay for both
-            value = float(np.mean([f.tau for f in late]))
             out["command_delay"] = {
-                "value": value,
+                "value": float(np.mean([_delay(f)[0] for f in late])),
                 "ci95": [lo, hi],
                 "kinds": [f.kind for f in late],
             }
     for name, fit in (("servo_lag", tilt), ("motor_lag", rotor)):
-        if fit is not None and fit.T >= LAG_MIN and _fits_well(fit):
-            out[name] = {"value": fit.T, "ci95": list(fit.T_ci95), "kinds": [fit.kind]}
+        if fit is None or (fit.undersampled and "command_delay" in out):
+            continue
+        if _lag(fit)[0] >= LAG_MIN and _fits_well(fit):
+            out[name] = {"value": _lag(fit)[0], "ci95": list(_lag(fit)[1]), "kinds": [fit.kind]}
     return out
 
 
 def ruled_out(fits: Mapping[str, ActuatorFit]) -> set[str]:
     """The timing effects the recorded actuators rule out: every 95 % interval of the
-    lag or delay that would show them under the minimum."""
+    lag or delay that would show them under the minimum (a lag fitted to a faster
+    controller's commands only errs long, a delay short: there the delay's is how late
+    in all, and where both kinds are late by one time, neither lag is more than it)."""
     out = set()
     tilt, rotor = fits.get("tilt"), fits.get("rotor")
     if tilt is not None and tilt.T_ci95[1] < LAG_MIN:
@@ -98,8 +120,13 @@ def ruled_out(fits: Mapping[str, ActuatorFit]) -> set[str]:
     if rotor is not None and rotor.T_ci95[1] < LAG_MIN:
         out.add("motor_lag")
     late = [f for f in (tilt, rotor) if f is not None]
-    if late and all(f.tau_ci95[1] < DELAY_MIN for f in late):
+    if late and all(_delay(f)[1][1] < DELAY_MIN for f in late):
         out.add("command_delay")
+    if tilt is not None and rotor is not None and "command_delay" in shown_timing(fits):
+        if tilt.undersampled and tilt.late_than(rotor) < LAG_MIN:
+            out.add("servo_lag")  # both late by one time: the command, not the servos
+        if rotor.undersampled and rotor.late_than(tilt) < LAG_MIN:
+            out.add("motor_lag")
     return out
 
 
@@ -165,6 +192,9 @@ def _ms(v: float) -> str:
 
 def _kind_words(fit: Mapping[str, Any]) -> str:
     what = "tilts" if fit.get("kind") == "tilt" else "rotors' thrusts"
+    if fit.get("undersampled"):
+        late, (lo, hi) = float(fit["late"]), fit["late_ci95"]
+        return f"the {what} are {_ms(late)} late in all (95 %: {_ms(lo)} to {_ms(hi)})"
     tau, lag = float(fit["tau"]), float(fit["T"])
     lo, hi = fit["T_ci95"] if lag >= tau else fit["tau_ci95"]
     if max(tau, lag) < LAG_MIN:
@@ -197,6 +227,12 @@ def actuator_sentence(diag: Mapping[str, Any]) -> str:
     text = " The actuators' own feedback (the logged tilts and rotor speeds): " + "; ".join(
         _kind_words(fits[k]) for k in ("tilt", "rotor") if k in fits
     )
+    if any(f.get("undersampled") for f in fits.values()):
+        text += (
+            " (the log's commands are samples of a faster controller: between its rows"
+            " they move in ways the actuators do not follow, so a delay and a lag are not"
+            " told apart from them)"
+        )
     shown = info.get("shown") or {}
     if shown:
         names = ", ".join(

@@ -20,6 +20,18 @@ commands before t_k made), by least squares over a grid refined by Nelder-Mead; 
 bound of its minimum (the other parameter held), with the residual's autocorrelation
 counted in the effective number of rows (:func:`_interval`).
 
+A controller faster than the log (1 kHz logged at 100 Hz) leaves in each row one sample
+of a command that varies between rows; its row-to-row jitter is noise in the fit's
+input, which the actuators average and a lag averages too: a 50 ms delay reads as a
+48 ms lag (own-invent draw 4). Such a log's commands hardly cohere with the actuators'
+states over the top fifth of its band (coherence 0.04-0.12 on the own tune draws at
+1 kHz, 0.86-1.00 at 100 Hz, a 0.1 s servo lag included): :attr:`ActuatorFit.undersampled`.
+There the split between delay and lag is not read from the log, only how late the
+actuators are in all (``late`` = tau + T, the low-frequency lateness both share, with
+its interval along the fitted split, widened by half the log's period each way: the
+command between two rows is not in the log; 52 (45-58) and 53 (46-61) ms for that
+50 ms delay behind the 5 ms default lags).
+
 Measured on the project's simulator (20 s figure-8 flights of the own tune draws, flown
 again with the fixed log instant; docs/concepts.md §6): a 0.1 s servo lag gives the tilts
 T = 97 ms (95 %: 95 to 100, a 1 kHz controller) and the rotors 22 ms; a 0.12 s motor lag
@@ -35,7 +47,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.signal import lfilter
+from scipy.signal import coherence, lfilter
 
 from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
@@ -49,6 +61,9 @@ MAX_DELAY, MAX_LAG = 0.2, 0.5
 #: first command are unknown).
 MIN_ROWS, SETTLE = 200, 20
 _CHI2_95 = 3.841458820694124
+#: Mean coherence of commands and states over the top fifth of the log's band under which
+#: the log's commands are samples of a faster controller (module docstring).
+COHERENCE_MIN = 0.5
 #: which actuators show each timing effect, and by what: (kinds, "T" lag or "tau" delay)
 SHOWN_BY = {
     "servo_lag": (("tilt",), "T"),
@@ -74,6 +89,22 @@ class ActuatorFit:
     rms_lag_only: float
     rms_delay_only: float
     rows: int
+    late: float = 0.0
+    late_ci95: tuple[float, float] = (0.0, 0.0)
+    coherence: float = 1.0
+    period: float = 0.0
+
+    @property
+    def undersampled(self) -> bool:
+        """Whether the log's commands are samples of a faster controller: the delay and
+        the lag are not told apart, only ``late`` (module docstring)."""
+        return self.coherence < COHERENCE_MIN
+
+    def late_than(self, other: ActuatorFit) -> float:
+        """Upper 95 % bound (s) of how much later this kind is than ``other``: the half
+        period both intervals carry for a command between rows cancels in it."""
+        pad = self.period / 2.0 if self.undersampled else 0.0
+        return (self.late_ci95[1] - pad) - (other.late_ci95[0] + pad)
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -88,6 +119,11 @@ class ActuatorFit:
             "rms_lag_only": self.rms_lag_only,
             "rms_delay_only": self.rms_delay_only,
             "rows": self.rows,
+            "late": self.late,
+            "late_ci95": list(self.late_ci95),
+            "coherence": self.coherence,
+            "undersampled": self.undersampled,
+            "period": self.period,
         }
 
 
@@ -146,6 +182,29 @@ def _interval(
     return max(lo - step, 0.0), hi + step
 
 
+def _late_interval(cost: Any, best: np.ndarray, limit: float, dt: float) -> tuple[float, float]:
+    """95 % interval of the lateness tau + T along the fitted split (both scaled together)."""
+    total = float(best.sum())
+    share = best / total if total > 0 else np.array([0.0, 1.0])
+    grid = np.arange(0.0, MAX_DELAY + 1e-9, dt / 4.0)
+    inside = [float(s) for s in np.union1d(grid, [total]) if cost(share * s) <= limit]
+    lo, hi = min(inside, default=total), max(inside, default=total)
+    return max(lo - dt / 8.0, 0.0), hi + dt / 8.0
+
+
+def fast_coherence(command: np.ndarray, measured: np.ndarray, rows: np.ndarray, dt: float) -> float:
+    """Mean coherence of ``command`` and ``measured`` (N, k) over the top fifth of the
+    log's band (gaps held), 1.0 with too few rows to tell."""
+    if command.shape[0] < 4 * 64:
+        return 1.0
+    c = _held_over_gaps(command, rows)
+    m = _held_over_gaps(measured, rows)
+    f, coh = coherence(c, m, fs=1.0 / dt, nperseg=128, axis=0)
+    band = f >= 0.4 / dt
+    value = float(np.nanmean(coh[band]))
+    return value if math.isfinite(value) else 1.0
+
+
 def fit_timing(
     kind: str, unit: str, command: np.ndarray, measured: np.ndarray, rows: np.ndarray,
     dt: float, angle: bool = False,
@@ -182,6 +241,11 @@ def fit_timing(
     lag_ci = _interval(cost, best, 1, np.linspace(0.0, MAX_LAG, 101), limit)
     if best[1] < dt:  # no lag to smooth it: a delay is known to the log's period only
         tau_ci = (max(min(tau_ci[0], best[0] - dt), 0.0), max(tau_ci[1], best[0] + dt))
+    on_circle = command + ((measured - command + np.pi) % (2.0 * np.pi) - np.pi)
+    fast = fast_coherence(command, on_circle if angle else measured, keep, dt)
+    late_ci = _late_interval(cost, best, limit, dt)
+    if fast < COHERENCE_MIN:  # the command between rows is not in the log
+        late_ci = (max(late_ci[0] - dt / 2.0, 0.0), late_ci[1] + dt / 2.0)
     return ActuatorFit(
         kind=kind,
         unit=unit,
@@ -194,6 +258,10 @@ def fit_timing(
         rms_lag_only=math.sqrt(cost(np.array([0.0, lag_only]))),
         rms_delay_only=math.sqrt(cost(np.array([tau_only, 0.0]))),
         rows=int(keep.sum()),
+        late=float(best.sum()),
+        late_ci95=late_ci,
+        coherence=fast,
+        period=dt,
     )
 
 
