@@ -50,6 +50,28 @@ def test_each_timing_effect_shows_in_its_own_actuators(vehicle, task, effect, pa
             assert fit.T < 0.005 and fit.tau < 0.01, (k, fit)
 
 
+def test_a_delay_behind_a_faster_controller_than_the_log_shows_as_the_command_late(vehicle, task):
+    """A 1 kHz controller logged at 100 Hz: each row holds one sample of a command that
+    jitters between rows; fitted as if held, the 50 ms delay reads as a lag of both kinds
+    (and the fitted delay rules the delay out). The log is told by its commands'
+    incoherence with the actuators; only how late they are in all is read, and both
+    kinds late by one time show the command late, not two lags."""
+    from omavctl.diagnose.actuators import ruled_out, shown_timing
+
+    tree = {"ideal": True, "effects": {"command_delay": {"tau_d": 0.05}}}
+    fits = _timing(vehicle, task, {**tree, "timing": {"controller_rate_hz": 1000.0}})
+    for fit in fits.values():
+        assert fit.undersampled, fit.coherence
+        assert fit.tau < 0.03 and fit.T > 0.02  # the shape the jitter gives it
+        assert _inside(0.05, fit.late_ci95), fit
+    assert list(shown_timing(fits)) == ["command_delay"]
+    assert _inside(0.05, shown_timing(fits)["command_delay"]["ci95"])
+    assert ruled_out(fits) == {"servo_lag", "motor_lag"}
+    # the same delay behind a controller at the log's rate: its commands cohere
+    held = _timing(vehicle, task, tree)
+    assert all(not f.undersampled and f.coherence > 0.8 for f in held.values()), held
+
+
 def test_the_default_actuators_lag_by_their_5_ms(vehicle, task):
     fits = _timing(vehicle, task, {})
     for kind in ("tilt", "rotor"):

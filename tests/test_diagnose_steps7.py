@@ -112,3 +112,62 @@ def test_the_verdict_says_what_a_share_beside_the_look_alikes_is_of():
     ) in text
     del step["beside_look_alikes"]  # a share of the whole error says nothing more
     assert "That share is of" not in learned_claim_text(diag, "on the held-out flight")
+
+
+# ------------------------------------------- the look-alikes the GP learned, together
+INTERFERENCE = np.array([0.6, 0.5])
+
+
+def _alike_entry(name: str, ci: list | None = None) -> dict:
+    key = {"com_offset": "r_ci95", "rotor_interference": "rotor_rotor_ci95"}[name]
+    estimate = {key: ci if ci is not None else [[0.3, 0.9]] * (3 if name == "com_offset" else 1)}
+    if name == "rotor_interference":
+        estimate["rotor_arm_ci95"] = [[-0.1, 0.9]]
+    return {"name": name, "missing": True, "explained_variance": 0.5,
+            "explained_variance_per_axis": None, "estimate": estimate}  # fmt: skip
+
+
+def _alikes_learned(interference: np.ndarray | None, seed: int = 4):
+    """A larger rotor interference beside the offset of the thrust spread, learned by
+    the GP on the fit flight; the held-out error holds both."""
+    truth = {"com_offset": COM, "rotor_interference": interference}
+    return _case(truth, seed=seed)
+
+
+def test_the_look_alikes_the_gp_learned_are_claimed_together() -> None:
+    from omavctl.diagnose.learned_alikes import learned_look_alikes
+
+    model, physics, regs, blocks = _alikes_learned(INTERFERENCE)
+    pool = [_alike_entry("rotor_interference"), _alike_entry("com_offset", [[-0.1, 0.2]] * 3)]
+    found = learned_look_alikes(pool, model, physics, regs, blocks, FLOOR)
+    assert found is not None
+    step, entry = found
+    # the pinned one leads, the other is claimed with it
+    assert (step.name, step.also, entry["name"]) == (
+        "rotor_interference", ["com_offset"], "rotor_interference"
+    )  # fmt: skip
+    assert step.share >= 0.9 and step.log_ratio_t >= MIN_HAC_T
+    assert step.theta == pytest.approx(INTERFERENCE, rel=0.15)
+    assert step.to_json()["jointly_with"] == ["com_offset"]
+    diag = {"missing": [], "learned_claims": ["rotor_interference", "com_offset"],
+            "learned_steps": [{**entry, **step.to_json()}]}  # fmt: skip
+    text = learned_claim_text(diag, "on held-out data")
+    assert text.startswith(
+        "Learned by the GP, not yet in the physics: rotor_interference with com_offset, the "
+        "look-alikes of every rotorcraft's imperfections"
+    )
+    assert "estimated together from the fit flight by least squares, they remove" in text
+
+
+def test_look_alikes_are_not_claimed_together_alone_unpinned_or_absent() -> None:
+    from omavctl.diagnose.learned_alikes import learned_look_alikes
+
+    model, physics, regs, blocks = _alikes_learned(INTERFERENCE)
+    one = [_alike_entry("rotor_interference")]  # one look-alike: the tests of one decide
+    assert learned_look_alikes(one, model, physics, regs, blocks, FLOOR) is None
+    unpinned = [_alike_entry("rotor_interference", [[0.0, 0.9]]),
+                _alike_entry("com_offset", [[-0.1, 0.2]] * 3)]  # fmt: skip
+    assert learned_look_alikes(unpinned, model, physics, regs, blocks, FLOOR) is None
+    model, physics, regs, blocks = _case({"com_offset": None, "rotor_interference": None})
+    both = [_alike_entry("rotor_interference"), _alike_entry("com_offset")]
+    assert learned_look_alikes(both, model, physics, regs, blocks, FLOOR) is None

@@ -233,16 +233,24 @@ def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
     )
     ev, rms = _num(step.get("explained_variance")), _num(step.get("contribution_rms"))
     share = _num(step.get("share"))
+    also = [str(n) for n in step.get("jointly_with") or []]
     text = f"Learned by the GP, not yet in the physics: {name}"
+    if also:
+        text += f" with {', '.join(also)}, the look-alikes of every rotorcraft's imperfections"
     if ev is not None and rms is not None:
+        what = name if also else "it"
         text += (
-            f" — the physics-only residual looks like it (it explains {_pct(ev)} of it, "
-            f"{rms:.2g} rad/s² RMS)"
+            f" — the physics-only residual looks like {what} (it explains {_pct(ev)} of "
+            f"it, {rms:.2g} rad/s² RMS)"
         )
     if share is not None:
         text += (
-            f"; estimated from the fit flight by least squares as fit's first pass would, it "
-            f"removes {_pct(share)} of the squared physics-only error {where}"
+            "; estimated together from the fit flight by least squares, they remove "
+            f"{_pct(share)} of the squared physics-only error {where}, where neither alone "
+            "is confirmed"
+            if also
+            else "; estimated from the fit flight by least squares as fit's first pass "
+            f"would, it removes {_pct(share)} of the squared physics-only error {where}"
         )
     text += "."
     text += beside_look_alikes_sentence(step)

@@ -29,6 +29,7 @@ from omavctl.diagnose.claims import (
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
 from omavctl.diagnose.held_beside import held_timing_beside
 from omavctl.diagnose.joint import JointStep, joint_selection
+from omavctl.diagnose.learned_alikes import learned_look_alikes
 from omavctl.diagnose.learned_beside import learned_beside_look_alikes
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
@@ -242,7 +243,7 @@ def diagnose(
         step = _learned_claim(pool, samples, model, physics, raw, blocks, (floor, sg.dt, guarded))
     return {
         **out,
-        "learned_claims": [step[0].name] if step else [],
+        "learned_claims": [step[0].name, *getattr(step[0], "also", [])] if step else [],
         "learned_steps": [_learned_json(*step)] if step else [],
         **({} if names or step else {"learned_held": _learned_held(pool, model, raw)}),
     }
@@ -314,6 +315,7 @@ def _learned_claim(
         held_timing_beside(guarded.held_back, samples, model, physics, raw, blocks, (floor, dt))
         or learned_beside_look_alikes(*args)
         or learned_claim(*args)
+        or learned_look_alikes(pool, model, physics, raw, blocks, floor)
     )
 
 
@@ -322,7 +324,14 @@ def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:
     the estimate, the look-alikes) with the held-out test's numbers (and, accepted on
     its large cut, :class:`omavctl.diagnose.claims.LargeCutStep`'s)."""
     test = step.to_json()
-    keys = ("share", "share_of_total", "block_t", "beside_look_alikes", *LARGE_CUT_KEYS)
+    keys = (
+        "share",
+        "share_of_total",
+        "block_t",
+        "beside_look_alikes",
+        "jointly_with",
+        *LARGE_CUT_KEYS,
+    )
     return {**entry, **{k: test[k] for k in keys if k in test}}
 
 
