@@ -83,7 +83,7 @@ def test_no_better_than_zero_names_the_claims_before_the_frame():
     assert flag["message"] == (
         "axis x: the model's error (0.684 rad/s² RMS) is not below the angular "
         "acceleration itself (0.404): predicting none would do as well; the diagnosis "
-        "names what the physics lacks (com_offset, command_delay): add it first; if the "
+        "names what the physics lacks (com_offset, command_delay): add them first; if the "
         "error stays, check the command's gain, sign and frame, and whether the flight "
         "moves the vehicle enough for its commands to show"
     )

@@ -228,8 +228,8 @@ def _zero_advice(claims: Sequence[str]) -> str:
     if not claims:
         return frame
     return (
-        f"the diagnosis names what the physics lacks ({', '.join(claims)}): add it "
-        f"first; if the error stays, {frame}"
+        f"the diagnosis names what the physics lacks ({', '.join(claims)}): add "
+        f"{'them' if len(claims) > 1 else 'it'} first; if the error stays, {frame}"
     )
 
 
