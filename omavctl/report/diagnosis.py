@@ -226,7 +226,7 @@ def diagnosis_section(
     blocks += _missing_paras(missing, later)
     learned = [str(x) for x in diag.get("learned_claims") or []]
     if learned:  # what the GP learned, confirmed on the held-out flight: claimed
-        names = (s for name in learned for s in (Span(name, "strong"), " "))
+        names = (s for name in learned for s in (Span(name, "strong"), ", "))
         blocks.append(Para(("Learned by the GP, not yet in the physics: ", *names)[:-1]))
     held_back = [e for e in diag.get("not_pinned") or [] if isinstance(e, Mapping)]
     ranked = [*(diag.get("missing_effects") or []), *(diag.get("learned") or [])]
