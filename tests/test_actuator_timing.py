@@ -56,10 +56,16 @@ def test_a_delay_behind_a_faster_controller_than_the_log_shows_as_the_command_la
     (and the fitted delay rules the delay out). The log is told by its commands'
     incoherence with the actuators; only how late they are in all is read, and both
     kinds late by one time show the command late, not two lags."""
+    from pathlib import Path
+    from types import SimpleNamespace
+
     from omavctl.diagnose.actuators import ruled_out, shown_timing
+    from omavctl.learn.fit_notes import actuator_notes
 
     tree = {"ideal": True, "effects": {"command_delay": {"tau_d": 0.05}}}
-    fits = _timing(vehicle, task, {**tree, "timing": {"controller_rate_hz": 1000.0}})
+    fast = truth_from_tree({**tree, "timing": {"controller_rate_hz": 1000.0}}, vehicle)
+    flight = align(simulate(task, vehicle, fast, seed=3, physics_rate=1000.0).log)
+    fits = actuator_timing(flight, vehicle)
     for fit in fits.values():
         assert fit.undersampled, fit.coherence
         assert fit.tau < 0.03 and fit.T > 0.02  # the shape the jitter gives it
@@ -67,6 +73,12 @@ def test_a_delay_behind_a_faster_controller_than_the_log_shows_as_the_command_la
     assert list(shown_timing(fits)) == ["command_delay"]
     assert _inside(0.05, shown_timing(fits)["command_delay"]["ci95"])
     assert ruled_out(fits) == {"servo_lag", "motor_lag"}
+    # fit's note beside a fitted delay reads the same lateness, not the split's 4-15 ms
+    sample = SimpleNamespace(flight=flight, path=Path("fit.csv"))
+    (note,) = actuator_notes({"command_delay": None}, [sample], vehicle)  # type: ignore[dict-item]
+    value = float(note.split("gives ")[1].split(" ms late in all")[0])
+    assert _inside(value / 1e3, shown_timing(fits)["command_delay"]["ci95"]), note
+    assert abs(value - 50.0) < 5.0, note
     # the same delay behind a controller at the log's rate: its commands cohere
     held = _timing(vehicle, task, tree)
     assert all(not f.undersampled and f.coherence > 0.8 for f in held.values()), held
@@ -219,4 +231,31 @@ def test_a_lag_the_actuators_rule_out_is_said_once() -> None:
     assert actuator_sentence(diag).endswith(
         "claimed from them: servo_lag; they rule out motor_lag, which the torque could not "
         "pin down."
+    )
+
+
+def test_a_faster_controllers_actuators_are_said_late_in_all() -> None:
+    """The verdict says why a delay is named where a delay and a lag are not told apart."""
+    from dataclasses import replace
+
+    from omavctl.diagnose.actuators import actuator_sentence, shown_timing
+
+    base = _fit("tilt", 0.004, 0.048)
+    late = dict(late=0.052, late_ci95=(0.045, 0.058), coherence=0.06, period=0.01)
+    fits = {k: replace(base, kind=k, **late) for k in ("tilt", "rotor")}  # type: ignore[arg-type]
+    shown = shown_timing(fits)
+    assert list(shown) == ["command_delay"]
+    info = {
+        "fits": {k: f.to_json() for k, f in fits.items()},
+        "shown": {"command_delay": {**shown["command_delay"], "parameter": "tau_d",
+                                    "part_over_floor": 2.0}},
+        "claimed": ["command_delay"], "held_back": [], "ruled_out": ["motor_lag", "servo_lag"],
+    }  # fmt: skip
+    assert actuator_sentence({"actuators": info, "missing": ["command_delay"]}) == (
+        " The actuators' own feedback (the logged tilts and rotor speeds): the tilts are 52 ms "
+        "late in all (95 %: 45 ms to 58 ms); the rotors' thrusts are 52 ms late in all (95 %: "
+        "45 ms to 58 ms) (the log's commands are samples of a faster controller: between its "
+        "rows they move in ways the actuators do not follow, so a delay and a lag are not told "
+        "apart from them; tilts and rotors late by one time are the command late): they show "
+        "command_delay (tau_d 52 ms); claimed from them: command_delay."
     )

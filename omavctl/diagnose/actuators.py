@@ -68,15 +68,11 @@ def _fits_well(fit: ActuatorFit) -> bool:
 
 
 def _delay(fit: ActuatorFit) -> tuple[float, tuple[float, float]]:
-    """The delay a fit shows, with its interval: how late in all (``late``) where the
-    log's commands are samples of a faster controller (the split is not read there)."""
-    return (fit.late, fit.late_ci95) if fit.undersampled else (fit.tau, fit.tau_ci95)
+    return fit.timing("tau")
 
 
 def _lag(fit: ActuatorFit) -> tuple[float, tuple[float, float]]:
-    """The lag a fit shows, with its interval (``late`` where undersampled, as
-    :func:`_delay`)."""
-    return (fit.late, fit.late_ci95) if fit.undersampled else (fit.T, fit.T_ci95)
+    return fit.timing("T")
 
 
 def shown_timing(fits: Mapping[str, ActuatorFit]) -> dict[str, dict[str, Any]]:
@@ -231,8 +227,10 @@ def actuator_sentence(diag: Mapping[str, Any]) -> str:
         text += (
             " (the log's commands are samples of a faster controller: between its rows"
             " they move in ways the actuators do not follow, so a delay and a lag are not"
-            " told apart from them)"
+            " told apart from them"
         )
+        common = "command_delay" in (info.get("shown") or {})
+        text += "; tilts and rotors late by one time are the command late)" if common else ")"
     shown = info.get("shown") or {}
     if shown:
         names = ", ".join(

@@ -100,6 +100,14 @@ class ActuatorFit:
         the lag are not told apart, only ``late`` (module docstring)."""
         return self.coherence < COHERENCE_MIN
 
+    def timing(self, what: str) -> tuple[float, tuple[float, float]]:
+        """The delay (``what`` "tau") or the lag ("T") this fit shows, with its 95 %
+        interval: how late in all (``late``) where the commands are undersampled (the
+        split between them is not read from such a log)."""
+        if self.undersampled:
+            return self.late, self.late_ci95
+        return (self.tau, self.tau_ci95) if what == "tau" else (self.T, self.T_ci95)
+
     def late_than(self, other: ActuatorFit) -> float:
         """Upper 95 % bound (s) of how much later this kind is than ``other``: the half
         period both intervals carry for a command between rows cancels in it."""

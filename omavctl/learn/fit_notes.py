@@ -213,14 +213,21 @@ def actuator_notes(
             got = [fits[k] for k in kinds if k in fits]
             if not got:
                 continue
-            value = float(np.mean([getattr(f, what) for f in got]))
-            lo = max((f.T_ci95 if what == "T" else f.tau_ci95)[0] for f in got)
-            hi = min((f.T_ci95 if what == "T" else f.tau_ci95)[1] for f in got)
+            shown = [f.timing(what) for f in got]
+            value = float(np.mean([v for v, _ in shown]))
+            lo, hi = max(ci[0] for _, ci in shown), min(ci[1] for _, ci in shown)
             p = get_effect(name).parameters[0].name
             span = f"95 %: {lo * 1e3:.1f} to {hi * 1e3:.1f} ms" if lo <= hi else "they disagree"
             which = " and ".join("tilts" if k == "tilt" else "rotors" for k in kinds)
+            how = f"{p} = {value * 1e3:.1f} ms ({span})"
+            if any(f.undersampled for f in got):
+                how = (
+                    f"{value * 1e3:.1f} ms late in all ({span}; the log's commands are samples "
+                    "of a faster controller, so a delay and a lag are not told apart from them, "
+                    "nor by the torque's forms, which rest on the same commands)"
+                )
             notes.append(
                 f"{name}: the actuators' own feedback of {s.path.name} (the logged {which} "
-                f"against their commands) gives {p} = {value * 1e3:.1f} ms ({span})"
+                f"against their commands) gives {how}"
             )
     return notes
