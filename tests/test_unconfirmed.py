@@ -89,3 +89,12 @@ def test_an_interval_cut_at_the_physical_bound_reads_below_its_high_end():
     assert _rows("inertia_error", _tree()["diagnosis"]["learned"][1]["estimate"]) == (
         "scale 0.925 to 1.12, 0.928 to 1.27, 0.939 to 1.12"
     )
+
+
+def test_the_gain_a_normalised_torque_needs_is_never_dropped() -> None:
+    """On a normalised torque command fit adds inertia_error to carry the gain; a 'fit
+    without it' command would write a model with it again (the px4tools octocopter)."""
+    tree = _tree()
+    effects, learned = tree["models"][0]["effects"], tree["diagnosis"]["learned"]
+    assert [n for n, _, _ in unconfirmed(effects, learned)] == ["inertia_error"]
+    assert unconfirmed(effects, learned, needed={"inertia_error"}) == []

@@ -15,6 +15,7 @@ from omavctl.diagnose.commands import effect_commands, fit_command, separation
 from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
 from omavctl.diagnose.unconfirmed import unconfirmed
+from omavctl.learn.estimate import GAIN_EFFECT
 from omavctl.learn.fit_notes import effect_unit
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
@@ -51,7 +52,10 @@ def diagnosis_with_commands(
     # the model's effects neither flight confirms (advice to fit without them), left out
     # of the fit that adds the claims too: keep nothing the vehicle may lack
     effects = {n: e.to_json() for n, e in model.effects.items()}
-    drop = [n for n, _, _ in unconfirmed(effects, diagnosis.get("learned")) if n not in claimed]
+    # (on a normalised torque command the inertia scale is its gain: fit adds it back)
+    needed = {GAIN_EFFECT} if model.vehicle.torque_normalised else set()
+    found = unconfirmed(effects, diagnosis.get("learned"), needed)
+    drop = [n for n, _, _ in found if n not in claimed]
     diagnosis["unconfirmed"] = drop
     diagnosis["without_command"] = fit_command(model_path, model, [], drop) if drop else None
     diagnosis["fit_command"] = fit_command(model_path, model, claimed, drop) if claimed else None

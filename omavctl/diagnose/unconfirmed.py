@@ -19,7 +19,7 @@ that follows the verdict keeps nothing neither flight confirms.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import Any
 
 from omavctl.diagnose.claims import claimed_rows, excludes_null
@@ -39,16 +39,20 @@ def _holds_null(name: str, estimate: Any) -> bool:
 
 
 def unconfirmed(
-    effects: Mapping[str, Any], learned: list[Any] | None
+    effects: Mapping[str, Any], learned: list[Any] | None, needed: Collection[str] = ()
 ) -> list[tuple[str, Any, Any]]:
     """(name, fitted estimate JSON, this flight's estimate JSON) of each of a model's
     ``effects`` (name -> estimate JSON) whose fitted and evaluated-flight intervals
-    (``learned``: the diagnosis's entries) both hold its null on every component."""
+    (``learned``: the diagnosis's entries) both hold its null on every component; not
+    those ``needed`` (fit adds them whatever it is told: the gain of a normalised torque
+    command's ``inertia_error``, whose null says nothing)."""
     here = {str(e.get("name")): e.get("estimate") for e in learned or [] if isinstance(e, Mapping)}
     return [
         (str(name), fitted, here[str(name)])
         for name, fitted in effects.items()
-        if _holds_null(str(name), fitted) and _holds_null(str(name), here.get(str(name)))
+        if str(name) not in needed
+        and _holds_null(str(name), fitted)
+        and _holds_null(str(name), here.get(str(name)))
     ]
 
 
