@@ -84,6 +84,12 @@ def numbers(build: Path) -> dict[str, str]:
             "omavctl report build/first/eval.json build/first/eval-drag.json "
             "--out build/first/report.html\n```\n"
         ),
+        "plan": (
+            "\n```sh\nomavctl plan --task examples/build/fig8.csv --model "
+            f"{shlex.split(command)[shlex.split(command).index('--out') + 1]} \\\n"
+            "    --candidates 20 --sims 4 --scores build/first/scores.csv "
+            "--out build/first/next.csv\n```\n"
+        ),
         "top_explained": f"{100 * top['explained_variance']:.0f} %",
         "change_rounded": ", ".join(f"{a} {_pct(change[a])}" for a in AXES),
         "change": ", ".join(f"{a} {_pct(change[a], 1)}" for a in AXES),

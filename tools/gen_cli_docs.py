@@ -39,6 +39,9 @@ reproducible byte for byte; `-q` silences progress bars and the summary; `--json
 prints one JSON object on stdout (the files written and the key figures) while the
 human text stays on stderr; a failed `--json` run (a usage error too) prints
 `{"command": ..., "error": "<file>: <problem>", "exit_code": N}` there as well.
+The human text (verdict, tables, notes) is on stderr with or without `--json`
+(stdout is kept for what a script reads: the JSON, `inspect`'s listing), so to page
+or search it redirect stderr: `omavctl evaluate LOG --model M 2>&1 | less`.
 See [getting-started.md](getting-started.md) for a walk-through and
 [design.md](design.md) §5 for the conventions.
 """
