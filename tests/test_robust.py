@@ -105,6 +105,22 @@ def test_output_that_is_an_input_is_refused(work: Path, args, out, shown) -> Non
     assert _digests(work) == before
 
 
+def test_a_folder_that_is_no_log_is_named_before_the_default_output(work: Path) -> None:
+    """evaluate's default output lies beside the model; with the model inside the folder
+    given as a log, the folder's own problem comes first (not 'would overwrite')."""
+    (work / "plain").mkdir(exist_ok=True)
+    shutil.copyfile(work / "m.npz", work / "plain" / "m.npz")
+    line = _line(["evaluate", "plain", "--model", "plain/m.npz"], work)
+    assert line == "error: plain: directory is not a ROS 2 bag (no metadata.yaml in it)"
+
+
+def test_a_model_is_written_as_npz(work: Path) -> None:
+    before = _digests(work)
+    line = _line(["fit", "log.csv", *FIT, "--out", "m.txt"], work)
+    assert line == "error: m.txt: a model is written as .npz: give a name ending in .npz"
+    assert _digests(work) == before and not (work / "m.txt").exists()
+
+
 def test_hard_link_and_two_outputs(work: Path, tmp_path: Path) -> None:
     os.link(work / "log.csv", tmp_path / "same.csv")
     before = _digests(work)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from omavctl.base.atomic import check_outputs
+from omavctl.base.errors import OutputError
 from omavctl.base.replace import is_npz_with, refuse_replacing
 from omavctl.learn.fit import FitResult, Progress, fit_model
 from omavctl.learn.model import SCHEMA_NAME
@@ -96,6 +97,8 @@ def prepare_fit(
     check_model_paths([prior])
     check_outputs([*logs, vehicle, prior], [out])
     refuse_replacing(out, is_model_file, "an omavctl model")
+    if Path(out).suffix.lower() != ".npz":  # evaluate, plan and simulate read MODEL.npz
+        raise OutputError("a model is written as .npz: give a name ending in .npz", out)
     refuse_as_logs(list(logs))
     window = parse_time_window(time_window) if time_window else None
     veh = load_vehicle(vehicle)

@@ -25,6 +25,7 @@ from omavctl.diagnose.evaluate import EvalResult, evaluate
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, parse_horizons
 from omavctl.learn.model_file import check_model_paths
 from omavctl.logs import parse_time_window
+from omavctl.logs.read import detect_format
 from omavctl.report.evaluation import ReportSummary, write_report
 from omavctl.report.series_mcap import is_series_mcap, mcap_path, write_series_mcap
 from omavctl.sim.trajectory import refuse_as_logs
@@ -66,6 +67,9 @@ def run_evaluation(
     if horizon_stride < 1:
         raise ConfigError(f"--horizon-stride: {horizon_stride} is not a positive number of samples")
     check_model_paths(models)
+    for log in logs:  # a folder that is no log is said as such, before its outputs
+        if Path(log).is_dir():
+            detect_format(Path(log))
     if out is None and models:
         out = default_evaluation_path(models)
     assert out is not None
