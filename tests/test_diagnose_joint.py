@@ -4,6 +4,8 @@ on the held-out flight; look-alikes named as an ambiguous set; nothing invented.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -160,7 +162,7 @@ def test_the_separating_commands_write_beside_the_model_not_over_the_users_files
     assert "--task 'run 2/gp.fig8.csv'" in command
 
 
-def test_the_fit_command_adds_every_missing_effect_in_one_fit():
+def test_the_fit_command_adds_every_missing_effect_in_one_fit(tmp_path):
     truth = {"com_offset": np.array([0.02, -0.015, 0.01]), "rotational_drag": None}
     model, *_ = _case(truth)
     model.provenance = {"sources": [{"path": "fit flight.bag"}], "seed": 0}
@@ -175,17 +177,29 @@ def test_the_fit_command_adds_every_missing_effect_in_one_fit():
     command = fit_command("m0+rotational_drag+inertia_error.npz", model, ["com_offset"])
     assert "--effects rotational_drag,inertia_error,com_offset " in command
     assert "--out m0+rotational_drag+inertia_error+com_offset.npz" in command
-    # without an effect neither flight confirms: its name with "-", never the model's own
+    # without an effect neither flight confirms: its "+" undone in the name, never the
+    # model's own nor an existing file's (a model the loop made earlier: "+refit")
     command = fit_command("m0+rotational_drag+inertia_error.npz", model, [], ["inertia_error"])
-    assert "--effects rotational_drag --out m0+rotational_drag+inertia_error-inertia_error.npz" in (
-        command
-    )
+    assert "--effects rotational_drag --out m0+rotational_drag.npz" in command
+    old = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        (tmp_path / "m0+rotational_drag.npz").write_bytes(b"")
+        command = fit_command("m0+rotational_drag+inertia_error.npz", model, [], ["inertia_error"])
+        assert "--out m0+rotational_drag+refit.npz" in command
+    finally:
+        os.chdir(old)
+    # dropped, then claimed again: the name says neither (not -inertia_error+inertia_error)
+    model.effects = {"rotational_drag": None}
+    command = fit_command("m0+rotational_drag-inertia_error.npz", model, ["inertia_error"])
+    assert "--out m0+rotational_drag.npz" in command
+    model.effects = {"inertia_error": None, "rotational_drag": None}
     # a claim added and the unconfirmed effect left out, in one fit
     command = fit_command(
         "m0+rotational_drag+inertia_error.npz", model, ["com_offset"], ["inertia_error"]
     )
     assert "--effects rotational_drag,com_offset --out " in command
-    assert "--out m0+rotational_drag+inertia_error+com_offset-inertia_error.npz" in command
+    assert "--out m0+rotational_drag+com_offset.npz" in command
     assert "--out m0+rotational_drag+inertia_error+refit.npz" in fit_command(
         "m0+rotational_drag+inertia_error.npz", model, []
     )

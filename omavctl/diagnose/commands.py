@@ -6,6 +6,7 @@ which decides what is named; these only say how to act on it.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -132,6 +133,26 @@ def _where(given: str, absolute: str | None) -> str:
     return display_path(given) if Path(given).exists() else given
 
 
+def _renamed(stem: Path, added: Sequence[str], drop: Sequence[str]) -> Path:
+    """The new model's name: ``stem`` with ``+NAME`` for each of ``added`` and ``-NAME``
+    for each of ``drop``, where one undoes the other in the name (``m0-rotor_interference``
+    with it added back is ``m0``, not ``m0-rotor_interference+rotor_interference``); never
+    the model's own name nor an existing file's (``+refit`` then: a model the loop made
+    earlier is not overwritten)."""
+    base, *ops = re.split(r"(?=[+-][A-Za-z])", stem.name)
+    marks = [(op[0], op[1:]) for op in ops]
+    for sign, names in (("+", added), ("-", drop)):
+        other = "-" if sign == "+" else "+"
+        for name in names:
+            if (other, name) in marks:
+                marks.remove((other, name))
+            else:
+                marks.append((sign, name))
+    name = base + "".join(sign + n for sign, n in marks)
+    taken = name == stem.name or stem.with_name(name + ".npz").exists()
+    return stem.with_name(name + "+refit" if taken else name)
+
+
 def fit_command(
     model_path: str, model: ResidualGP, effect: str | Sequence[str], drop: Sequence[str] = ()
 ) -> str:
@@ -157,9 +178,7 @@ def fit_command(
     named = [e for e in stem.name.split("+")[1:] if e in model.effects]
     effects = [*named, *(e for e in model.effects if e not in named), *added]
     effects = [e for e in effects if e not in drop]
-    # never the model's own name: nothing added nor dropped is a refit beside it
-    suffix = "".join("+" + e for e in added) + "".join("-" + e for e in drop) or "+refit"
-    out = f"{stem}{suffix}.npz"
+    out = f"{_renamed(stem, added, drop)}.npz"
     parts = ["omavctl", "fit", *sources]
     parts += ["--effects", ",".join(effects)] if effects else []
     parts += ["--out", out]
