@@ -493,7 +493,7 @@ def test_a_claim_of_the_joint_selection_quotes_its_share_of_the_physics_only_err
     assert line.text.startswith(
         "Missing: rotational_drag — estimated from the fit flight as fit --effects would, it "
         "removes 85 % of the squared physics-only error on held-out data (the model's GP has "
-        "absorbed it: it explains -3 % of the model's remaining error)."
+        "absorbed it: it explains none of the model's remaining error)."
     )
     # a claim of the ranking keeps its share of the model's remaining error
     (line,) = [ln for ln in verdict(BEFORE) if ln.key == "missing"]

@@ -150,8 +150,9 @@ def _how_missing(
             f"{_pct(joint)} of the squared physics-only error {on_what(tree)}"
         )
         if ev is not None:
+            share = f"{_pct(ev)} of" if ev > 0.005 else "none of"  # -2 % reads as a typo
             text += (
-                f" (the model's GP has absorbed it: it explains {_pct(ev)} of the model's "
+                f" (the model's GP has absorbed it: it explains {share} the model's "
                 "remaining error)"
             )
         if clause := replaced_text(diag, name):
