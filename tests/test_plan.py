@@ -215,6 +215,11 @@ def test_plan_summary_names_the_planned_envelope_and_warns_of_a_long_yaw_turn():
     lines = envelope_lines(wild)
     warning = "warning: the planned reference turns yaw through"
     assert any(line.startswith(warning) for line in lines)
+    # 164 deg for a task that turns none (a new user's plan): warned; 80 deg: not
+    for amplitude, warned in ((82, True), (40, False)):
+        turned = yaw(amplitude, 4.0, duration=8.0)
+        plan = SimpleNamespace(best=0, task=task, best_trajectory=lambda t=turned: t)
+        assert any(line.startswith(warning) for line in envelope_lines(plan)) is warned
     assert envelope_lines(SimpleNamespace(best=-1, task=task)) == []
     # tilting to 60 deg for a 26 deg task (a new user's effects plan went to 59/65 deg
     # and broke actuator limits in 92 steps where the task broke them in 20)

@@ -6,10 +6,13 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["TILT_WARNING_DEG", "envelope", "envelope_lines", "envelope_warnings"]
+__all__ = ["TILT_WARNING_DEG", "YAW_WARNING_DEG", "envelope", "envelope_lines", "envelope_warnings"]
 
 #: A planned roll or pitch beyond this (deg), and beyond twice the task's, is warned of.
 TILT_WARNING_DEG = 45.0
+#: A planned yaw turned through beyond this (deg), and beyond twice the task's, is warned
+#: of (a new user's plan turned through 164 deg for a task that turns none, unwarned at 180).
+YAW_WARNING_DEG = 90.0
 
 
 def envelope(traj: Any) -> dict[str, float]:
@@ -39,7 +42,7 @@ def envelope_lines(result: Any) -> list[str]:
         f"{task['max_abs_roll_deg']:.0f}, {task['max_abs_pitch_deg']:.0f}, "
         f"{task['yaw_range_deg']:.0f} deg, {task['max_body_rate']:.2f} rad/s)"
     ]
-    if plan["yaw_range_deg"] > max(180.0, 2.0 * task["yaw_range_deg"]):
+    if plan["yaw_range_deg"] > max(YAW_WARNING_DEG, 2.0 * task["yaw_range_deg"]):
         lines.append(
             f"warning: the planned reference turns yaw through {plan['yaw_range_deg']:.0f} "
             "deg: check the flight area and cables before flying it, or lower --amplitude "
