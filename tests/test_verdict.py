@@ -87,6 +87,9 @@ def test_where_it_fails_names_what_the_vehicle_did():
     assert "pitching at 0.69 rad/s" in fails.text and "tilted" in fails.text
     level = activity({"attitude_deg": [1, 2, 0], "rate": [0.01, 0.02, 0.01], "u": [0, 0, 14.7]})
     assert level == "near level, barely rotating, thrust 1.50 g"
+    slight = activity({"attitude_deg": [4, 6, 0], "rate": [0.01, 0.02, 0.01]})
+    assert slight == "slightly tilted (|roll| 4°, |pitch| 6°), barely rotating"
+    assert activity({"attitude_deg": [20, 6, 0]}).startswith("tilted (|roll| 20°, |pitch| 6°)")
 
 
 def test_a_log_without_attitude_says_the_tilt_is_unknown_not_level():

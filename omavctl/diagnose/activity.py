@@ -27,8 +27,9 @@ def activity(seg: Mapping[str, Any]) -> str:
     parts: list[str] = []
     if len(att) >= 2:
         roll, pitch = att[0], att[1]
-        if max(roll, pitch) >= 5.0:
-            parts.append(f"tilted (|roll| {roll:.0f}°, |pitch| {pitch:.0f}°)")
+        if max(roll, pitch) >= 5.0:  # a mean of 4-6 deg is not what "tilted" brings to mind
+            how = "tilted" if max(roll, pitch) >= 15.0 else "slightly tilted"
+            parts.append(f"{how} (|roll| {roll:.0f}°, |pitch| {pitch:.0f}°)")
         else:
             parts.append("near level")
     if len(rate) == 3 and max(rate) >= 0.2:
