@@ -179,6 +179,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report18's records were read (2026-11-27, session 26): the next changes are reported
+    # on report19 (20 000 000; declared in session 26 before any of its draws was flown)
+    "report19": {
+        "seed_base": 20_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
