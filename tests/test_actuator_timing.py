@@ -241,7 +241,7 @@ def test_a_faster_controllers_actuators_are_said_late_in_all() -> None:
     from omavctl.diagnose.actuators import actuator_sentence, shown_timing
 
     base = _fit("tilt", 0.004, 0.048)
-    late = dict(late=0.052, late_ci95=(0.045, 0.058), coherence=0.06, period=0.01)
+    late = dict(late=0.052, late_ci95=(0.045, 0.058), coherence=0.06, roughness=1.0, period=0.01)
     fits = {k: replace(base, kind=k, **late) for k in ("tilt", "rotor")}  # type: ignore[arg-type]
     shown = shown_timing(fits)
     assert list(shown) == ["command_delay"]
@@ -259,3 +259,17 @@ def test_a_faster_controllers_actuators_are_said_late_in_all() -> None:
         "apart from them; tilts and rotors late by one time are the command late): they show "
         "command_delay (tau_d 52 ms); claimed from them: command_delay."
     )
+
+
+def test_the_lateness_interval_reaches_past_the_longest_delay() -> None:
+    """A 0.3 s lag (beyond the 0.2 s delays searched): its lateness interval holds it."""
+    from omavctl.learn.actuator_timing import fit_timing
+
+    rng = np.random.default_rng(0)
+    t = np.arange(2000) * 0.01
+    command = np.sin(2 * np.pi * 0.3 * t)[:, None] + 0.3 * np.sin(2 * np.pi * 1.1 * t)[:, None]
+    measured = delayed_lag(command, 0.0, 0.3, 0.01) + 1e-3 * rng.standard_normal(command.shape)
+    fit = fit_timing("tilt", "rad", command, measured, np.ones(2000, bool), 0.01)
+    assert fit is not None and not fit.undersampled
+    assert fit.T == pytest.approx(0.3, rel=0.02)
+    assert fit.late_ci95[0] <= 0.3 <= fit.late_ci95[1] and fit.late_ci95[1] > 0.2

@@ -25,7 +25,9 @@ of a command that varies between rows; its row-to-row jitter is noise in the fit
 input, which the actuators average and a lag averages too: a 50 ms delay reads as a
 48 ms lag (own-invent draw 4). Such a log's commands hardly cohere with the actuators'
 states over the top fifth of its band (coherence 0.04-0.12 on the own tune draws at
-1 kHz, 0.86-1.00 at 100 Hz, a 0.1 s servo lag included): :attr:`ActuatorFit.undersampled`.
+1 kHz, 0.86-1.00 at 100 Hz, a 0.1 s servo lag included), while the commands' power there
+is not small beside what the fit leaves (a smooth command beside noisy states coheres as
+little): :attr:`ActuatorFit.undersampled`.
 There the split between delay and lag is not read from the log, only how late the
 actuators are in all (``late`` = tau + T, the low-frequency lateness both share, with
 its interval along the fitted split, widened by half the log's period each way: the
@@ -47,7 +49,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.signal import coherence, lfilter
+from scipy.signal import coherence, lfilter, welch
 
 from omavctl.logs.types import FlightLog
 from omavctl.physics.allocation import Allocation
@@ -62,8 +64,11 @@ MAX_DELAY, MAX_LAG = 0.2, 0.5
 MIN_ROWS, SETTLE = 200, 20
 _CHI2_95 = 3.841458820694124
 #: Mean coherence of commands and states over the top fifth of the log's band under which
-#: the log's commands are samples of a faster controller (module docstring).
-COHERENCE_MIN = 0.5
+#: the log's commands are samples of a faster controller (module docstring), when the
+#: commands' power there is at least ``ROUGH_MIN`` of the fit's mean square residual
+#: (``roughness``: a smooth command beside noisy states coheres as little, and its
+#: input noise biases nothing; own tune draws at 1 kHz: 0.2-4.3, a smooth sine 1e-6).
+COHERENCE_MIN, ROUGH_MIN = 0.5, 0.05
 #: which actuators show each timing effect, and by what: (kinds, "T" lag or "tau" delay)
 SHOWN_BY = {
     "servo_lag": (("tilt",), "T"),
@@ -92,13 +97,14 @@ class ActuatorFit:
     late: float = 0.0
     late_ci95: tuple[float, float] = (0.0, 0.0)
     coherence: float = 1.0
+    roughness: float = 0.0
     period: float = 0.0
 
     @property
     def undersampled(self) -> bool:
         """Whether the log's commands are samples of a faster controller: the delay and
         the lag are not told apart, only ``late`` (module docstring)."""
-        return self.coherence < COHERENCE_MIN
+        return self.coherence < COHERENCE_MIN and self.roughness > ROUGH_MIN
 
     def timing(self, what: str) -> tuple[float, tuple[float, float]]:
         """The delay (``what`` "tau") or the lag ("T") this fit shows, with its 95 %
@@ -130,6 +136,7 @@ class ActuatorFit:
             "late": self.late,
             "late_ci95": list(self.late_ci95),
             "coherence": self.coherence,
+            "roughness": self.roughness if math.isfinite(self.roughness) else None,
             "undersampled": self.undersampled,
             "period": self.period,
         }
@@ -194,23 +201,28 @@ def _late_interval(cost: Any, best: np.ndarray, limit: float, dt: float) -> tupl
     """95 % interval of the lateness tau + T along the fitted split (both scaled together)."""
     total = float(best.sum())
     share = best / total if total > 0 else np.array([0.0, 1.0])
-    grid = np.arange(0.0, MAX_DELAY + 1e-9, dt / 4.0)
+    grid = np.arange(0.0, MAX_DELAY + MAX_LAG + 1e-9, dt / 4.0)
     inside = [float(s) for s in np.union1d(grid, [total]) if cost(share * s) <= limit]
     lo, hi = min(inside, default=total), max(inside, default=total)
     return max(lo - dt / 8.0, 0.0), hi + dt / 8.0
 
 
-def fast_coherence(command: np.ndarray, measured: np.ndarray, rows: np.ndarray, dt: float) -> float:
-    """Mean coherence of ``command`` and ``measured`` (N, k) over the top fifth of the
-    log's band (gaps held), 1.0 with too few rows to tell."""
+def fast_coherence(
+    command: np.ndarray, measured: np.ndarray, rows: np.ndarray, dt: float
+) -> tuple[float, float]:
+    """Over the top fifth of the log's band (gaps held): the mean coherence of
+    ``command`` and ``measured`` (N, k), and the command's power there (its mean power
+    spectral density times the band's width, per column); (1.0, 0.0) with too few rows."""
     if command.shape[0] < 4 * 64:
-        return 1.0
+        return 1.0, 0.0
     c = _held_over_gaps(command, rows)
     m = _held_over_gaps(measured, rows)
     f, coh = coherence(c, m, fs=1.0 / dt, nperseg=128, axis=0)
     band = f >= 0.4 / dt
+    _, p_c = welch(c, fs=1.0 / dt, nperseg=128, axis=0)
     value = float(np.nanmean(coh[band]))
-    return value if math.isfinite(value) else 1.0
+    power = float(p_c[band].mean()) * 0.1 / dt
+    return (value if math.isfinite(value) else 1.0), power
 
 
 def fit_timing(
@@ -249,10 +261,13 @@ def fit_timing(
     lag_ci = _interval(cost, best, 1, np.linspace(0.0, MAX_LAG, 101), limit)
     if best[1] < dt:  # no lag to smooth it: a delay is known to the log's period only
         tau_ci = (max(min(tau_ci[0], best[0] - dt), 0.0), max(tau_ci[1], best[0] + dt))
-    on_circle = command + ((measured - command + np.pi) % (2.0 * np.pi) - np.pi)
-    fast = fast_coherence(command, on_circle if angle else measured, keep, dt)
+    # the measured angles beside their commands, not a turn away
+    near = command + ((measured - command + np.pi) % (2.0 * np.pi) - np.pi) if angle else measured
+    fast, power = fast_coherence(command, near, keep, dt)
+    left = float((resid**2).mean())
+    rough = power / left if left > 0 else math.inf
     late_ci = _late_interval(cost, best, limit, dt)
-    if fast < COHERENCE_MIN:  # the command between rows is not in the log
+    if fast < COHERENCE_MIN and rough > ROUGH_MIN:  # the command between rows is not in the log
         late_ci = (max(late_ci[0] - dt / 2.0, 0.0), late_ci[1] + dt / 2.0)
     return ActuatorFit(
         kind=kind,
@@ -269,6 +284,7 @@ def fit_timing(
         late=float(best.sum()),
         late_ci95=late_ci,
         coherence=fast,
+        roughness=rough,
         period=dt,
     )
 
