@@ -67,7 +67,7 @@ _CHI2_95 = 3.841458820694124
 #: the log's commands are samples of a faster controller (module docstring), when the
 #: commands' power there is at least ``ROUGH_MIN`` of the fit's mean square residual
 #: (``roughness``: a smooth command beside noisy states coheres as little, and its
-#: input noise biases nothing; own tune draws at 1 kHz: 0.2-4.3, a smooth sine 1e-6).
+#: input noise biases nothing; own tune draws at 1 kHz: 0.19-4.3, two smooth sines 2e-4).
 COHERENCE_MIN, ROUGH_MIN = 0.5, 0.05
 #: which actuators show each timing effect, and by what: (kinds, "T" lag or "tau" delay)
 SHOWN_BY = {
