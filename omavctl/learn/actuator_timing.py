@@ -198,12 +198,18 @@ def _interval(
 
 
 def _late_interval(cost: Any, best: np.ndarray, limit: float, dt: float) -> tuple[float, float]:
-    """95 % interval of the lateness tau + T along the fitted split (both scaled together)."""
+    """95 % interval of the lateness tau + T along the fitted split (both scaled together):
+    from the estimate outwards in steps of a quarter period while the mean square stays
+    under ``limit`` (the connected region around it; a few evaluations, not a scan)."""
     total = float(best.sum())
     share = best / total if total > 0 else np.array([0.0, 1.0])
-    grid = np.arange(0.0, MAX_DELAY + MAX_LAG + 1e-9, dt / 4.0)
-    inside = [float(s) for s in np.union1d(grid, [total]) if cost(share * s) <= limit]
-    lo, hi = min(inside, default=total), max(inside, default=total)
+    step, top = dt / 4.0, MAX_DELAY + MAX_LAG
+    lo = total
+    while lo - step >= 0.0 and cost(share * (lo - step)) <= limit:
+        lo -= step
+    hi = total
+    while hi + step <= top and cost(share * (hi + step)) <= limit:
+        hi += step
     return max(lo - dt / 8.0, 0.0), hi + dt / 8.0
 
 
