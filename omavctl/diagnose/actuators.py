@@ -67,14 +67,6 @@ def _fits_well(fit: ActuatorFit) -> bool:
     return fit.rms_fit <= FIT_SHARE * fit.rms_none
 
 
-def _delay(fit: ActuatorFit) -> tuple[float, tuple[float, float]]:
-    return fit.timing("tau")
-
-
-def _lag(fit: ActuatorFit) -> tuple[float, tuple[float, float]]:
-    return fit.timing("T")
-
-
 def shown_timing(fits: Mapping[str, ActuatorFit]) -> dict[str, dict[str, Any]]:
     """Effect name -> {"value", "ci95", "kinds"} of the timing effects the actuators show.
     Where the commands are samples of a faster controller, tilts and rotors late by one
@@ -82,25 +74,26 @@ def shown_timing(fits: Mapping[str, ActuatorFit]) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     tilt, rotor = fits.get("tilt"), fits.get("rotor")
     late = [f for f in (tilt, rotor) if f is not None]
+    delays = [f.timing("tau") for f in late]
     common = any(f.undersampled for f in late)
     if (
         late
         and (len(late) == 2 or not common)
-        and all(_delay(f)[0] >= DELAY_MIN and _fits_well(f) for f in late)
+        and all(d >= DELAY_MIN and _fits_well(f) for f, (d, _) in zip(late, delays, strict=True))
     ):
-        lo = max(_delay(f)[1][0] for f in late)
-        hi = min(_delay(f)[1][1] for f in late)
+        lo, hi = max(ci[0] for _, ci in delays), min(ci[1] for _, ci in delays)
         if lo <= hi:  # one delay for both
             out["command_delay"] = {
-                "value": float(np.mean([_delay(f)[0] for f in late])),
+                "value": float(np.mean([d for d, _ in delays])),
                 "ci95": [lo, hi],
                 "kinds": [f.kind for f in late],
             }
     for name, fit in (("servo_lag", tilt), ("motor_lag", rotor)):
         if fit is None or (fit.undersampled and "command_delay" in out):
             continue
-        if _lag(fit)[0] >= LAG_MIN and _fits_well(fit):
-            out[name] = {"value": _lag(fit)[0], "ci95": list(_lag(fit)[1]), "kinds": [fit.kind]}
+        value, ci = fit.timing("T")
+        if value >= LAG_MIN and _fits_well(fit):
+            out[name] = {"value": value, "ci95": list(ci), "kinds": [fit.kind]}
     return out
 
 
@@ -116,7 +109,7 @@ def ruled_out(fits: Mapping[str, ActuatorFit]) -> set[str]:
     if rotor is not None and rotor.T_ci95[1] < LAG_MIN:
         out.add("motor_lag")
     late = [f for f in (tilt, rotor) if f is not None]
-    if late and all(_delay(f)[1][1] < DELAY_MIN for f in late):
+    if late and all(f.timing("tau")[1][1] < DELAY_MIN for f in late):
         out.add("command_delay")
     if tilt is not None and rotor is not None and "command_delay" in shown_timing(fits):
         if tilt.undersampled and tilt.late_than(rotor) < LAG_MIN:

@@ -62,13 +62,11 @@ def _joint_estimate(model: ResidualGP, names: Sequence[str]) -> list[np.ndarray]
     train = [model.train_regressors[n] for n in names]
     a = np.concatenate(train, axis=2)
     k, _, p = a.shape
-    bounds = [
-        np.broadcast_to(get_effect(n).theta_range[i], t.shape[2])
+    lo, hi = (
+        np.concatenate([np.broadcast_to(get_effect(n).theta_range[i], t.shape[2])
+                        for n, t in zip(names, train, strict=True)])
         for i in (0, 1)
-        for n, t in zip(names, train, strict=True)
-    ]
-    lo = np.concatenate(bounds[: len(names)])
-    hi = np.concatenate(bounds[len(names) :])
+    )  # fmt: skip
     x = lsq_linear(
         a.reshape(3 * k, p), model.targets.reshape(3 * k), bounds=(lo, hi), method="bvls"
     ).x

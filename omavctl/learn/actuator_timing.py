@@ -111,14 +111,21 @@ class ActuatorFit:
         interval: how late in all (``late``) where the commands are undersampled (the
         split between them is not read from such a log)."""
         if self.undersampled:
-            return self.late, self.late_ci95
+            return self.late, self.late_range
         return (self.tau, self.tau_ci95) if what == "tau" else (self.T, self.T_ci95)
 
-    def late_than(self, other: ActuatorFit) -> float:
-        """Upper 95 % bound (s) of how much later this kind is than ``other``: the half
-        period both intervals carry for a command between rows cancels in it."""
+    @property
+    def late_range(self) -> tuple[float, float]:
+        """The 95 % interval of ``late`` as reported: ``late_ci95`` (the fit's, along its
+        split) widened by half the log's period each way where the commands are
+        undersampled (the command between two rows is not in the log)."""
         pad = self.period / 2.0 if self.undersampled else 0.0
-        return (self.late_ci95[1] - pad) - (other.late_ci95[0] + pad)
+        return max(self.late_ci95[0] - pad, 0.0), self.late_ci95[1] + pad
+
+    def late_than(self, other: ActuatorFit) -> float:
+        """Upper 95 % bound (s) of how much later this kind is than ``other`` (the fits'
+        own intervals: the half period both would carry cancels in the difference)."""
+        return self.late_ci95[1] - other.late_ci95[0]
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -134,7 +141,7 @@ class ActuatorFit:
             "rms_delay_only": self.rms_delay_only,
             "rows": self.rows,
             "late": self.late,
-            "late_ci95": list(self.late_ci95),
+            "late_ci95": list(self.late_range),
             "coherence": self.coherence,
             "roughness": self.roughness if math.isfinite(self.roughness) else None,
             "undersampled": self.undersampled,
@@ -273,8 +280,6 @@ def fit_timing(
     left = float((resid**2).mean())
     rough = power / left if left > 0 else math.inf
     late_ci = _late_interval(cost, best, limit, dt)
-    if fast < COHERENCE_MIN and rough > ROUGH_MIN:  # the command between rows is not in the log
-        late_ci = (max(late_ci[0] - dt / 2.0, 0.0), late_ci[1] + dt / 2.0)
     return ActuatorFit(
         kind=kind,
         unit=unit,
