@@ -280,7 +280,10 @@ def beside_look_alikes_sentence(step: Mapping[str, Any]) -> str:
 def held_out_not_pinned_sentence(step: Mapping[str, Any]) -> str:
     """Why a lag or delay the held-out flight does not pin down is claimed on its
     fit-flight estimate (:mod:`omavctl.diagnose.held_beside`), and the lags and delays
-    the data do not tell from it; '' for any other step."""
+    the data do not tell from it; a linear effect's (:mod:`omavctl.diagnose.
+    learned_fit_pinned`); '' for any other step."""
+    if step.get("held_out_not_pinned") is True and isinstance(step.get("fit_flight"), Mapping):
+        return _fit_flight_words(step)
     value = _num(step.get("fit_flight_value"))
     if step.get("held_out_not_pinned") is not True or value is None:
         return ""
@@ -291,6 +294,26 @@ def held_out_not_pinned_sentence(step: Mapping[str, Any]) -> str:
         "above beside the look-alikes."
     )
     return text + _not_told_apart(step)
+
+
+def _fit_flight_words(step: Mapping[str, Any]) -> str:
+    """The sentence of a linear learned claim the held-out flight does not pin down:
+    its fit-flight values (no interval: the training points' sandwich leaves out what
+    the GP and the rotors' spread add, so fit --effects gives the one to trust)."""
+    fit, units = step["fit_flight"], step.get("units")
+    values = []
+    for param, unit in (units if isinstance(units, Mapping) else {}).items():
+        row = fit.get(param)
+        if not isinstance(row, list):
+            continue
+        labels = [f"{param}_{a}" for a in "xyz"] if len(row) == 3 else [param] * len(row)
+        u = "" if unit == "1" else f" {unit}"
+        values += [f"{lab} {v:.3g}{u}" for lab, v in zip(labels, row, strict=True)]
+    return (
+        " This flight alone does not pin its value down; the fit flight does (least squares "
+        f"at the model's training points: {', '.join(values)}; fit --effects gives the "
+        "value and interval to trust), and at that value it removes the share above."
+    )
 
 
 def _not_told_apart(step: Mapping[str, Any]) -> str:

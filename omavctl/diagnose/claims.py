@@ -1,26 +1,27 @@
 """Claims the flight backs: an effect is claimed only where its interval excludes its null.
 
 Both selections of the diagnosis (the ranking on the model's remaining error and the
-joint selection on the held-out physics-only error) can name an effect that explains
-a few per cent of what is left without the flight determining it: on the report2
-split, 11 of 40 draws ended with an effect the vehicle lacked, mostly an
-``inertia_error`` a joint step added whose scale could as well have been 1 (issue 26).
-:func:`guard_claims` estimates the claimed effects as the printed ``fit --effects``
-would (on the evaluated flight, with the model's effects and every claimed one
-together; its first pass, then its second stage jointly with a GP fitted to these
-samples, :class:`omavctl.diagnose.estimates.SecondStage`: the numbers the verdict
-quotes) and keeps a claim only when
-the 95 % interval of at least one component it is claimed on excludes the effect's
-null (:meth:`omavctl.physics.effect_base.Effect.null_parameters`: scale 1, lag 0,
-drag 0, ...). What is dropped is said to be one that "cannot be pinned down from this
-flight", with its interval, and stays in the ambiguous set of a claimed look-alike.
+joint selection on the held-out physics-only error) can name an effect that explains a
+few per cent of what is left without the flight determining it: on the report2 split, 11
+of 40 draws ended with an effect the vehicle lacked, mostly an ``inertia_error`` a joint
+step added whose scale could as well have been 1 (issue 26). :func:`guard_claims`
+estimates the claimed effects as the printed ``fit --effects`` would (on the evaluated
+flight, with the model's effects and every claimed one together; its first pass, then
+its second stage jointly with a GP fitted to these samples,
+:class:`omavctl.diagnose.estimates.SecondStage`: the numbers the verdict quotes) and
+keeps a claim only when the 95 % interval of at least one component it is claimed on
+excludes the effect's null (:meth:`omavctl.physics.effect_base.Effect.null_parameters`:
+scale 1, lag 0, drag 0, ...). What is dropped is said to be one that "cannot be pinned
+down from this flight", with its interval, and stays in the ambiguous set of a claimed
+look-alike.
 
 :func:`learned_claim` turns an effect the GP learned into a claim of its own when the
-flight pins it down and, estimated from the fit flight's training points by least
-squares (``fit``'s first pass, before the GP), it lowers the held-out physics-only
-error by the joint selection's test (:func:`omavctl.diagnose.joint.learned_step`):
-otherwise the verdict would say "Nothing missing", print no fit command, and a loop
-that follows it would stop with the physics-only error where it was.
+flight pins it down and, estimated from the fit flight's training points by least squares
+(``fit``'s first pass, before the GP), it lowers the held-out physics-only error by the
+joint selection's test (:func:`omavctl.diagnose.joint.learned_step`): otherwise the
+verdict would say "Nothing missing", print no fit command, and a loop that follows it
+would stop with the physics-only error where it was (one the held-out flight does not pin
+down: :mod:`omavctl.diagnose.learned_fit_pinned`).
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ __all__ = [
     "learned_claim",
     "log_ratio_t",
     "material_axes",
+    "theta_json",
     "training_estimate",
 ]
 
@@ -321,11 +323,11 @@ def fit_flight_holds_null(
             continue
         away = (np.abs(theta[n]) > Z95 * se[n]) & (np.sign(theta[n]) == np.sign(here))
         if not away.any():
-            out[n] = _theta_json(n, theta[n], se[n])
+            out[n] = theta_json(n, theta[n], se[n])
     return out
 
 
-def _theta_json(name: str, theta: np.ndarray, se: np.ndarray) -> dict[str, Any]:
+def theta_json(name: str, theta: np.ndarray, se: np.ndarray) -> dict[str, Any]:
     """An estimate's JSON (``P``, ``P_stderr``, ``P_ci95``) from theta (p,) and its
     standard errors (p,), through the effect's parameters."""
     phys = get_effect(name).to_parameters(theta, np.diag(se**2))
@@ -459,23 +461,21 @@ def large_cut_step(
     floor: float,
     exact: Callable[[float], np.ndarray] | None = None,
 ) -> LargeCutStep | None:
-    """The held-out test of a learned effect whose gain is too uneven over the flight
-    for the per-block t of :func:`omavctl.diagnose.joint.learned_step` (>= 4): its
-    parameters estimated from the fit flight's training points by least squares, as
-    there, but within their plausible range (:data:`omavctl.diagnose.scoring.THETA_RANGE`,
-    as the ranking that put it in the pool fits them: a drag of 0.8 N m s^2 came out at
-    1.14 on one axis of a steps fit flight, over the range's 1), with ``regressor`` (n,
-    3, p) and ``exact`` on the held-out samples, it passes when its part is at least the
-    claim ``floor``, it removes at least
-    :data:`LARGE_CUT` of the held-out physics-only error ``physics`` (n, 3), and each 2 s
-    block's error falls by a consistent fraction: the mean over blocks of -log(after /
-    before) at least :data:`omavctl.diagnose.joint.MIN_HAC_T` (2.50) of its standard
-    error. On steps flights a few transitions hold most of the error, so the gain's
-    per-block t stays under 4 while every block gets better (a hidden drag whose
-    fit-flight estimate, within 5 % of the truth, removed 56 % and 68 % of the held-out
-    error on two report5 draws: t 2.1 and 2.3; docs/effects.md); judged by the
-    fraction, no block counts more than another. The cut guards against the look-alikes
-    that pass the fraction test alone (an inertia scale the vehicle lacked removed
+    """The held-out test of a learned effect whose gain is too uneven over the flight for the
+    per-block t of :func:`omavctl.diagnose.joint.learned_step` (>= 4): its parameters estimated
+    from the fit flight's training points by least squares, as there, but within their plausible
+    range (:data:`omavctl.diagnose.scoring.THETA_RANGE`, as the ranking that put it in the pool
+    fits them: a drag of 0.8 N m s^2 came out at 1.14 on one axis of a steps fit flight, over
+    the range's 1), with ``regressor`` (n, 3, p) and ``exact`` on the held-out samples, it
+    passes when its part is at least the claim ``floor``, it removes at least :data:`LARGE_CUT`
+    of the held-out physics-only error ``physics`` (n, 3), and each 2 s block's error falls by a
+    consistent fraction: the mean over blocks of -log(after / before) at least
+    :data:`omavctl.diagnose.joint.MIN_HAC_T` (2.50) of its standard error. On steps flights a
+    few transitions hold most of the error, so the gain's per-block t stays under 4 while every
+    block gets better (a hidden drag whose fit-flight estimate, within 5 % of the truth, removed
+    56 % and 68 % of the held-out error on two report5 draws: t 2.1 and 2.3; docs/effects.md);
+    judged by the fraction, no block counts more than another. The cut guards against the
+    look-alikes that pass the fraction test alone (an inertia scale the vehicle lacked removed
     29-48 % on own2/tune2 draws, with fractions consistent over the blocks)."""
     if name not in model.train_regressors or model.n_train == 0 or not (physics**2).sum() > 0:
         return None

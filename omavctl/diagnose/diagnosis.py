@@ -31,6 +31,7 @@ from omavctl.diagnose.held_beside import held_timing_beside
 from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.learned_alikes import learned_look_alikes
 from omavctl.diagnose.learned_beside import learned_beside_look_alikes
+from omavctl.diagnose.learned_fit_pinned import learned_fit_pinned
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     BLOCK_SECONDS,
@@ -307,16 +308,23 @@ def _learned_claim(
     (:mod:`omavctl.diagnose.held_beside`); else judged beside the default look-alikes
     refitted on the held-out flight (:mod:`omavctl.diagnose.learned_beside`), then on the
     whole physics-only error ``physics`` (n, 3) (:func:`omavctl.diagnose.claims.
-    learned_claim`). ``held``: (the claim floor, the log's sample period, the claims
-    guard)."""
+    learned_claim`), or one the held-out flight does not pin down that the fit flight does,
+    when it removes more (:mod:`omavctl.diagnose.learned_fit_pinned`; beside the
+    look-alikes judged together, the larger share). ``held``: (the claim floor, the
+    log's sample period, the claims guard)."""
     floor, dt, guarded = held
     args = (pool, samples, model, physics, raw, blocks, floor)
-    return (
-        held_timing_beside(guarded.held_back, samples, model, physics, raw, blocks, (floor, dt))
-        or learned_beside_look_alikes(*args)
-        or learned_claim(*args)
-        or learned_look_alikes(pool, model, physics, raw, blocks, floor)
-    )
+    beside = held_timing_beside(
+        guarded.held_back, samples, model, physics, raw, blocks, (floor, dt)
+    ) or learned_beside_look_alikes(*args)
+    if beside is not None:
+        return beside
+    claim = learned_claim(*args)
+    there = learned_fit_pinned(pool, model, physics, raw, blocks, floor)
+    if there is None or (claim is not None and claim[0].share >= there[0].share):
+        return claim or learned_look_alikes(pool, model, physics, raw, blocks, floor)
+    together = learned_look_alikes(pool, model, physics, raw, blocks, floor)
+    return together if together is not None and together[0].share > there[0].share else there
 
 
 def _learned_json(step: JointStep, entry: Mapping[str, Any]) -> dict[str, Any]:
