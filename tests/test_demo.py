@@ -137,5 +137,7 @@ def test_the_getting_started_numbers_tool_reads_the_demo_outputs(demo):
     doc = (ROOT / "docs" / "getting-started.md").read_text()
     assert {m[1] for m in tool.MARKER.finditer(doc)} == set(values)
     assert values["verdict"].startswith(f"\n```text\nMissing: {HIDDEN} — it explains ")
-    assert f"  add it with: omavctl fit {demo}/flight-01 --effects " in values["verdict"]
+    # the verdict's own words: "add them with" when it names more than one effect
+    words = "add them with" if " Also: " in values["verdict"] else "add it with"
+    assert f"  {words}: omavctl fit {demo}/flight-01 --effects " in values["verdict"]
     assert values["fall"].endswith(" %") and values["plan_cem"].endswith(("better", "worse"))

@@ -140,8 +140,12 @@ def test_the_expected_error_fall_is_the_square_root_of_the_cost_ratios():
     assert e["vs_random"]["low"] == pytest.approx(50.0)
     assert e["vs_random"]["high"] == pytest.approx(65.0)  # 10-90 %: 50 + 0.6 * 25
     (line,) = expectation_lines(_result([4.0, 1.0, 4.0, 4.0, 4.0, 16.0, np.inf]))
-    # one sign convention with the candidates table ("vs task (- better)"): a fall is -
-    assert "-50 % (- better, as in the table, whose cost is the square of this error)" in line
+    # one sign convention with the candidates table ("cost vs task (- better)"): a fall is
+    # -, and the table's figure is of the cost (-75 % here), the error's square
+    assert (
+        "-50 % (- better, as in the table, whose cost is the square of this error: its "
+        "figure is larger) against the task again"
+    ) in line
     assert (
         "random candidate of the pool -50 % (median; 80 % of the 5 others between -65 and -50 %)"
         in line

@@ -11,6 +11,7 @@ import re
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -350,3 +351,24 @@ def test_cli(evals, tmp_path):
         "(or choose one with --format)"
     )
     assert not pdf.exists()
+
+
+def test_report_names_a_model_file_or_a_json_summary_given_for_an_evaluation(tmp_path):
+    """A new user passed the model (.npz) and the piped --json summary to report and read
+    "it is not UTF-8 text" and "no 'schema' key"; nothing is written."""
+    model = tmp_path / "gp.npz"
+    np.savez(model, a=np.zeros(2))
+    summary = tmp_path / "stdout.json"
+    summary.write_text(json.dumps({"command": "evaluate", "exit_code": 0, "metrics": {}}))
+    out = tmp_path / "r.html"
+    line = _error_line(runner.invoke(app, ["report", str(model), "--out", str(out)]))
+    assert line == (
+        f"error: {model}: not an evaluation JSON: a NumPy .npz archive (a model or a series "
+        "file); report reads the JSON that `omavctl evaluate --out FILE.json` writes"
+    )
+    line = _error_line(runner.invoke(app, ["report", str(summary), "--out", str(out)]))
+    assert line == (
+        f"error: {summary}: not an evaluation JSON: the --json summary `omavctl evaluate` "
+        "prints; report reads the file that `omavctl evaluate --out FILE.json` writes"
+    )
+    assert not out.exists()

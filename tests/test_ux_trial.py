@@ -152,10 +152,14 @@ def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
     render_horizons(con, {"horizons": h})
     said = " ".join(con.export_text().split())  # the title wraps to the table's width
     assert said.startswith(
-        "open-loop error over horizons (3884 windows, a start every 8 samples, not the 1 "
-        "asked for: the log is long and the windows are held in memory at once): body rate "
+        "open-loop error over horizons (3884 windows, a start every 8 samples rather than "
+        "at every one: the log is long and the windows are held in memory at once): body rate "
         "norm rad/s (no attitude in the log), 2σ coverage"
     )
+    con = Console(record=True, width=400)
+    render_horizons(con, {"horizons": {**h, "stride_requested": 4}})
+    said = " ".join(con.export_text().split())
+    assert "a start every 8 samples rather than every 4 (--horizon-stride): " in said
     con = Console(record=True, width=400)
     render_horizons(con, {"horizons": {**h, "stride": 1}})
     said = " ".join(con.export_text().split())

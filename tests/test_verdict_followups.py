@@ -223,6 +223,12 @@ def test_a_worst_segment_barely_above_the_flights_error_is_not_called_a_failure(
         "level, rolling at 0.40 rad/s), has a y error of 0.337 rad/s² RMS, only 1.1× its "
         "overall."
     )
+    seg["rmse"] = {"x": 0.337, "y": 0.2, "z": 0.07}  # "an x error", not "a x error"
+    tree["metrics"]["model"]["rmse"]["x"] = 0.3
+    (line,) = [ln for ln in verdict(tree) if ln.key == "fails"]
+    assert "(near level, rolling at 0.40 rad/s), has an x error of 0.337 rad/s² RMS" in line.text
+    seg["rmse"] = {"x": 0.2, "y": 0.337, "z": 0.07}
+    tree["metrics"]["model"]["rmse"]["x"] = 0.205
     tree["metrics"]["model"]["rmse"]["y"] = 0.2  # 1.7×: it stands out
     (line,) = [ln for ln in verdict(tree) if ln.key == "fails"]
     assert line.text.startswith("Fails most at 1.8–2.8 s of d2.bag: y error 0.337 rad/s² RMS")

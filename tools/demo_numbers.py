@@ -75,7 +75,7 @@ def numbers(build: Path) -> dict[str, str]:
     worse = [ln.text for ln in change_lines(scores)[1:]]
     best = plan["best_cost"] / plan["task_cost"] - 1.0
     return {
-        "verdict": f"\n```text\n{text}\n  add it with: {command}\n```\n",
+        "verdict": f"\n```text\n{text}\n  {head.add_words.lower()}: {command}\n```\n",
         "loop": (
             f"\n```sh\n{command}\n"
             "omavctl evaluate examples/build/flight-02.bag --model "

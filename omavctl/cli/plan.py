@@ -327,7 +327,7 @@ def _candidates_table(result: Any) -> Any:
     if effects:  # -log det of the effects' information; vs task: their standard errors
         columns = ("id", "cost -log det", "std error vs task (- better)", "tracking rad/s^2")
     else:  # the model's band over the task region after the flight
-        columns = ("id", "cost (rad/s^2)^2", "vs task (- better)", "tracking rad/s^2")
+        columns = ("id", "cost (rad/s^2)^2", "cost vs task (- better)", "tracking rad/s^2")
     table = Table(title=title)
     for col in columns:
         table.add_column(col, justify="right")

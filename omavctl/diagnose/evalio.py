@@ -179,7 +179,14 @@ def _reject_constant(name: str) -> Any:
 
 def _read_tree(p: Path) -> dict[str, Any]:
     try:
-        text = p.read_bytes().decode("utf-8")
+        raw = p.read_bytes()
+        if raw.startswith(b"PK"):  # a zip: a model file (.npz), or a series file
+            raise OmavctlError(
+                "not an evaluation JSON: a NumPy .npz archive (a model or a series file); "
+                "report reads the JSON that `omavctl evaluate --out FILE.json` writes",
+                p,
+            )
+        text = raw.decode("utf-8")
     except FileNotFoundError:
         raise OmavctlError("file not found", p) from None
     except IsADirectoryError:
@@ -196,6 +203,12 @@ def _read_tree(p: Path) -> dict[str, Any]:
         ) from None
     except (ValueError, RecursionError) as err:
         raise OmavctlError(f"not an evaluation JSON: {err}", p) from None
+    if isinstance(tree, dict) and "schema" not in tree and "command" in tree:
+        raise OmavctlError(
+            f"not an evaluation JSON: the --json summary `omavctl {str(tree['command'])[:20]}` "
+            "prints; report reads the file that `omavctl evaluate --out FILE.json` writes",
+            p,
+        )
     if not isinstance(tree, dict) or "schema" not in tree:
         raise OmavctlError("not an evaluation JSON: no 'schema' key", p)
     if tree["schema"] != SCHEMA:

@@ -142,7 +142,8 @@ def fails_line(tree: Mapping[str, Any]) -> Line | None:
     return Line(
         "fails",
         f"No part of the flight stands out: the worst segment, {start:.1f}–{end:.1f} s of "
-        f"{seg.get('log', '?')} ({activity(seg)}), has a {axis} error of {vals[axis]:.3g} "
+        f"{seg.get('log', '?')} ({activity(seg)}), has {'an' if axis == 'x' else 'a'} {axis} "
+        f"error of {vals[axis]:.3g} "
         f"rad/s² RMS, only {vals[axis] / whole:.1f}× its overall.",
     )
 

@@ -86,7 +86,8 @@ def expectation_lines(result: Any) -> list[str]:
         f"expected by the model: RMS error over the region {e['error_now']:.3g} rad/s^2 now, "
         f"{e['error_task_again']:.3g} after flying the task again, {e['error_planned']:.3g} "
         f"after the planned flight: {-e['vs_task_again']:+.0f} % (- better, as in the "
-        "table, whose cost is the square of this error) against the task again; "
+        "table, whose cost is the square of this error: its figure is larger) against the "
+        "task again; "
         f"{random}. The model's band, not a promise: what refits realised is in "
         "docs/informative.md"
     ]
