@@ -913,3 +913,25 @@ def test_a_later_model_with_other_effects_is_not_said_to_disagree_with_this_flig
         "standard errors apart)."
     )
     assert disagreeing(tree, 1) == {("inertia_error", "scale_z")}
+
+
+def test_a_second_models_narrow_band_is_said_with_its_name():
+    """evaluate --model half-base.npz --model half-lag.npz on the Crazyflie halves: "can be
+    trusted" was said of the first model only, while the recommended lag model covered x
+    82 %, y 85 %; the later model's band now has its own line, named."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    tree = _absorbed()
+    tree["metrics"]["model"]["coverage"] = {"x": 0.96, "y": 0.95, "z": 0.97}
+    second = {**tree["metrics"]["model"], "coverage": {"x": 0.82, "y": 0.85, "z": 0.94}}
+    tree["models"].append({"name": "half-lag.npz", "effects": {"com_offset": {}}})
+    tree["metrics_by_model"] = [tree["metrics"], {**tree["metrics"], "model": second}]
+    texts = [ln.text for ln in verdict_of_models(tree)]
+    assert (
+        "With half-lag.npz: Uncertainty a little narrow on x, y: x 82 %, y 85 % of the samples "
+        "lie within the predicted 2σ (95 % expected); use its error bars with care there "
+        "(within 2σ: x 82 %, y 85 %, z 94 %)."
+    ) in texts
+    tree["metrics_by_model"][1]["model"]["coverage"] = {"x": 0.95, "y": 0.96, "z": 0.95}
+    texts = [ln.text for ln in verdict_of_models(tree)]
+    assert not any(t.startswith("With half-lag.npz: Uncertainty") for t in texts)

@@ -27,6 +27,7 @@ from omavctl.diagnose.verdict_lines import (
     _pct,
     _signed,
     get_path,
+    uncertainty_line,
 )
 
 __all__ = [
@@ -417,7 +418,8 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
 
 def _later_flags(tree: Mapping[str, Any], models: Sequence[ModelScore]) -> list[Line]:
     """The models after the first that are no better than predicting no acceleration,
-    or worse than their own physics, on an axis: 'with M: axis z: ...' (the flags of
+    or worse than their own physics, on an axis, or whose band is not to be trusted
+    as it is: 'with M: axis z: ...' (the flags of
     :func:`omavctl.diagnose.metrics.quality_flags` were the first model's only:
     docs/real-data-check.md item 13)."""
     by_model = tree.get("metrics_by_model") or []
@@ -426,10 +428,15 @@ def _later_flags(tree: Mapping[str, Any], models: Sequence[ModelScore]) -> list[
         try:
             flags = quality_flags(metrics, [])
         except (KeyError, TypeError):  # an evaluation without the per-model metrics
-            continue
+            flags = []
         for flag in flags:
             if flag["code"] in ("no_better_than_zero", "worse_than_physics"):
                 out.append(Line("worse", f"With {score.label}: {flag['message']}"))
+        # its band too: "can be trusted" stood for the first model only (a new user's
+        # Crazyflie halves: the recommended lag model covered x 82 %, y 85 %)
+        band = uncertainty_line({"metrics": metrics}) if isinstance(metrics, Mapping) else None
+        if band is not None and not band.text.startswith("Uncertainty can be trusted"):
+            out.append(Line("uncertainty", f"With {score.label}: {band.text}"))
     return out
 
 
