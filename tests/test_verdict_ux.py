@@ -801,6 +801,12 @@ def test_the_report_ranking_marks_every_effect_the_verdict_names_missing(monkeyp
     ) in text
     assert "**MISSING** (step 2) | – |" in text and "**MISSING** (joint selection) | – |" in text
     assert "| no |" not in text  # no claimed effect says "no" any more
+    # its part: "0.016 (below 3x noise)" of the model's error read as a claim under the
+    # floor; the joint selection's part of the physics-only error stands beside it
+    diag["missing_effects"][2].update(contribution_rms=0.016, above_noise=False)
+    diag["joint_steps"][0]["contribution_rms"] = 0.25
+    again = " ".join(to_markdown(Document("r", diagnosis_section(tree, 0, "e"))).split())
+    assert "| 0.016 (below 3× noise); 0.25 of the physics-only error | " in again
     assert "#### Command that adds com_offset, rotor_interference, motor_lag" in text
     # the names apart, as everywhere else ("Missing: A B C" ran them together)
     assert "Missing: **com_offset**, **rotor_interference**, **motor_lag**" in text

@@ -42,12 +42,38 @@ def _flag(v: Any) -> str:
     return "yes" if v is True else "no" if v is False else "n/a"
 
 
-def _part(e: Mapping[str, Any]) -> str:
-    """The effect's part of the error (RMS) and whether it clears the noise floor."""
+def _part(e: Mapping[str, Any], joint: float | None = None) -> str:
+    """The effect's part of the error (RMS) and whether it clears the noise floor; with
+    ``joint``, its part of the physics-only error where the joint selection claimed it
+    (the floor it cleared: "0.016 (below 3× noise)" alone read as a claim under the
+    floor, a new user's demo report)."""
     rms = e.get("contribution_rms")
     if not isinstance(rms, int | float):
         return "n/a"
-    return f"{num(rms, 2)}" + ("" if e.get("above_noise", True) else " (below 3× noise)")
+    text = f"{num(rms, 2)}" + ("" if e.get("above_noise", True) else " (below 3× noise)")
+    return text + (f"; {num(joint, 2)} of the physics-only error" if joint is not None else "")
+
+
+def _candidates_blocks(
+    diag: Mapping[str, Any], torque_unknown: bool, later: Mapping[str, tuple[str, str]]
+) -> list[Block]:
+    """The ranking of the candidate missing effects with its legend ([] without one); of
+    the effects the joint selection claimed, their part of the held-out physics-only
+    error (rad/s² RMS) beside their part of the model's."""
+    entries = diag.get("missing_effects") or []
+    if not entries:
+        return []
+    joint = {
+        str(j.get("name")): float(j["contribution_rms"])
+        for j in diag.get("joint_steps") or []
+        if isinstance(j, Mapping) and str(j.get("name")) in later
+        and isinstance(j.get("contribution_rms"), int | float)
+    }  # fmt: skip
+    return [
+        Heading(4, "Candidate missing effects, best first"),
+        _ranking_table(entries, torque_unknown, "missing", later=later, joint=joint),
+        *(Para(x, note=True) for x in spread_legend(_estimates(entries))),
+    ]
 
 
 def _ranking_table(
@@ -56,10 +82,12 @@ def _ranking_table(
     what: str,
     held: Sequence[str] = (),
     later: Mapping[str, tuple[str, str]] | None = None,
+    joint: Mapping[str, float] | None = None,
 ) -> Table:
     """The ranking of ``entries``, one effect at a time; ``later``: effects a later
     selection step named (:func:`omavctl.diagnose.joint_text.named_later`), marked
-    claimed with that step instead of "no"."""
+    claimed with that step instead of "no"; ``joint``: of those the joint selection
+    claimed, their part of the held-out physics-only error (rad/s² RMS)."""
     rows: list[list[Cell]] = []
     for i, e in enumerate(entries):
         if not isinstance(e, Mapping):
@@ -93,7 +121,7 @@ def _ranking_table(
                 num(e.get("t_value"), 3),
                 _flag(e.get("significant")),
                 _flag(e.get("plausible")),
-                _part(e),
+                _part(e, (joint or {}).get(str(e.get("name")))),
                 _claimed_cell(what, missing, (later or {}).get(str(e.get("name")))),
                 ", ".join(str(x) for x in e.get("ambiguous_with", []) or []) or "–",
             ]
@@ -216,9 +244,12 @@ def diagnosis_section(
                 "(so that it explains little of the model's remaining error) is also missing "
                 "when, estimated from the fit flight as fit --effects would, it removes at "
                 "least 15 % of the physics-only error on the held-out flight, consistently "
-                "over its 2 s blocks (the table's 'joint selection'). Either way a claim "
-                "stands only where the 95 % interval of its estimate as the printed fit "
-                "command makes it, on the fit flight, excludes the value at which it is absent."
+                "over its 2 s blocks, the upper end of its part of that error's 95 % "
+                "interval at least the same floor (the table's 'joint selection'). Either way "
+                "a claim stands only where the 95 % interval of its estimate as the printed "
+                "fit command makes it, on the fit flight, excludes the value at which it is "
+                "absent: the flight's statistical interval (the rotors' thrust spread, which "
+                "fit's interval adds, says what the torque is, not whether it is there)."
             )
         )
     missing = [str(x) for x in diag.get("missing", []) or []]
@@ -241,11 +272,7 @@ def diagnosis_section(
                 f"only below the parameter's physical bound): {', '.join(unphysical)}."
             )
         )
-    entries = diag.get("missing_effects") or []
-    if entries:
-        blocks.append(Heading(4, "Candidate missing effects, best first"))
-        blocks.append(_ranking_table(entries, torque_unknown, "missing", later=later))
-        blocks += [Para(x, note=True) for x in spread_legend(_estimates(entries))]
+    blocks += _candidates_blocks(diag, torque_unknown, later)
     command = diag.get("fit_command")
     if isinstance(command, str) and command:
         top = ", ".join(missing) if missing else (learned or ["the top effect"])[0]
