@@ -386,3 +386,41 @@ def test_a_two_file_report_says_the_change_does_not_hold_rolled_out_as_one_file_
     # not of the same samples: the files compare flights, and nothing is said
     after["metrics"]["nominal"]["rmse"]["z"] = 0.2
     assert not [ln for ln in report_verdict([(before, "b"), (after, "l")]) if "Rolled" in ln.text]
+
+
+def test_a_value_the_fit_flight_did_not_pin_and_this_one_does_is_said():
+    """Own tune draw own-inertia 12: a drag's D_z fitted on a steps flight that hardly yaws
+    (-0.0074, 95 %: 0 to 0.379, not pinned) while the held-out flight pins 0.121 (0.0963 to
+    0.145) and keeps a z error of 0.51 rad/s² under "Nothing missing"; 1.5 combined
+    standard errors apart, so the disagree line said nothing."""
+    from omavctl.diagnose.fit_vs_flight import pinned_here_line
+
+    fitted = {"D": [0.05, 0.05, -0.0074], "D_stderr": [0.002, 0.002, 0.086],
+              "D_ci95": [[0.046, 0.054], [0.046, 0.054], [0.0, 0.379]],
+              "D_pinned": [True, True, False]}  # fmt: skip
+    here = {"D": [0.05, 0.05, 0.121], "D_stderr": [0.002, 0.002, 0.011],
+            "D_ci95": [[0.046, 0.054], [0.046, 0.054], [0.0963, 0.145]],
+            "D_pinned": [True, True, True]}  # fmt: skip
+    entry = {"name": "rotational_drag", "units": {"D": "N m s^2"}, "estimate": here,
+             "explained_variance_per_axis": {"x": 0.46, "y": 0.0, "z": 0.83}}  # fmt: skip
+    tree = {
+        "models": [{"name": "m.npz", "effects": {"rotational_drag": fitted},
+                    "fit_flight": {"logs": ["fit.mcap"], "time_window": None}}],
+        "logs": [{"name": "held.bag"}],
+        "diagnosis": {"learned": [entry]},
+    }  # fmt: skip
+    line = pinned_here_line(tree)
+    assert line is not None and line.key == "pinned_here"
+    assert line.text == (
+        "This flight pins down what the fit flight did not: rotational_drag's D_z = -0.0074 "
+        "± 0.086 N m s^2 as fitted (95 %: 0 to 0.379), 0.121 ± 0.011 N m s^2 here (95 %: "
+        "0.0963 to 0.145). Fitted on fit.mcap, which did not pin it down; estimated on "
+        "held.bag as fit --effects would. The model's value is one the fit flight could not "
+        "check: fit on both flights together (omavctl fit takes several logs) to pin it in "
+        "the model."
+    )
+    here["D_ci95"][2] = [-0.01, 0.145]  # this flight's interval holds the model's value
+    assert pinned_here_line(tree) is None
+    here["D_ci95"][2] = [0.0963, 0.145]
+    entry["explained_variance_per_axis"]["z"] = 0.01  # not claimed on z here
+    assert pinned_here_line(tree) is None

@@ -30,7 +30,14 @@ from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.estimate_text import AXIS_CLAIM
 from omavctl.diagnose.verdict_lines import AXES, Line, get_path
 
-__all__ = ["APART", "disagree_line", "disagreeing", "elsewhere_clause", "flight_words"]
+__all__ = [
+    "APART",
+    "disagree_line",
+    "disagreeing",
+    "elsewhere_clause",
+    "flight_words",
+    "pinned_here_line",
+]
 
 #: Combined standard errors (``|a - b| / sqrt(se_a^2 + se_b^2)``) from which the fitted
 #: and this flight's estimates of one parameter are said to disagree (issue 26: the
@@ -133,6 +140,78 @@ def disagree_line(tree: Mapping[str, Any]) -> Line | None:
         " ".join(said) + " One of the flights does not pin the value down, or the effect is "
         "not the same on both: fit on both flights together, or plan a flight that pins it "
         "down (plan --objective effects), before trusting either number.",
+    )
+
+
+def _pinned_here(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any]) -> list[str]:
+    """'rotational_drag's D_z = -0.0074 ± 0.086 N m s^2 as fitted (95 %: 0 to 0.379), 0.12 ±
+    0.011 N m s^2 here (95 %: 0.0963 to 0.145)' for each component of ``name`` the fit
+    flight did not pin down (``P_pinned`` false) and this flight does, away from the
+    model's value (outside this flight's 95 % interval), on an axis where the effect
+    explains at least :data:`AXIS_CLAIM` of this flight's error, and not already
+    :data:`APART` combined standard errors apart (:func:`_parts` says those)."""
+    here = entry.get("estimate")
+    if not isinstance(here, Mapping):
+        return []
+    units = entry.get("units") if isinstance(entry.get("units"), Mapping) else {}
+    shares = entry.get("explained_variance_per_axis") or {}
+    out = []
+    for key, values in fitted.items():
+        if not isinstance(values, list) or not isinstance(fitted.get(f"{key}_pinned"), list):
+            continue
+        unit = str((units or {}).get(key, ""))
+        u = "" if unit in ("", "1") else f" {unit}"
+        for i in range(len(values)):
+            share = _num(shares.get(AXES[i])) if len(values) == 3 else None
+            if len(values) == 3 and (share is None or share < AXIS_CLAIM):
+                continue
+            pinned = [get_path(d, f"{key}_pinned", i) for d in (fitted, here)]
+            got = _apart(fitted, here, key, i)
+            if pinned != [False, True] or got is None or got[4] > APART:
+                continue
+            fit_ci, here_ci = (get_path(d, f"{key}_ci95", i) or [None] for d in (fitted, here))
+            if len(fit_ci) != 2 or len(here_ci) != 2 or None in (*fit_ci, *here_ci):
+                continue
+            v, se, d, dse, _ = got
+            if here_ci[0] <= v <= here_ci[1]:
+                continue  # this flight's interval holds the model's value: nothing to say
+            label = f"{key}_{AXES[i]}" if len(values) == 3 else key
+            out.append(
+                f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted (95 %: {fit_ci[0]:.3g} "
+                f"to {fit_ci[1]:.3g}), {d:.3g} ± {dse:.2g}{u} here (95 %: {here_ci[0]:.3g} to "
+                f"{here_ci[1]:.3g})"
+            )
+    return out
+
+
+def pinned_here_line(tree: Mapping[str, Any]) -> Line | None:
+    """The first model's effect parameters its fit flight did not pin down and this
+    flight does (:func:`_pinned_here`): the model holds a value the fit flight could not
+    check (own tune draw own-inertia 12: a drag's D_z fitted on a steps flight that
+    hardly yaws, -0.007 in [0, 0.38] N m s^2, pinned at 0.12 here, where the z error
+    kept 0.51 rad/s^2 RMS and the verdict said "Nothing missing"); None when there is
+    none."""
+    models = [m for m in tree.get("models") or [] if isinstance(m, Mapping)]
+    learned = get_path(tree, "diagnosis", "learned", default=[]) or []
+    entries = {str(e.get("name")): e for e in learned if isinstance(e, Mapping)}
+    effects = models[0].get("effects") if models else None
+    parts = [
+        text
+        for name, fitted in (effects.items() if isinstance(effects, Mapping) else [])
+        if isinstance(fitted, Mapping) and isinstance(entries.get(str(name)), Mapping)
+        for text in _pinned_here(str(name), fitted, entries[str(name)])
+    ]
+    if not parts:
+        return None
+    fit: Mapping[str, Any] = models[0].get("fit_flight") or {}
+    there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
+    here = flight_words([n for n in _logs(tree) if n], tree.get("time_window")) or "this flight"
+    return Line(
+        "pinned_here",
+        f"This flight pins down what the fit flight did not: {'; '.join(parts)}. Fitted on "
+        f"{there}, which did not pin it down; estimated on {here} as fit --effects would. The "
+        "model's value is one the fit flight could not check: fit on both flights together "
+        "(omavctl fit takes several logs) to pin it in the model.",
     )
 
 

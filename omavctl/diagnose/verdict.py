@@ -22,7 +22,7 @@ from omavctl.diagnose.activity import finite as _num
 from omavctl.diagnose.actuators import actuator_sentence
 from omavctl.diagnose.axis_share import axis_held_line
 from omavctl.diagnose.estimate_text import AXIS_CLAIM, estimate_sentence
-from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause
+from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause, pinned_here_line
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
 from omavctl.diagnose.joint_text import (
@@ -369,6 +369,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
         _learned_line(tree),
         axis_held_line(tree),
         disagree_line(tree),
+        pinned_here_line(tree),
         unconfirmed_line(tree),
         fails_line(tree),
         uncertainty_line(tree),

@@ -29,6 +29,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "missing": "What is missing",
         "learned": "Not modelled as physics",
         "disagree": "Fit and flight disagree",
+        "pinned_here": "Pinned down here, not by the fit flight",
         "unconfirmed": "Not confirmed by either flight",
         "axis": "Held back on one axis",
         "change": "Error change",
