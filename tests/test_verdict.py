@@ -70,7 +70,7 @@ def test_missing_effect_first_with_its_command():
     lines = verdict(BEFORE)
     assert lines[0].key == "missing"
     assert lines[0].text.startswith("Missing: rotational_drag — it explains 51 %")
-    assert "(x 56 %, y 97 %)" in lines[0].text
+    assert "(the axes weighted alike: x 56 %, y 97 %)" in lines[0].text
     assert lines[0].command == "omavctl fit 'my log.bag' --effects rotational_drag"
     assert (
         lines[0].plain().endswith("Add it with: omavctl fit 'my log.bag' --effects rotational_drag")

@@ -432,7 +432,7 @@ def test_an_axis_share_of_a_few_per_cent_is_not_a_claim_on_that_axis():
         "learned": [{"name": "rotational_drag", "units": {"D": "N m s^2"}, "estimate": estimate}],
     }
     (line,) = [ln for ln in verdict({"diagnosis": diag}) if ln.key == "missing"]
-    assert "(x 3 %, y 73 %, z 2 %)" in line.text
+    assert "(the axes weighted alike: x 3 %, y 73 %, z 2 %)" in line.text
     assert "D_y = 0.0463 N m s^2" in line.text and "0.225" not in line.text
     assert "D_x, D_z not claimed: the effect explains under 5 % of the x, z errors here." in (
         line.text
