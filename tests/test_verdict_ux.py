@@ -702,6 +702,15 @@ def test_a_material_share_of_one_axis_is_named_as_held_back_with_its_reason():
         "a claim needs."
     )
     assert line.plain().endswith("Test it with: omavctl fit b.csv --out m+d.npz")
+    # a negative delay at t 0 (a new user's Betaflight log): both reasons, nothing to test
+    tree["diagnosis"]["missing_effects"][0].update(significant=False, t_value=0.0, plausible=False)
+    (line,) = [ln for ln in verdict(tree) if ln.key == "axis"]
+    assert line.text.endswith(
+        "because over all axes it explains 4 %, under the 15 % of the total a claim needs, "
+        "and its estimate is not significant (t = 0) and outside the effect's plausible "
+        "range."
+    )
+    assert line.command is None
     # named already (held back, or claimed): not said twice
     tree["diagnosis"]["not_pinned"] = [{"name": "command_delay"}]
     assert not [ln for ln in verdict(tree) if ln.key == "axis"]

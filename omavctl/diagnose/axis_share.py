@@ -29,18 +29,38 @@ def named_effects(diag: Mapping[str, Any]) -> list[str]:
 
 
 def failed_test(entry: Mapping[str, Any], floor: float) -> str:
-    """The first test ``entry`` (a ``missing_effects`` entry) fails, in words."""
+    """The first test ``entry`` (a ``missing_effects`` entry) fails, in words; under the
+    share floor, also whether its estimate is not significant or not plausible (a new
+    user read only the share for a negative delay at t 0, offered to be tested)."""
     ev = _num(entry.get("explained_variance"))
     if ev is not None and ev < floor:
-        return (
+        text = (
             f"over all axes it explains {_pct(max(ev, 0.0))}, under the {_pct(floor)} of "
             "the total a claim needs"
         )
-    if entry.get("significant") is False:
-        t = _num(entry.get("t_value"))
-        return "its estimate is not significant" + (f" (t = {t:.2g})" if t is not None else "")
-    if entry.get("plausible") is False:
-        return "its estimate is outside the effect's plausible range"
+        weak = [w for w in (_not_significant(entry), _implausible(entry)) if w]
+        both = " and ".join(weak).replace(" and its estimate is ", " and ")
+        return text + (f", and {both}" if weak else "")
+    return _not_significant(entry) or _implausible(entry) or _other_test(entry)
+
+
+def _not_significant(entry: Mapping[str, Any]) -> str:
+    """'its estimate is not significant (t = 0.3)' for such an entry, else ''."""
+    if entry.get("significant") is not False:
+        return ""
+    t = _num(entry.get("t_value"))
+    return "its estimate is not significant" + (f" (t = {t:.2g})" if t is not None else "")
+
+
+def _implausible(entry: Mapping[str, Any]) -> str:
+    """'its estimate is outside the effect's plausible range' for such an entry, else ''."""
+    if entry.get("plausible") is not False:
+        return ""
+    return "its estimate is outside the effect's plausible range"
+
+
+def _other_test(entry: Mapping[str, Any]) -> str:
+    """The noise floor's or the refit test's reason, else the claims guard's."""
     if entry.get("above_noise") is False:
         return "its part of the error is under the claim floor (three times the log's noise)"
     refit = _num(entry.get("refit_explained_variance"))
@@ -50,7 +70,7 @@ def failed_test(entry: Mapping[str, Any], floor: float) -> str:
 
 
 def axis_held(diag: Mapping[str, Any], effects: Sequence[str] = ()) -> list[dict[str, Any]]:
-    """``{name, axes: {axis: share}, why}`` of every candidate (``missing_effects``)
+    """``{name, axes: {axis: share}, why, weak}`` of every candidate (``missing_effects``)
     that explains at least the claim floor's share of some axis's error but that the
     verdict does not name otherwise; not the model's own ``effects``."""
     floor = _num(get_path(diag, "method", "min_explained_variance"))
@@ -64,7 +84,15 @@ def axis_held(diag: Mapping[str, Any], effects: Sequence[str] = ()) -> list[dict
         per_axis = e.get("explained_variance_per_axis") or {}
         axes = {a: v for a in AXES if (v := _num(per_axis.get(a))) is not None and v >= floor}
         if axes:
-            out.append({"name": str(e.get("name")), "axes": axes, "why": failed_test(e, floor)})
+            weak = bool(_not_significant(e) or _implausible(e))
+            out.append(
+                {
+                    "name": str(e.get("name")),
+                    "axes": axes,
+                    "why": failed_test(e, floor),
+                    "weak": weak,
+                }
+            )
     return out
 
 
@@ -86,6 +114,8 @@ def axis_held_line(tree: Mapping[str, Any]) -> Line | None:
         text += "."
     command = (diag.get("effect_commands") or {}).get(first["name"])
     cmd = command if isinstance(command, str) and command else None
+    if first["weak"]:  # an estimate at t 0 or out of range: nothing for a fit to test
+        cmd = None
     return Line("axis", text, command=cmd, subject=first["name"], test=cmd is not None)
 
 

@@ -64,9 +64,10 @@ def diagnosis_with_commands(
     diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
     for held in axis_held(diagnosis, list(model.effects)):  # material on one axis only
-        diagnosis["effect_commands"].setdefault(
-            held["name"], fit_command(model_path, model, held["name"])
-        )
+        if not held["weak"]:  # an estimate at t 0 or out of range has nothing to test
+            diagnosis["effect_commands"].setdefault(
+                held["name"], fit_command(model_path, model, held["name"])
+            )
     diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
     withhold_given(diagnosis, models, mpaths)
     display_units(diagnosis, model.vehicle.command_units)
