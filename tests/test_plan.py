@@ -154,6 +154,16 @@ def test_cli_plan_refuses_bad_inputs(setup, tmp_path):
     base = ["plan", "--out", str(out), "--candidates", "1", "--sims", "1"]
     r = runner.invoke(app, [*base, "--task", str(missing), "--model", str(model_path)])
     assert _one_error_line(r) == f"error: {missing}: missing columns: dwz"
+    # a flight log given as the task listed all 18 columns as missing (a new user)
+    log = tmp_path / "log.csv"
+    log.write_text("t,body_rate_x,body_rate_y,body_rate_z\n0,0,0,0\n0.01,0,0,0\n")
+    r = runner.invoke(app, [*base, "--task", str(log), "--model", str(model_path)])
+    assert _one_error_line(r) == (
+        f"error: {log}: a flight log (body_rate columns), not a trajectory: --task and "
+        "--reference take the CSV that omavctl task writes (t, x, y, z, roll, pitch, yaw and "
+        "their rates)"
+    )
+    assert not out.exists()
     r = runner.invoke(app, [*base, "--task", str(nonuniform), "--model", str(model_path)])
     assert _one_error_line(r).startswith(f"error: {nonuniform}: non-uniform time grid")
     r = runner.invoke(app, [*base, "--task", str(task_path), "--model", str(other)])

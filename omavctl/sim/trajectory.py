@@ -135,6 +135,17 @@ def read_trajectory(path: str | Path) -> Trajectory:
         raise TrajectoryError("empty file: expected a header row and samples", p)
     header = [h.strip() for h in rows[0]]
     missing = [c for c in COLUMNS if c not in header]
+    if (
+        missing
+        and not set(COLUMNS[1:]) & set(header)  # t aside, none of a trajectory's columns
+        and any(h.startswith("body_rate") for h in header)
+    ):
+        # a flight log (omavctl simulate --out x.csv), not a reference (a new user's plan)
+        raise TrajectoryError(
+            "a flight log (body_rate columns), not a trajectory: --task and --reference take "
+            "the CSV that omavctl task writes (t, x, y, z, roll, pitch, yaw and their rates)",
+            p,
+        )
     if missing:
         raise TrajectoryError(f"missing columns: {', '.join(missing)}", p)
     extra = [c for c in header if c not in COLUMNS]
