@@ -536,6 +536,14 @@ def test_ground_idle_and_spool_up_are_excluded_with_margin(tmp_path: Path) -> No
         f"ground/idle: 0.00-{log.t[a - 1]:.2f} s, {log.t[b]:.2f}-20.00 s excluded"
     )
     assert "below 25% of the in-flight level" in note
+    # its numbers carry their unit: the commands' own without the weight, N with it
+    assert " [force unit] [90th percentile" in note and " [force unit] [median]" in note
+    from omavctl.logs.segment import segment_flight
+
+    raw = read_vehicle_log(path, default_vehicle(), trim=False)
+    heavy = segment_flight(raw, weight=default_vehicle().weight)
+    note = next(n for n in heavy.notes if n.startswith("ground/idle: "))
+    assert " N [90th percentile" in note and " N [median]" in note
     # trim=False keeps everything
     assert read_vehicle_log(path, default_vehicle(), trim=False).valid.all()
 

@@ -186,12 +186,14 @@ def segment_flight(
         if weight is not None and level == LEVEL_OVER_WEIGHT * weight
         else ""
     )
+    # the thrust in N when the vehicle's weight is known, else in the log's command units
+    unit = " N" if weight is not None else " [force unit]"
     note = (
         f"ground/idle: {_spans(log.t, ground)} excluded (thrust command |force_command| "
-        f"below {idle_fraction:.0%} of the in-flight level {level:.4g} "
+        f"below {idle_fraction:.0%} of the in-flight level {level:.4g}{unit} "
         f"[{percentile:g}th percentile{capped}], or before reaching / after leaving "
-        f"{takeoff_fraction:.0%} of the hover thrust {hover:.4g} [median] at a start / end "
-        f"on the ground; {margin:g} s margin)"
+        f"{takeoff_fraction:.0%} of the hover thrust {hover:.4g}{unit} [median] at a start / "
+        f"end on the ground; {margin:g} s margin)"
     )
     if not valid.any():
         raise LogError(f"no in-flight samples left: {note}", log.path)
