@@ -350,6 +350,6 @@ def test_every_row_of_fits_gp_table_says_its_unit() -> None:
     )  # fmt: skip
     summary = SimpleNamespace(features="wrench", input_names=["fx/m"], axes=[axis] * 3)
     labels = [str(c) for c in _gp_table(summary).columns[0].cells]
-    units = ("rad/s^2", "(normalised)", "R^2", "(held-out blocks)", "2σ", "x GP variance")
+    units = ("rad/s^2", "(normalised)", "R^2", "(held-out blocks)", "2σ", "× the GP variance")
     assert [lab for lab in labels if not any(u in lab for u in units)] == []
     assert "held-out RMSE physics, rad/s^2" in labels

@@ -315,7 +315,7 @@ def _gp_table(summary: Any) -> Any:
         "held-out within 2σ, before widening", *(f"{a.cv_coverage:.0%}" for a in summary.axes)
     )
     gp.add_row(
-        "band growth beyond the inputs, x GP variance",
+        "band growth beyond the inputs, × the GP variance",
         *(f"{a.beyond_scale:.2g}" if a.gp_on else "—" for a in summary.axes),
     )
     return gp

@@ -425,7 +425,7 @@ def effects_summary(result) -> dict | None:
     spread = np.nan_to_num(spread, nan=0.0, posinf=0.0)
     for i, label in enumerate(labels):
         times = (
-            f"; x{allowance[i]:.2g} for autocorrelation as fit measured it"
+            f"; ×{allowance[i]:.2g} for autocorrelation as fit measured it"
             if allowance[i] > 1.05
             else ""
         )
