@@ -866,3 +866,28 @@ def test_the_suggested_frame_comes_from_the_accelerometers_sign_of_g(
             ins.suggestion
         )
         assert force == ({"z": "thrust", "scale": -1.0} if frame == "FRD" else {"z": "thrust"})
+
+
+def test_inspect_names_columns_that_look_like_a_missing_role(tmp_path: Path) -> None:
+    """A contract CSV with gyro_x/y/z for the body rate: inspect said only "columns not in
+    the contract ignored: gyro_x, gyro_y, gyro_z" (a new user)."""
+    t = np.arange(300) / 100.0
+    cols = {
+        "t": t,
+        "gyro_x": 0.1 * np.sin(t), "gyro_y": 0.1 * np.cos(t), "gyro_z": 0 * t,
+        **{f"attitude_{a}": 0 * t for a in ("roll", "pitch", "yaw")},
+        **{f"force_command_{a}": (30.0 if a == "z" else 0.0) + 0 * t for a in "xyz"},
+        **{f"torque_command_{a}": 0.01 + 0 * t for a in "xyz"},
+    }  # fmt: skip
+    path = tmp_path / "g.csv"
+    path.write_text(
+        ",".join(cols) + "\n"
+        + "\n".join(",".join(f"{v[i]:.6g}" for v in cols.values()) for i in range(t.size))
+        + "\n"
+    )  # fmt: skip
+    notes = inspect_log(path).notes
+    assert (
+        "body_rate is missing, but gyro_x, gyro_y, gyro_z look like it: rename them "
+        "body_rate_x, body_rate_y, body_rate_z (in the contract's units), or read the log "
+        "with a vehicle file's column map (docs/logs.md)"
+    ) in notes

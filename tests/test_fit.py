@@ -344,7 +344,8 @@ BAD_INPUTS = [
         "no_wrench",
         _no_torque,
         [],
-        "missing columns for torque_command: torque_command_x, torque_command_y, torque_command_z",
+        "missing columns for torque_command: torque_command_x, torque_command_y, "
+        "torque_command_z (omavctl inspect names columns that look like them)",
     ),
     ("nan", _nan_rate, [], "NaN in column 'body_rate_x' at row 7 (line 8)"),
     (

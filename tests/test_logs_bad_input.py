@@ -260,7 +260,9 @@ def test_csv_missing_required_role(tmp_path: Path) -> None:
     header = [h for h in REQUIRED_HEADER if not h.startswith("attitude")]
     path = _csv(tmp_path, header, [r[:10] for r in _good_csv_rows()])
     assert_log_error(
-        path, "missing columns for attitude: attitude_roll, attitude_pitch, attitude_yaw$"
+        path,
+        r"missing columns for attitude: attitude_roll, attitude_pitch, attitude_yaw \(omavctl "
+        r"inspect names columns that look like them\)$",
     )
 
 

@@ -75,7 +75,11 @@ def _missing_error(raw: RawLog, role: str) -> LogError:
         return LogError(f"the column map has no entry for {role} (columns.{role})", raw.path)
     if raw.format == "csv":
         cols = ", ".join(f"{role}_{c}" for c in ROLE_COLUMNS[role])
-        return LogError(f"missing columns for {role}: {cols}", raw.path)
+        return LogError(
+            f"missing columns for {role}: {cols} (omavctl inspect names columns that look "
+            "like them)",
+            raw.path,
+        )
     return LogError(f"missing topic '{_label(raw, role)}' (role {role})", raw.path)
 
 

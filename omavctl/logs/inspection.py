@@ -160,9 +160,18 @@ def inspect_log(
         topics=list(raw.topics),
         roles_found=found,
         roles_missing=missing,
-        notes=[*raw.notes, *_idle_notes(raw)],
+        notes=[*raw.notes, *_idle_notes(raw), *_look_alikes(p, raw, missing)],
         column_ranges=ranges,
     )
+
+
+def _look_alikes(p: Path, raw: RawLog, missing: dict[str, str]) -> list[str]:
+    """:func:`omavctl.logs.suggest.look_alike_notes` of a contract CSV (none otherwise)."""
+    if raw.format != "csv" or raw.mapped or not missing:
+        return []
+    from omavctl.logs.suggest import look_alike_notes
+
+    return look_alike_notes(p, list(missing))
 
 
 def _idle_notes(raw: RawLog) -> list[str]:

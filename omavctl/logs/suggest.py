@@ -48,10 +48,17 @@ from omavctl.logs.colnames import (
     name_words,
     word_base,
 )
-from omavctl.logs.csvlog import MISSING_CELLS, cut_row_notes, read_table
+from omavctl.logs.csvlog import MISSING_CELLS, csv_columns, cut_row_notes, read_table
 from omavctl.logs.motorcols import MotorGuess, guess_motor_outputs
 
-__all__ = ["ColumnScan", "Suggestion", "scan_csv", "suggest_column_map", "suggestion_yaml"]
+__all__ = [
+    "ColumnScan",
+    "Suggestion",
+    "look_alike_notes",
+    "scan_csv",
+    "suggest_column_map",
+    "suggestion_yaml",
+]
 
 
 def scan_csv(path: Path) -> ColumnScan:
@@ -297,6 +304,27 @@ def suggest_column_map(
                 "; thrust positive in an FRD log: scale -1 points it along -z, up"
             )
     return Suggestion(columns, comments, alternatives, unrecognised, t0, duration, frame, motors)
+
+
+def look_alike_notes(path: Path, missing: Sequence[str]) -> list[str]:
+    """For a contract CSV missing a role its other columns look like (``gyro_x`` for
+    ``body_rate_x``: a new user read only "columns not in the contract ignored"), what to
+    rename them to, one note per ``missing`` role."""
+    guess = suggest_column_map(scan_csv(path)).columns
+    notes = []
+    for role in missing:
+        cols = guess.get(role)
+        if not isinstance(cols, dict) or not all(isinstance(c, str) for c in cols.values()):
+            continue
+        want = csv_columns(role)
+        if len(want) != len(cols):
+            continue
+        notes.append(
+            f"{role} is missing, but {', '.join(cols.values())} look like it: rename them "
+            f"{', '.join(want)} (in the contract's units), or read the log with a vehicle "
+            "file's column map (docs/logs.md)"
+        )
+    return notes
 
 
 def _accel_scale(scan: ColumnScan, cols: list[str], note: str) -> tuple[float, str]:
