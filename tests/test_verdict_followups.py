@@ -332,6 +332,13 @@ def test_a_change_that_does_not_hold_rolled_out_says_so_in_the_verdict():
         "above is the one-step angular acceleration's and does not hold that far ahead (the "
         "horizons table; docs/horizons.md)."
     )
+    # holding the state errs x 1.99, y 2.33 at 0.5 s: the lag model is worse than that too
+    tree["horizons"]["table"]["naive"] = rows((0.3, 1.6, 1.99), (0.3, 1.9, 2.33))
+    (rolled,) = [t for t in verdict_of_models(tree) if t.text.startswith("Rolled out")]
+    assert rolled.text.endswith(
+        "(the horizons table; docs/horizons.md); there it does worse than holding the state "
+        "(x 1.99, y 2.33 rad/s)."
+    )
     for f in hurts:  # physics + effects only: the full model is what the change quotes
         f["message"] = f["message"].replace("the full model", "physics + effects")
     assert not [t for t in verdict_of_models(tree) if t.text.startswith("Rolled out")]

@@ -311,7 +311,7 @@ def added_rollout_sentence(horizons: Any, labels: tuple[str, str], j: int) -> st
     axes = [a for a in AXES if a in found]
     if not axes or not a_rows or not b_rows or len(secs) < 2:
         return None
-    return _rolled_text(labels, axes, (a_rows, b_rows), secs)
+    return _rolled_text(labels, axes, (a_rows, b_rows), secs, table.get("naive"))
 
 
 def files_rollout_sentence(
@@ -340,18 +340,24 @@ def files_rollout_sentence(
     except (KeyError, TypeError, ValueError):  # a file this version does not read
         return None
     axes = [f["axis"] for f in found if f["axis"] in paired]
-    return _rolled_text(labels, axes, (a_rows, b_rows), secs) if axes else None
+    naive = (ha.get("table") or {}).get("naive")
+    return _rolled_text(labels, axes, (a_rows, b_rows), secs, naive) if axes else None
 
 
-def _rolled_text(labels: tuple[str, str], axes: list[str], rows: tuple[Any, Any], secs: Any) -> str:
+def _rolled_text(
+    labels: tuple[str, str], axes: list[str], rows: tuple[Any, Any], secs: Any, naive: Any = None
+) -> str:
     """The sentence of :func:`added_rollout_sentence`: ``rows`` the table rows per
-    horizon of the model before (``labels[0]``) and after (``labels[1]``)."""
+    horizon of the model before (``labels[0]``) and after (``labels[1]``); ``naive`` the
+    hold-the-state predictor's rows, said when the model after does worse than it at the
+    last horizon (a new user read "x 1.97 -> 5.16" without learning that holding the
+    state errs 3.68 there)."""
     a_rows, b_rows = rows
 
     def pair(k: int, axis: str) -> str:
         return f"{axis} {_err(a_rows[k], axis):.3g} → {_err(b_rows[k], axis):.3g}"
 
-    return (
+    text = (
         f"Rolled out open loop, {labels[1]} does worse than {labels[0]} on "
         f"{', '.join(axes)}, although better one step ahead: the body-rate error at "
         f"{secs[-1]:g} s goes {', '.join(pair(-1, a) for a in axes)} rad/s (at {secs[0]:g} "
@@ -359,3 +365,23 @@ def _rolled_text(labels: tuple[str, str], axes: list[str], rows: tuple[Any, Any]
         "above is the one-step angular acceleration's and does not hold that far ahead "
         "(the horizons table; docs/horizons.md)."
     )
+    worse = [] if not naive or len(naive) != len(secs) else _worse_than_naive(b_rows, naive, axes)
+    if worse:
+        text = text[:-1] + (
+            f"; there it does worse than holding the state ({', '.join(worse)} rad/s)."
+        )
+    return text
+
+
+def _worse_than_naive(rows: Any, naive: Any, axes: list[str]) -> list[str]:
+    """'x 3.68' per axis of ``axes`` where the last horizon's error of ``rows`` exceeds
+    the hold-the-state predictor's (``naive``); [] where a number is missing."""
+    out = []
+    for a in axes:
+        try:
+            mine, hold = _err(rows[-1], a), _err(naive[-1], a)
+        except (KeyError, TypeError, ValueError, IndexError):
+            continue
+        if mine is not None and hold is not None and mine > hold:
+            out.append(f"{a} {hold:.3g}")
+    return out
