@@ -104,7 +104,8 @@ def test_report_says_every_effect_its_fit_command_adds(tmp_path: Path):
 
     cmd = "omavctl fit log10.csv --effects motor_lag,motor_loss --out m+motor_lag.npz"
     ev = SimpleNamespace(label="cf-eval.json", model_rmse={"x": 1.0, "y": 2.0, "z": 3.0},
-                         missing=["motor_lag", "motor_loss"], fit_command=cmd)  # fmt: skip
+                         missing=["motor_lag", "motor_loss"], fit_command=cmd,
+                         models_rmse=[], model_names=[])  # fmt: skip
     summary = SimpleNamespace(verdict=[], evaluations=[ev], fmt="md", figures=0)
     con = Console(record=True, width=200)
     _render_report(con, summary, tmp_path / "r.md")
@@ -211,7 +212,7 @@ def test_report_prints_the_verdicts_commands_as_evaluate_does(tmp_path: Path):
     cmd = "omavctl fit f.bag --effects rotor_interference --out m+r.npz"
     line = Line("missing", "Nothing claimed as missing.", "e.json", cmd, test=True)
     ev = SimpleNamespace(label="e.json", model_rmse={"x": 1.0, "y": 2.0, "z": 3.0},
-                         missing=[], fit_command=None)  # fmt: skip
+                         missing=[], fit_command=None, models_rmse=[], model_names=[])  # fmt: skip
     summary = SimpleNamespace(verdict=[line], evaluations=[ev], fmt="md", figures=0)
     con = Console(record=True, width=200)
     _render_report(con, summary, tmp_path / "r.md")
@@ -282,3 +283,36 @@ def test_a_model_written_before_the_thrust_tolerance_is_flagged_where_intervals_
     tree["command_units"] = {"torque": "normalised", "force": "normalised"}
     normalised = _model(_build(tree, None, "test"))
     assert spread_flags([normalised], ["px4.npz"]) == []
+
+
+def test_report_shows_each_models_rmse_of_a_file_with_several(tmp_path: Path):
+    """`report halves-both.json` (evaluate --model half-base.npz --model half-lag.npz)
+    printed one row, the file's name beside the first model's RMSE only; the HTML summary
+    listed both model names beside those numbers."""
+    from rich.console import Console
+
+    from omavctl.cli.report import _render_report
+    from omavctl.report.document import Document, to_markdown
+    from omavctl.report.evaluation import EvaluationSummary
+    from omavctl.report.overview import overview_table
+
+    first, second = {"x": 26.43, "y": 39.92, "z": 1.458}, {"x": 15.58, "y": 19.79, "z": 2.072}
+    ev = EvaluationSummary("both.json", "both.json", first, first, ["motor_lag"], None,
+                           [first, second], ["half-base.npz", "half-lag.npz"])  # fmt: skip
+    summary = SimpleNamespace(
+        verdict=[], evaluations=[ev], fmt="md", figures=0, change=lambda: None
+    )
+    con = Console(record=True, width=200)
+    _render_report(con, summary, tmp_path / "r.md")
+    rows = [" ".join(ln.replace("│", " ").split()) for ln in con.export_text().splitlines()]
+    assert "both.json: half-base.npz 26.43 39.92 1.458 motor_lag" in rows
+    assert "both.json: half-lag.npz 15.58 19.79 2.072" in rows
+    metrics = [{"model": {"rmse": r}} for r in (first, second)]
+    tree = {"logs": [{"name": "log15"}], "metrics": {"nominal": {"rmse": first}, **metrics[0]},
+            "models": [{"name": "half-base.npz"}, {"name": "half-lag.npz"}],
+            "metrics_by_model": metrics, "diagnosis": {"missing": ["motor_lag"]}}  # fmt: skip
+    text = to_markdown(Document("r", overview_table([(tree, {"t": [0.0, 0.01]}, "both.json")])))
+    lines = [ln for ln in text.splitlines() if ln.startswith("| both.json")]
+    assert len(lines) == 2
+    assert "half-lag.npz" in lines[1] and "| 15.58 | 19.79 | 2.072 |" in lines[1]
+    assert "half-lag.npz" not in lines[0] and "| 26.43 | 39.92 | 1.458 |" in lines[0]

@@ -80,11 +80,21 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
         table.add_column(axis, justify="right")
     table.add_column("top missing effect")
     for ev in summary.evaluations:
-        table.add_row(
-            Text(ev.label),
-            *(f"{ev.model_rmse[a]:.4g}" for a in "xyz"),
-            Text(ev.missing[0] if ev.missing else "none"),
-        )
+        several = len(ev.models_rmse) > 1 and len(ev.model_names) == len(ev.models_rmse)
+        if not several:
+            table.add_row(
+                Text(ev.label),
+                *(f"{ev.model_rmse[a]:.4g}" for a in "xyz"),
+                Text(ev.missing[0] if ev.missing else "none"),
+            )
+            continue
+        # one row per --model (the row said the first model's numbers under the file's
+        # name alone); the diagnosis, its top missing effect, is the first model's
+        for k, (name, rmse) in enumerate(zip(ev.model_names, ev.models_rmse, strict=True)):
+            top = (ev.missing[0] if ev.missing else "none") if k == 0 else ""
+            table.add_row(
+                Text(f"{ev.label}: {name}"), *(f"{rmse[a]:.4g}" for a in "xyz"), Text(top)
+            )
     con.print(table)
     change = summary.change() if len(summary.evaluations) > 1 else None
     if change is not None:

@@ -168,6 +168,8 @@ class EvaluationSummary:
     fit_command: str | None
     #: each ``--model``'s RMSE per axis, in the file's order (one entry for one model)
     models_rmse: list[dict[str, float]] = field(default_factory=list)
+    #: each ``--model``'s file name, in the same order
+    model_names: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -271,6 +273,7 @@ def write_report(
             missing=[str(x) for x in _get(tree, "diagnosis", "missing", default=[]) or []],
             fit_command=_get(tree, "diagnosis", "fit_command"),
             models_rmse=_models_rmse(tree),
+            model_names=[str(_get(m, "name", default="?")) for m in tree.get("models") or []],
         )
         for (tree, _, label), p in zip(evals, paths, strict=True)
     ]

@@ -52,17 +52,27 @@ def overview_table(evals: Sequence[Evaluation]) -> list[Block]:
         logs = tree.get("logs", [])
         models = tree.get("models", [])
         missing = _get(tree, "diagnosis", "missing", default=[]) or []
-        rows.append(
-            [
-                label,
-                Lines(tuple(str(_get(lg, "name", default="?")) for lg in logs)),
-                Lines(tuple(model_title(m) for m in models)) if models else "n/a",
-                str(int(np.asarray(series["t"]).size)),
-                *(num(v) for v in axes_of(_get(tree, "metrics", "nominal", "rmse"))),
-                *(num(v) for v in axes_of(_get(tree, "metrics", "model", "rmse"))),
-                (Span(str(missing[0]), "code"),) if missing else "none",
-            ]
+        by_model = tree.get("metrics_by_model") or []
+        # one row per --model: its own RMSE (the first model's stood beside both names)
+        each = (
+            list(zip(models, by_model, strict=True))
+            if len(models) > 1 and len(by_model) == len(models)
+            else [(None, tree.get("metrics"))]
         )
+        for k, (model, metrics) in enumerate(each):
+            shown = [model] if model is not None else models
+            top: Cell = "none" if not missing else (Span(str(missing[0]), "code"),)
+            rows.append(
+                [
+                    label,
+                    Lines(tuple(str(_get(lg, "name", default="?")) for lg in logs)),
+                    Lines(tuple(model_title(m) for m in shown)) if shown else "n/a",
+                    str(int(np.asarray(series["t"]).size)),
+                    *(num(v) for v in axes_of(_get(tree, "metrics", "nominal", "rmse"))),
+                    *(num(v) for v in axes_of(_get(metrics, "model", "rmse"))),
+                    top if k == 0 else "",  # the diagnosis is the first model's
+                ]
+            )
     return [
         Table(
             columns=["evaluation", "logs", "models", "samples", *AXES, *AXES, "top missing effect"],
