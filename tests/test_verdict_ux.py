@@ -943,10 +943,10 @@ def test_a_second_models_narrow_band_is_said_with_its_name():
     tree["metrics_by_model"] = [tree["metrics"], {**tree["metrics"], "model": second}]
     texts = [ln.text for ln in verdict_of_models(tree)]
     assert (
-        "With half-lag.npz: Uncertainty a little narrow on x, y: x 82 %, y 85 % of the samples "
-        "lie within the predicted 2σ (95 % expected); use its error bars with care there "
-        "(within 2σ: x 82 %, y 85 %, z 94 %)."
+        "With half-lag.npz, the uncertainty is a little narrow on x, y: x 82 %, y 85 % of the "
+        "samples lie within the predicted 2σ (95 % expected); use its error bars with care "
+        "there (within 2σ: x 82 %, y 85 %, z 94 %)."
     ) in texts
     tree["metrics_by_model"][1]["model"]["coverage"] = {"x": 0.95, "y": 0.96, "z": 0.95}
     texts = [ln.text for ln in verdict_of_models(tree)]
-    assert not any(t.startswith("With half-lag.npz: Uncertainty") for t in texts)
+    assert not any(t.startswith("With half-lag.npz, the uncertainty") for t in texts)

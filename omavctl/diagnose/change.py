@@ -436,7 +436,8 @@ def _later_flags(tree: Mapping[str, Any], models: Sequence[ModelScore]) -> list[
         # Crazyflie halves: the recommended lag model covered x 82 %, y 85 %)
         band = uncertainty_line({"metrics": metrics}) if isinstance(metrics, Mapping) else None
         if band is not None and not band.text.startswith("Uncertainty can be trusted"):
-            out.append(Line("uncertainty", f"With {score.label}: {band.text}"))
+            said = band.text.removeprefix("Uncertainty ")  # the report titles it so
+            out.append(Line("uncertainty", f"With {score.label}, the uncertainty is {said}"))
     return out
 
 
