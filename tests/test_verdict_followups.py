@@ -426,6 +426,12 @@ def test_a_value_the_fit_flight_did_not_pin_and_this_one_does_is_said():
         "check: fit on both flights together (omavctl fit takes several logs) to pin it in "
         "the model."
     )
+    # beside the model it was added to (a new user's --model cf.npz --model cf+lag.npz)
+    two = {**tree, "models": [{"name": "base.npz", "effects": {}}, {**tree["models"][0]}]}
+    line = pinned_here_line(two)
+    assert line is not None and line.text.startswith(
+        "With m.npz, this flight pins down what the fit flight did not: rotational_drag's D_z"
+    )
     here["D_ci95"][2] = [-0.01, 0.145]  # this flight's interval holds the model's value
     assert pinned_here_line(tree) is None
     here["D_ci95"][2] = [0.0963, 0.145]

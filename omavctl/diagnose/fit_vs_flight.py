@@ -185,33 +185,45 @@ def _pinned_here(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any])
 
 
 def pinned_here_line(tree: Mapping[str, Any]) -> Line | None:
-    """The first model's effect parameters its fit flight did not pin down and this
-    flight does (:func:`_pinned_here`): the model holds a value the fit flight could not
+    """The models' effect parameters their fit flight did not pin down and this flight
+    does (:func:`_pinned_here`; a later model's only where the estimate was made with its
+    own set, as :func:`disagree_line`): the model holds a value the fit flight could not
     check (own tune draw own-inertia 12: a drag's D_z fitted on a steps flight that
     hardly yaws, -0.007 in [0, 0.38] N m s^2, pinned at 0.12 here, where the z error
-    kept 0.51 rad/s^2 RMS and the verdict said "Nothing missing"); None when there is
-    none."""
+    kept 0.51 rad/s^2 RMS and the verdict said "Nothing missing"; a new user's
+    Crazyflie motor lag, 15.5 ms as fitted and 81 ms here, was said of the lag model
+    evaluated alone, not beside the model it was added to); None when there is none."""
     models = [m for m in tree.get("models") or [] if isinstance(m, Mapping)]
     learned = get_path(tree, "diagnosis", "learned", default=[]) or []
     entries = {str(e.get("name")): e for e in learned if isinstance(e, Mapping)}
-    effects = models[0].get("effects") if models else None
-    parts = [
-        text
-        for name, fitted in (effects.items() if isinstance(effects, Mapping) else [])
-        if isinstance(fitted, Mapping) and isinstance(entries.get(str(name)), Mapping)
-        for text in _pinned_here(str(name), fitted, entries[str(name)])
-    ]
-    if not parts:
+    basis = _names(models[0]) if models else set()
+    said = []
+    for model in models:
+        effects, own = model.get("effects"), _names(model)
+        parts = [
+            text
+            for name, fitted in (effects.items() if isinstance(effects, Mapping) else [])
+            if own == basis | {str(name)}  # estimated beside this model's own effects
+            and isinstance(fitted, Mapping) and isinstance(entries.get(str(name)), Mapping)
+            for text in _pinned_here(str(name), fitted, entries[str(name)])
+        ]  # fmt: skip
+        if not parts:
+            continue
+        fit: Mapping[str, Any] = model.get("fit_flight") or {}
+        there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
+        who = f"With {model.get('name')}, this" if len(models) > 1 else "This"
+        said.append(
+            f"{who} flight pins down what the fit flight did not: {'; '.join(parts)}. Fitted "
+            f"on {there}, which did not pin it down"
+        )
+    if not said:
         return None
-    fit: Mapping[str, Any] = models[0].get("fit_flight") or {}
-    there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
     here = flight_words([n for n in _logs(tree) if n], tree.get("time_window")) or "this flight"
     return Line(
         "pinned_here",
-        f"This flight pins down what the fit flight did not: {'; '.join(parts)}. Fitted on "
-        f"{there}, which did not pin it down; estimated on {here} as fit --effects would. The "
-        "model's value is one the fit flight could not check: fit on both flights together "
-        "(omavctl fit takes several logs) to pin it in the model.",
+        ". ".join(said) + f"; estimated on {here} as fit --effects would. The model's value "
+        "is one the fit flight could not check: fit on both flights together (omavctl fit "
+        "takes several logs) to pin it in the model.",
     )
 
 
