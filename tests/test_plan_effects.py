@@ -174,7 +174,10 @@ def test_variance_plan_also_reports_the_effects_numbers(setup):
     # interval of ± 0.0043 m (± 0.0019 of it the spread)
     spread = float(setup[3].effects["rotational_drag"].systematic["D"][0])
     assert spread > 0
-    assert f"± {spread:.3g} spread beside each: the rotors' thrust spread, the same" in text
+    assert (
+        f"± {spread:.3g} spread beside each: the rotors' thrust spread as the fit flight passes"
+        in text
+    )
     lines = scores.read_text().splitlines()
     header = lines[0].split(",")
     for line in lines[1:]:

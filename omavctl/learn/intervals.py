@@ -63,8 +63,9 @@ SPREAD_WORDS = "a thrust spread within the rotors' tolerance makes this torque t
 #: What "± 0.0019 spread" beside a standard error is, wherever it is printed.
 SPREAD_MEANING = (
     "± spread: one standard deviation that the rotors' thrust tolerance (vehicle "
-    "rotor.thrust_tolerance) adds, the same on every flight of this vehicle; "
-    "the 95 % interval holds it and the standard error together"
+    "rotor.thrust_tolerance) adds: the same rotors fly every flight, so more of the same "
+    "flight does not average it away, though a flight that excites the effect more passes "
+    "less of it on; the 95 % interval holds it and the standard error together"
 )
 
 #: Two-sided 95 % normal quantile.

@@ -384,7 +384,11 @@ def correlation_remark(before: float, after: float) -> str:
 
 
 #: Why a planned flight does not narrow an interval below the spread.
-_SPREAD_STAYS = "the rotors' thrust spread, the same on every flight, no flight lowers it"
+_SPREAD_STAYS = (
+    "the rotors' thrust spread as the fit flight passes it on (more of that flight does not "
+    "average it away; a flight that excites the effect more passes less of it on: fit on "
+    "both flights says how much)"
+)
 
 
 def effects_summary(result) -> dict | None:
