@@ -165,6 +165,12 @@ def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
     render_horizons(con, {"horizons": {**h, "stride": 1}})
     said = " ".join(con.export_text().split())
     assert said.startswith("open-loop error over horizons (3884 windows): body")
+    # --horizons 30 on a 20 s log: no table, and the terminal said nothing
+    why = "no stretch of 3001 consecutive usable samples (30 s) in the logs: no horizon table"
+    none = {**h, "table": {}, "findings": [{"code": "no_windows", "message": why}]}
+    con = Console(record=True, width=400)
+    render_horizons(con, {"horizons": none})
+    assert " ".join(con.export_text().split()) == f"open-loop error over horizons: {why}"
 
 
 def test_an_unpinned_interval_is_worded_by_what_it_holds():

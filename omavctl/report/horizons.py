@@ -284,6 +284,13 @@ def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
 
     h = horizons_of(tree)
     if h is None:
+        # asked for but not made (horizons longer than any stretch of the logs): say why,
+        # as the JSON does (a new user's --horizons 30 on a 20 s log printed nothing)
+        raw = tree.get("horizons")
+        found = raw.get("findings") if isinstance(raw, Mapping) else None
+        for f in found if isinstance(found, list) else []:
+            if isinstance(f, Mapping) and f.get("code") == "no_windows":
+                con.print(Text(f"open-loop error over horizons: {f.get('message')}"))
         return
     # a log without attitude has no attitude column: its title does not name one
     attitude = " / attitude rad" if h.get("attitude") else " (no attitude in the log)"
