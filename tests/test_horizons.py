@@ -491,3 +491,17 @@ def test_the_verdict_band_sentence_says_where_the_open_loop_band_is_too_narrow()
         "twice the actual error (within 2σ: x 100 %, y 96 %, z 89 %); a little narrow on z; "
         "the open-loop"
     )
+
+
+def test_a_printed_tie_that_swaps_is_no_ranking_change():
+    """A new user read 'best to worst at 0.02 s: ..., physics only, hold the state; at
+    1 s: ..., hold the state, physics only' of two predictors both printed 0.0334 at
+    0.02 s: docs/horizons.md says a change that rounds to nothing is not a finding."""
+    tree = _tree({"naive": [0.03341, 0.5], "nominal": [0.03338, 0.6], "effects": [0.02, 0.3],
+                  "model": [0.01, 0.2]})  # fmt: skip
+    assert not [f for f in tree["horizons"]["findings"] if f["code"] == "ranking_changes"]
+    tree = _tree({"naive": [0.0331, 0.5], "nominal": [0.0338, 0.4], "effects": [0.02, 0.3],
+                  "model": [0.01, 0.2]})  # fmt: skip
+    (rank,) = [f for f in tree["horizons"]["findings"] if f["code"] == "ranking_changes"]
+    assert rank["message"].endswith("at 0.5 s: full model, physics + effects, physics only, "
+                                    "hold the state")  # fmt: skip

@@ -247,21 +247,32 @@ def _ranking(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
     table, preds = tree["table"], tree["predictors"]
     n_models = 1 + max((p["model"] or 0) for p in preds)
 
+    def shown(p: Mapping[str, Any], i: int) -> float:
+        """The error norm as the table prints it (three digits)."""
+        return float(f"{float(table[p['key']][i]['rate_error']['norm']):.3g}")
+
     def order(i: int) -> list[str]:
-        """Labels best first; predictors with the same error (physics only and physics
-        + effects of a model without effects) are one place, joined by ' = '."""
-        keyed = sorted(preds, key=lambda p: table[p["key"]][i]["rate_error"]["norm"])
+        """Labels best first; predictors whose printed errors are equal (physics only
+        and physics + effects of a model without effects; 0.0334 and 0.0334) are one
+        place, joined by ' = '."""
         places: list[tuple[float, list[str]]] = []
-        for p in keyed:
-            norm = float(table[p["key"]][i]["rate_error"]["norm"])
-            if places and abs(norm - places[-1][0]) <= 1e-9 * max(abs(norm), 1e-300):
+        for p in sorted(preds, key=lambda p: shown(p, i)):
+            if places and shown(p, i) == places[-1][0]:
                 places[-1][1].append(label(p, n_models))
             else:
-                places.append((norm, [label(p, n_models)]))
+                places.append((shown(p, i), [label(p, n_models)]))
         return [" = ".join(names) for _, names in places]
 
+    # a change is a pair whose printed order reverses; a printed tie at either end is
+    # none (a new user read 'physics only, hold the state' -> 'hold the state, physics
+    # only' of two predictors both printed 0.0334 at the first horizon)
+    flips = any(
+        (shown(a, 0) - shown(b, 0)) * (shown(a, -1) - shown(b, -1)) < 0
+        for k, a in enumerate(preds)
+        for b in preds[k + 1 :]
+    )
     first, last = order(0), order(-1)
-    if first == last:
+    if not flips:
         return []
     s0, s1 = tree["seconds"][0], tree["seconds"][-1]
     return [
