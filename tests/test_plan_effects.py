@@ -114,8 +114,13 @@ def test_cli_effects_plan_scores_both_objectives_and_is_deterministic(setup):
         outs.append((out.read_bytes(), scores.read_bytes(), json.loads(result.stdout)))
     assert outs[0][:2] == outs[1][:2]
     # --json carries the warnings the terminal prints (a script must see them too)
-    shown = runner.invoke(app, args)
+    html = tmp / "a.html"
+    shown = runner.invoke(app, [*args, "--report", str(html)])
     assert shown.exit_code == 0, shown.output
+    # its "vs task" is of the standard errors, not of the -log det cost (a new user read
+    # "cost -76.21, -77.9 % against flying the task itself (-52.09)")
+    page = html.read_text()
+    assert "its standard errors" in page and "std error vs task (- better)" in page
     printed = [
         ln.removeprefix("warning: ")
         for ln in shown.output.splitlines()

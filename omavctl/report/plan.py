@@ -111,11 +111,15 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
         else "-log det of the information about the effects' parameters after the flight "
         "(vs task: ratio of geometric-mean standard errors)"
     )
+    # the effects objective's "vs task" is of the standard errors, not of its -log det
+    # cost (a new user read "cost -76.21, -77.9 % against ... (-52.09)")
+    versus = "its cost" if result.objective == "variance" else "its standard errors"
     doc.add(
         Para(
             f"Most informative reference: candidate {result.best}, cost "
-            f"{result.cost[result.best]:.4g}, {gain:+.1f} % against flying the task "
-            f"itself ({result.task_cost:.4g}); {int((~result.feasible).sum())} of "
+            f"{result.cost[result.best]:.4g} against the task's {result.task_cost:.4g}; "
+            f"{versus} {gain:+.1f} % against flying the task itself; "
+            f"{int((~result.feasible).sum())} of "
             f"{result.cost.size} candidates rejected. The cost ({result.objective}) is {what}: "
             "lower means the flight teaches the model more."
         )
@@ -148,7 +152,8 @@ def plan_document(task: Trajectory, result: PlanResult) -> str:
          f"{result.tracking[c]:.3f}"]
         for c in order
     ]  # fmt: skip
-    doc.add(Table(["candidate", "cost", "vs task", "tracking, rad/s²"], rows))
+    head = "cost vs task" if result.objective == "variance" else "std error vs task"
+    doc.add(Table(["candidate", "cost", f"{head} (- better)", "tracking, rad/s²"], rows))
     for note in result.notes:
         doc.add(Para(f"note: {note}", note=True))
     return to_html(doc)
