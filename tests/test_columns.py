@@ -891,3 +891,18 @@ def test_inspect_names_columns_that_look_like_a_missing_role(tmp_path: Path) -> 
         "body_rate_x, body_rate_y, body_rate_z (in the contract's units), or read the log "
         "with a vehicle file's column map (docs/logs.md)"
     ) in notes
+
+
+def test_inspect_json_carries_the_whole_suggested_vehicle_snippet(tmp_path: Path) -> None:
+    """A script that built its vehicle YAML from inspect --json's suggested_columns alone
+    fitted a PX4 log in the wrong frame and units without a word (a new user): the JSON
+    now holds the snippet the terminal prints, frame and preset lines included."""
+    import yaml
+
+    from omavctl.report.summary import inspect_json
+
+    ins = inspect_log(_small_csv(tmp_path / "small.csv"))
+    out = inspect_json(ins)
+    assert out["suggestion_yaml"] == ins.suggestion
+    snippet = yaml.safe_load(out["suggestion_yaml"])
+    assert snippet["columns"] == out["suggested_columns"] and "frame" in snippet

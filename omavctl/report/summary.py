@@ -211,6 +211,10 @@ def inspect_json(ins: Any) -> dict[str, Any]:
         "required_missing": ins.required_missing,
         "column_ranges": {k: list(v) for k, v in ins.column_ranges.items()},
         "suggested_columns": ins.suggested_columns,
+        # the whole suggested vehicle snippet (preset, frame, command units with the
+        # columns): a script that built its YAML from the columns alone fitted a PX4 log
+        # in the wrong frame and units, silently (a new user)
+        "suggestion_yaml": ins.suggestion,
         "column_units": dict(ins.column_units),
         "column_rates": dict(ins.column_rates),
         "header_values": dict(ins.header_values),
