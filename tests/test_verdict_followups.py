@@ -437,3 +437,29 @@ def test_a_value_the_fit_flight_did_not_pin_and_this_one_does_is_said():
     here["D_ci95"][2] = [0.0963, 0.145]
     entry["explained_variance_per_axis"]["z"] = 0.01  # not claimed on z here
     assert pinned_here_line(tree) is None
+
+
+def test_a_falling_model_error_says_when_its_physics_rose():
+    """A new user refitted on a flight planned with --objective effects: "From gp.npz to
+    gp-eff.npz: the model error falls by 13.5 %" while the table showed physics + effects
+    x 0.035 -> 0.058, y 0.069 -> 0.094: the refitted effects predicted worse alone."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    drag = {"rotational_drag": {"D": [0.05, 0.05, 0.03], "D_stderr": [0.002, 0.002, 0.005]}}
+    before = _file(
+        {"x": 0.034, "y": 0.064, "z": 0.051}, {"x": 0.035, "y": 0.0685, "z": 0.076}, drag
+    )
+    after = _file(
+        {"x": 0.0345, "y": 0.049, "z": 0.043}, {"x": 0.0576, "y": 0.094, "z": 0.0727}, drag
+    )
+    tree = copy.deepcopy(before)
+    tree["models"] = [before["models"][0], {**after["models"][0], "name": "gp-eff.npz"}]
+    tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
+    (line,) = [ln for ln in verdict_of_models(tree) if ln.text.startswith("From m.npz")]
+    assert line.text.endswith(
+        "; its physics + effects error rose on x (+64.6 %), y (+37.2 %): the refitted effects "
+        "alone predict worse, the GP carries the fall."
+    )
+    tree["metrics_by_model"][1]["effects"]["rmse"] = {"x": 0.036, "y": 0.07, "z": 0.07}
+    (line,) = [ln for ln in verdict_of_models(tree) if ln.text.startswith("From m.npz")]
+    assert "physics + effects error rose" not in line.text  # under 20 %: not said

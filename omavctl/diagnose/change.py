@@ -27,6 +27,7 @@ from omavctl.diagnose.verdict_lines import (
     _pct,
     _signed,
     get_path,
+    physics_rose_clause,
     uncertainty_line,
 )
 
@@ -273,7 +274,8 @@ def change_lines(
     else:
         text = f"{what}: model error"
     text += " — " + ", ".join(f"{a} {_signed(c)}" for a, c in changes.items())
-    lines = [Line("change", text + _other_samples(before, after) + ".")]
+    rose = physics_rose_clause(before, after) if mean is not None and mean < 0 else ""
+    lines = [Line("change", text + _other_samples(before, after) + rose + ".")]
     for a, c in changes.items():
         if c > 0.02:
             lines.append(

@@ -96,6 +96,31 @@ class ModelScore:
     physics: Mapping[str, float] = field(default_factory=dict)
 
 
+#: A rise of the physics + effects error on an axis from which a falling model error
+#: says it (the GP carries the fall; the refitted effects alone predict worse).
+PHYSICS_ROSE = 0.2
+
+
+def physics_rose_clause(before: ModelScore, after: ModelScore) -> str:
+    """'; its physics + effects error rose on x (+64 %), y (+37 %): the refitted effects
+    alone predict worse, the GP carries the fall' when ``after``'s physics-only error is
+    at least :data:`PHYSICS_ROSE` above ``before``'s on an axis (a new user saw only "the
+    model error falls by 13.5 %" after refitting on a planned flight); '' otherwise."""
+    rose = {
+        a: p1 / p0 - 1.0
+        for a in AXES
+        if (p0 := before.physics.get(a)) and (p1 := after.physics.get(a)) is not None
+        and p1 / p0 - 1.0 >= PHYSICS_ROSE
+    }  # fmt: skip
+    if not rose:
+        return ""
+    axes = ", ".join(f"{a} ({_signed(c)})" for a, c in rose.items())
+    return (
+        f"; its physics + effects error rose on {axes}: the refitted effects alone predict "
+        "worse, the GP carries the fall"
+    )
+
+
 def get_path(tree: Any, *keys: Any, default: Any = None) -> Any:
     """``tree[k0][k1]...`` or ``default`` when any level is missing."""
     for k in keys:
