@@ -83,7 +83,9 @@ def expectation_lines(result: Any) -> list[str]:
             f"of the {e['others']} others between {-r['high']:+.0f} and {-r['low']:+.0f} %)"
         )
     return [
-        f"expected by the model: RMS error over the region {e['error_now']:.3g} rad/s^2 now, "
+        "expected by the model: RMS error of its mean over the region (against the true "
+        "acceleration: evaluate's RMSE adds the log's measurement noise) "
+        f"{e['error_now']:.3g} rad/s^2 now, "
         f"{e['error_task_again']:.3g} after flying the task again, {e['error_planned']:.3g} "
         f"after the planned flight: {-e['vs_task_again']:+.0f} % (- better, as in the "
         "table, whose cost is the square of this error: its figure is larger) against the "
