@@ -455,7 +455,8 @@ def effects_summary(result) -> dict | None:
         "stderr_task": _finite(task),
         # what the lines show: the planner's standard errors x fit's autocorrelation factor
         "autocorrelation_factor": _finite(allowance),
-        # the rotors' thrust spread: beside every standard error above, lowered by none
+        # the rotors' thrust spread as the fit flight passes it on, beside every standard
+        # error above (a flight that excites the effect more passes less of it on)
         "systematic": _finite(spread),
         "relative_stderr": {key: v if math.isfinite(v) else None for key, v in rel.items()},
         "max_correlation": {key: v if math.isfinite(v) else None for key, v in corr.items()},
