@@ -325,3 +325,13 @@ def test_report_shows_each_models_rmse_of_a_file_with_several(tmp_path: Path):
     assert len(lines) == 2
     assert "half-lag.npz" in lines[1] and "| 15.58 | 19.79 | 2.072 |" in lines[1]
     assert "half-lag.npz" not in lines[0] and "| 26.43 | 39.92 | 1.458 |" in lines[0]
+
+
+def test_the_horizon_table_names_its_models_files():
+    """The horizon table labelled rows '(model 0)' .. '(model 3)' where every other table
+    names the files (a new user)."""
+    from omavctl.report.horizons import models_legend
+
+    tree = {"models": [{"name": "gp.npz"}, {"name": "gp-eff.npz"}]}
+    assert models_legend(tree, 2) == "model 0: gp.npz, model 1: gp-eff.npz"
+    assert models_legend(tree, 1) == "" and models_legend({"models": []}, 2) == ""

@@ -158,6 +158,7 @@ def _evaluation_blocks(tree: Mapping[str, Any], label_: str, figures: bool) -> l
             "|error| of the body rate (norm, rad/s; then per axis) and of the attitude "
             "(geodesic angle, rad) when each predictor is rolled forward open loop over the "
             f"logged commands; 2σ: the share of body rates inside the full model's band."
+            + (f" Models: {legend}." if (legend := models_legend(tree, _n_models(h))) else "")
         ),
         _table(h),
     ]
@@ -314,8 +315,19 @@ def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
             cells.append(text)
         table.add_row(Text(label(p, n_models)), *cells)
     con.print(table)
+    if legend := models_legend(tree, n_models):  # every other table names the files
+        con.print(Text(f"  {legend}"))
     for f in h.get("findings") or []:
         con.print(Text(f"  {f['message']}"))
+
+
+def models_legend(tree: Mapping[str, Any], n_models: int) -> str:
+    """'model 0: base.npz, model 1: base+motor_lag.npz' for the table's "(model j)" labels
+    ('' for one model or a file that does not name them)."""
+    names = [m.get("name") for m in tree.get("models") or [] if isinstance(m, Mapping)]
+    if n_models < 2 or len(names) != n_models:
+        return ""
+    return ", ".join(f"model {j}: {n}" for j, n in enumerate(names))
 
 
 def horizons_json(tree: Mapping[str, Any]) -> dict[str, Any] | None:
