@@ -335,3 +335,19 @@ def test_the_horizon_table_names_its_models_files():
     tree = {"models": [{"name": "gp.npz"}, {"name": "gp-eff.npz"}]}
     assert models_legend(tree, 2) == "model 0: gp.npz, model 1: gp-eff.npz"
     assert models_legend(tree, 1) == "" and models_legend({"models": []}, 2) == ""
+
+
+def test_a_nominal_model_worse_than_zero_is_said():
+    """Two new users read 'zero 0.3624' above 'nominal 0.9192' (the demo's x) without a
+    word: the physics without the model's effects predicts worse than nothing there."""
+    from omavctl.report.summary import nominal_note
+
+    zero, nominal = {"x": 0.3624, "y": 0.5, "z": 0.2}, {"x": 0.9192, "y": 0.52, "z": 0.1}
+    assert nominal_note(zero, nominal) == (
+        "nominal is worse than predicting no acceleration on x (0.9192 against 0.3624 "
+        "rad/s^2): the physics without the model's effects is far off there, and the effects "
+        "and the GP carry the model (an effect kept out of the nominal physics does this, as "
+        "the omav's rotor_interference; so does a command gain, sign or frame that is off)"
+    )
+    assert nominal_note(zero, {"x": 0.39, "y": 0.5, "z": 0.1}) is None  # within 1.1x
+    assert nominal_note({}, nominal) is None  # files before the zero row

@@ -17,7 +17,7 @@ from omavctl.diagnose.change import verdict_of_models
 from omavctl.diagnose.verdict import AXES, coverage_of
 from omavctl.report.horizons import horizons_json, render_horizons
 
-__all__ = ["evaluation_json", "fit_json", "inspect_json", "render_evaluation"]
+__all__ = ["evaluation_json", "fit_json", "inspect_json", "nominal_note", "render_evaluation"]
 
 
 def _g(v: Any, digits: int = 4) -> str:
@@ -78,6 +78,8 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
             Text(effects or "none"),
         )
     con.print(table)
+    if note := nominal_note(zero.get("rmse") or {}, nominal.get("rmse") or {}):
+        con.print(Text(f"  {note}"))
     tracking = tree.get("tracking")
     if isinstance(tracking, Mapping):
         con.print(
@@ -87,6 +89,27 @@ def render_evaluation(con: Any, tree: Mapping[str, Any], files: Mapping[str, Pat
     render_horizons(con, tree)
     for what, path in files.items():
         con.print(Text(f"wrote {path} ({what})"))
+
+
+def nominal_note(zero: Mapping[str, Any], nominal: Mapping[str, Any]) -> str | None:
+    """'nominal is worse than predicting no acceleration on x (0.919 against 0.362 ...)'
+    when the nominal physics' RMSE is over 1.1x the zero predictor's on an axis (two new
+    users read 'nominal 0.92' under 'zero 0.36' without a word); None otherwise."""
+    worse = [
+        (a, n, z)
+        for a in AXES
+        if isinstance(n := nominal.get(a), int | float)
+        and isinstance(z := zero.get(a), int | float) and z > 0 and n > 1.1 * z
+    ]  # fmt: skip
+    if not worse:
+        return None
+    said = ", ".join(f"{a} ({_g(n)} against {_g(z)} rad/s^2)" for a, n, z in worse)
+    return (
+        f"nominal is worse than predicting no acceleration on {said}: the physics without "
+        "the model's effects is far off there, and the effects and the GP carry the model "
+        "(an effect kept out of the nominal physics does this, as the omav's "
+        "rotor_interference; so does a command gain, sign or frame that is off)"
+    )
 
 
 def evaluation_json(tree: Mapping[str, Any], files: Mapping[str, Path]) -> dict[str, Any]:
