@@ -125,8 +125,7 @@ def disagree_line(tree: Mapping[str, Any]) -> Line | None:
         parts = [text for _, _, text in _model_parts(model, entries, models[0])]
         if not parts:
             continue
-        fit: Mapping[str, Any] = model.get("fit_flight") or {}
-        there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
+        there = _fit_flight_words(model)
         who = f"With {model.get('name')}: t" if len(models) > 1 else "T"
         said.append(
             f"{who}he fit flight and this one disagree: {'; '.join(parts)}. Fitted on "
@@ -209,8 +208,7 @@ def pinned_here_line(tree: Mapping[str, Any]) -> Line | None:
         ]  # fmt: skip
         if not parts:
             continue
-        fit: Mapping[str, Any] = model.get("fit_flight") or {}
-        there = flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
+        there = _fit_flight_words(model)
         who = f"With {model.get('name')}, this" if len(models) > 1 else "This"
         said.append(
             f"{who} flight pins down what the fit flight did not: {'; '.join(parts)}. Fitted "
@@ -225,6 +223,12 @@ def pinned_here_line(tree: Mapping[str, Any]) -> Line | None:
         "is one the fit flight could not check: fit on both flights together (omavctl fit "
         "takes several logs) to pin it in the model.",
     )
+
+
+def _fit_flight_words(model: Mapping[str, Any]) -> str:
+    """The flight a model entry of the evaluation JSON was fitted on, in words."""
+    fit: Mapping[str, Any] = model.get("fit_flight") or {}
+    return flight_words(fit.get("logs") or [], fit.get("time_window")) or "its fit flight"
 
 
 def _names(model: Any) -> set[str]:
