@@ -20,8 +20,11 @@ from typing import Any
 #: interference, 3 % thrust spread, 5 ms servo and motor lags) and the registry
 #: effects that describe them: naming one of these is right, not invented.
 #: ``com_offset`` is the thrust spread's look-alike (a spread shifts where the
-#: thrust acts; omavctl/physics/effects.py says so in its look-alikes).
-DEFAULT_IMPERFECTIONS = frozenset({"rotor_interference", "com_offset", "servo_lag", "motor_lag"})
+#: thrust acts; omavctl/physics/effects.py says so in its look-alikes), ``arm_thrust``
+#: the spread's own form (each arm's pair off by the mean of its rotors').
+DEFAULT_IMPERFECTIONS = frozenset(
+    {"rotor_interference", "com_offset", "servo_lag", "motor_lag", "arm_thrust"}
+)
 
 #: Size bins: the hidden effect's RMS contribution over the claim floor (3x noise).
 SIZE_BINS: tuple[tuple[str, float, float], ...] = (
@@ -230,7 +233,7 @@ def param_checks(
 
 #: what a none draw's claim may be, as a default imperfection's look-alike
 LOOK_ALIKES = frozenset(
-    {"rotor_interference", "com_offset", "command_delay", "motor_lag", "servo_lag"}
+    {"rotor_interference", "com_offset", "command_delay", "motor_lag", "servo_lag", "arm_thrust"}
 )
 
 
@@ -259,7 +262,8 @@ def quoted_interval(record: Mapping[str, Any], name: str, label: str) -> tuple[f
 
 def lookalike(record: Mapping[str, Any], apparent: Mapping[str, Any], name: str) -> bool:
     """Whether a claim ``name`` of the first evaluation is a default imperfection's
-    look-alike: ``rotor_interference`` (the default interference is the plant's), or a
+    look-alike: ``rotor_interference`` or ``arm_thrust`` (the default interference and
+    thrust spread are the plant's, on every vehicle), or a
     ``com_offset``, ``command_delay``, ``motor_lag`` or ``servo_lag`` whose every
     component's 95 % interval, as the verdict quotes it (estimated as the printed fit
     command would, with the other claims and the model's effects), holds the apparent
@@ -270,7 +274,7 @@ def lookalike(record: Mapping[str, Any], apparent: Mapping[str, Any], name: str)
     fitted alone against the model's remaining error)."""
     from benchmarks.scorecard_truth import apparent_value
 
-    if name == "rotor_interference":
+    if name in ("rotor_interference", "arm_thrust"):
         return True
     if name not in LOOK_ALIKES:
         return False

@@ -91,6 +91,7 @@ EFFECT_NAMES = (
     "motor_loss",
     "battery_sag",
     "drag_moment",
+    "arm_thrust",
 )
 
 #: Top-level keys whose value replaces the default's instead of being merged.

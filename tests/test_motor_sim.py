@@ -46,8 +46,9 @@ def _inside(value, se, truth) -> bool:
 
 def test_every_registered_effect_can_be_hidden() -> None:
     """The plant takes every effect; the draws leave out the motor-level ones, which
-    the default vehicle's fit cannot see, and drag_moment, which needs an accelerometer
-    the plant does not log (docs/effects.md)."""
+    the default vehicle's fit cannot see, drag_moment, which needs an accelerometer
+    the plant does not log, and arm_thrust, which the plant's default thrust spread
+    already gives every vehicle (docs/effects.md)."""
     from omavctl.physics.effects import EFFECTS
 
     for name, effect in EFFECTS.items():
@@ -55,7 +56,7 @@ def test_every_registered_effect_can_be_hidden() -> None:
         truth = truth_from_tree({"effects": {name: params}}, default_vehicle())
         assert [e.name for e, _ in truth.effects] == [name]
     motor_level = {"thrust_curve", "motor_loss", "battery_sag"}
-    assert set(SIMULATED_EFFECTS) == set(EFFECTS) - motor_level - {"drag_moment"}
+    assert set(SIMULATED_EFFECTS) == set(EFFECTS) - motor_level - {"drag_moment", "arm_thrust"}
 
 
 def test_the_motor_level_thrust_of_the_truth_plant() -> None:

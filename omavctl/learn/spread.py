@@ -20,7 +20,8 @@ flights: ``com_offset`` fitted at -0.92 ... 3.8 mm on r_x, r_y with standard err
 0.3-1.0 mm (up to 6 standard errors from the truth, 0), against a systematic part of
 1.85 mm from this module.
 
-Effects whose parameters *are* the spread (``motor_loss``) get no systematic part.
+Effects whose parameters *are* the spread (``motor_loss``, ``arm_thrust``) get no
+systematic part.
 A log without per-motor outputs gets none when the rotors' thrusts cannot be
 computed from its commands (a fixed-rotor vehicle, a normalised command); with them
 it gets one whatever the command's units (the wrench was mixed from those outputs).
@@ -40,7 +41,7 @@ from omavctl.physics.motor_effects import rotor_residuals
 __all__ = ["SPREAD_ESTIMANDS", "rotor_sensitivity", "spread_covariance"]
 
 #: Effects whose parameters estimate the spread itself: no systematic part.
-SPREAD_ESTIMANDS = frozenset({"motor_loss"})
+SPREAD_ESTIMANDS = frozenset({"motor_loss", "arm_thrust"})
 
 
 def rotor_sensitivity(ctx: EffectContext) -> np.ndarray | None:

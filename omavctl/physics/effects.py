@@ -28,7 +28,7 @@ from omavctl.physics.actuator_effects import (
     shift_held,
 )
 from omavctl.physics.effect_base import Effect, EffectContext, Parameter, TruthConstants
-from omavctl.physics.motor_effects import BatterySag, MotorLoss, ThrustCurve
+from omavctl.physics.motor_effects import ArmThrust, BatterySag, MotorLoss, ThrustCurve
 from omavctl.vehicle import EFFECT_NAMES
 
 __all__ = [
@@ -235,6 +235,7 @@ EFFECTS: dict[str, Effect] = {
         MotorLoss(),
         BatterySag(),
         DragMoment(),
+        ArmThrust(),
     )
 }
 if tuple(EFFECTS) != EFFECT_NAMES:  # the description's names and the registry agree

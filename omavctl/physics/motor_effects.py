@@ -1,4 +1,5 @@
-"""Motor-level effects: the thrust curve's curvature, one weak motor, battery sag.
+"""Motor-level effects: the thrust curve's curvature, one weak motor, battery sag, and
+the omav's arms that push unequally.
 
 They act on each rotor's thrust before the rotor list mixes it
 (:mod:`omavctl.physics.mixer`), so they need a log whose wrench was computed from
@@ -23,7 +24,9 @@ from omavctl.base.errors import ConfigError
 from omavctl.physics.effect_base import Effect, EffectContext, Parameter
 
 __all__ = [
+    "ARMS",
     "MAX_LOSS_ROTORS",
+    "ArmThrust",
     "BatterySag",
     "MotorLoss",
     "ThrustCurve",
@@ -249,3 +252,101 @@ class BatterySag(Effect):
     def configure_truth(self, params, truth):
         _within(params, self.name, "k", -1.0, 2.0)
         truth.battery_sag = float(params["k"][0])
+
+
+#: The omav's arms (one tilting coaxial pair each): ``arm_thrust`` has a gain per arm.
+ARMS = 6
+
+
+class ArmThrust(Effect):
+    """Thrust of each tilting arm's rotor pair beyond the arms' mean: arm j delivers
+    ``(1 + gbar + g_j)`` of its commanded thrust, ``sum_j g_j = 0``.
+
+    No two rotors of a batch push alike (the vehicle's ``rotor.thrust_tolerance``), so
+    no two of the omav's arms do: each pair's thrust is off by the mean of its two
+    rotors' errors. The torque that leaves follows the arm's thrust *and tilt*: near
+    hover a roll/pitch torque (what a ``com_offset`` also leaves), and as the arms tilt
+    to push sideways a yaw torque ``L T_j sin(alpha_j)`` that no centre-of-mass offset
+    gives (the roll/pitch torques pin ``r_x``, ``r_y`` while the yaw wants other
+    values). A gain shared by the arms (``gbar``) scales the whole wrench: the torque
+    gain of ``inertia_error``, not a spread; so ``g`` are the gains relative to their
+    mean, estimated as Helmert contrasts (:func:`loss_contrasts`, ``g = H theta``):
+    column j of the regressor is ``sum_i H_ij I^-1 tau(e_i F_i)`` for 1 <= j < 6
+    (``F_i`` the arm's thrust, ``tau`` the torque of the arm's pair at the tilts where
+    the arms are, the pair split equally), and zero for j = 0. Dimensionless.
+
+    Identifiable when the arms' thrusts and tilts vary apart (attitude manoeuvres that
+    tilt the arms); near hover only the five gains' roll/pitch torques show, which a
+    ``com_offset`` takes as well. The two rotors of a pair push along one axis, so a
+    spread *within* a pair is left to ``motor_loss`` on a rotor list's log. Needs the
+    omav's tilting arms and a wrench command in physical units (the allocation gives
+    the arms' thrusts): a vehicle of fixed rotors gets zeros (``motor_loss`` is its
+    form).
+    """
+
+    name = "arm_thrust"
+    summary = "thrust gain g_j of each arm's rotor pair relative to the arms' mean (spread)"
+    parameters = (
+        Parameter("g", ARMS, "1", "thrust of each arm's pair beyond the arms' mean (fraction)"),
+    )
+    prior_std = 0.03  # the default vehicle's thrust tolerance: a batch's spread
+    theta_range = (-0.5, 0.5)
+    parameter_range = (-0.5, 0.5)
+    simulated = False  # the plant's spread is every draw's; not drawn (see Effect.simulated)
+    look_alikes = (
+        "a centre-of-mass offset (com_offset: a roll/pitch torque near hover) and the "
+        "rotors' interference (rotor_interference: a per-arm thrust loss with the tilts); "
+        "a gain shared by the arms is a torque gain (inertia_error)"
+    )
+
+    def regressor(self, ctx: EffectContext) -> np.ndarray:
+        n = ctx.torque.shape[0]
+        out = np.zeros((n, 3, ARMS))
+        if self.unavailable(ctx) is not None:
+            return out
+        tilt, arm = ctx.arm_tilt, ctx.allocated[1]
+        if arm.shape[-1] != ARMS:
+            return out
+        pair = np.repeat(arm / 2.0, 2, axis=-1)  # (n, 12): the pair split equally
+        each = np.empty((n, 3, ARMS))
+        for j in range(ARMS):
+            one = np.zeros_like(pair)
+            one[:, 2 * j : 2 * j + 2] = pair[:, 2 * j : 2 * j + 2]
+            each[:, :, j] = ctx.angular(ctx.allocation.forward(tilt, one))
+        out[:, :, 1:] = each @ loss_contrasts(ARMS)[:, 1:]
+        return out
+
+    def unavailable(self, ctx: EffectContext) -> str | None:
+        if ctx.fixed_rotors:
+            return (
+                f"{self.name} needs the omav's tilting arms; a rotor list of fixed rotors "
+                "has motor_loss for its motors"
+            )
+        if ctx.torque_normalised or ctx.allocation.vehicle.force_normalised:
+            return (
+                f"{self.name} needs the wrench command in N and N m: the arms' thrusts are "
+                "allocated from it"
+            )
+        return None
+
+    def excited_parameters(self, excited: np.ndarray) -> np.ndarray:
+        """g_j is determined where a contrast that touches arm j was excited (the
+        common contrast 0 never is)."""
+        touches = (np.abs(loss_contrasts(ARMS)) > 0).astype(int)
+        return np.asarray(touches @ np.asarray(excited, bool).astype(int) > 0)
+
+    def to_parameters(self, theta, cov):
+        h = loss_contrasts(ARMS)
+        excited = np.abs(np.asarray(theta, float)) > _UNEXCITED
+        t = np.where(excited, np.asarray(theta, float), 0.0)
+        c = np.where(np.outer(excited, excited), np.asarray(cov, float), 0.0)
+        se = np.sqrt(np.clip(np.diag(h @ c @ h.T), 0.0, None))
+        return {"g": (h @ t, se)}
+
+    def to_theta(self, params):
+        return loss_contrasts(ARMS).T @ np.asarray(params["g"], float).reshape(-1)
+
+    def configure_truth(self, params, truth):
+        # in the truth plant each arm's two rotors lose -g_j (on top of any motor_loss)
+        _within(params, self.name, "g", -0.5, 0.5)
+        truth.rotor_loss = truth.rotor_loss - np.repeat(np.asarray(params["g"], float), 2)
