@@ -188,6 +188,9 @@ def test_cli_plan_json_and_summary_state_the_expected_error_fall(fitted, tmp_pat
         "acceleration: evaluate's RMSE adds the log's measurement noise)" in " ".join(text.split())
     )
     assert "against a random candidate: cannot tell" in " ".join(text.split())
+    # the JSON's fall is positive when the plan lowers the error; the terminal prints
+    # it negated, with the table's "- better" (docs/schemas.md, plan --json)
+    assert f"{-e['vs_task_again']:+.0f} % (- better" in " ".join(text.split())
 
 
 def test_the_pool_subsample_is_the_one_of_the_concatenated_states():
