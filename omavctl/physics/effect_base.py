@@ -128,12 +128,21 @@ class EffectContext:
 
     @cached_property
     def arm_tilt(self) -> np.ndarray:
-        """Where the arms are (N, 6) rad: the measured tilts on the commanded tilts'
-        branch (within pi of them) when the log records them, else the commanded tilts."""
+        """Where the arms are (N, 6) rad while sample i's command acts: the measured tilts
+        of sample i + 1 (the last sample keeps its own) on the commanded tilts' branch
+        (within pi of them) when the log records them, else the commanded tilts.
+
+        A tilt logged at t_i is where the arms were when command i was sent; over the
+        period that command acts the arms move towards it, and a servo faster than the
+        log period is nearly there by t_(i+1). Measured (docs/effects.md,
+        ``rotor_interference``): at the truth's coefficients the interference's
+        regressor left x 0.038, y 0.066 rad/s^2 of a figure-8 with the tilts of sample i
+        and 0.022, 0.022 (the noise) with those of i + 1, at the midpoint 0.026, 0.035."""
         commanded = self.allocated[0]
         if self.measured_tilt is None:
             return commanded
-        gap = (self.measured_tilt - commanded + np.pi) % (2.0 * np.pi) - np.pi
+        ahead = np.concatenate([self.measured_tilt[1:], self.measured_tilt[-1:]])
+        gap = (ahead - commanded + np.pi) % (2.0 * np.pi) - np.pi
         return np.asarray(commanded + gap)
 
     def angular(self, wrench_delta: np.ndarray) -> np.ndarray:
