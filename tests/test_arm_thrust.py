@@ -97,21 +97,36 @@ def flights(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 def test_fit_recovers_the_arms_gains(flights: tuple[Path, Path]) -> None:
     """On a flight that tilts the arms the six gains come out within 0.02 of the truth,
-    every 95 % interval holding it."""
+    every 95 % interval holding it. What the flight cannot pin down is the alternating
+    pattern (+, -, +, -, +, -): with the arms 60 deg apart it leaves no roll or pitch,
+    and with the arms tilting alike in an attitude manoeuvre no yaw; its standard error
+    is 0.85 where the four other directions' are 0.001 (the first pass, measured), so
+    every g_j's interval is wide and says so."""
+    from omavctl.learn.fit_steps import first_pass
+    from omavctl.learn.flights import read_samples
+    from omavctl.learn.savgol import SavitzkyGolay
+
     fit_log, _ = flights
     res = fit_model([fit_log], default_vehicle(), effects=["arm_thrust"], points=60, seed=0)
     est = res.model.effects["arm_thrust"]
     g, se = est.values["g"], est.stderr["g"]
     assert np.max(np.abs(g - GAINS)) < 0.02, (g, GAINS)
     assert np.all(np.abs(g - GAINS) <= 1.96 * se), (g, se)
-    assert np.all(se < 0.03), se
+    sg = SavitzkyGolay(11, 2, 0.01)
+    samples, _ = read_samples([fit_log], default_vehicle(), sg, None, 60, lambda *a: None)
+    h = loss_contrasts(6)
+    cov = h @ first_pass(samples, ["arm_thrust"]).first_pass.cov @ h.T
+    alternating = (-1.0) ** np.arange(6) / np.sqrt(6.0)
+    rest = np.eye(6) - np.outer(alternating, alternating) - np.full((6, 6), 1.0 / 6.0)
+    assert np.sqrt(alternating @ cov @ alternating) > 0.3
+    assert np.all(np.sqrt(np.diag(rest @ cov @ rest)) < 0.01)
 
 
 def test_the_yaw_it_leaves_transfers_where_an_offset_does_not(
     flights: tuple[Path, Path], tmp_path: Path
 ) -> None:
     """Fitted on one flight, evaluated on another: with ``arm_thrust`` the physics +
-    effects error on yaw falls to a twentieth of the nominal's (0.034 of 0.76 rad/s^2
+    effects error on yaw falls to a twentieth of the nominal's (0.031 of 0.76 rad/s^2
     measured, the noise); ``com_offset`` in its place leaves half (0.38: the roll/pitch
     torques pin its r_x, r_y, the yaw wants other values), and more on every axis."""
     from typer.testing import CliRunner

@@ -376,9 +376,9 @@ def test_bad_input_is_one_clear_line_and_no_output(flights, tmp_path, kind, make
         (["--sg-window", "10"], "error: --sg-window must be an odd number >= 3, got 10"),
         (
             ["--effects", "wind"],
-            "error: unknown effect 'wind' (known: battery_sag, com_offset, command_delay, "
-            "drag_moment, gyro_bias, inertia_error, motor_lag, motor_loss, rotational_drag, "
-            "rotor_interference, servo_lag, thrust_curve)",
+            "error: unknown effect 'wind' (known: arm_thrust, battery_sag, com_offset, "
+            "command_delay, drag_moment, gyro_bias, inertia_error, motor_lag, motor_loss, "
+            "rotational_drag, rotor_interference, servo_lag, thrust_curve)",
         ),
         (
             ["--features", "rate"],

@@ -95,6 +95,8 @@ SHOWN_BY = {
     "motor_loss": "throttle changes, in yaw too (a weak motor also unbalances the yaw moment)",
     "battery_sag": "varied throttle over a long stretch of the battery",
     "drag_moment": "changes of horizontal speed (the rotors' drag follows the velocity)",
+    "arm_thrust": "sideways pushes that tilt the arms, in yaw too (an arm's extra thrust "
+    "then turns the vehicle)",
 }
 
 

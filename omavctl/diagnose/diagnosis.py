@@ -187,7 +187,12 @@ def diagnose(
     t = np.concatenate([s.t for s in samples])
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
     blocks = time_blocks(t, log_id, BLOCK_SECONDS)
-    regs = {n: np.concatenate([s.regressors[n] for s in samples]) for n in EFFECTS}
+    # the effects the diagnosis considers (Effect.diagnosed, or in the model already)
+    regs = {
+        n: np.concatenate([s.regressors[n] for s in samples])
+        for n, e in EFFECTS.items()
+        if e.diagnosed or n in model.effects
+    }
     z = np.concatenate([s.inputs(model.features) for s in samples])
     candidates, refit = _candidates(regs, model, z)
     remaining = residual - model_mean

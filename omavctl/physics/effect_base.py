@@ -186,6 +186,10 @@ class Effect(ABC):
     #: log's rotor speeds (``preset: omav-rotors``), not with the default vehicle the
     #: scorecard's loop uses.
     simulated: ClassVar[bool] = True
+    #: Whether ``evaluate``'s diagnosis considers it (False: ``fit --effects`` only). An
+    #: effect of many confounded parameters whose look-alikes the diagnosis already
+    #: names can take a real effect's claim from it (``arm_thrust``: docs/effects.md).
+    diagnosed: ClassVar[bool] = True
     #: Whether its regressor reads a measured state the angular rollout does not predict
     #: (the accelerometer's force): an open-loop rollout holds it at the window's start
     #: (:mod:`omavctl.learn.rollout_residual`) instead of reading the window's future.

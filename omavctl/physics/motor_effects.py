@@ -293,6 +293,7 @@ class ArmThrust(Effect):
     theta_range = (-0.5, 0.5)
     parameter_range = (-0.5, 0.5)
     simulated = False  # the plant's spread is every draw's; not drawn (see Effect.simulated)
+    diagnosed = False  # fit --effects only: in the pool it took a drag's claim (docs)
     look_alikes = (
         "a centre-of-mass offset (com_offset: a roll/pitch torque near hover) and the "
         "rotors' interference (rotor_interference: a per-arm thrust loss with the tilts); "
