@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from omavctl.base.errors import ModelError
 from omavctl.cli import app
-from omavctl.learn.effects_band import beyond_weight
+from omavctl.learn.effects_band import beyond_weight, parameter_variance
 from omavctl.learn.model import SCHEMA, EffectEstimate, ResidualGP
 from omavctl.learn.model_file import load_model, save_model
 from omavctl.learn.signal import SavitzkyGolay, feature_names, usable_segments
@@ -428,7 +428,7 @@ def test_the_gp_carries_back_most_of_a_parameter_error_inside_its_inputs(drag_fi
     x = samples.regressors["rotational_drag"]
     box = beyond_weight(model.inputs, samples.inputs(model.features)) == 0
     full = np.einsum("nap,pq,naq->na", x, sigma, x)[box]
-    term = model.effects_variance(samples)[box]
+    term = parameter_variance(model, samples)[box]  # the effects' term, without the spread's
     on = model.gp_enabled
     assert on.any()
     print("term / x Sigma x^T per axis:", term.mean(axis=0) / full.mean(axis=0), "GP on:", on)
@@ -665,10 +665,10 @@ def test_a_gp_mean_near_zero_still_carries_back_a_parameter_error(drag_fit):
     assert np.all(model.mean_shrink[model.gp_enabled] > 0)
     z = samples.inputs(model.features)
     box = beyond_weight(model.inputs, z) == 0
-    term = model.effects_variance(samples)[box]
-    unweighed = rebuilt(
-        model, mean_shrink=np.zeros(3), train_regressors=model.train_regressors
-    ).effects_variance(samples)[box]
+    term = parameter_variance(model, samples)[box]
+    unweighed = parameter_variance(
+        rebuilt(model, mean_shrink=np.zeros(3), train_regressors=model.train_regressors), samples
+    )[box]
     np.testing.assert_allclose(term, unweighed, rtol=1e-9, atol=1e-15)
     h = model.train_regressors["rotational_drag"]
     sigma = model.basis_covariance(h, np.full(3, get_effect("rotational_drag").prior_std))

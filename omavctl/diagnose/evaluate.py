@@ -200,8 +200,8 @@ def _model_metrics(
         np.concatenate([s.inputs(m.features) for s in samples]), noise=True
     )
     assert gp_var is not None
-    if m.effects:  # the effects' parameter uncertainty is part of the prediction's
-        gp_var = gp_var + np.concatenate([m.effects_variance(s) for s in samples])
+    # the effects' parameter uncertainty and the rotors' spread are part of the prediction's
+    gp_var = gp_var + np.concatenate([m.effects_variance(s) for s in samples])
     mean = eff_pred + gp_mean
     std = np.sqrt(gp_var)
     prior_std = np.broadcast_to(np.sqrt(m.signal_variance + m.noise_variance), std.shape)

@@ -81,6 +81,7 @@ from omavctl.learn.signal import (
     ResidualSamples,
     feature_names,
 )
+from omavctl.learn.spread_band import spread_basis
 from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import get_effect
 from omavctl.vehicle import NORMALISED, Vehicle, default_vehicle
@@ -274,9 +275,10 @@ def _model(
     gain: tuple[np.ndarray, np.ndarray] | None,
     n_total: int,
 ) -> ResidualGP:
-    """The fitted model, with its provenance."""
+    """The fitted model, with its provenance and the rotors' spread at its training
+    points (:mod:`omavctl.learn.spread_band`: the band on other flights)."""
     provenance = fit_provenance(opts, train.method, gp, eff, n_total, res.first_pass, gain)
-    return ResidualGP(
+    model = ResidualGP(
         vehicle=opts.vehicle,
         features=opts.features,
         input_names=feature_names(opts.features),
@@ -300,6 +302,11 @@ def _model(
         provenance=provenance,
         train_regressors=train.regressors,
     )
+    prior = opts.prior_model.spread if opts.prior_model is not None else None
+    tolerance = opts.vehicle.thrust_tolerance
+    effects = list(model.effects)
+    model.spread = spread_basis(res.samples, train.idx, effects, tolerance, prior, train.n_prior)
+    return model
 
 
 def _rollout_check(

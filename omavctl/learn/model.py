@@ -32,6 +32,7 @@ from omavctl.learn.band import band_variance
 from omavctl.learn.effects_band import effect_residual, parameter_variance
 from omavctl.learn.estimate import EffectEstimate
 from omavctl.learn.mean_shrink import shrink_mean
+from omavctl.learn.spread_band import SpreadBasis, spread_variance
 from omavctl.learn.validation import beyond_envelope_variance
 from omavctl.physics.effects import EffectContext
 from omavctl.physics.rigid_body import cross
@@ -107,25 +108,20 @@ class ResidualGP:
         #: (3,) the band inside the fit inputs (:mod:`omavctl.learn.band`; 1 and 0: as is)
         self.band_scale = np.ones(3) if band_scale is None else np.asarray(band_scale, float)
         self.band_slope = np.zeros(3) if band_slope is None else np.asarray(band_slope, float)
-        #: (3,) growth of the band's std per rad/s^2 of commanded angular acceleration
-        #: beyond the fit flight's (:mod:`omavctl.learn.band`; 0: none, older files)
+        #: (3,) the band's growth per rad/s^2 of commanded angular acceleration beyond the fit's
         self.torque_growth = (
             np.zeros(3) if torque_growth is None else np.asarray(torque_growth, float)
         )
-        #: (3,) growth of the band's std (rad/s^2) per training range beyond the
-        #: training inputs' box (:mod:`omavctl.learn.band`; 0: none, older files)
+        #: (3,) the band's growth (rad/s^2) per training range beyond the training box
         self.range_growth = np.zeros(3) if range_growth is None else np.asarray(range_growth, float)
-        #: factor (3,) on the latent (posterior) variance in predictions: fit's
-        #: calibration for extrapolation (1 = as the kernel says)
+        #: (3,) factor on the latent variance, fit's calibration (1: as the kernel says)
         self.latent_scale = np.ones(3) if latent_scale is None else np.asarray(latent_scale, float)
-        #: weight (3,) on the variance the residual may gain beyond the training
-        #: inputs' box (:func:`~omavctl.learn.validation.beyond_envelope_variance`),
-        #: fit's calibration on held-out ends of the inputs (0 = none: older files)
+        #: (3,) weight on the variance gained beyond the training box (0: older files;
+        #: :func:`~omavctl.learn.validation.beyond_envelope_variance`)
         self.beyond_scale = np.zeros(3) if beyond_scale is None else np.asarray(beyond_scale, float)
         #: (3,) weight of the latent variance against the squared GP mean (mean_shrink; 0: none)
         self.mean_shrink = np.zeros(3) if mean_shrink is None else np.asarray(mean_shrink, float)
-        #: (3,) weight of the GP mean in open-loop rollouts (fit's verdict on held-out
-        #: rollouts, :mod:`omavctl.learn.rollout_check`; 1: as in one-step predictions)
+        #: (3,) weight of the GP mean in open-loop rollouts (learn.rollout_check; 1: all)
         self.rollout_gp = np.ones(3) if rollout_gp is None else np.asarray(rollout_gp, float)
         self.effects: dict[str, EffectEstimate] = dict(effects or {})
         self.provenance: dict[str, Any] = dict(provenance or {})
@@ -142,6 +138,8 @@ class ResidualGP:
         if self.targets.shape != (n, 3) or self.length_scales.shape != (3, d):
             raise ValueError("targets must be (n, 3) and length_scales (3, d)")
         self._allocation: Any = None
+        #: the rotors' thrust spread at the training points (:mod:`omavctl.learn.spread_band`)
+        self.spread: SpreadBasis | None = None
         self._factorise(n)
 
     def _factorise(self, n: int) -> None:
@@ -429,16 +427,17 @@ class ResidualGP:
         ``variance=False`` skips the variance (None).
         """
         mean, var = self.gp_predict(samples.inputs(self.features), noise=noise, variance=variance)
-        if var is not None and self.effects:
+        if var is not None:
             var = var + self.effects_variance(samples)
         return mean + self.effects_samples(samples), var
 
     def effects_variance(self, samples: Any) -> np.ndarray:
-        """Variance (n, 3) the effects' parameter uncertainty adds to the prediction on a
-        log's samples: ``diag(R Sigma R^T)`` per axis, the term of a GP with explicit
-        basis functions (Rasmussen & Williams §2.7, eq. 2.42; what each part means and
-        why: :func:`omavctl.learn.effects_band.parameter_variance`)."""
-        return parameter_variance(self, samples)
+        """Variance (n, 3) the effects' parameter uncertainty (``diag(R Sigma R^T)``, the
+        term of a GP with explicit basis functions, Rasmussen & Williams §2.7, eq. 2.42:
+        :func:`omavctl.learn.effects_band.parameter_variance`) and the rotors' thrust
+        spread (:func:`omavctl.learn.spread_band.spread_variance`) add to the prediction
+        on a log's samples (zeros when the model has neither)."""
+        return parameter_variance(self, samples) + spread_variance(self, samples)
 
     def basis_covariance(self, at_train: np.ndarray, prior_std: np.ndarray) -> np.ndarray:
         """Posterior covariance (P, P) of effect parameters with sensitivities at_train
@@ -497,4 +496,5 @@ class ResidualGP:
             "vehicle": np.array(self.vehicle.to_json()),
             "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
             **{f"regressor_{k}": v for k, v in sorted(self.train_regressors.items())},
+            **(self.spread.arrays() if self.spread is not None else {}),
         }

@@ -68,17 +68,14 @@ regressor_<name>   (n, 3, p)   optional, one per registered effect: its regresso
                                at the training points (held like the residual);
                                ``evaluate`` uses them to score effects the GP may
                                have partly absorbed
+spread_train,      (n, 3, R),  optional: each rotor's residual per unit thrust error
+spread_gain        (P, R)      at the training points, and the linear effects' share
+                               of it (the band's thrust spread: learn.spread_band)
 =================  ==========  ==================================================
 
-Version history: ``omavctl.model/1`` (omavctl 0.1); the optional ``regressor_<name>``
-keys were added within version 1 (readers that do not know them ignore them; files
-without them load, their diagnosis then ignores what the GP absorbed).
-``omavctl.model/2``: the effects' standard errors are autocorrelation-robust
-(``stderr_method`` ``"hac"``, :mod:`omavctl.learn.intervals`) and each parameter carries
-``P_ci95`` and ``P_pinned``. Version 1 files are still read: their standard errors were
-white-residual least squares (``stderr_method`` ``"white"``, optimistic), and their
-intervals are derived from them (omavctl derives ``P_ci95`` from ``P`` and ``P_stderr``
-on reading, whatever the file holds).
+Version history: docs/schemas.md. Version 1 files are still read: their standard errors
+were white-residual least squares (``stderr_method`` ``"white"``, optimistic), their
+intervals derived from them on reading.
 
 Files are written deterministically (fixed zip timestamps, sorted JSON): same inputs, same bytes.
 """
@@ -106,10 +103,14 @@ from omavctl.learn.model import (
     EffectEstimate,
     ResidualGP,
 )
+from omavctl.learn.spread_band import read_spread
 from omavctl.physics.effects import EFFECTS, get_effect
 from omavctl.vehicle import Vehicle
 
 __all__ = ["MAX_MAGNITUDE", "check_model_paths", "check_vehicle", "load_model", "save_model"]
+
+#: The GP inputs of each ``features`` value.
+_FEATURE_INPUTS = {"wrench": 6, "wrench+rate": 9, "wrench+dtorque": 9, "wrench+rate+dtorque": 12}
 
 #: Keys of the model file, in the order they are written.
 _KEYS = (
@@ -357,8 +358,9 @@ def load_model(path: str | Path) -> ResidualGP:
         raise ModelError("key 'provenance' must be a JSON object", p)
     regressors = _regressors(arrays, n, p)
     effects = _effects_from_json(_json(arrays, "effects", p), p, version)
+    spread = read_spread(arrays, n, list(effects), _float, p)
     try:
-        return ResidualGP(
+        model = ResidualGP(
             vehicle=vehicle,
             features=features,
             input_names=names,
@@ -372,6 +374,8 @@ def load_model(path: str | Path) -> ResidualGP:
     except (np.linalg.LinAlgError, ValueError) as err:
         reason = library_reason(err, "its arrays do not fit together")
         raise ModelError(f"inconsistent model: {reason}", p) from None
+    model.spread = spread
+    return model
 
 
 def _check_keys(arrays: Mapping[str, np.ndarray], p: Path) -> int:
@@ -393,13 +397,7 @@ def _input_names(arrays: Mapping[str, np.ndarray], features: str, p: Path) -> tu
         raise ModelError("key 'input_names' must be a list of strings", p)
     names = tuple(str(x) for x in names_arr)
     d = len(names)
-    expected_d = {
-        "wrench": 6,
-        "wrench+rate": 9,
-        "wrench+dtorque": 9,
-        "wrench+rate+dtorque": 12,
-    }.get(features)
-    if expected_d != d:
+    if _FEATURE_INPUTS.get(features) != d:
         raise ModelError(f"features '{features}' do not match {d} input names", p)
     return names
 

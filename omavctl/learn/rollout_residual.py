@@ -226,14 +226,13 @@ def _commands(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
 
 def function_std(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
     """Std (n, 3) of the residual function a rollout uses at the log's inputs: the GP's
-    latent variance plus the effects' parameter variance (no measurement noise), plus
-    ``((1 - w) m)^2`` for the part ``1 - w`` of the GP mean m a rollout leaves out
-    (``rollout_gp`` weight w: predicting 0 where the GP says m costs m^2)."""
+    latent variance plus the effects' parameter variance and the rotors' spread (no
+    measurement noise), plus ``((1 - w) m)^2`` for the part ``1 - w`` of the GP mean m
+    a rollout leaves out (``rollout_gp`` weight w: predicting 0 where the GP says m
+    costs m^2)."""
     mean, var = m.gp_predict(s.inputs(m.features), noise=False)
     assert var is not None
-    var = var + ((1.0 - m.rollout_gp) * mean) ** 2
-    if m.effects:
-        var = var + m.effects_variance(s)
+    var = var + ((1.0 - m.rollout_gp) * mean) ** 2 + m.effects_variance(s)
     return np.sqrt(np.maximum(var, 0.0))
 
 
