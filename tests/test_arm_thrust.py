@@ -156,3 +156,23 @@ def test_a_vehicle_file_may_list_it(tmp_path: Path) -> None:
     path = tmp_path / "v.yaml"
     path.write_text("effects: [arm_thrust]\n")
     assert load_vehicle(path).effects == ("arm_thrust",)
+
+
+def test_the_diagnosis_never_sees_it_unless_the_model_has_it(flights) -> None:
+    """``diagnosed = False``: a model fitted without it stores no regressor of it at the
+    training points (the learned pools read those), and evaluate builds its regressor
+    only for a model that holds it (own-fig8 16 of the tune split had it named through
+    the learned pool before)."""
+    from omavctl.diagnose.evaluate import evaluate
+    from omavctl.learn.model_file import save_model
+
+    fit_log, held = flights
+    without = fit_model([fit_log], default_vehicle(), effects=["com_offset"], points=40, seed=0)
+    assert "arm_thrust" not in without.model.train_regressors
+    with_it = fit_model([fit_log], default_vehicle(), effects=["arm_thrust"], points=40, seed=0)
+    assert with_it.model.train_regressors["arm_thrust"].shape == (40, 3, 6)
+    path = fit_log.parent / "without.npz"
+    save_model(path, without.model)
+    diagnosis = evaluate([path], [held]).tree["diagnosis"]
+    named = {e["name"] for e in diagnosis["missing_effects"]} | set(diagnosis["learned_claims"])
+    assert "arm_thrust" not in named and "arm_thrust" not in (diagnosis["fit_command"] or "")

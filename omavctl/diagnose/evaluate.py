@@ -125,6 +125,7 @@ def _read_log(
     rate: float,
     sg: SavitzkyGolay,
     time_window: tuple[float | None, float | None] | None,
+    effects: Sequence[str] = tuple(EFFECTS),
 ) -> tuple[ResidualSamples, GridSignals, dict[str, Any], list[dict[str, Any]]]:
     """One log's residual samples (every registry regressor, out-of-control samples
     removed), its unfiltered signals at them (attitude zero when not logged), its
@@ -144,7 +145,7 @@ def _read_log(
     )
     _check_rate(flight, vehicle, rate)
     extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
-    s = residual_samples(flight, vehicle, sg, effects=tuple(EFFECTS), extra=extra)
+    s = residual_samples(flight, vehicle, sg, effects=tuple(effects), extra=extra)
     loss = flight_control_loss(flight, s.index, s.omega, s.omega_dot, vehicle)
     p = Path(path)
     spans = [{"log": p.name, "start": a, "end": b, "reason": why} for a, b, why in loss.spans]
@@ -255,6 +256,7 @@ def _read_logs(
     sg: SavitzkyGolay,
     time_window: tuple[float | None, float | None] | None,
     progress: Progress | None,
+    effects: Sequence[str] = tuple(EFFECTS),
 ) -> tuple[list[ResidualSamples], list[GridSignals], list[dict[str, Any]], list[dict[str, Any]]]:
     """Every log's residual samples and unfiltered signals (:func:`_read_log`), the
     ``logs`` entries and the excluded (out-of-control) spans of all of them."""
@@ -263,7 +265,7 @@ def _read_logs(
     logs_json = []
     excluded: list[dict[str, Any]] = []
     for i, path in enumerate(log_paths):
-        s, grid, log_json, spans = _read_log(path, vehicle, rate, sg, time_window)
+        s, grid, log_json, spans = _read_log(path, vehicle, rate, sg, time_window, effects)
         samples.append(s)
         grids.append(grid)
         logs_json.append(log_json)
@@ -419,8 +421,10 @@ def evaluate(
     mpaths, models = _load_models(model_paths, log_paths)
     model = models[0]
     rate, sg = _grid(model)
+    # the regressors of what the diagnosis considers and of every model's effects
+    names = [n for n, e in EFFECTS.items() if e.diagnosed or any(n in m.effects for m in models)]
     samples, grids, logs_json, excluded = _read_logs(
-        log_paths, model.vehicle, rate, sg, time_window, progress
+        log_paths, model.vehicle, rate, sg, time_window, progress, names
     )
     check_available(samples, sorted({name for m in models for name in m.effects}))
     log_names = [str(lj["name"]) for lj in logs_json]

@@ -280,7 +280,9 @@ def training_set(opts: FitOptions, res: Residuals) -> TrainingSet:
         idx, kmethod = select_points((inputs_all - mean_all) / scale_all, opts.points, opts.seed)
     train_x = inputs_all[idx]
     train_y = res.targets[idx]
-    train_reg = {nm: np.concatenate([s.regressors[nm] for s in samples])[idx] for nm in EFFECTS}
+    # what the diagnosis may score as learned (Effect.diagnosed), and the fitted effects
+    kept = [nm for nm, e in EFFECTS.items() if e.diagnosed or nm in opts.names]
+    train_reg = {nm: np.concatenate([s.regressors[nm] for s in samples])[idx] for nm in kept}
     n_prior = 0
     prior_model = opts.prior_model
     if prior_model is not None:
