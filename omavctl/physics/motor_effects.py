@@ -17,6 +17,7 @@ battery voltage they need, mixed by the ``omav-rotors`` preset.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -127,6 +128,17 @@ def loss_contrasts(size: int = MAX_LOSS_ROTORS) -> np.ndarray:
     return h
 
 
+def contrast_values(h: np.ndarray, theta: Any, cov: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Values ``h theta`` (size,) and their standard errors of Helmert contrasts
+    ``theta`` with covariance ``cov``: a contrast no regressor excites (the common part,
+    rotors or arms the vehicle lacks) stays at its prior mean 0 with the prior's
+    variance, which is not a loss or a gain, so it carries nothing into them."""
+    excited = np.abs(np.asarray(theta, float)) > _UNEXCITED
+    t = np.where(excited, np.asarray(theta, float), 0.0)
+    c = np.where(np.outer(excited, excited), np.asarray(cov, float), 0.0)
+    return h @ t, np.sqrt(np.clip(np.diag(h @ c @ h.T), 0.0, None))
+
+
 class MotorLoss(Effect):
     """Per-motor thrust loss relative to the rotors' mean: rotor i delivers
     ``(1 - lbar - l_i)`` of its curve's thrust, ``sum_i l_i = 0``.
@@ -196,14 +208,7 @@ class MotorLoss(Effect):
         return np.asarray(touches @ np.asarray(excited, bool).astype(int) > 0)
 
     def to_parameters(self, theta, cov):
-        h = loss_contrasts()
-        # a contrast no regressor excites (the common loss, rotors the vehicle lacks)
-        # stays at its prior mean 0 with the prior's variance: it is not a loss
-        excited = np.abs(np.asarray(theta, float)) > _UNEXCITED
-        t = np.where(excited, np.asarray(theta, float), 0.0)
-        c = np.where(np.outer(excited, excited), np.asarray(cov, float), 0.0)
-        se = np.sqrt(np.clip(np.diag(h @ c @ h.T), 0.0, None))
-        return {"l": (h @ t, se)}
+        return {"l": contrast_values(loss_contrasts(), theta, cov)}
 
     def to_theta(self, params):
         return loss_contrasts().T @ np.asarray(params["l"], float).reshape(-1)
@@ -337,12 +342,7 @@ class ArmThrust(Effect):
         return np.asarray(touches @ np.asarray(excited, bool).astype(int) > 0)
 
     def to_parameters(self, theta, cov):
-        h = loss_contrasts(ARMS)
-        excited = np.abs(np.asarray(theta, float)) > _UNEXCITED
-        t = np.where(excited, np.asarray(theta, float), 0.0)
-        c = np.where(np.outer(excited, excited), np.asarray(cov, float), 0.0)
-        se = np.sqrt(np.clip(np.diag(h @ c @ h.T), 0.0, None))
-        return {"g": (h @ t, se)}
+        return {"g": contrast_values(loss_contrasts(ARMS), theta, cov)}
 
     def to_theta(self, params):
         return loss_contrasts(ARMS).T @ np.asarray(params["g"], float).reshape(-1)
