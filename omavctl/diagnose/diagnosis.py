@@ -168,6 +168,16 @@ def measurement_noise(
     return float(np.median(np.sqrt(model.noise_variance)))
 
 
+def _regressors(samples: Sequence[ResidualSamples], model: ResidualGP) -> dict[str, np.ndarray]:
+    """Regressor (n, 3, p) per effect the diagnosis considers (``Effect.diagnosed``, or in
+    the model already) over the concatenated samples."""
+    return {
+        n: np.concatenate([s.regressors[n] for s in samples])
+        for n, e in EFFECTS.items()
+        if e.diagnosed or n in model.effects
+    }
+
+
 def diagnose(
     samples: Sequence[ResidualSamples],
     model: ResidualGP,
@@ -187,12 +197,7 @@ def diagnose(
     t = np.concatenate([s.t for s in samples])
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
     blocks = time_blocks(t, log_id, BLOCK_SECONDS)
-    # the effects the diagnosis considers (Effect.diagnosed, or in the model already)
-    regs = {
-        n: np.concatenate([s.regressors[n] for s in samples])
-        for n, e in EFFECTS.items()
-        if e.diagnosed or n in model.effects
-    }
+    regs = _regressors(samples, model)
     z = np.concatenate([s.inputs(model.features) for s in samples])
     candidates, refit = _candidates(regs, model, z)
     remaining = residual - model_mean

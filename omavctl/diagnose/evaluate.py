@@ -249,6 +249,12 @@ def _fit_flight(m: ResidualGP) -> dict[str, Any]:
     }
 
 
+def _considered(models: Sequence[ResidualGP]) -> list[str]:
+    """The effects whose regressors the logs' samples need: what the diagnosis considers
+    (``Effect.diagnosed``) and every model's own."""
+    return [n for n, e in EFFECTS.items() if e.diagnosed or any(n in m.effects for m in models)]
+
+
 def _read_logs(
     log_paths: Sequence[str | Path],
     vehicle: Vehicle,
@@ -421,10 +427,8 @@ def evaluate(
     mpaths, models = _load_models(model_paths, log_paths)
     model = models[0]
     rate, sg = _grid(model)
-    # the regressors of what the diagnosis considers and of every model's effects
-    names = [n for n, e in EFFECTS.items() if e.diagnosed or any(n in m.effects for m in models)]
     samples, grids, logs_json, excluded = _read_logs(
-        log_paths, model.vehicle, rate, sg, time_window, progress, names
+        log_paths, model.vehicle, rate, sg, time_window, progress, _considered(models)
     )
     check_available(samples, sorted({name for m in models for name in m.effects}))
     log_names = [str(lj["name"]) for lj in logs_json]
