@@ -23,7 +23,7 @@ the two flights, differed.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
@@ -74,6 +74,28 @@ def _apart(
     return v, se, d, dse, abs(v - d) / max(math.hypot(se, dse), 1e-300)
 
 
+def _components(
+    fitted: Mapping[str, Any], entry: Mapping[str, Any], beside: str
+) -> Iterator[tuple[str, int, str, str]]:
+    """(key, i, label, unit text) of each component of a fitted effect's parameters that
+    carry ``key + beside`` (their standard errors, their pinned flags): a per-axis
+    component (label ``D_z``) only on an axis where the effect explains at least
+    :data:`AXIS_CLAIM` of this flight's error (elsewhere its estimate is whatever else
+    that axis holds); a parameter of another size by its key."""
+    units = entry.get("units") if isinstance(entry.get("units"), Mapping) else {}
+    shares = entry.get("explained_variance_per_axis") or {}
+    for key, values in fitted.items():
+        if not isinstance(values, list) or not isinstance(fitted.get(f"{key}{beside}"), list):
+            continue
+        unit = str((units or {}).get(key, ""))
+        u = "" if unit in ("", "1") else f" {unit}"
+        for i in range(len(values)):
+            share = _num(shares.get(AXES[i])) if len(values) == 3 else None
+            if len(values) == 3 and (share is None or share < AXIS_CLAIM):
+                continue
+            yield key, i, f"{key}_{AXES[i]}" if len(values) == 3 else key, u
+
+
 def _parts(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any]) -> list[tuple[str, str]]:
     """(label, 'T_m = 0.0095 ± 0.016 s fitted, 0.0607 ± 0.019 s here (2.1 apart)') for
     each component of effect ``name`` more than :data:`APART` apart (label ``D_z``, or
@@ -83,30 +105,19 @@ def _parts(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any]) -> li
     here = entry.get("estimate")
     if not isinstance(here, Mapping):
         return []
-    units = entry.get("units") if isinstance(entry.get("units"), Mapping) else {}
-    shares = entry.get("explained_variance_per_axis") or {}
     out = []
-    for key, values in fitted.items():
-        if not isinstance(values, list) or f"{key}_stderr" not in fitted:
-            continue  # a parameter has its standard errors beside it
-        unit = str((units or {}).get(key, ""))
-        u = "" if unit in ("", "1") else f" {unit}"
-        for i in range(len(values)):
-            label = f"{key}_{AXES[i]}" if len(values) == 3 else key
-            share = _num(shares.get(AXES[i])) if len(values) == 3 else None
-            if len(values) == 3 and (share is None or share < AXIS_CLAIM):
-                continue
-            got = _apart(fitted, here, key, i)
-            if got is None or got[4] <= APART:
-                continue
-            v, se, d, dse, z = got
-            out.append(
-                (
-                    label,
-                    f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted, {d:.3g} ± "
-                    f"{dse:.2g}{u} on this flight ({z:.1f} combined standard errors apart)",
-                )
+    for key, i, label, u in _components(fitted, entry, "_stderr"):
+        got = _apart(fitted, here, key, i)
+        if got is None or got[4] <= APART:
+            continue
+        v, se, d, dse, z = got
+        out.append(
+            (
+                label,
+                f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted, {d:.3g} ± "
+                f"{dse:.2g}{u} on this flight ({z:.1f} combined standard errors apart)",
             )
+        )
     return out
 
 
@@ -152,34 +163,23 @@ def _pinned_here(name: str, fitted: Mapping[str, Any], entry: Mapping[str, Any])
     here = entry.get("estimate")
     if not isinstance(here, Mapping):
         return []
-    units = entry.get("units") if isinstance(entry.get("units"), Mapping) else {}
-    shares = entry.get("explained_variance_per_axis") or {}
     out = []
-    for key, values in fitted.items():
-        if not isinstance(values, list) or not isinstance(fitted.get(f"{key}_pinned"), list):
+    for key, i, label, u in _components(fitted, entry, "_pinned"):
+        pinned = [get_path(d, f"{key}_pinned", i) for d in (fitted, here)]
+        got = _apart(fitted, here, key, i)
+        if pinned != [False, True] or got is None or got[4] > APART:
             continue
-        unit = str((units or {}).get(key, ""))
-        u = "" if unit in ("", "1") else f" {unit}"
-        for i in range(len(values)):
-            share = _num(shares.get(AXES[i])) if len(values) == 3 else None
-            if len(values) == 3 and (share is None or share < AXIS_CLAIM):
-                continue
-            pinned = [get_path(d, f"{key}_pinned", i) for d in (fitted, here)]
-            got = _apart(fitted, here, key, i)
-            if pinned != [False, True] or got is None or got[4] > APART:
-                continue
-            fit_ci, here_ci = (get_path(d, f"{key}_ci95", i) or [None] for d in (fitted, here))
-            if len(fit_ci) != 2 or len(here_ci) != 2 or None in (*fit_ci, *here_ci):
-                continue
-            v, se, d, dse, _ = got
-            if here_ci[0] <= v <= here_ci[1]:
-                continue  # this flight's interval holds the model's value: nothing to say
-            label = f"{key}_{AXES[i]}" if len(values) == 3 else key
-            out.append(
-                f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted (95 %: {fit_ci[0]:.3g} "
-                f"to {fit_ci[1]:.3g}), {d:.3g} ± {dse:.2g}{u} here (95 %: {here_ci[0]:.3g} to "
-                f"{here_ci[1]:.3g})"
-            )
+        fit_ci, here_ci = (get_path(d, f"{key}_ci95", i) or [None] for d in (fitted, here))
+        if len(fit_ci) != 2 or len(here_ci) != 2 or None in (*fit_ci, *here_ci):
+            continue
+        v, se, d, dse, _ = got
+        if here_ci[0] <= v <= here_ci[1]:
+            continue  # this flight's interval holds the model's value: nothing to say
+        out.append(
+            f"{name}'s {label} = {v:.3g} ± {se:.2g}{u} as fitted (95 %: {fit_ci[0]:.3g} "
+            f"to {fit_ci[1]:.3g}), {d:.3g} ± {dse:.2g}{u} here (95 %: {here_ci[0]:.3g} to "
+            f"{here_ci[1]:.3g})"
+        )
     return out
 
 
