@@ -150,7 +150,10 @@ def interval(entry: Mapping[str, Any], name: str, i: int) -> tuple[float, float]
     if ci is not None:
         rows = ci if isinstance(ci[0], (list, tuple)) else [ci]
         lo, hi = rows[i]
-        return float(lo), float(hi)
+        if lo is None and hi is None:
+            return None  # not finite: the data could not determine it
+        # one end null: unbounded there (an inertia scale whose gain is not told from 0)
+        return (-math.inf if lo is None else float(lo)), (math.inf if hi is None else float(hi))
     se = entry.get(f"{name}_stderr")
     s = None if se is None else _component(se, i)
     if s is None or not math.isfinite(s):

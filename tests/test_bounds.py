@@ -8,13 +8,20 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from omavctl.cli.fit import _interval_text
 from omavctl.diagnose.claim_text import not_pinned_text
 from omavctl.diagnose.claims import beyond_bound, excludes_null
 from omavctl.diagnose.estimate_text import estimate_sentence
 from omavctl.learn.estimate import EffectEstimate
-from omavctl.learn.intervals import Z95, interval95, pinned_down, unpinned_words
+from omavctl.learn.intervals import (
+    Z95,
+    interval95,
+    physical_side,
+    pinned_down,
+    unpinned_words,
+)
 from omavctl.learn.model_file import _effects_from_json
 from omavctl.report.params import _interval_note
 
@@ -74,14 +81,32 @@ def test_every_place_that_shows_the_interval_shows_the_cut_one():
     )
 
 
-def test_an_inertia_scale_interval_is_cut_at_zero_and_keeps_its_side():
-    est = EffectEstimate(
-        "inertia_error", {"scale": np.array([0.3, 1.0, 8.0])}, {"scale": np.array([0.2, 0.01, 1.0])}
-    )
+def test_an_inertia_scale_interval_is_made_on_its_gain():
+    """The scale is estimated linearly in its gain 1/scale: the interval is the gain's,
+    mapped back. Betaflight's scale_x -7.9 +- 52 (gain -0.126 +- 0.83) was [0, 98.8]
+    once cut at 0, which excluded gains below 0.0101 that the data cannot rule out."""
+    scale = np.array([0.3, 1.0, 8.0, -7.912, -2.0])
+    se = np.array([0.2, 0.01, 1.0, 52.0, 0.1])
+    est = EffectEstimate("inertia_error", {"scale": scale}, {"scale": se})
     iv = est.interval95()["scale"]
-    assert iv[0, 0] == 0.0 and iv[1, 0] > 0.0 and iv[2, 0] > 0.0
-    # scale 0 to 0.69 excludes 1 (no inertia error) on the physical side
-    assert excludes_null("inertia_error", est.to_json(), {"x"})
+    gain, gain_se = 1.0 / scale, se / scale**2
+    lo, hi = gain - Z95 * gain_se, gain + Z95 * gain_se
+    # gain 3.33 +- 2.22 reaches 0: the scale has no upper end, and 1 is inside
+    assert iv[0, 0] == pytest.approx(1.0 / hi[0]) and iv[0, 1] == np.inf
+    assert iv[1].tolist() == pytest.approx([1.0 / hi[1], 1.0 / lo[1]])  # [0.981, 1.02]
+    assert iv[2].tolist() == pytest.approx([6.43, 10.59], abs=0.01)
+    assert iv[3, 0] == pytest.approx(1.0 / hi[3]) and iv[3, 0] > 0.6 and iv[3, 1] == np.inf
+    # a gain wholly below 0 maps to negative scales, kept whole: not physical
+    assert iv[4].tolist() == pytest.approx([1.0 / hi[4], 1.0 / lo[4]])
+    assert physical_side("inertia_error", "scale", iv).tolist() == [True] * 4 + [False]
+    js = est.to_json()
+    assert js["scale_ci95"][0][1] is None and js["scale_ci95"][2][0] == pytest.approx(
+        6.43, abs=0.01
+    )
+    # 1.05 gain standard errors from 1 is no inertia error; 8 +- 1 is one, on x alone
+    only_x = EffectEstimate("inertia_error", {"scale": scale[:3]}, {"scale": se[:3]}).to_json()
+    assert not excludes_null("inertia_error", only_x, {"x"})
+    assert excludes_null("inertia_error", only_x, {"z"})
 
 
 def test_a_negative_delay_is_not_physical_and_not_a_claim():
@@ -134,7 +159,8 @@ def test_a_claim_held_back_as_not_physical_says_so():
 def test_a_torque_gain_interval_is_its_scale_interval_inverted():
     """One parameter, one interval (px4tools, normalised commands): scale_x 8.2 +- 22,
     95 % [0, 51.9], was printed beside gain_x = 1/scale_x 0.12 +- 0.33, [0, 0.77]: the
-    first allows gain >= 0.019 only, the second scale >= 1.3 only."""
+    first allowed gain >= 0.019 only, the second scale >= 1.3 only. Both are the gain's
+    interval now (the scale's made on it), and a negative gain's says it lies below."""
     import io
     from types import SimpleNamespace
 
@@ -142,7 +168,8 @@ def test_a_torque_gain_interval_is_its_scale_interval_inverted():
 
     from omavctl.cli.fit import _effects_table, gain_interval
 
-    assert gain_interval(0.0, 51.9) == (1 / 51.9, float("inf"))
+    assert gain_interval(0.0, 51.9) == (1 / 51.9, float("inf"))  # an older file's cut scale
+    assert gain_interval(0.663, float("inf")) == (0.0, 1 / 0.663)
     assert gain_interval(0.5, 2.0) == (0.5, 2.0)
     assert gain_interval(-4.0, -2.0) == (-0.5, -0.25)  # not physical: stays on its side
     scale = np.array([8.2, 1.25, 0.5])
@@ -153,29 +180,31 @@ def test_a_torque_gain_interval_is_its_scale_interval_inverted():
         torque_gain=1.0 / scale,
         torque_gain_stderr=se / scale**2,
     )
-    con = Console(width=300, record=True, file=io.StringIO())
-    con.print(_effects_table(summary))
-    rows = {ln.split("│")[2].strip(): ln for ln in con.export_text().splitlines() if "│" in ln}
-    hi = 8.2 + Z95 * 22.0
-    # cut at 0, not at its absence (1): no 'not told from absent' there
-    assert f"[below {hi:.3g}] (cut at scale ≥ 0): cannot be pinned down" in rows["scale_x"]
-    gain_x = rows["gain_x = 1/scale_x"]
-    assert f"[{1 / hi:.3g}, ∞): cannot be pinned down from this flight" in gain_x
-    lo, hi = 1.25 - Z95 * 0.05, 1.25 + Z95 * 0.05
-    assert f"[{1 / hi:.3g}, {1 / lo:.3g}]" in rows["gain_y = 1/scale_y"]
-    assert "cannot" not in rows["gain_y = 1/scale_y"]
-    # a negative scale's gain lies below the interval its cut scale gives (Betaflight:
-    # gain_x -0.126 +- 0.82 beside [0.0106, inf), with no word of it): it says so
+
+    def rows() -> dict[str, str]:
+        con = Console(width=300, record=True, file=io.StringIO())
+        con.print(_effects_table(summary))
+        lines = con.export_text().splitlines()
+        return {ln.split("│")[2].strip(): ln for ln in lines if "│" in ln}
+
+    shown = rows()
+    g_hi = 1 / 8.2 + Z95 * 22.0 / 8.2**2  # the gain 0.122 +- 0.327 holds 0
+    assert f"[{1 / g_hi:.3g}, ∞): cannot be pinned down from this flight" in shown["scale_x"]
+    assert (
+        f"[0, {g_hi:.3g}] (cut at gain ≥ 0): cannot be pinned down" in shown["gain_x = 1/scale_x"]
+    )
+    g, g_se = 1 / 1.25, 0.05 / 1.25**2
+    assert f"[{g - Z95 * g_se:.3g}, {g + Z95 * g_se:.3g}]" in shown["gain_y = 1/scale_y"]
+    assert "cannot" not in shown["gain_y = 1/scale_y"]
+    # Betaflight: gain_x -0.126 +- 0.82 was printed beside [0.0106, inf) while the note
+    # said the gain is within 2 standard errors of 0
     summary.effects["inertia_error"] = EffectEstimate(
         "inertia_error", {"scale": np.array([-7.9, 1.25, 0.5])}, {"scale": se}
     )
     summary.torque_gain = 1.0 / np.array([-7.9, 1.25, 0.5])
-    con = Console(width=300, record=True, file=io.StringIO())
-    con.print(_effects_table(summary))
-    rows = {ln.split("│")[2].strip(): ln for ln in con.export_text().splitlines() if "│" in ln}
-    hi = -7.9 + Z95 * 22.0
+    g_hi = -1 / 7.9 + Z95 * 22.0 / 7.9**2
     assert (
-        f"[{1 / hi:.3g}, ∞) (the estimate is below it): cannot be pinned down"
-        in (rows["gain_x = 1/scale_x"])
+        f"[0, {g_hi:.3g}] (cut at gain ≥ 0) (the estimate is below it): cannot be pinned down"
+        in rows()["gain_x = 1/scale_x"]
     )
-    assert "below it" not in rows["gain_y = 1/scale_y"]
+    assert "below it" not in rows()["gain_y = 1/scale_y"]

@@ -240,11 +240,14 @@ def _effects_table(summary: Any) -> Any:
                 "torque command gain",
                 f"gain_{axis} = 1/scale_{axis}",
                 f"{g:.4g} ± {e:.2g}",
-                f"[{lo:.3g}, {hi:.3g}]".replace("inf]", "∞)")
-                + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
-                # Betaflight: gain_x -0.126 beside [0.0106, inf), said of the scale only
-                + (" (the estimate is below it)" if g < lo else "")
-                + ("" if pinned else ": cannot be pinned down from this flight"),
+                # Text: rich reads '[0, 1.51]' as a markup tag and drops it
+                Text(
+                    f"[{lo:.3g}, {hi:.3g}]".replace("inf]", "∞)")
+                    + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
+                    # Betaflight: gain_x -0.126 beside [0, 1.51]
+                    + (" (the estimate is below it)" if g < lo else "")
+                    + ("" if pinned else ": cannot be pinned down from this flight")
+                ),
                 Text("N m per command unit (assumed inertia)"),
             )
     return eff
@@ -253,11 +256,12 @@ def _effects_table(summary: Any) -> Any:
 def gain_interval(low: float, high: float) -> tuple[float, float]:
     """The 95 % interval of a torque command gain ``1 / scale`` from its inertia scale's
     (low, high): ``1 / x`` maps an interval on one side of 0 onto one, ends swapped
-    (scale [0, 51.9] is gain [0.0193, inf): the scale's 0 is an unbounded gain); one
-    across 0 (not cut: no bound) maps onto two rays, shown as all gains (-inf, inf)."""
-    if not (math.isfinite(low) and math.isfinite(high)):
+    (scale [0.663, inf), a gain not told from 0, is gain [0, 1.51]; scale [0, 51.9] of
+    an older file is gain [0.0193, inf)); one across 0 maps onto two rays, shown as
+    all gains (-inf, inf)."""
+    if math.isnan(low) or math.isnan(high):
         return math.nan, math.nan
-    if low > 0.0 or high < 0.0:
+    if low > 0.0 or high < 0.0:  # 1/inf = 0: scale [0.663, inf) is gain [0, 1.51]
         return 1.0 / high, 1.0 / low
     if low == 0.0:
         return (1.0 / high if high > 0.0 else math.inf), math.inf
@@ -280,7 +284,13 @@ def _interval_text(
 
     lo, hi = (float(x) for x in interval)
     span, _ = interval_span(which[0], which[1], lo, hi, null_component(*which), ", ")
-    text = f"[{span}]" if math.isfinite(lo) and math.isfinite(hi) else "unbounded"
+    text = (
+        f"[{span}]"
+        if math.isfinite(lo) and math.isfinite(hi)
+        else f"[{lo:.3g}, ∞)"
+        if math.isfinite(lo) and hi == math.inf
+        else "unbounded"
+    )
     if note := bound_note(which[0], which[1], lo, value):
         text += f" ({note})"
     if pinned:

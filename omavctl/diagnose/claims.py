@@ -36,7 +36,7 @@ from omavctl.diagnose.estimate_text import AXIS_CLAIM
 from omavctl.diagnose.estimates import SecondStage, estimate_together
 from omavctl.diagnose.joint import MIN_HAC_T, JointStep, block_sums, block_t, learned_step
 from omavctl.learn.estimate import EffectEstimate
-from omavctl.learn.intervals import interval95, physical_bound
+from omavctl.learn.intervals import parameter_interval95, physical_bound
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples
 from omavctl.physics.effects import get_effect
@@ -336,10 +336,16 @@ def theta_json(name: str, theta: np.ndarray, se: np.ndarray) -> dict[str, Any]:
         out[k] = [float(x) for x in v]
         out[f"{k}_stderr"] = [float(x) if np.isfinite(x) else None for x in s]
         out[f"{k}_ci95"] = [
-            [float(lo), float(hi)] if np.isfinite(b) else [None, None]
-            for (lo, hi), b in zip(interval95(v, s, physical_bound(name, k)), s, strict=True)
+            [_end(lo), _end(hi)] if np.isfinite(b) else [None, None]
+            for (lo, hi), b in zip(parameter_interval95(name, k, v, s), s, strict=True)
         ]
     return out
+
+
+def _end(x: float) -> float | None:
+    """An interval's end for JSON: None where unbounded (an inertia scale whose gain
+    cannot be told from 0 has no upper end)."""
+    return float(x) if np.isfinite(x) else None
 
 
 def _axes(

@@ -3,6 +3,7 @@ the verdict and the report use it)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Collection, Mapping
 from typing import Any
 
@@ -51,16 +52,16 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             else [f"{name}_{i}" for i in range(len(values))]
         )
         for i, (v, ci) in enumerate(zip(values, intervals, strict=False)):
-            if not isinstance(ci, list) or None in ci or ci[0] == ci[1]:
+            if not isinstance(ci, list) or len(ci) != 2 or ci[0] is None or ci[0] == ci[1]:
                 continue  # not excited (no spread) or not finite
+            # no high end: an inertia scale whose gain cannot be told from 0
+            ci = [float(ci[0]), math.inf if ci[1] is None else float(ci[1])]
             if axes is not None and len(values) == 3 and "xyz"[i] not in axes:
                 unclaimed.append(labels[i])
                 continue
             u = "" if unit == "1" else f" {unit}"
             null = null_component(str(entry.get("name")), name, i)
-            span, digits = interval_span(
-                str(entry.get("name")), name, float(ci[0]), float(ci[1]), null
-            )
+            span, digits = interval_span(str(entry.get("name")), name, ci[0], ci[1], null)
             text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {span}"
             if note := _bound_note(str(entry.get("name")), name, ci[0], v):
                 text += f", {note}"

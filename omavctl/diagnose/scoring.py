@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.metrics import AXES
-from omavctl.learn.intervals import hac_meat, interval95, physical_bound
+from omavctl.learn.intervals import hac_meat, parameter_interval95
 from omavctl.physics.effects import EFFECTS, Effect, get_effect
 
 __all__ = [
@@ -312,15 +312,12 @@ def _parameters(
     cov[:, ~excited] = 0.0
     phys = effect.to_parameters(theta_all, cov)
 
-    def bound(k: str) -> float | None:
-        return physical_bound(effect.name, k)
-
     params: dict[str, Any] = {k: v.tolist() for k, (v, _) in phys.items()}
     params.update({f"{k}_stderr": s.tolist() for k, (_, s) in phys.items()})
     params.update(
         {
             f"{k}_ci95": [[lo if isfinite(lo) else None, hi if isfinite(hi) else None]
-                          for lo, hi in interval95(v, s, bound(k)).tolist()]
+                          for lo, hi in parameter_interval95(effect.name, k, v, s).tolist()]
             for k, (v, s) in phys.items()
         }
     )  # fmt: skip

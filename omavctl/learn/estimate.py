@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from omavctl.learn.intervals import interval95, physical_bound, pinned_down
+from omavctl.learn.intervals import parameter_interval95, pinned_down
 from omavctl.physics.effects import Effect, get_effect
 
 __all__ = ["GAIN_EFFECT", "GAIN_PRIOR_FACTOR", "EffectEstimate", "systematic_from_json"]
@@ -65,11 +65,11 @@ class EffectEstimate:
         systematic part added in quadrature unless ``systematic`` is False (the flight's
         statistics alone: is there a torque of this shape?); NaN where not finite, cut at
         the parameter's physical bound (:func:`omavctl.learn.intervals.interval95`: a
-        lag's is not negative)."""
+        lag's is not negative); an inertia scale's made on its gain and mapped back,
+        unbounded above (inf) when the gain cannot be told from 0
+        (:func:`omavctl.learn.intervals.parameter_interval95`)."""
         se = self.total_stderr() if systematic else self.stderr
-        return {
-            k: interval95(v, se[k], physical_bound(self.name, k)) for k, v in self.values.items()
-        }
+        return {k: parameter_interval95(self.name, k, v, se[k]) for k, v in self.values.items()}
 
     def pinned(self, systematic: bool = True) -> dict[str, np.ndarray]:
         """bool (size,) per parameter: its 95 % interval determines it (narrower than

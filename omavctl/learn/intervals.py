@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -50,6 +51,7 @@ __all__ = [
     "interval_ends",
     "interval_span",
     "null_values",
+    "parameter_interval95",
     "physical_bound",
     "physical_side",
     "pinned_down",
@@ -188,6 +190,48 @@ def interval95(value: np.ndarray, stderr: np.ndarray, bound: float | None = None
     return np.stack([low, high], axis=-1)
 
 
+#: Parameters estimated linearly in their reciprocal: ``inertia_error``'s theta is
+#: ``1/scale - 1``, the gain of the torque command (its standard error is carried to
+#: the scale by the delta method, ``se_scale = se_gain scale^2``). Their 95 % intervals
+#: are made on the gain, where the estimate is linear, and mapped through ``1/x``: a
+#: Betaflight gain of -0.126 +- 0.82 was a scale of -7.9 +- 54, [0, 98.8] once cut at 0,
+#: which said the gain is above 0.0106 where the data cannot tell it from 0.
+RECIPROCAL: frozenset[tuple[str, str]] = frozenset({("inertia_error", "scale")})
+
+
+def parameter_interval95(name: str, param: str, value: Any, stderr: Any) -> np.ndarray:
+    """95 % intervals (size, 2) of effect ``name``'s parameter ``param``: made where
+    the parameter is estimated linearly (:data:`RECIPROCAL`: on its reciprocal, mapped
+    back by :func:`reciprocal_interval95`), else :func:`interval95` cut at the
+    parameter's physical bound."""
+    if (name, param) in RECIPROCAL:
+        return reciprocal_interval95(value, stderr)
+    return interval95(value, stderr, physical_bound(name, param))
+
+
+def reciprocal_interval95(value: Any, stderr: Any) -> np.ndarray:
+    """95 % intervals (size, 2) of a positive parameter ``s`` estimated linearly in
+    ``g = 1/s`` whose standard error came by the delta method (``se_g = se_s / s^2``):
+    ``g -/+ 1.96 se_g`` mapped through ``1/g`` (monotone on each side of 0). An
+    interval of ``g`` across 0 keeps its physical side, ``s`` from ``1/g_high`` to
+    infinity (the gain cannot be told from 0, so no scale is too large); one wholly
+    at ``g < 0`` maps to negative ``s`` (not physical, kept whole, as
+    :func:`interval95` keeps one wholly beyond its bound). NaN where ``s`` or its
+    standard error is not finite."""
+    s = np.asarray(value, float).reshape(-1)
+    se = np.asarray(stderr, float).reshape(-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = 1.0 / s
+        half = Z95 * se / s**2
+        g_lo, g_hi = g - half, g + half
+        low = 1.0 / g_hi
+        high = np.where((g_lo > 0.0) | (g_hi < 0.0), 1.0 / g_lo, np.inf)
+    bad = ~(np.isfinite(s) & np.isfinite(se) & (s != 0.0))
+    out = np.stack([low, high], axis=-1)
+    out[bad] = np.nan
+    return out
+
+
 def cut_at_bound(name: str, param: str, low: float) -> bool:
     """Whether an interval's ``low`` end is ``name``'s ``param``'s physical bound (the
     interval was cut there, :func:`interval95`: the text says "≥ 0")."""
@@ -310,7 +354,11 @@ def interval_span(
     the ends), or 'below high' where its low end is the physical bound it was cut at
     (:func:`cut_at_bound`): "0 to 5.99e-06" read as a value pinned near 0, when all the
     interval says is that the parameter, a delay that cannot be negative, is below its
-    high end (eyes6). With the number of significant digits used."""
+    high end (eyes6); 'above low' where it has no high end (an inertia scale whose
+    gain cannot be told from 0, :func:`reciprocal_interval95`). With the number of
+    significant digits used."""
+    if math.isfinite(lo) and hi == math.inf:
+        return f"above {lo:.3g}", 3
     a, b, digits = interval_ends(lo, hi, null)
     if cut_at_bound(name, param, lo) and math.isfinite(hi):
         return f"below {b}", digits
