@@ -457,9 +457,70 @@ def test_a_falling_model_error_says_when_its_physics_rose():
     tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
     (line,) = [ln for ln in verdict_of_models(tree) if ln.text.startswith("From m.npz")]
     assert line.text.endswith(
-        "; its physics + effects error rose on x (+64.6 %), y (+37.2 %): the refitted effects "
-        "alone predict worse, the GP carries the fall."
+        "; its physics + effects error rose on x (+64.6 %), y (+37.2 %): there the refitted "
+        "effects alone predict worse, the GP carries the fall."
     )
+    # a Crazyflie's motor lag (a new user): physics x, y fell by half and z rose 48 %,
+    # the model's z rose too (+42 %): the fall is the physics', z's rise not the GP's
+    lag = copy.deepcopy(tree)
+    lag["metrics_by_model"][0]["model"]["rmse"] = {"x": 26.4, "y": 39.9, "z": 1.458}
+    lag["metrics_by_model"][0]["effects"]["rmse"] = {"x": 36.4, "y": 42.2, "z": 1.507}
+    lag["metrics_by_model"][1]["model"]["rmse"] = {"x": 15.6, "y": 19.8, "z": 2.072}
+    lag["metrics_by_model"][1]["effects"]["rmse"] = {"x": 16.1, "y": 20.4, "z": 2.236}
+    lines = [ln.text for ln in verdict_of_models(lag)]
+    (line,) = [t for t in lines if t.startswith("From m.npz")]
+    assert "GP carries" not in line and "but rises on z" in line
+    assert any(t.startswith("Axis z got worse (+42.1 %)") for t in lines)
     tree["metrics_by_model"][1]["effects"]["rmse"] = {"x": 0.036, "y": 0.07, "z": 0.07}
     (line,) = [ln for ln in verdict_of_models(tree) if ln.text.startswith("From m.npz")]
     assert "physics + effects error rose" not in line.text  # under 20 %: not said
+
+
+def test_a_worse_axis_names_a_kept_effects_parameter_the_refit_moved():
+    """A new user added com_offset to a Betaflight model and x got 97 % worse; the line
+    blamed com_offset's r_x (indistinguishable from 0) while the refit had moved the
+    kept inertia_error's scale_x -7.91 -> -4.39 (its gain -0.126 -> -0.228)."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    kept = {"scale": [-7.91, -35.7, 2.45], "scale_stderr": [51.5, 375.0, 2.9]}
+    before = _file(
+        {"x": 20.2, "y": 7.34, "z": 8.83},
+        {"x": 20.4, "y": 7.34, "z": 8.78},
+        {"inertia_error": kept},
+    )
+    moved = {**kept, "scale": [-4.39, -36.3, 2.45], "scale_systematic": [0.3, 60.0, 0.8]}
+    com = {"r": [-1.52e-05, 0.002, 0.0], "r_stderr": [0.0014, 0.05, 0.05]}
+    tree = copy.deepcopy(before)
+    tree["models"].append(
+        {"name": "m+com.npz", "effects": {"inertia_error": moved, "com_offset": com}}
+    )
+    tree["metrics_by_model"] = [
+        before["metrics"],
+        {**before["metrics"], "model": {"rmse": {"x": 39.8, "y": 7.13, "z": 8.83}},
+         "effects": {"rmse": {"x": 40.6, "y": 7.13, "z": 8.78}}},
+    ]  # fmt: skip
+    (line,) = [ln.text for ln in verdict_of_models(tree) if ln.text.startswith("Axis x got")]
+    assert "its fitted r_x = -1.52e-05 ± 0.0014 is indistinguishable from 0" in line
+    assert "the refit moved inertia_error's scale_x -7.91 → -4.39" in line
+    assert "scale_y" not in line and "systematic" not in line  # moved 2 %; not a parameter
+    assert line.endswith("the refitted effects made x worse, not the GP.")
+
+
+def test_a_report_of_two_files_compares_the_last_files_last_model():
+    """`report base.json both.json`, both.json evaluated with the base model and the one
+    with the lag: the verdict said "the model error rises by 0.0 %" (both.json's first
+    model, the base model again) and left out both.json's own change lines."""
+    from omavctl.diagnose.change import report_verdict
+
+    lag = {"motor_lag": {"T_m": [0.064], "T_m_stderr": [0.01]}}
+    base = _file({"x": 26.4, "y": 39.9, "z": 1.46}, {"x": 36.4, "y": 42.2, "z": 1.51}, {})
+    after = _file({"x": 15.6, "y": 19.8, "z": 2.07}, {"x": 16.1, "y": 20.4, "z": 2.24}, lag)
+    both = copy.deepcopy(base)
+    both["models"].append({**after["models"][0], "name": "m+lag.npz"})
+    both["metrics_by_model"] = [base["metrics"], after["metrics"]]
+    lines = report_verdict([(base, "base.json"), (both, "both.json")])
+    steps = [ln.text for ln in lines if ln.who == "base.json → both.json"]
+    assert steps[0].startswith("With motor_lag added: the model error falls by 44.")
+    assert "x −40.9 %, y −50.4 %, z +41.8 %" in steps[0]
+    own = [ln.text for ln in lines if ln.who == "both.json" and ln.key == "change"]
+    assert any(t.startswith("With motor_lag added (m.npz → m+lag.npz)") for t in own)

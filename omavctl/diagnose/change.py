@@ -22,6 +22,7 @@ from omavctl.diagnose.verdict import verdict
 from omavctl.diagnose.verdict_lines import (
     AXES,
     FIRST_FLAGS,
+    WORSE_AXIS,
     Line,
     ModelScore,
     _pct,
@@ -49,12 +50,21 @@ MATERIAL_FALL = 0.10
 
 
 def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[ModelScore]:
-    """One :class:`ModelScore` per evaluation file (its first model)."""
+    """One :class:`ModelScore` per evaluation file: its first model, but the last
+    file's last (``--model`` repeated: a new user's ``report base.json both.json``
+    compared base.npz with itself, "the model error rises by 0.0 %"), labelled
+    'file: model'."""
     out = []
-    for tree, label in evals:
+    for i, (tree, label) in enumerate(evals):
         effects = get_path(tree, "models", 0, "effects", default={}) or {}
         rmse = get_path(tree, "metrics", "model", "rmse", default={}) or {}
         physics = get_path(tree, "metrics", "effects", "rmse", default={}) or {}
+        models = scores_of_models(tree)
+        if i == len(evals) - 1 and i > 0 and len(models) > 1:
+            m = models[-1]
+            out.append(ModelScore(f"{label}: {m.label}", m.effects, m.effect_params, m.rmse,
+                                  tree, m.physics))  # fmt: skip
+            continue
         out.append(ModelScore(label, tuple(effects), effects, rmse, tree, physics))
     return out
 
@@ -136,8 +146,7 @@ def _worse_reason(
         params = after.effect_params.get(name) or {}
         held = get_path(entry, "parameters", default={}) or {}
         for key, vals in params.items():
-            derived = ("_stderr", "_systematic", "_ci95", "_ci95_statistical", "_pinned")
-            if str(key).endswith(derived) or not isinstance(vals, list) or len(vals) != 3:
+            if str(key).endswith(DERIVED) or not isinstance(vals, list) or len(vals) != 3:
                 continue
             v, se = _num(vals[i]), _num(get_path(params, f"{key}_stderr", i))
             if v is not None and se is not None and abs(v) < 2 * se:
@@ -146,6 +155,7 @@ def _worse_reason(
                 )
             below = name if (name, f"{key}_{axis}") in said else None
             misfit += _disagreement(key, axis, v, se, held, i, below)
+    reasons += _moved(before, after, i)
     part = _which_part(before, after, axis)
     if misfit:  # the effect's own estimate is off: one sentence with the parts' numbers
         return _misfit_reason(misfit, part, axis)
@@ -163,6 +173,35 @@ def _worse_reason(
         what += "s" if len(added) > 1 and not removed else ""
         return f"the files do not say why: {what} and the refitted GP changed together"
     return f"{'; '.join(reasons)}: the change comes from the refitted GP, not from the effect"
+
+
+#: The keys of an estimate's JSON that are not parameters.
+DERIVED = ("_stderr", "_systematic", "_ci95", "_ci95_statistical", "_pinned")
+#: A kept effect's per-axis parameter that the refit moved by more than this fraction
+#: of its larger magnitude is named among the reasons an axis got worse.
+MOVED = 0.2
+
+
+def _moved(before: ModelScore, after: ModelScore, i: int) -> list[str]:
+    """'the refit moved inertia_error's scale_x -7.91 → -4.39' for each per-axis
+    parameter component ``i`` of an effect both models hold that the refit moved by
+    more than :data:`MOVED` (a Betaflight fit with com_offset added made x 97 % worse
+    and was said to be com_offset's r_x, indistinguishable from 0, while the refit had
+    moved the command's gain on x from -0.126 to -0.228)."""
+    out = []
+    for name in (n for n in after.effects if n in before.effects):
+        p0, p1 = before.effect_params.get(name) or {}, after.effect_params.get(name) or {}
+        for key, vals in p1.items():
+            old = p0.get(key)
+            if str(key).endswith(DERIVED) or not isinstance(old, list):
+                continue
+            if not (isinstance(vals, list) and len(vals) == len(old) == 3):
+                continue
+            v0, v1 = _num(old[i]), _num(vals[i])
+            if v0 is None or v1 is None or abs(v1 - v0) <= MOVED * max(abs(v0), abs(v1)):
+                continue
+            out.append(f"the refit moved {name}'s {key}_{AXES[i]} {v0:.3g} → {v1:.3g}")
+    return out
 
 
 def _misfit_reason(misfit: Sequence[str], part: tuple[str, str, str] | None, axis: str) -> str:
@@ -277,7 +316,7 @@ def change_lines(
     rose = physics_rose_clause(before, after) if mean is not None and mean < 0 else ""
     lines = [Line("change", text + _other_samples(before, after) + rose + ".")]
     for a, c in changes.items():
-        if c > 0.02:
+        if c > WORSE_AXIS:
             lines.append(
                 Line(
                     "change",
@@ -482,8 +521,9 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
         if len(evals) > 2:
             lines += step(i, i + 1)
     lines += step(0, len(evals) - 1)
-    lines += _files_rolled(scores[0], scores[-1])
-    lines += [replace(ln, who=label1) for ln in verdict(last)]
+    if len(scores_of_models(last)) < 2:  # else the last file's own lines roll its models
+        lines += _files_rolled(scores[0], scores[-1])
+    lines += [replace(ln, who=label1) for ln in verdict_of_models(last)]
     return lines
 
 
