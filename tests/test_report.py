@@ -270,6 +270,14 @@ def test_report_json_gives_the_change_as_numbers(evals, tmp_path):
     two.models_rmse = [{"x": 2.0, "y": 1.0, "z": 2.0}, {"x": 1.0, "y": 1.5, "z": 2.0}]
     one = ReportSummary(tmp_path / "r.md", "md", 0, [two])
     assert _report_json(one, one.out)["change"] == {"x": -0.5, "y": 0.5, "z": 0.0}
+    # a file of one model, then one of two (base.json, both.json): from the first file's
+    # model to the last file's last model (it compared both.json's first model, the
+    # same base model, with itself: +0.0 % on every axis)
+    base = EvaluationSummary("base.json", "base.json", {"x": 2.0, "y": 1.0, "z": 2.0}, {}, [], None)
+    two.label, two.model_names = "both.json", ["base.npz", "lag.npz"]
+    pair = ReportSummary(tmp_path / "r.md", "md", 0, [base, two])
+    assert _report_json(pair, pair.out)["change"] == {"x": -0.5, "y": 0.5, "z": 0.0}
+    assert pair.change_labels() == ("base.json", "both.json: lag.npz")
     two.models_rmse = two.models_rmse[:1]
     assert _report_json(one, one.out)["change"] is None
 

@@ -98,8 +98,9 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
     con.print(table)
     change = summary.change() if len(summary.evaluations) > 1 else None
     if change is not None:
+        first, last = summary.change_labels()
         con.print(
-            f"change {summary.evaluations[0].label} -> {summary.evaluations[-1].label}: "
+            f"change {first} -> {last}: "
             + ", ".join(f"{a} {_signed_pct(change[a])}" for a in "xyz"),
             markup=False,
         )

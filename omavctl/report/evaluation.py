@@ -171,6 +171,26 @@ class EvaluationSummary:
     #: each ``--model``'s file name, in the same order
     model_names: list[str] = field(default_factory=list)
 
+    def _several(self) -> bool:
+        return len(self.models_rmse) > 1
+
+    def _named(self) -> bool:
+        return self._several() and len(self.model_names) == len(self.models_rmse)
+
+    def first_model(self) -> dict[str, float]:
+        """The first ``--model``'s RMSE per axis (the file's model RMSE)."""
+        return self.models_rmse[0] if self._several() else self.model_rmse
+
+    def last_model(self) -> dict[str, float]:
+        """The last ``--model``'s RMSE per axis (the file's, for one model)."""
+        return self.models_rmse[-1] if self._several() else self.model_rmse
+
+    def first_label(self) -> str:
+        return f"{self.label}: {self.model_names[0]}" if self._named() else self.label
+
+    def last_label(self) -> str:
+        return f"{self.label}: {self.model_names[-1]}" if self._named() else self.label
+
 
 @dataclass
 class ReportSummary:
@@ -183,17 +203,23 @@ class ReportSummary:
     verdict: list[Any] = field(default_factory=list)
 
     def change(self) -> dict[str, float | None] | None:
-        """Per-axis relative change of the model RMSE from the first file to the last
-        (of one file that holds several ``--model``: from its first model to its last),
-        as a fraction (-0.141: 14.1 % lower); None where undefined, and None in all for
-        one file of one model."""
-        if len(self.evaluations) > 1:
-            first, last = self.evaluations[0].model_rmse, self.evaluations[-1].model_rmse
-        elif self.evaluations and len(self.evaluations[0].models_rmse) > 1:
-            first, last = self.evaluations[0].models_rmse[0], self.evaluations[0].models_rmse[-1]
-        else:
+        """Per-axis relative change of the model RMSE from the first file's first model
+        to the last file's last model (a file that holds several ``--model`` counts its
+        last: a new user's ``report base.json both.json``, both.json evaluated with the
+        base model and the one with the lag, said +0.0 % on every axis), as a fraction
+        (-0.141: 14.1 % lower); None where undefined, and None in all for one file of
+        one model."""
+        if not self.evaluations:
+            return None
+        first, last = self.evaluations[0].first_model(), self.evaluations[-1].last_model()
+        if len(self.evaluations) == 1 and len(self.evaluations[0].models_rmse) < 2:
             return None
         return {a: relative_change(last[a], first[a]) for a in AXES}
+
+    def change_labels(self) -> tuple[str, str]:
+        """What :meth:`change` compares: the first file (its first model's name where it
+        holds several) and the last (its last model's)."""
+        return self.evaluations[0].first_label(), self.evaluations[-1].last_label()
 
 
 def _models_rmse(tree: Mapping[str, Any]) -> list[dict[str, float]]:
