@@ -98,3 +98,19 @@ def test_the_gain_a_normalised_torque_needs_is_never_dropped() -> None:
     effects, learned = tree["models"][0]["effects"], tree["diagnosis"]["learned"]
     assert [n for n, _, _ in unconfirmed(effects, learned)] == ["inertia_error"]
     assert unconfirmed(effects, learned, needed={"inertia_error"}) == []
+
+
+def test_what_the_actuators_show_is_never_unconfirmed() -> None:
+    """report20 draw 49: the torque's T_m intervals held 0 on both flights while the
+    logged rotors followed their commands 120 ms late (95 %: 117 to 122 ms); 'fit without
+    motor_lag' was followed and the model's error grew 3.7x."""
+    from omavctl.diagnose.unconfirmed import shown_by_actuators
+
+    lag = {"T_m": [0.0], "T_m_ci95": [[0.0, 0.528]]}
+    effects = {"motor_lag": lag}
+    learned = [{"name": "motor_lag", "estimate": {"T_m": [0.0], "T_m_ci95": [[0.0, 0.213]]}}]
+    assert [n for n, _, _ in unconfirmed(effects, learned)] == ["motor_lag"]
+    diagnosis = {"actuators": {"shown": {"motor_lag": {"value": 0.12, "ci95": [0.117, 0.122]}}}}
+    assert shown_by_actuators(diagnosis) == {"motor_lag"}
+    assert unconfirmed(effects, learned, shown_by_actuators(diagnosis)) == []
+    assert shown_by_actuators({"actuators": None}) == set() == shown_by_actuators({})

@@ -14,7 +14,7 @@ from omavctl.diagnose.axis_share import axis_held, named_effects
 from omavctl.diagnose.commands import effect_commands, fit_command, separation
 from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
-from omavctl.diagnose.unconfirmed import unconfirmed
+from omavctl.diagnose.unconfirmed import shown_by_actuators, unconfirmed
 from omavctl.learn.estimate import GAIN_EFFECT
 from omavctl.learn.fit_notes import effect_unit
 from omavctl.learn.model import ResidualGP
@@ -54,7 +54,8 @@ def diagnosis_with_commands(
     effects = {n: e.to_json() for n, e in model.effects.items()}
     # (on a normalised torque command the inertia scale is its gain: fit adds it back)
     needed = {GAIN_EFFECT} if model.vehicle.torque_normalised else set()
-    found = unconfirmed(effects, diagnosis.get("learned"), needed)
+    # (and what the actuators' own feedback shows is confirmed by it)
+    found = unconfirmed(effects, diagnosis.get("learned"), needed | shown_by_actuators(diagnosis))
     drop = [n for n, _, _ in found if n not in claimed]
     diagnosis["unconfirmed"] = drop
     diagnosis["without_command"] = fit_command(model_path, model, [], drop) if drop else None
@@ -119,3 +120,18 @@ def claimed(diagnosis: dict[str, Any] | None) -> list[str]:
     if diagnosis is None:
         return []
     return [*diagnosis["missing"], *diagnosis.get("learned_claims", [])]
+
+
+def claim_shares(diagnosis: dict[str, Any] | None) -> dict[str, dict[str, float]]:
+    """Per ranked effect the share (0-1) of each axis's error it explains
+    (``explained_variance_per_axis`` of ``missing_effects`` and ``learned``); an
+    effect the ranking has no per-axis shares for is left out."""
+    out: dict[str, dict[str, float]] = {}
+    for key in ("missing_effects", "learned"):
+        for e in (diagnosis or {}).get(key) or []:
+            per = e.get("explained_variance_per_axis") if isinstance(e, dict) else None
+            if isinstance(per, dict) and str(e.get("name")) not in out:
+                out[str(e["name"])] = {
+                    str(a): float(v) for a, v in per.items() if isinstance(v, int | float)
+                }
+    return out

@@ -27,7 +27,7 @@ from omavctl.diagnose.fit_vs_flight import flight_words
 from omavctl.diagnose.verdict_lines import Line, get_path
 from omavctl.learn.intervals import interval_span, null_values
 
-__all__ = ["unconfirmed", "unconfirmed_line"]
+__all__ = ["shown_by_actuators", "unconfirmed", "unconfirmed_line"]
 
 
 def _holds_null(name: str, estimate: Any) -> bool:
@@ -36,6 +36,16 @@ def _holds_null(name: str, estimate: Any) -> bool:
     if not isinstance(estimate, Mapping) or not claimed_rows(name, estimate, None):
         return False
     return not excludes_null(name, estimate, None)
+
+
+def shown_by_actuators(diagnosis: Mapping[str, Any]) -> set[str]:
+    """The effects the actuators' own feedback shows (``diagnosis.actuators.shown``): not
+    unconfirmed whatever the torque's intervals say. report20 draw 49 (a 120 ms motor
+    lag and a 29 ms delay): the torque's T_m intervals held 0 on both flights while the
+    logged rotors followed their commands 120 ms late (117 to 122 ms); the verdict said
+    fit without motor_lag, and the model that followed it had 3.7x the error."""
+    shown = get_path(diagnosis, "actuators", "shown", default={}) or {}
+    return {str(n) for n in shown} if isinstance(shown, Mapping) else set()
 
 
 def unconfirmed(
