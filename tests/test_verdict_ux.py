@@ -861,6 +861,24 @@ def test_no_better_than_zero_on_several_axes_is_one_line():
             "the flight moves the vehicle enough for its commands to show",
         )
     ]
+    # a new user's Crazyflie: motor_lag explains x 34 %, y 35 %, z 0 %: z is not told to
+    # add it first (adding it left z no better than predicting none)
+    shares = {"motor_lag": {"x": 0.34, "y": 0.35, "z": 0.0}}
+    tree["flags"] = quality_flags(metrics, [], ["motor_lag"], shares)
+    by_axis = {f["axis"]: f["message"] for f in tree["flags"]}
+    assert "names what the physics lacks (motor_lag)" in by_axis["x"]
+    assert by_axis["z"].endswith(
+        "predicting none would do as well; check the command's gain, sign and frame, and "
+        "whether the flight moves the vehicle enough for its commands to show"
+    )
+    from omavctl.diagnose.diagnosis_commands import claim_shares
+
+    ranked = {
+        "missing_effects": [
+            {"name": "motor_lag", "explained_variance_per_axis": shares["motor_lag"]}
+        ]
+    }
+    assert claim_shares(ranked) == shares and claim_shares(None) == {}
 
 
 def test_two_models_the_first_models_own_sentence_names_its_model():

@@ -151,7 +151,10 @@ def binned_errors(
 
 
 def quality_flags(
-    metrics: dict[str, Any], excluded: Sequence[dict[str, Any]], claims: Sequence[str] = ()
+    metrics: dict[str, Any],
+    excluded: Sequence[dict[str, Any]],
+    claims: Sequence[str] = (),
+    shares: Mapping[str, Mapping[str, float]] | None = None,
 ) -> list[dict[str, Any]]:
     """What a reader must know before trusting the model on these logs.
 
@@ -159,7 +162,10 @@ def quality_flags(
     ``worse_than_physics``: the model's RMSE above :data:`MAX_RATIO` x that of
     nominal + effects (the GP hurts); ``no_better_than_zero``: the model's RMSE not
     below the RMS of the measured angular acceleration (``metrics.zero``; its advice
-    names the diagnosis's ``claims`` first, :func:`_zero_advice`);
+    names the diagnosis's ``claims`` that act on the axis first, :func:`_zero_advice`:
+    ``shares`` per claim and axis the share of the error it explains, an axis under
+    :data:`ZERO_ADVICE_SHARE` not its; a Crazyflie's z, 0 % of it motor_lag's, was told
+    to add motor_lag first);
     ``out_of_control``: samples excluded.
     """
     flags: list[dict[str, Any]] = []
@@ -174,7 +180,7 @@ def quality_flags(
                     "message": f"axis {a}: the model's error "
                     f"({metrics['model']['rmse'][a]:.3g} rad/s² RMS) is not below the "
                     f"angular acceleration itself ({zero:.3g}): predicting none would do "
-                    f"as well; {_zero_advice(claims)}",
+                    f"as well; {_zero_advice(_acting(claims, shares, a))}",
                 }
             )
         cov = metrics["model"]["coverage_2sigma"][a]
@@ -212,6 +218,23 @@ def quality_flags(
             }
         )
     return flags
+
+
+#: A claim that explains under this share of an axis's error is not advised on that
+#: axis (as the verdict names the axes of a claim, AXIS_CLAIM).
+ZERO_ADVICE_SHARE = 0.05
+
+
+def _acting(
+    claims: Sequence[str], shares: Mapping[str, Mapping[str, float]] | None, axis: str
+) -> list[str]:
+    """The ``claims`` that explain at least :data:`ZERO_ADVICE_SHARE` of ``axis``'s
+    error (all of those without shares)."""
+    return [
+        c
+        for c in claims
+        if shares is None or c not in shares or shares[c].get(axis, 1.0) >= ZERO_ADVICE_SHARE
+    ]
 
 
 def _zero_advice(claims: Sequence[str]) -> str:
