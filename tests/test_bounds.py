@@ -208,3 +208,25 @@ def test_a_torque_gain_interval_is_its_scale_interval_inverted():
         in rows()["gain_x = 1/scale_x"]
     )
     assert "below it" not in rows()["gain_y = 1/scale_y"]
+
+
+def test_a_component_the_flight_does_not_excite_is_not_quoted():
+    """A quadrotor's com_offset r_z (only a force along x or y shows it): the verdict
+    quoted 'r_z = 0 (95 %: -0.098 to 0.098, cannot be pinned down ...)', the prior's,
+    while fit said 'not excited by these logs'."""
+    est = {
+        "r": [-3.98e-05, 3.31e-06, 0.0],
+        "r_ci95": [[-0.0015, 0.00142], [-0.00185, 0.00186], [-0.098, 0.098]],
+        "r_pinned": [False, False, False],
+    }
+    entry = {
+        "name": "com_offset",
+        "estimate": est,
+        "units": {"r": "m"},
+        "parameters": {"excited": [True, True, False]},
+    }
+    text = estimate_sentence(entry)
+    assert "r_x = -3.98e-05 m" in text and "r_y = 3.31e-06 m" in text
+    assert "r_z" not in text and "0.098" not in text
+    del entry["parameters"]  # without the ranking's excitation, as before
+    assert "r_z = 0 m (95 %: -0.098 to 0.098" in estimate_sentence(entry)

@@ -38,11 +38,21 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
         return ""
     units = entry.get("units") if isinstance(entry.get("units"), Mapping) else {}
     parts, unclaimed = [], []
+    # the ranking's components the flight does not excite (a quadrotor's r_z: only a
+    # force along x or y shows it): their "estimate" is the prior, 0 +- 0.098, which the
+    # verdict quoted while fit said "not excited by these logs"
+    excited = (
+        (entry.get("parameters") or {}).get("excited")
+        if isinstance(entry.get("parameters"), Mapping)
+        else None
+    )
+    at = 0
     for name, unit in (units or {}).items():
         values, intervals = est.get(name), est.get(f"{name}_ci95")
         pinned = est.get(f"{name}_pinned")
         if not isinstance(values, list) or not isinstance(intervals, list):
             continue
+        offset, at = at, at + len(values)
         # as fit's table and the report's ranking name them: motor_loss's l_0 .. l_3
         labels = (
             [f"{name}_{a}" for a in "xyz"]
@@ -54,6 +64,9 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
         for i, (v, ci) in enumerate(zip(values, intervals, strict=False)):
             if not isinstance(ci, list) or len(ci) != 2 or ci[0] is None or ci[0] == ci[1]:
                 continue  # not excited (no spread) or not finite
+            if isinstance(excited, list) and offset + i < len(excited):
+                if excited[offset + i] is False:
+                    continue
             # no high end: an inertia scale whose gain cannot be told from 0
             ci = [float(ci[0]), math.inf if ci[1] is None else float(ci[1])]
             if axes is not None and len(values) == 3 and "xyz"[i] not in axes:
