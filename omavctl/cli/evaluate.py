@@ -78,7 +78,11 @@ NoVehicle = Annotated[
 ]
 HorizonStride = Annotated[
     int,
-    typer.Option(metavar="N", help="Samples between the starts of the horizon windows."),
+    typer.Option(
+        metavar="N",
+        help="Samples between the starts of the horizon windows (at least: a log with more "
+        "windows than memory allows gets a larger stride, which the table says).",
+    ),
 ]
 
 
