@@ -230,3 +230,24 @@ def test_a_component_the_flight_does_not_excite_is_not_quoted():
     assert "r_z" not in text and "0.098" not in text
     del entry["parameters"]  # without the ranking's excitation, as before
     assert "r_z = 0 m (95 %: -0.098 to 0.098" in estimate_sentence(entry)
+
+
+def test_an_inertia_scale_whose_gain_is_not_told_from_zero_is_no_estimate():
+    """A Crazyflie's hover logs: scale_x 82 +- 1400 with only 'within 2 standard errors
+    of 1' said, and a model that predicted almost no roll."""
+    from types import SimpleNamespace
+
+    from omavctl.learn.fit_notes import effect_notes
+
+    est = EffectEstimate(
+        "inertia_error",
+        {"scale": np.array([82.05, 1.2, 0.9])},
+        {"scale": np.array([1400.0, 0.05, 0.2])},
+    )
+    notes = effect_notes(SimpleNamespace(estimates={"inertia_error": est}))
+    (no_torque,) = [n for n in notes if "does not show the torque" in n]
+    assert no_torque.startswith(
+        "inertia_error: on x the measured angular acceleration does not show the torque "
+        "(1/scale_x = 0.012 ± 0.21, within 2 standard errors of 0): scale_x 82 is no estimate"
+    )
+    assert "inertia_error: scale_x, scale_z within 2 standard errors of 1" in " ".join(notes)

@@ -114,6 +114,8 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
                     "of zero: the logs barely excite it (or the GP explains the same trend)"
                 )
             continue
+        if name == GAIN_EFFECT:
+            notes += _no_torque_notes(est)
         if not effect.identifiable:
             notes.append(
                 f"{name} is not identifiable from angular accelerations (see its docs): "
@@ -140,6 +142,30 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
                     "tell it from the effect's absence (small, absent, or barely excited)"
                 )
     return notes
+
+
+def _no_torque_notes(est: Any) -> list[str]:
+    """'inertia_error: on x the measured angular acceleration does not show the torque
+    (1/scale_x = 0.012 ± 0.2, within 2 standard errors of 0): scale_x 82 is no estimate'
+    for the axes whose inverse scale (the regression's coefficient, the torque's gain
+    on the acceleration) the logs cannot tell from 0: a Crazyflie's hover logs gave
+    scale_x 82 ± 1400, with only 'within 2 standard errors of 1' said, and a model that
+    predicts almost no roll."""
+    scale = np.asarray(est.values["scale"], float)
+    se = np.asarray(est.stderr["scale"], float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain, gain_se = 1.0 / scale, se / scale**2
+    axes = [
+        i for i in range(scale.size) if np.isfinite(gain_se[i]) and abs(gain[i]) < 2 * gain_se[i]
+    ]
+    return [
+        f"inertia_error: on {'xyz'[i]} the measured angular acceleration does not show the "
+        f"torque (1/scale_{'xyz'[i]} = {gain[i]:.2g} ± {gain_se[i]:.2g}, within 2 standard errors "
+        f"of 0): scale_{'xyz'[i]} {scale[i]:.3g} is no estimate, and the model predicts little "
+        f"of the {'xyz'[i]} acceleration from the commanded torque; these logs do not show "
+        "what the torque on that axis does (hover alone, or a command in other units)"
+        for i in axes
+    ]
 
 
 def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) -> list[str]:
