@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -155,6 +156,21 @@ def test_cli_effects_plan_scores_both_objectives_and_is_deterministic(setup):
         *model.effects["command_delay"].stderr["tau_d"],
     ]
     assert summary["stderr_fit"] == pytest.approx([float(v) for v in stored], rel=1e-12)
+    # what the lines show: the planner's times the factors (effects_forecast), never
+    # above what is shown now (a flight adds information)
+    factor = summary["forecast_factor"]
+    now = [
+        f if f is not None else b
+        for f, b in zip(summary["stderr_fit"], summary["stderr_before"], strict=True)
+    ]
+    after = zip(summary["stderr_after"], now, strict=True)
+    assert summary["stderr_after_forecast"] == pytest.approx(
+        [min(v * factor, n) for v, n in after], rel=1e-12
+    )
+    task = zip(summary["stderr_task"], summary["autocorrelation_factor"], now, strict=True)
+    assert summary["stderr_task_forecast"] == pytest.approx(
+        [min(v * f, n) for v, f, n in task], rel=1e-12
+    )
     # the planned flight adds information: no standard error grows
     assert all(
         a <= b * (1 + 1e-9)
@@ -173,7 +189,9 @@ def test_variance_plan_also_reports_the_effects_numbers(setup):
     # planner's white linearisation, which a new user found 6-8x smaller than fit's
     text = " ".join(result.output.split())
     tau_d = float(setup[3].effects["command_delay"].stderr["tau_d"][0])
-    assert f"± {tau_d:.3g} now (fit's)" in text
+    assert f"± {tau_d:.3g} s now (fit's)" in text
+    # the forecast after the flight carries the one factor (docs/plan-effects.md)
+    assert re.search(r"after the flight \(planner's ×[0-9.]+\)", text)
     # the rotors' thrust spread stays whatever is flown: the forecast, under it, said
     # nothing of it, so a new user read 'r_x ± 0.000946 after the flight' beside fit's
     # interval of ± 0.0043 m (± 0.0019 of it the spread)
@@ -265,7 +283,7 @@ def test_an_effects_flight_pins_hidden_drag_and_delay_down_better_than_the_other
 
 
 def test_a_weak_correlation_is_not_called_inseparable():
-    from omavctl.planning.effects_objective import correlation_remark
+    from omavctl.planning.effects_forecast import correlation_remark
 
     assert correlation_remark(0.5, 0.3) == ""
     assert (
@@ -281,10 +299,10 @@ def test_the_headline_does_not_promise_to_pin_down_what_it_correlates_more():
     them more: it does not tell them apart)' read as a contradiction to a new user."""
     from types import SimpleNamespace
 
-    from omavctl.planning.effects_objective import _headline
+    from omavctl.planning.effects_forecast import _headline
 
     result = SimpleNamespace(best=3, objective="variance")
-    rel = {"before": 0.031, "after": 0.022, "task": 0.028}
+    rel = {"now": 0.031, "after_forecast": 0.022, "task_forecast": 0.028}
     worse = {"before": 0.65, "after": 0.79, "task": 0.57}
     line = _headline(result, ["com_offset", "rotor_interference"], rel, worse)
     assert "is expected to narrow com_offset, rotor_interference" in line
@@ -293,3 +311,30 @@ def test_the_headline_does_not_promise_to_pin_down_what_it_correlates_more():
     line = _headline(result, ["com_offset", "rotor_interference"], rel, better)
     assert "is expected to separate and pin down com_offset" in line
     assert "is expected to pin down com_offset:" in _headline(result, ["com_offset"], rel, worse)
+    # fit's relative standard error now and the forecasts of it, as the lines below say
+    assert "(geometric mean, fit's and its forecasts) 0.031 now, 0.022 after it, 0.028" in line
+
+
+def test_the_planned_flights_forecast_carries_the_linear_effects_median_factor():
+    """make bench-effects, seed 1 (a drag and a 30 ms delay, figure-8 first flight): fit's
+    standard error over the planner's was 4.92, 4.25 for D_x, D_y, 1.02 for D_z (left at
+    its prior: the planner's 0.078 is the prior's) and 37 for tau_d (its interval allowed
+    213 ms for a lag's form). Each parameter's own factor made the planned flight's
+    forecasts 0.07-15x off what fit then gave; the task's held (0.86-1.15x)."""
+    from omavctl.planning.effects_forecast import forecast_factors
+
+    before = np.array([0.0532, 0.0310, 0.0781, 0.00580])
+    fit_se = np.array([0.2617, 0.1315, 0.0798, 0.2147])
+    prior = np.array([0.1, 0.1, 0.1, 0.05])
+    searched = np.array([False, False, False, True])
+    own, factor = forecast_factors(before, fit_se, prior, searched)
+    assert own == pytest.approx(fit_se / before)
+    assert factor == pytest.approx(np.median([0.2617 / 0.0532, 0.1315 / 0.0310]))
+    # D_z at its prior and the delay's search are left out; with only the delay, its own
+    only_delay = forecast_factors(before[3:], fit_se[3:], prior[3:], searched[3:])
+    assert only_delay[1] == pytest.approx(0.2147 / 0.0058)
+    # fit without a standard error: factor 1, never below 1
+    none = forecast_factors(before, np.full(4, np.nan), prior, searched)
+    assert none[0].tolist() == [1.0] * 4 and none[1] == 1.0
+    one = forecast_factors(np.array([0.1]), np.array([0.05]), np.array([1.0]), np.array([False]))
+    assert one[1] == 1.0  # fit's below the planner's: at least 1

@@ -280,7 +280,7 @@ def _render_plan(
     con.print(_tilt_line(result), markup=False)
     for note in result.notes:
         con.print(f"note: {note}", markup=False)
-    from omavctl.planning.effects_objective import effects_summary
+    from omavctl.planning.effects_forecast import effects_summary
 
     summary = effects_summary(result)
     for line in summary["lines"] if summary else []:
@@ -363,7 +363,7 @@ def _candidate_json(result: Any, k: int) -> dict[str, Any]:
 def _plan_json(result: Any, files: dict[str, str]) -> dict[str, Any]:
     """The --json object of plan: files, the best candidate, every candidate's cost,
     the objective and (for the effects objective) the effects' expected errors."""
-    from omavctl.planning.effects_objective import effects_summary
+    from omavctl.planning.effects_forecast import effects_summary
     from omavctl.planning.envelope import envelope, envelope_warnings
     from omavctl.planning.expectation import expectation
 

@@ -44,7 +44,6 @@ far the flight tells the effects apart).
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,7 +61,6 @@ __all__ = [
     "EffectsObjective",
     "EffectsPrior",
     "effects_from_evaluation",
-    "effects_summary",
     "parameter_labels",
     "resolve_effects",
 ]
@@ -332,133 +330,3 @@ class EffectsObjective:
 
     def __call__(self, flights: Flights) -> np.ndarray:
         return self.metrics(flights)["effects"]
-
-
-def geometric_mean(values: np.ndarray) -> float:
-    """Geometric mean of positive values (nan when empty)."""
-    v = np.asarray(values, float)
-    return float(np.exp(np.mean(np.log(v)))) if v.size else math.nan
-
-
-def _finite(values: np.ndarray) -> list[float | None]:
-    return [float(v) if math.isfinite(v) else None for v in np.asarray(values, float).ravel()]
-
-
-def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
-    """The summary's first line: what the flight is expected to do for ``names``.
-
-    "separate" only when the largest cross-effect correlation falls; a flight that
-    narrows the parameters while correlating them more says "narrow" and why.
-    """
-    separates = len(names) > 1 and corr["after"] < corr["before"]
-    # "pin down" beside "it does not tell them apart" read as a contradiction: with
-    # more than one effect and a correlation that grows, the flight only narrows them
-    kind = "separate and pin down" if separates else "narrow" if len(names) > 1 else "pin down"
-    line = (
-        f"effects: the flight (candidate {result.best}, ranked by --objective "
-        f"{result.objective}) is expected to {kind} {', '.join(names)}: relative standard "
-        f"error (geometric mean) {rel['before']:.3g} now, {rel['after']:.3g} after it, "
-        f"{rel['task']:.3g} after flying the task again"
-    )
-    if len(names) > 1:
-        line += (
-            f"; largest cross-effect correlation {corr['before']:.2f} now, "
-            f"{corr['after']:.2f} after it, {corr['task']:.2f} after the task"
-        )
-        line += correlation_remark(corr["before"], corr["after"])
-    return line
-
-
-#: A cross-effect correlation from which two effects are hard to tell apart.
-STRONG_CORRELATION = 0.7
-
-
-def correlation_remark(before: float, after: float) -> str:
-    """What the largest cross-effect correlation before and after a flight says ('' when
-    it falls): only a strong one means the flight does not tell the effects apart."""
-    if not after > before:
-        return ""
-    if after >= STRONG_CORRELATION:
-        return " (the flight correlates them more: it does not tell them apart)"
-    return " (a little more correlated after it, still told apart)"
-
-
-#: Why a planned flight does not narrow an interval below the spread.
-_SPREAD_STAYS = (
-    "the rotors' thrust spread as the fit flight passes it on (more of that flight does not "
-    "average it away; a flight that excites the effect more passes less of it on: fit on "
-    "both flights says how much)"
-)
-
-
-def effects_summary(result) -> dict | None:
-    """What a plan (:class:`~omavctl.planning.planner.PlanResult`) expects for the
-    effects: per parameter the standard errors before, after the chosen flight and
-    after flying the task again; geometric-mean relative standard errors and largest
-    cross-effect correlations; ``lines`` for the terminal. None without effects numbers.
-    """
-    prior = result.effects
-    if prior is None or result.best < 0 or "effects_se" not in result.metrics:
-        return None
-    k = result.best
-    groups = np.concatenate([np.full(get_effect(n).n_theta, i) for i, n in enumerate(prior.names)])
-    before = prior.standard_errors(prior.information)
-    after, task = result.metrics["effects_se"][k], result.task_metrics["effects_se"]
-    rel = {
-        "before": geometric_mean(before / prior.scale),
-        "after": float(result.metrics["effects_rel_se"][k]),
-        "task": float(result.task_metrics["effects_rel_se"]),
-    }
-    corr = {
-        "before": float(max_cross_correlation(prior.information, groups)),
-        "after": float(result.metrics["effects_correlation"][k]),
-        "task": float(result.task_metrics["effects_correlation"]),
-    }
-    lines = [_headline(result, prior.names, rel, corr)]
-    labels = parameter_labels(prior.names)
-    owner = np.concatenate([np.full(get_effect(n).n_theta, n) for n in prior.names])
-    fit_se = prior.fit_stderr if prior.fit_stderr is not None else np.full(before.size, np.nan)
-    # fit's standard errors allow for autocorrelated residuals (and a lag's come from its
-    # 1-D search over every sample); the planner's are white GLS at the training points,
-    # several-fold smaller. "Now" is fit's; the forecasts carry the same factor, which
-    # assumes the next flight's residuals are as correlated as the fit flight's.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        allowance = np.where(np.isfinite(fit_se) & (before > 0), fit_se / before, 1.0)
-    allowance = np.maximum(np.nan_to_num(allowance, nan=1.0, posinf=1.0), 1.0)
-    spread = np.zeros(before.size) if prior.fit_systematic is None else prior.fit_systematic
-    spread = np.nan_to_num(spread, nan=0.0, posinf=0.0)
-    for i, label in enumerate(labels):
-        times = (
-            f"; ×{allowance[i]:.2g} for autocorrelation as fit measured it"
-            if allowance[i] > 1.05
-            else ""
-        )
-        now = (
-            f"{prior.values[i]:.4g} ± {fit_se[i]:.3g} now (fit's)"
-            if owner[i] in prior.fitted and np.isfinite(fit_se[i])
-            else f"{prior.values[i]:.4g} ± {before[i]:.3g} now"
-            if owner[i] in prior.fitted
-            else f"not in the model (prior ± {before[i]:.3g})"
-        )
-        lines.append(
-            f"  {label}: {now}, ± {after[i] * allowance[i]:.3g} after the flight, "
-            f"± {task[i] * allowance[i]:.3g} after the task (planner's linearisation{times})"
-            + (f"; ± {spread[i]:.3g} spread beside each: {_SPREAD_STAYS}" if spread[i] > 0 else "")
-        )
-    return {
-        "names": list(prior.names),
-        "parameters": labels,
-        "values": _finite(prior.values),
-        "stderr_before": _finite(before),
-        "stderr_fit": _finite(fit_se),
-        "stderr_after": _finite(after),
-        "stderr_task": _finite(task),
-        # what the lines show: the planner's standard errors x fit's autocorrelation factor
-        "autocorrelation_factor": _finite(allowance),
-        # the rotors' thrust spread as the fit flight passes it on, beside every standard
-        # error above (a flight that excites the effect more passes less of it on)
-        "systematic": _finite(spread),
-        "relative_stderr": {key: v if math.isfinite(v) else None for key, v in rel.items()},
-        "max_correlation": {key: v if math.isfinite(v) else None for key, v in corr.items()},
-        "lines": lines,
-    }

@@ -96,7 +96,7 @@ def cost_figure(result: PlanResult) -> bytes:
 
 def plan_document(task: Trajectory, result: PlanResult) -> str:
     """The plan report as an HTML string."""
-    from omavctl.planning.effects_objective import effects_summary
+    from omavctl.planning.effects_forecast import effects_summary
     from omavctl.planning.envelope import envelope_lines
     from omavctl.planning.report import task_warning
 
