@@ -237,6 +237,14 @@ def test_betaflight_blackbox_decode_csv(tmp_path: Path) -> None:
     assert t.units["motor[0]"] == "motor command (motorOutput 138-2047)"
     assert t.meta["looptime_us"] == 125 and t.meta["motor_output"] == [138, 2047]
     assert t.meta["vbatscale"] == 110 and t.meta["vbatref"] == 125
+    # the same log copied without its sidecar: the defaults are said, not only used
+    (tmp_path / "LOG00001.01.headers.txt").unlink()
+    bare = betaflight_table(path)
+    assert bare.notes[0] == (
+        "no blackbox header (no lines above the field names and no LOG00001.01.headers.txt "
+        "beside the log): the gyro scale, the battery voltage's unit and the motor output "
+        "range are the defaults"
+    )
 
 
 def test_betaflight_explorer_csv_gzip(tmp_path: Path) -> None:

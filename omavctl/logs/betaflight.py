@@ -99,11 +99,16 @@ def parse_header(lines: list[str]) -> dict[str, str]:
     return out
 
 
-def _sidecar(path: Path) -> list[str]:
-    """Lines of ``<name>.headers.txt`` beside the log, if there is one."""
+def _sidecar_name(path: Path) -> str:
+    """``<name>.headers.txt`` of a log ``<name>.csv`` or ``<name>.csv.gz``."""
     name = path.name
     stem = next((name[: -len(s)] for s in _SUFFIXES if name.lower().endswith(s)), path.stem)
-    side = path.with_name(stem + ".headers.txt")
+    return stem + ".headers.txt"
+
+
+def _sidecar(path: Path) -> list[str]:
+    """Lines of ``<name>.headers.txt`` beside the log, if there is one."""
+    side = path.with_name(_sidecar_name(path))
     if side == path or not side.is_file():
         return []
     return read_text(side, "blackbox header file").splitlines()
@@ -272,6 +277,12 @@ def betaflight_table(path: Path) -> ColumnTable:
         dup = next(n for n in names if names.count(n) > 1)
         raise LogError(f"duplicate column '{dup}'", path)
     notes = []
+    if not header:  # a log copied without its sidecar: say so, not only "vbat raw"
+        notes.append(
+            "no blackbox header (no lines above the field names and no "
+            f"{_sidecar_name(path)} beside the log): the gyro scale, the battery voltage's "
+            "unit and the motor output range are the defaults"
+        )
     rows = lines[at + 1 :]
     if rows and rows[-1].count(",") < len(names) - 1 and rows[-1].strip():
         notes.append(f"the file ends in the middle of its last row (line {len(lines)}): "
