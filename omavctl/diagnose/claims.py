@@ -335,17 +335,11 @@ def theta_json(name: str, theta: np.ndarray, se: np.ndarray) -> dict[str, Any]:
     for k, (v, s) in phys.items():
         out[k] = [float(x) for x in v]
         out[f"{k}_stderr"] = [float(x) if np.isfinite(x) else None for x in s]
-        out[f"{k}_ci95"] = [
-            [_end(lo), _end(hi)] if np.isfinite(b) else [None, None]
-            for (lo, hi), b in zip(parameter_interval95(name, k, v, s), s, strict=True)
+        out[f"{k}_ci95"] = [  # an end None where unbounded (a gain not told from 0)
+            [float(e) if np.isfinite(e) else None for e in row] if np.isfinite(b) else [None] * 2
+            for row, b in zip(parameter_interval95(name, k, v, s), s, strict=True)
         ]
     return out
-
-
-def _end(x: float) -> float | None:
-    """An interval's end for JSON: None where unbounded (an inertia scale whose gain
-    cannot be told from 0 has no upper end)."""
-    return float(x) if np.isfinite(x) else None
 
 
 def _axes(

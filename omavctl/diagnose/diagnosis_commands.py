@@ -122,6 +122,14 @@ def claimed(diagnosis: dict[str, Any] | None) -> list[str]:
     return [*diagnosis["missing"], *diagnosis.get("learned_claims", [])]
 
 
+def claim_advice(
+    diagnosis: dict[str, Any] | None,
+) -> tuple[list[str], dict[str, dict[str, float]]]:
+    """The claims (:func:`claimed`) and their per-axis shares (:func:`claim_shares`), as
+    :func:`omavctl.diagnose.metrics.quality_flags` advises them."""
+    return claimed(diagnosis), claim_shares(diagnosis)
+
+
 def claim_shares(diagnosis: dict[str, Any] | None) -> dict[str, dict[str, float]]:
     """Per ranked effect the share (0-1) of each axis's error it explains
     (``explained_variance_per_axis`` of ``missing_effects`` and ``learned``); an

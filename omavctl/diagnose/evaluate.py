@@ -34,7 +34,7 @@ import numpy as np
 
 from omavctl import __version__
 from omavctl.base.errors import LogError, ModelError, OmavctlError
-from omavctl.diagnose.diagnosis_commands import claim_shares, claimed, diagnosis_with_commands
+from omavctl.diagnose.diagnosis_commands import claim_advice, diagnosis_with_commands
 from omavctl.diagnose.heldout import training_data_flags
 from omavctl.diagnose.horizons import DEFAULT_HORIZONS, GridSignals, horizon_table
 from omavctl.diagnose.metrics import (
@@ -475,9 +475,7 @@ def evaluate(
         "excluded_spans": excluded,
         "flags": file_flags(models, mpaths)
         + training_data_flags(model, logs_json, time_window)
-        + quality_flags(
-            per_model[0]["metrics"], excluded, claimed(diagnosis), claim_shares(diagnosis)
-        )
+        + quality_flags(per_model[0]["metrics"], excluded, *claim_advice(diagnosis))
         + envelope_flags(envelope),
         "envelope": envelope,
         "horizons": horizon_table(models, samples, grids, rate, horizons, horizon_stride)
