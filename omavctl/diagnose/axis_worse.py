@@ -31,8 +31,8 @@ def _disagreement(
     """A reason when a fitted parameter is more than 2 standard errors (combined) from
     the estimate the evaluated log gave (the diagnosis' ``parameters``); ``below``: the
     effect's name when the verdict's disagree line printed with this one says the same
-    parameter on the same flights (:func:`_said_below`): the reason then points to it
-    instead of saying it a second time with other numbers."""
+    parameter on the same flights (``omavctl.diagnose.change._said_below``): the reason
+    then points to it instead of saying it a second time with other numbers."""
     d, dse = _num(get_path(held, key, i)), _num(get_path(held, f"{key}_stderr", i))
     if v is None or se is None or d is None or dse is None:
         return []
@@ -62,7 +62,8 @@ def worse_reason(
 ) -> str:
     """Why ``axis`` got worse from ``before`` to ``after``, from what the files hold;
     ``removed``: ``after`` also lacks effects ``before`` has; ``said``: the (effect,
-    parameter) disagreements a line printed with this one gives (:func:`_said_below`)."""
+    parameter) disagreements a line printed with this one gives
+    (``omavctl.diagnose.change._said_below``)."""
     i = AXES.index(axis)
     reasons: list[str] = []
     misfit: list[str] = []

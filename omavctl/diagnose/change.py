@@ -62,8 +62,7 @@ def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Mode
         models = scores_of_models(tree)
         if i == len(evals) - 1 and i > 0 and len(models) > 1:
             m = models[-1]
-            out.append(ModelScore(f"{label}: {m.label}", m.effects, m.effect_params, m.rmse,
-                                  tree, m.physics))  # fmt: skip
+            out.append(replace(m, label=f"{label}: {m.label}"))
             continue
         out.append(ModelScore(label, tuple(effects), effects, rmse, tree, physics))
     return out
