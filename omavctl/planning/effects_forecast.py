@@ -19,7 +19,8 @@ planner's times a factor:
   factor of 1 (0.08 now, 0.08 from the prior) and the planned flight's fit then gave
   4-15x the forecast; a delay whose interval allowed 213 ms for a lag's form had a
   factor of 37 and the planned flight, which told the forms apart, gave 0.06-0.22x.
-  With the median the same benchmark's ratios were 0.5-3.3 (median 1.0).
+  With the median the same seeds gave 0.51-3.3x, two fresh seeds 0.29-1.09x
+  (docs/plan-effects.md, "Forecasts against fit").
 """
 
 from __future__ import annotations
