@@ -251,3 +251,12 @@ def test_an_inertia_scale_whose_gain_is_not_told_from_zero_is_no_estimate():
         "(1/scale_x = 0.012 ± 0.21, within 2 standard errors of 0): scale_x 82 is no estimate"
     )
     assert "inertia_error: scale_x, scale_z within 2 standard errors of 1" in " ".join(notes)
+
+
+def test_the_report_shows_an_unbounded_scale_by_its_low_end():
+    """The report's parameter table read an inertia scale with a null high end (its gain
+    not told from 0) as '[unbounded]'."""
+    params = {"scale": [-7.9], "scale_ci95": [[0.663, None]], "scale_pinned": [False]}
+    assert _interval_note(params, "scale", 0, "inertia_error") == (
+        " [0.663, ∞): cannot be pinned down from this flight"
+    )

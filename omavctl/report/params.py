@@ -167,7 +167,13 @@ def _interval_note(params: Mapping[str, Any], k: str, i: int, effect: str = "") 
     if i >= len(ci) or not isinstance(ci[i], list) or len(ci[i]) != 2:
         return ""
     lo, hi = ci[i]
-    text = f" [{_ends(lo, hi, effect, k, i)}]" if finite(lo) and finite(hi) else " [unbounded]"
+    text = (
+        f" [{_ends(lo, hi, effect, k, i)}]"
+        if finite(lo) and finite(hi)
+        else f" [{float(lo):.3g}, ∞)"  # an inertia scale whose gain is not told from 0
+        if finite(lo) and hi is None
+        else " [unbounded]"
+    )
     values = as_list(params.get(k, []))
     value = values[i] if i < len(values) and finite(values[i]) else None
     if note := _bound_note(effect, k, lo, value):
