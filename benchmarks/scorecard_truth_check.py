@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -125,6 +126,9 @@ def run_case(name: str, workdir: Path) -> list[str]:
             for i, t in enumerate(values):
                 est = fit[effect]["values"][pname][i]
                 lo, hi = fit[effect]["ci95"][pname][i]
+                # a null end is unbounded (an inertia scale whose gain is not told from 0)
+                lo = -math.inf if lo is None else lo
+                hi = math.inf if hi is None else hi
                 mark = "inside" if lo <= t <= hi else "OUTSIDE"
                 h = "" if "command_delay" in fitted else f"; hover {hover[effect][pname][i]:+.5g}"
                 lines.append(
