@@ -114,10 +114,31 @@ def test_a_time_column_in_the_wrong_unit_is_refused_by_fit(tmp_path: Path) -> No
     assert result.exit_code == 2
     assert result.output.strip() == (
         f"error: {PX4_CSV}: body rate logged at 0.0833 Hz, below half the 100 Hz grid "
-        "(controller.rate_hz): check the time column and its scale (columns: in the vehicle "
-        "YAML)"
+        "(controller.rate_hz): check the time column's unit first (the time column's scale "
+        "under columns: in the vehicle YAML; a ms clock read as s gives a rate 1000x too low)"
     )
     assert not out.exists()
+
+
+CF_LOG10 = Path(__file__).parents[2] / "shared/data/real/arpl_crazyflie/log10"
+
+
+@pytest.mark.skipif(not CF_LOG10.exists(), reason=f"no Crazyflie log at {CF_LOG10}")
+def test_a_ms_clock_read_as_seconds_is_named_before_the_rate(tmp_path: Path) -> None:
+    """A new user's Crazyflie YAML with the time scale 1.0 for a ms clock: "body rate
+    logged at 1.01 Hz ...: set controller.rate_hz to at most 1 Hz in the vehicle YAML"."""
+    yaml = Path(__file__).parents[1] / "examples/crazyflie.yaml"
+    wrong = tmp_path / "cf.yaml"
+    wrong.write_text(yaml.read_text().replace("scale: 1.0e-3}", "scale: 1.0}"))
+    out = tmp_path / "m.npz"
+    result = runner.invoke(app, ["fit", str(CF_LOG10), "--vehicle", str(wrong), "--out", str(out)])
+    assert result.exit_code == 2 and not out.exists()
+    assert result.output.strip() == (
+        f"error: {CF_LOG10}: body rate logged at 1.01 Hz, below half the 500 Hz grid "
+        "(controller.rate_hz): check the time column's unit first (the time column's scale "
+        "under columns: in the vehicle YAML; a ms clock read as s gives a rate 1000x too "
+        "low); if it is right, set controller.rate_hz to at most 1 Hz"
+    )
 
 
 @needs_px4

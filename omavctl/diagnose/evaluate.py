@@ -49,11 +49,10 @@ from omavctl.diagnose.metrics import (
 from omavctl.diagnose.model_flags import file_flags
 from omavctl.learn.control_loss import flight_control_loss
 from omavctl.learn.effect_fit import check_available
-from omavctl.learn.flights import body_rate_rate, sha256_of
+from omavctl.learn.flights import check_model_rate, sha256_of
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.recorded_noise import recorded_noise
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, feature_names, residual_samples
-from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import EFFECTS
 from omavctl.vehicle import Vehicle
 
@@ -108,17 +107,6 @@ def _grid(model: ResidualGP) -> tuple[float, SavitzkyGolay]:
     return rate, sg
 
 
-def _check_rate(flight: FlightLog, vehicle: Vehicle, rate: float) -> None:
-    """Refuse a log whose body rate was recorded at less than half the grid rate."""
-    logged = body_rate_rate(flight, vehicle)
-    if logged is not None and logged < 0.5 * rate:
-        raise LogError(
-            f"body rate logged at {logged:.1f} Hz, below half the model's grid rate "
-            f"({rate:g} Hz): its Savitzky-Golay settings do not apply",
-            flight.path,
-        )
-
-
 def _read_log(
     path: str | Path,
     vehicle: Vehicle,
@@ -143,7 +131,7 @@ def _read_log(
         wrench=wrench_hook(vehicle),
         weight=vehicle.weight,
     )
-    _check_rate(flight, vehicle, rate)
+    check_model_rate(flight, vehicle, rate)
     extra = {"desired": "desired_acceleration"} if flight.has("desired_acceleration") else {}
     s = residual_samples(flight, vehicle, sg, effects=tuple(effects), extra=extra)
     loss = flight_control_loss(flight, s.index, s.omega, s.omega_dot, vehicle)

@@ -125,6 +125,16 @@ def _command_rate(flight: FlightLog, vehicle: Vehicle) -> float | None:
     return min(rates) if rates else None
 
 
+#: Hz: a body rate logged slower than this is more likely a time column in the wrong
+#: unit than a slow logger (a Crazyflie's ms clock read as s: "1.01 Hz", and the advice
+#: was to set controller.rate_hz to 1 Hz).
+SLOW_LOG_HZ = 20.0
+TIME_SCALE_HINT = (
+    "the time column's scale under columns: in the vehicle YAML; a ms clock read as s "
+    "gives a rate 1000x too low"
+)
+
+
 def _check_body_rate(flight: FlightLog, vehicle: Vehicle) -> None:
     """Refuse a log whose body rate was recorded below half the grid rate, as
     ``evaluate`` does: most of its grid samples would be interpolated (a time column
@@ -135,14 +145,41 @@ def _check_body_rate(flight: FlightLog, vehicle: Vehicle) -> None:
         return
     hint = (
         f"set controller.rate_hz to at most {math.floor(rate):d} Hz in the vehicle YAML"
-        if rate >= 1.0
-        else "check the time column and its scale (columns: in the vehicle YAML)"
+        if rate >= SLOW_LOG_HZ
+        else f"check the time column's unit first ({TIME_SCALE_HINT})"
+        + (
+            f"; if it is right, set controller.rate_hz to at most {math.floor(rate):d} Hz"
+            if rate >= 1.0
+            else ""
+        )
     )
     raise LogError(
         f"body rate logged at {rate:.3g} Hz, below half the {grid:g} Hz grid "
         f"(controller.rate_hz): {hint}",
         flight.path,
     )
+
+
+def check_model_rate(flight: FlightLog, vehicle: Vehicle, rate: float) -> None:
+    """Refuse a log, evaluated with a model, whose body rate was recorded at less than
+    half the model's grid ``rate`` (Hz): its Savitzky-Golay settings do not apply.
+
+    Raises:
+        LogError: one line, with the time column's unit to check first below
+            :data:`SLOW_LOG_HZ`.
+    """
+    logged = body_rate_rate(flight, vehicle)
+    if logged is not None and logged < 0.5 * rate:
+        raise LogError(
+            f"body rate logged at {logged:.1f} Hz, below half the model's grid rate "
+            f"({rate:g} Hz): its Savitzky-Golay settings do not apply"
+            + (
+                f"; check the time column's unit ({TIME_SCALE_HINT})"
+                if logged < SLOW_LOG_HZ
+                else ""
+            ),
+            flight.path,
+        )
 
 
 #: A log whose body rate is recorded this many times faster than the grid gets a note:
