@@ -22,6 +22,7 @@ import numpy as np
 from omavctl.base.errors import LogError
 from omavctl.learn.control_loss import flight_control_loss
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, residual_samples
+from omavctl.logs.align import SLOW_LOG_HZ, TIME_SCALE_HINT, slow_log_message
 from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import EFFECTS
 from omavctl.vehicle import Vehicle
@@ -125,16 +126,6 @@ def _command_rate(flight: FlightLog, vehicle: Vehicle) -> float | None:
     return min(rates) if rates else None
 
 
-#: Hz: a body rate logged slower than this is more likely a time column in the wrong
-#: unit than a slow logger (a Crazyflie's ms clock read as s: "1.01 Hz", and the advice
-#: was to set controller.rate_hz to 1 Hz).
-SLOW_LOG_HZ = 20.0
-TIME_SCALE_HINT = (
-    "the time column's scale under columns: in the vehicle YAML; a ms clock read as s "
-    "gives a rate 1000x too low"
-)
-
-
 def _check_body_rate(flight: FlightLog, vehicle: Vehicle) -> None:
     """Refuse a log whose body rate was recorded below half the grid rate, as
     ``evaluate`` does: most of its grid samples would be interpolated (a time column
@@ -143,21 +134,7 @@ def _check_body_rate(flight: FlightLog, vehicle: Vehicle) -> None:
     grid = flight.rate
     if rate is None or rate >= 0.5 * grid:
         return
-    hint = (
-        f"set controller.rate_hz to at most {math.floor(rate):d} Hz in the vehicle YAML"
-        if rate >= SLOW_LOG_HZ
-        else f"check the time column's unit first ({TIME_SCALE_HINT})"
-        + (
-            f"; if it is right, set controller.rate_hz to at most {math.floor(rate):d} Hz"
-            if rate >= 1.0
-            else ""
-        )
-    )
-    raise LogError(
-        f"body rate logged at {rate:.3g} Hz, below half the {grid:g} Hz grid "
-        f"(controller.rate_hz): {hint}",
-        flight.path,
-    )
+    raise LogError(slow_log_message(rate, grid), flight.path)
 
 
 def check_model_rate(flight: FlightLog, vehicle: Vehicle, rate: float) -> None:

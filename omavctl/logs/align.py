@@ -131,6 +131,44 @@ def _plausible(
     return s[~big], v[~big]
 
 
+#: Hz: a body rate logged slower than this is more likely a time column in the wrong
+#: unit than a slow logger (a Crazyflie's ms clock read as s: "1.01 Hz", and the advice
+#: was to set controller.rate_hz to 1 Hz).
+SLOW_LOG_HZ = 20.0
+TIME_SCALE_HINT = (
+    "the time column's scale under columns: in the vehicle YAML; a ms clock read as s "
+    "gives a rate 1000x too low"
+)
+
+
+def slow_log_message(logged: float, grid: float) -> str:
+    """The one line for a body rate logged at ``logged`` Hz, below half the ``grid``
+    rate: below :data:`SLOW_LOG_HZ` the time column's unit first, then the rate."""
+    rate_hint = f"set controller.rate_hz to at most {math.floor(logged):d} Hz"
+    if logged >= SLOW_LOG_HZ:
+        hint = f"{rate_hint} in the vehicle YAML"
+    else:
+        hint = f"check the time column's unit first ({TIME_SCALE_HINT})"
+        hint += f"; if it is right, {rate_hint}" if logged >= 1.0 else ""
+    return (
+        f"body rate logged at {logged:.3g} Hz, below half the {grid:g} Hz grid "
+        f"(controller.rate_hz): {hint}"
+    )
+
+
+def _refuse_slow_clock(raw: RawLog, rate: float) -> None:
+    """Refuse, before the grid is built, a body rate logged below :data:`SLOW_LOG_HZ` and
+    half the grid ``rate``: a ms clock read as s made a 50 000 s log whose 500 Hz grid
+    took a minute and gigabytes before ``fit`` refused it."""
+    series = raw.series.get("body_rate")
+    if series is None or series.stamps.size < 3:
+        return
+    step = float(np.median(np.diff(series.stamps)))
+    logged = 1.0 / step if step > 0 else math.inf
+    if logged < min(SLOW_LOG_HZ, 0.5 * rate):
+        raise LogError(slow_log_message(logged, rate), raw.path)
+
+
 def align(
     raw: RawLog,
     rate: float = 100.0,
@@ -162,6 +200,7 @@ def align(
     for role in required:
         if role not in raw.series:
             raise _missing_error(raw, role)
+    _refuse_slow_clock(raw, rate)
 
     notes: list[str] = []
 
