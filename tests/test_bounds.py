@@ -260,3 +260,22 @@ def test_the_report_shows_an_unbounded_scale_by_its_low_end():
     assert _interval_note(params, "scale", 0, "inertia_error") == (
         " [0.663, ∞): cannot be pinned down from this flight"
     )
+
+
+def test_fits_table_gives_a_lag_in_ms_beside_its_seconds():
+    """A new user compared fit's table, 'T_m 0.06375 ± 0.0097' (s), with its note,
+    '63.8 ± 9.7 ms': the table now gives both."""
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from omavctl.cli.fit import _effects_table
+
+    lag = EffectEstimate("motor_lag", {"T_m": np.array([0.06375])}, {"T_m": np.array([0.0097])})
+    summary = SimpleNamespace(
+        effects={"motor_lag": lag}, command_units={}, torque_gain=None, torque_gain_stderr=None
+    )
+    con = Console(width=300, record=True, file=io.StringIO())
+    con.print(_effects_table(summary))
+    assert "0.06375 ± 0.0097 = 63.8 ± 9.7 ms" in con.export_text()

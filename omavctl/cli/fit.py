@@ -224,6 +224,9 @@ def _effects_table(summary: Any) -> Any:
                 )
                 spread = est.systematic[p.name][i] if est.systematic is not None else 0.0
                 value = f"{v:.4g} ± {e:.2g}" + (f" (± {spread:.2g} spread)" if spread > 0 else "")
+                # a lag or a delay also in ms, as fit's notes and the docs give it (a new
+                # user compared 'T_m 0.06375 ± 0.0097 s' with '63.8 ± 9.7 ms')
+                value += f" = {v * 1e3:.3g} ± {e * 1e3:.2g} ms" if p.unit == "s" else ""
                 # Text: rich reads '[below 0.0457]' as a markup tag and drops it
                 eff.add_row(name, label, value, Text(interval), Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
