@@ -203,6 +203,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report21's records were read (2026-11-28, session 29): the next changes are reported
+    # on report22 (23 000 000; declared in session 29 before any of its draws was flown)
+    "report22": {
+        "seed_base": 23_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
