@@ -59,10 +59,9 @@ def scores_of_files(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Mode
         effects = get_path(tree, "models", 0, "effects", default={}) or {}
         rmse = get_path(tree, "metrics", "model", "rmse", default={}) or {}
         physics = get_path(tree, "metrics", "effects", "rmse", default={}) or {}
-        models = scores_of_models(tree)
-        if i == len(evals) - 1 and i > 0 and len(models) > 1:
-            m = models[-1]
-            out.append(replace(m, label=f"{label}: {m.label}"))
+        models = scores_of_models(tree) if i == len(evals) - 1 and i > 0 else []
+        if len(models) > 1:
+            out.append(replace(models[-1], label=f"{label}: {models[-1].label}"))
             continue
         out.append(ModelScore(label, tuple(effects), effects, rmse, tree, physics))
     return out

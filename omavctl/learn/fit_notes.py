@@ -157,9 +157,7 @@ def _no_torque_notes(est: Any) -> list[str]:
     scale_x 82 ± 1400, with only 'within 2 standard errors of 1' said, and a model that
     predicts almost no roll."""
     scale = np.asarray(est.values["scale"], float)
-    se = np.asarray(est.stderr["scale"], float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gain, gain_se = 1.0 / scale, se / scale**2
+    gain, gain_se = torque_gain(est)
     # the gain not told from 0 and small: the model predicts little from the torque (a
     # scale of 0.4, gain 2.5 +- 1.6, predicts more than nominal: not this note's case)
     axes = [

@@ -22,7 +22,7 @@ import numpy as np
 from omavctl.base.errors import LogError
 from omavctl.learn.control_loss import flight_control_loss
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay, residual_samples
-from omavctl.logs.align import SLOW_LOG_HZ, TIME_SCALE_HINT, slow_log_message
+from omavctl.logs.align import slow_log_message
 from omavctl.logs.types import FlightLog
 from omavctl.physics.effects import EFFECTS
 from omavctl.vehicle import Vehicle
@@ -139,22 +139,14 @@ def _check_body_rate(flight: FlightLog, vehicle: Vehicle) -> None:
 
 def check_model_rate(flight: FlightLog, vehicle: Vehicle, rate: float) -> None:
     """Refuse a log, evaluated with a model, whose body rate was recorded at less than
-    half the model's grid ``rate`` (Hz): its Savitzky-Golay settings do not apply.
-
-    Raises:
-        LogError: one line, with the time column's unit to check first below
-            :data:`SLOW_LOG_HZ`.
-    """
+    half the model's grid ``rate`` (Hz): its Savitzky-Golay settings do not apply (one
+    under 20 Hz, a time column in the wrong unit, was refused by the aligner already:
+    :func:`omavctl.logs.align.slow_log_message`)."""
     logged = body_rate_rate(flight, vehicle)
     if logged is not None and logged < 0.5 * rate:
         raise LogError(
             f"body rate logged at {logged:.1f} Hz, below half the model's grid rate "
-            f"({rate:g} Hz): its Savitzky-Golay settings do not apply"
-            + (
-                f"; check the time column's unit ({TIME_SCALE_HINT})"
-                if logged < SLOW_LOG_HZ
-                else ""
-            ),
+            f"({rate:g} Hz): its Savitzky-Golay settings do not apply",
             flight.path,
         )
 
