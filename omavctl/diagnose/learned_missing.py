@@ -46,10 +46,7 @@ def _alike_pool(
     entries)."""
     named = set(names)
     near = {
-        str(a)
-        for e in missing
-        if e.get("name") in named
-        for a in e.get("ambiguous_with") or []
+        str(a) for e in missing if e.get("name") in named for a in e.get("ambiguous_with") or []
     }
     return [
         e for e in pool
