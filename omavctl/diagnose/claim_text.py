@@ -263,19 +263,6 @@ def learned_claim_text(diag: Mapping[str, Any], where: str) -> str:
     )
 
 
-def learned_also_text(diag: Mapping[str, Any], where: str) -> str:
-    """' Also learned by the GP, ...' for a default look-alike claimed beside a missing
-    effect (:mod:`omavctl.diagnose.learned_missing`), '' when there is none or nothing
-    is missing (the learned claim is then the verdict's first sentence)."""
-    if not diag.get("missing") or not diag.get("learned_claims"):
-        return ""
-    text = learned_claim_text(diag, where)
-    return (
-        f" Also {text[0].lower()}{text[1:]} The fit command adds it too, beside the missing "
-        "effect: the physics then carries what is most of this flight's physics-only error."
-    )
-
-
 def beside_look_alikes_sentence(step: Mapping[str, Any]) -> str:
     """What a learned claim's share is of when it was judged beside the default
     imperfections' look-alikes refitted on the held-out flight

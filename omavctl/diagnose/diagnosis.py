@@ -32,7 +32,6 @@ from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.learned_alikes import learned_look_alikes
 from omavctl.diagnose.learned_beside import learned_beside_look_alikes
 from omavctl.diagnose.learned_fit_pinned import learned_fit_pinned
-from omavctl.diagnose.learned_missing import learned_beside_missing
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     BLOCK_SECONDS,
@@ -253,13 +252,6 @@ def diagnose(
     if not names:
         pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)
         step = _learned_claim(pool, samples, model, physics, raw, blocks, (floor, sg.dt, guarded))
-    else:  # beside a missing effect, a default look-alike the GP holds, if it is most
-        pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)
-        held = (physics, raw, blocks, floor)
-        step = learned_beside_missing(pool, out["missing_effects"], names, samples, model, held)
-        if step is not None:  # no longer held back: claimed on its learned test
-            said = {step[0].name, *getattr(step[0], "also", [])}
-            out["not_pinned"] = [e for e in out["not_pinned"] if e.get("name") not in said]
     return {
         **out,
         "learned_claims": [step[0].name, *getattr(step[0], "also", [])] if step else [],

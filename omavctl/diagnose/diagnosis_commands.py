@@ -46,11 +46,9 @@ def diagnosis_with_commands(
     top = [str(e["name"]) for e in diagnosis["missing_effects"][:1]]
     for name in shown or top:
         series[f"contribution_{name}"] = parts[name]
-    # every missing effect, estimated jointly in one fit, with the effect the GP learned
-    # that the held-out flight confirms (learned_claims: alone when nothing is missing,
-    # so that a loop goes on; beside a missing one, a default look-alike that is most of
-    # the physics-only error)
-    claimed = [*diagnosis["missing"], *diagnosis["learned_claims"]]
+    # every missing effect, estimated jointly in one fit; else the effect the GP learned
+    # that the held-out flight confirms (learned_claims), so that a loop goes on
+    claimed = diagnosis["missing"] or diagnosis["learned_claims"]
     # the model's effects neither flight confirms (advice to fit without them), left out
     # of the fit that adds the claims too: keep nothing the vehicle may lack
     effects = {n: e.to_json() for n, e in model.effects.items()}

@@ -121,7 +121,6 @@ def _missing_line(tree: Mapping[str, Any]) -> Line:
     alike = _look_alikes(missing[0])
     if alike:
         text += f" A residual of {missing[0]}'s shape is also left by {alike}."
-    text += ct.learned_also_text(diag, on_what(tree))
     text += ct.not_pinned_text(diag)
     text += actuator_sentence(diag)
     cmd = diag.get("fit_command")

@@ -78,7 +78,7 @@ class Line:
             else "Test it with"
             if self.test
             else "Add them with"
-            if " Also: " in self.text or " Also learned by the GP" in self.text
+            if " Also: " in self.text
             else "Add it with"
         )
 

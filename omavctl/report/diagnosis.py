@@ -275,7 +275,7 @@ def diagnosis_section(
     blocks += _candidates_blocks(diag, torque_unknown, later)
     command = diag.get("fit_command")
     if isinstance(command, str) and command:
-        top = ", ".join([*missing, *learned]) if missing else (learned or ["the top effect"])[0]
+        top = ", ".join(missing) if missing else (learned or ["the top effect"])[0]
         blocks.append(Heading(4, f"Command that adds {top}"))
         blocks.append(Code(command))
     unexplained = _unexplained_items(diag.get("unexplained") or [])
