@@ -351,3 +351,54 @@ def test_a_nominal_model_worse_than_zero_is_said():
     )
     assert nominal_note(zero, {"x": 0.39, "y": 0.5, "z": 0.1}) is None  # within 1.1x
     assert nominal_note({}, nominal) is None  # files before the zero row
+
+
+def test_the_before_after_comparison_reads_each_model_of_a_file_with_several():
+    """`report eval1.json eval-com.json` (eval-com.json evaluated with gp.npz and
+    gp+com_offset.npz): the terminal's change line read the last model's -51.8 % on x,
+    while the HTML comparison table and bar chart read eval-com.json's first model (the
+    same gp.npz as eval1.json: +0.0 % on every axis), and `report --json` gave only that
+    first model's RMSE (a new user)."""
+    from omavctl.report.comparison import comparison_section, model_rows
+    from omavctl.report.document import Document, to_markdown
+
+    base, added = (
+        {"x": 0.083, "y": 0.1135, "z": 0.09188},
+        {"x": 0.04003, "y": 0.03212, "z": 0.03402},
+    )
+    nominal = {"nominal": {"rmse": {"x": 5.457, "y": 5.228, "z": 0.9954}}}
+    one = {"logs": [{"name": "test.bag"}], "models": [{"name": "gp.npz"}],
+           "metrics": {**nominal, "model": {"rmse": base}}}  # fmt: skip
+    two = {"logs": [{"name": "test.bag"}],
+           "models": [{"name": "gp.npz"}, {"name": "gp+com_offset.npz"}],
+           "metrics": {**nominal, "model": {"rmse": base}},
+           "metrics_by_model": [{"model": {"rmse": base}}, {"model": {"rmse": added}}]}  # fmt: skip
+    evals = [(one, {}, "eval1.json"), (two, {}, "eval-com.json")]
+    rows = model_rows(evals)
+    assert [r[1] for r in rows] == [
+        "eval1.json", "eval-com.json: gp.npz", "eval-com.json: gp+com_offset.npz"
+    ]  # fmt: skip
+    assert rows[2][3] == [0.04003, 0.03212, 0.03402]
+    text = to_markdown(Document("r", comparison_section(evals, figures=False)))
+    last = [ln for ln in text.splitlines() if "gp+com\\_offset.npz" in ln]
+    assert len(last) == 1 and last[0].startswith("| eval-com.json | gp+com\\_offset.npz")
+    assert "| 0.04003 | -51.8 % | 0.03212 | -71.7 % | 0.03402 | -63.0 % |" in last[0]
+
+
+def test_report_json_gives_each_models_rmse_of_a_file_with_several(tmp_path: Path):
+    """`report --json` gave a file's first model's RMSE only (``model_rmse``); each
+    ``--model``'s is in ``models`` (a new user)."""
+    from omavctl.cli.report import _report_json
+    from omavctl.report.evaluation import EvaluationSummary
+
+    first, second = {"x": 0.083, "y": 0.11, "z": 0.09}, {"x": 0.04, "y": 0.032, "z": 0.034}
+    ev = EvaluationSummary("both.json", "both.json", first, first, [], None,
+                           [first, second], ["gp.npz", "gp+com_offset.npz"])  # fmt: skip
+    summary = SimpleNamespace(verdict=[], evaluations=[ev], fmt="html", figures=0,
+                              change=lambda: None)  # fmt: skip
+    (entry,) = _report_json(summary, tmp_path / "r.html")["evaluations"]
+    assert entry["model_rmse"] == first
+    assert entry["models"] == [
+        {"name": "gp.npz", "model_rmse": first},
+        {"name": "gp+com_offset.npz", "model_rmse": second},
+    ]

@@ -130,6 +130,11 @@ def _report_json(summary: Any, out: Path) -> dict[str, Any]:
                 "label": ev.label,
                 "path": ev.path,
                 "model_rmse": ev.model_rmse,
+                # each --model's, for a file that holds several (model_rmse is the first's)
+                "models": [
+                    {"name": name, "model_rmse": rmse}
+                    for name, rmse in zip(ev.model_names, ev.models_rmse, strict=False)
+                ],
                 "missing": ev.missing,
                 "fit_command": ev.fit_command,
             }

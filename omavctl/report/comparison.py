@@ -1,12 +1,14 @@
 """Section 6 of the report (several evaluation files): the before/after comparison.
 
-Model RMSE per axis of each file and its change from the first, the mean over
-the axes, and the nominal RMSE that shows whether the files saw the same data.
+Model RMSE per axis of each file's models (one row per ``--model``) and its change from
+the first file's first model, the mean over the axes, and the nominal RMSE that shows
+whether the files saw the same data.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from omavctl.diagnose.verdict import get_path as _get
 from omavctl.report.document import Block, Cell, Lines, Para, Table
@@ -14,24 +16,48 @@ from omavctl.report.load import Evaluation
 from omavctl.report.numfmt import AXES, axes_of, num, percent_change
 from omavctl.report.overview import model_title
 
-__all__ = ["comparison_section"]
+__all__ = ["comparison_section", "model_rows"]
+
+
+Row = tuple[str, str, list[Mapping[str, Any]], list[float]]
+
+
+def model_rows(evals: Sequence[Evaluation]) -> list[Row]:
+    """(the file's label, the row's label, models shown, model RMSE per axis) per
+    ``--model`` of each file, in order:
+    a file evaluated with several models gives one row each (``metrics_by_model``;
+    "file: model" labels), else one row with its models. A new user's ``report
+    base.json both.json``, both.json evaluated with the base model and the one with the
+    effect, showed both.json's first model only, +0.0 % on every axis, while the
+    terminal's change line read the last one's -52 %."""
+    rows: list[Row] = []
+    for tree, _, label in evals:
+        models = [m for m in tree.get("models", []) or [] if isinstance(m, Mapping)]
+        by_model = tree.get("metrics_by_model") or []
+        if len(models) > 1 and len(by_model) == len(models):
+            for model, metrics in zip(models, by_model, strict=True):
+                rmse = [float(v) for v in axes_of(_get(metrics, "model", "rmse"))]
+                rows.append((label, f"{label}: {model.get('name', '?')}", [model], rmse))
+        else:
+            rmse = [float(v) for v in axes_of(_get(tree, "metrics", "model", "rmse"))]
+            rows.append((label, label, models, rmse))
+    return rows
 
 
 def comparison_section(evals: Sequence[Evaluation], figures: bool) -> list[Block]:
-    """Model RMSE per axis and its mean per evaluation, with the % change from the first
-    file, and the nominal RMSE (a note when the files were made on different logs)."""
+    """Model RMSE per axis and its mean per evaluation file's model, with the % change
+    from the first row, and the file's nominal RMSE (a note when the files were made on
+    different logs)."""
     labels = [label for _, _, label in evals]
-    rmse = [
-        [float(v) for v in axes_of(_get(tree, "metrics", "model", "rmse"))] for tree, _, _ in evals
-    ]
-    nominal = [
-        [float(v) for v in axes_of(_get(tree, "metrics", "nominal", "rmse"))]
-        for tree, _, _ in evals
-    ]
+    nominal = {
+        label: [float(v) for v in axes_of(_get(tree, "metrics", "nominal", "rmse"))]
+        for tree, _, label in evals
+    }
     blocks: list[Block] = [
         Para(
-            f"Model RMSE per axis of each evaluation file, and its change relative to the first "
-            f"({labels[0]}). Nominal RMSE shows whether the files were evaluated on the same data."
+            f"Model RMSE per axis of each evaluation file (a row per model where it holds "
+            f"several), and its change relative to the first ({labels[0]}). Nominal RMSE "
+            "shows whether the files were evaluated on the same data."
         )
     ]
     logsets = [
@@ -45,21 +71,16 @@ def comparison_section(evals: Sequence[Evaluation], figures: bool) -> list[Block
                 note=True,
             )
         )
+    table = model_rows(evals)
+    first = table[0][3]
     rows: list[list[Cell]] = []
-    for j, (tree, _, label) in enumerate(evals):
-        models = tree.get("models", []) or []
-        row: list[Cell] = [
-            label,
-            Lines(tuple(model_title(m) for m in models)) if models else "n/a",
-        ]
+    for j, (owner, _, models, rmse) in enumerate(table):
+        row: list[Cell] = [owner, Lines(tuple(model_title(m) for m in models)) if models else "n/a"]
         for i in range(3):
-            row += [
-                num(rmse[j][i]),
-                "reference" if j == 0 else percent_change(rmse[j][i], rmse[0][i]),
-            ]
-        mean_j, mean_0 = sum(rmse[j]) / 3, sum(rmse[0]) / 3
+            row += [num(rmse[i]), "reference" if j == 0 else percent_change(rmse[i], first[i])]
+        mean_j, mean_0 = sum(rmse) / 3, sum(first) / 3
         row += [num(mean_j), "reference" if j == 0 else percent_change(mean_j, mean_0)]
-        row += [num(v) for v in nominal[j]]
+        row += [num(v) for v in nominal[owner]]
         rows.append(row)
     blocks.append(
         Table(

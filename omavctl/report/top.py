@@ -16,6 +16,7 @@ import numpy as np
 from omavctl.diagnose.change import report_verdict
 from omavctl.diagnose.joint_text import named_later
 from omavctl.report import figures as rf
+from omavctl.report.comparison import model_rows
 from omavctl.report.document import Block, Bullets, Content, FigureBlock, Heading, Inline, Span
 from omavctl.report.load import Evaluation
 
@@ -224,17 +225,15 @@ def figure_sections(evals: Sequence[Evaluation], figures: bool) -> list[Block]:
         return []
     blocks: list[Block] = [Heading(2, "What the figures show", "figures")]
     if len(evals) > 1:
-        labels = [label for _, _, label in evals]
-        rmse = [
-            [float((tree.get("metrics") or {})["model"]["rmse"][a]) for a in "xyz"]
-            for tree, _, _ in evals
-        ]
+        rows = model_rows(evals)  # a row per model of a file that holds several
+        labels, rmse = [r[1] for r in rows], [r[3] for r in rows]
         data = rf.before_after_figure(labels, rmse) if figures else b""
         blocks.append(
             FigureBlock(
                 data,
                 "model RMSE per axis before and after",
-                "Model RMSE per axis per evaluation file, with the change from the first; "
+                "Model RMSE per axis per evaluation file (per model where a file holds several), "
+                "with the change from the first; "
                 "each axis on its own scale.",
             )
         )
