@@ -313,6 +313,31 @@ def test_the_headline_does_not_promise_to_pin_down_what_it_correlates_more():
     assert "is expected to pin down com_offset:" in _headline(result, ["com_offset"], rel, worse)
     # fit's relative standard error now and the forecasts of it, as the lines below say
     assert "(geometric mean, fit's and its forecasts) 0.031 now, 0.022 after it, 0.028" in line
+    assert "not pinned down" not in line and "forecast to narrow" not in line
+
+
+def test_the_headline_says_a_forecast_above_the_value_is_not_pinned_down():
+    """'is expected to pin down rotor_interference: relative standard error ... 2.92 now,
+    2.26 after it, 2.54 after flying the task again' (a new user: an error above the
+    value is not pinned down); and where flying the task again is forecast to do better,
+    the headline says so."""
+    from types import SimpleNamespace
+
+    from omavctl.planning.effects_forecast import _headline
+
+    result = SimpleNamespace(best=0, objective="variance")
+    rel = {"now": 2.92, "after_forecast": 2.26, "task_forecast": 2.54}
+    corr = {"before": 0.5, "after": 0.4, "task": 0.5}
+    line = _headline(result, ["rotor_interference"], rel, corr)
+    assert "is expected to narrow rotor_interference:" in line
+    assert line.endswith(
+        "2.54 after flying the task again (not pinned down after it: the standard error "
+        "stays above the value)"
+    )
+    line = _headline(result, ["rotor_interference"], {**rel, "task_forecast": 2.0}, corr)
+    assert line.endswith("(flying the task again is forecast to narrow it more)")
+    line = _headline(result, ["com_offset", "rotor_interference"], rel, corr)
+    assert "is expected to separate and narrow com_offset, rotor_interference" in line
 
 
 def test_the_planned_flights_forecast_carries_the_linear_effects_median_factor():

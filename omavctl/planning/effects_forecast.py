@@ -91,6 +91,11 @@ def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
     # "pin down" beside "it does not tell them apart" read as a contradiction: with
     # more than one effect and a correlation that grows, the flight only narrows them
     kind = "separate and pin down" if separates else "narrow" if len(names) > 1 else "pin down"
+    # a relative standard error above 1 after the flight is not pinned down (a new user:
+    # "expected to pin down rotor_interference: ... 2.92 now, 2.26 after it")
+    unpinned = not rel["after_forecast"] < 1.0
+    if unpinned:
+        kind = "separate and narrow" if separates else "narrow"
     line = (
         f"effects: the flight (candidate {result.best}, ranked by --objective "
         f"{result.objective}) is expected to {kind} {', '.join(names)}: relative standard "
@@ -98,6 +103,11 @@ def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
         f"{rel['after_forecast']:.3g} after it, {rel['task_forecast']:.3g} after flying the "
         "task again"
     )
+    them = "them" if len(names) > 1 else "it"
+    if unpinned:
+        line += " (not pinned down after it: the standard error stays above the value)"
+    if rel["task_forecast"] < rel["after_forecast"]:
+        line += f" (flying the task again is forecast to narrow {them} more)"
     if len(names) > 1:
         line += (
             f"; largest cross-effect correlation {corr['before']:.2f} now, "
