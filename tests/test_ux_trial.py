@@ -157,8 +157,9 @@ def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
     said = " ".join(con.export_text().split())  # the title wraps to the table's width
     assert said.startswith(
         "open-loop error over horizons (3884 windows, a start every 8 samples rather than "
-        "at every one: the log is long and the windows are held in memory at once): body rate "
-        "norm rad/s (no attitude in the log), 2σ coverage"
+        "at every one: the log is long and the windows are held in memory at once): mean norm "
+        "of the body-rate error, rad/s (no attitude in the log) (share of the samples within "
+        "the full model's 2σ band)"
     )
     con = Console(record=True, width=400)
     render_horizons(con, {"horizons": {**h, "stride_requested": 4}})
@@ -167,7 +168,7 @@ def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
     con = Console(record=True, width=400)
     render_horizons(con, {"horizons": {**h, "stride": 1}})
     said = " ".join(con.export_text().split())
-    assert said.startswith("open-loop error over horizons (3884 windows): body")
+    assert said.startswith("open-loop error over horizons (3884 windows): mean norm")
     # --horizons 30 on a 20 s log: no table, and the terminal said nothing
     why = "no stretch of 3001 consecutive usable samples (30 s) in the logs: no horizon table"
     none = {**h, "table": {}, "findings": [{"code": "no_windows", "message": why}]}

@@ -294,10 +294,13 @@ def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
                 con.print(Text(f"open-loop error over horizons: {f.get('message')}"))
         return
     # a log without attitude has no attitude column: its title does not name one
-    attitude = " / attitude rad" if h.get("attitude") else " (no attitude in the log)"
+    attitude = (
+        " / mean geodesic attitude error, rad" if h.get("attitude") else " (no attitude in the log)"
+    )
     table = RichTable(
         title=f"open-loop error over horizons ({h['windows']} windows{stride_words(h)}): "
-        f"body rate norm rad/s{attitude}, 2σ coverage",
+        f"mean norm of the body-rate error, rad/s{attitude} (share of the samples within the "
+        "full model's 2σ band)",
         title_justify="left",
     )
     table.add_column("predictor")
