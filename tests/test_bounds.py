@@ -179,6 +179,7 @@ def test_a_torque_gain_interval_is_its_scale_interval_inverted():
         command_units={"torque": "normalised", "force": "N"},
         torque_gain=1.0 / scale,
         torque_gain_stderr=se / scale**2,
+        logs=["px4.csv"],
     )
 
     def rows() -> dict[str, str]:
@@ -274,8 +275,30 @@ def test_fits_table_gives_a_lag_in_ms_beside_its_seconds():
 
     lag = EffectEstimate("motor_lag", {"T_m": np.array([0.06375])}, {"T_m": np.array([0.0097])})
     summary = SimpleNamespace(
-        effects={"motor_lag": lag}, command_units={}, torque_gain=None, torque_gain_stderr=None
-    )
+        effects={"motor_lag": lag}, command_units={}, torque_gain=None, torque_gain_stderr=None,
+        logs=["a.csv"],
+    )  # fmt: skip
     con = Console(width=300, record=True, file=io.StringIO())
     con.print(_effects_table(summary))
     assert "0.06375 ± 0.0097 = 63.8 ± 9.7 ms" in con.export_text()
+
+
+def test_fits_table_says_these_flights_for_a_fit_on_several():
+    """A new user's fit on two flights: 'cannot be pinned down from this flight'."""
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from omavctl.cli.fit import _effects_table
+
+    lag = EffectEstimate("motor_lag", {"T_m": np.array([0.01])}, {"T_m": np.array([0.02])})
+    for logs, words in (
+        (["a.csv"], "from this flight"),
+        (["a.csv", "b.csv"], "from these flights"),
+    ):
+        summary = SimpleNamespace(effects={"motor_lag": lag}, command_units={}, torque_gain=None,
+                                  torque_gain_stderr=None, logs=logs)  # fmt: skip
+        con = Console(width=300, record=True, file=io.StringIO())
+        con.print(_effects_table(summary))
+        assert f"not told from absent): cannot be pinned down {words}" in con.export_text()

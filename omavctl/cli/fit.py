@@ -228,7 +228,7 @@ def _effects_table(summary: Any) -> Any:
                 # user compared 'T_m 0.06375 ± 0.0097 s' with '63.8 ± 9.7 ms')
                 value += f" = {v * 1e3:.3g} ± {e * 1e3:.2g} ms" if p.unit == "s" else ""
                 # Text: rich reads '[below 0.0457]' as a markup tag and drops it
-                eff.add_row(name, label, value, Text(interval), Text(unit))
+                eff.add_row(name, label, value, Text(_flights(interval, summary)), Text(unit))
     if summary.torque_gain is not None and summary.torque_gain_stderr is not None:
         gains = zip("xyz", summary.torque_gain, summary.torque_gain_stderr, strict=True)
         scale = summary.effects.get("inertia_error")
@@ -249,11 +249,21 @@ def _effects_table(summary: Any) -> Any:
                     + (" (cut at gain ≥ 0)" if lo == 0.0 else "")
                     # Betaflight: gain_x -0.126 beside [0, 1.51]
                     + (" (the estimate is below it)" if g < lo else "")
-                    + ("" if pinned else ": cannot be pinned down from this flight")
+                    + (
+                        ""
+                        if pinned
+                        else _flights(": cannot be pinned down from this flight", summary)
+                    )
                 ),
                 Text("N m per command unit (assumed inertia)"),
             )
     return eff
+
+
+def _flights(text: str, summary: Any) -> str:
+    """``text`` with "this flight" as "these flights" for a fit on several logs (a new
+    user's fit on two flights: "cannot be pinned down from this flight")."""
+    return text.replace("this flight", "these flights") if len(summary.logs) > 1 else text
 
 
 def gain_interval(low: float, high: float) -> tuple[float, float]:
