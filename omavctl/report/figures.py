@@ -221,6 +221,7 @@ def signature_figure(
     ``explained`` the held-out explained variance per axis (``x``, ``y``, ``z``).
     """
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     if contribution.ndim != 2 or contribution.shape != error.shape or error.shape[1] != 3:
         return None
@@ -251,6 +252,9 @@ def signature_figure(
             ax.axhline(0.0, color="0.6", lw=0.5)
             ax.set_ylim(-float(lims[i]), float(lims[i]))
             ax.set_xlabel(f"fitted {name}, axis {AXES[i]}, rad/s²", fontsize=9)
+            # at most 5 ticks: a third of the figure's width held "−0.100−0.075−0.050..."
+            # run together (a new user)
+            ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
             ax.grid(True, lw=0.3, alpha=0.6)
         for ax in axs:
             ax.set_ylabel("model error, rad/s²", fontsize=9)
