@@ -332,7 +332,8 @@ def test_the_headline_says_a_forecast_above_the_value_is_not_pinned_down():
     assert "is expected to narrow rotor_interference:" in line
     assert line.endswith(
         "2.54 after flying the task again (not pinned down after it: the standard error "
-        "stays above the value)"
+        "stays above the size it is relative to, the value or, where that is small or not "
+        "fitted, the effect's typical size)"
     )
     line = _headline(result, ["rotor_interference"], {**rel, "task_forecast": 2.0}, corr)
     assert line.endswith("(flying the task again is forecast to narrow it more)")

@@ -105,7 +105,11 @@ def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
     )
     them = "them" if len(names) > 1 else "it"
     if unpinned:
-        line += " (not pinned down after it: the standard error stays above the value)"
+        line += (
+            " (not pinned down after it: the standard error stays above the size it is "
+            "relative to, the value or, where that is small or not fitted, the effect's "
+            "typical size)"
+        )
     if rel["task_forecast"] < rel["after_forecast"]:
         line += f" (flying the task again is forecast to narrow {them} more)"
     if len(names) > 1:
