@@ -364,3 +364,23 @@ def test_the_planned_flights_forecast_carries_the_linear_effects_median_factor()
     assert none[0].tolist() == [1.0] * 4 and none[1] == 1.0
     one = forecast_factors(np.array([0.1]), np.array([0.05]), np.array([1.0]), np.array([False]))
     assert one[1] == 1.0  # fit's below the planner's: at least 1
+
+
+def test_forecasts_for_effects_no_fit_calibrates_are_called_lower_bounds():
+    """A new user planned for com_offset with a model that held no fitted effect: the
+    lines said '± 0.000491 after the flight (planner's ×1)' and fit then gave ±0.0014:
+    with nothing fitted, the factor is no calibration, and the lines say so."""
+    from omavctl.planning.effects_forecast import _parameter_lines
+    from omavctl.planning.effects_objective import EffectsPrior
+
+    prior = EffectsPrior(("com_offset",), np.zeros(3), np.full(3, 0.01), np.eye(3))
+    before, none = np.full(3, 7e-4), np.full(3, np.nan)
+    forecasts = (np.full(3, 5e-4), np.full(3, 6.6e-4))
+    lines = _parameter_lines(prior, before, none, forecasts, (np.ones(3), 1.0))
+    assert lines[0].startswith("  com_offset.r_x: not in the model (prior ± 0.0007 m)")
+    assert lines[-1].startswith("  (forecasts: the planner's white linearisation, ×1, uncalibrated")
+    assert lines[-1].endswith("read them as lower bounds)")
+    fitted = EffectsPrior(("com_offset",), np.full(3, 0.01), np.full(3, 0.01), np.eye(3),
+                          fitted=("com_offset",), fit_stderr=np.full(3, 2e-3))  # fmt: skip
+    lines = _parameter_lines(fitted, before, np.full(3, 2e-3), forecasts, (np.ones(3) * 3, 3.0))
+    assert lines[-1].startswith("  (forecasts of fit's standard errors")

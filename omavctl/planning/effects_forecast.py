@@ -193,6 +193,14 @@ def _parameter_lines(
             f"± {task[i]:.3g} after the task (×{allowance[i]:.2g})"
             + (f"; ± {spread[i]:.3g} spread beside each: {_SPREAD_STAYS}" if spread[i] > 0 else "")
         )
+    if not np.isfinite(fit_se).any():  # nothing fitted to calibrate the planner's against
+        lines.append(
+            "  (forecasts: the planner's white linearisation, ×1, uncalibrated: the model "
+            "holds no fitted effect whose standard error says how far it is off, and fit's "
+            "have been several-fold larger (6–8x for a centre-of-mass offset on a figure-8, "
+            "docs/plan-effects.md): read them as lower bounds)"
+        )
+        return lines
     lines.append(
         "  (forecasts of fit's standard errors: the planner's white linearisation times "
         "fit's allowance for autocorrelation, after the task each parameter's own, after "
