@@ -72,6 +72,7 @@ def test_fit_leaves_out_the_rotors_the_vehicle_lacks_and_says_why_r_z_is_not_exc
         command_units={"torque": "N m", "force": "N"},
         torque_gain=None,
         torque_gain_stderr=None,
+        logs=["quad.csv"],
     )
     con = Console(width=300, record=True, file=io.StringIO())
     con.print(_effects_table(summary))
