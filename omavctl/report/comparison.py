@@ -19,28 +19,28 @@ from omavctl.report.overview import model_title
 __all__ = ["comparison_section", "model_rows"]
 
 
-Row = tuple[str, str, list[Mapping[str, Any]], list[float]]
+Row = tuple[int, str, list[Mapping[str, Any]], list[float]]
 
 
 def model_rows(evals: Sequence[Evaluation]) -> list[Row]:
-    """(the file's label, the row's label, models shown, model RMSE per axis) per
-    ``--model`` of each file, in order:
-    a file evaluated with several models gives one row each (``metrics_by_model``;
-    "file: model" labels), else one row with its models. A new user's ``report
+    """(the file's index in ``evals``, the row's label, models shown, model RMSE per
+    axis) per ``--model`` of each file, in order: a file evaluated with several models
+    gives one row each (``metrics_by_model``; "file: model" labels), else one row with
+    its models. A new user's ``report
     base.json both.json``, both.json evaluated with the base model and the one with the
     effect, showed both.json's first model only, +0.0 % on every axis, while the
     terminal's change line read the last one's -52 %."""
     rows: list[Row] = []
-    for tree, _, label in evals:
+    for k, (tree, _, label) in enumerate(evals):
         models = [m for m in tree.get("models", []) or [] if isinstance(m, Mapping)]
         by_model = tree.get("metrics_by_model") or []
         if len(models) > 1 and len(by_model) == len(models):
             for model, metrics in zip(models, by_model, strict=True):
                 rmse = [float(v) for v in axes_of(_get(metrics, "model", "rmse"))]
-                rows.append((label, f"{label}: {model.get('name', '?')}", [model], rmse))
+                rows.append((k, f"{label}: {model.get('name', '?')}", [model], rmse))
         else:
             rmse = [float(v) for v in axes_of(_get(tree, "metrics", "model", "rmse"))]
-            rows.append((label, label, models, rmse))
+            rows.append((k, label, models, rmse))
     return rows
 
 
@@ -49,10 +49,10 @@ def comparison_section(evals: Sequence[Evaluation], figures: bool) -> list[Block
     from the first row, and the file's nominal RMSE (a note when the files were made on
     different logs)."""
     labels = [label for _, _, label in evals]
-    nominal = {
-        label: [float(v) for v in axes_of(_get(tree, "metrics", "nominal", "rmse"))]
-        for tree, _, label in evals
-    }
+    nominal = [
+        [float(v) for v in axes_of(_get(tree, "metrics", "nominal", "rmse"))]
+        for tree, _, _ in evals
+    ]
     blocks: list[Block] = [
         Para(
             f"Model RMSE per axis of each evaluation file (a row per model where it holds "
@@ -75,7 +75,10 @@ def comparison_section(evals: Sequence[Evaluation], figures: bool) -> list[Block
     first = table[0][3]
     rows: list[list[Cell]] = []
     for j, (owner, _, models, rmse) in enumerate(table):
-        row: list[Cell] = [owner, Lines(tuple(model_title(m) for m in models)) if models else "n/a"]
+        row: list[Cell] = [
+            labels[owner],
+            Lines(tuple(model_title(m) for m in models)) if models else "n/a",
+        ]
         for i in range(3):
             row += [num(rmse[i]), "reference" if j == 0 else percent_change(rmse[i], first[i])]
         mean_j, mean_0 = sum(rmse) / 3, sum(first) / 3
