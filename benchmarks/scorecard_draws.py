@@ -219,6 +219,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report23's records were read (2026-11-28, session 30): the next changes are reported
+    # on report24 (25 000 000; declared in session 30 before any of its draws was flown)
+    "report24": {
+        "seed_base": 25_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
