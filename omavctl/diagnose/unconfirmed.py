@@ -113,8 +113,8 @@ def unconfirmed_line(tree: Mapping[str, Any]) -> Line | None:
         text += (
             f" Judged in a model that lacks what is missing, which {it} may stand beside: the "
             f"fit command above keeps {it}, and its model's evaluation judges {it} again. To "
-            "compare now, fit without it and evaluate both models on a flight neither saw."
-        ).replace("without it", f"without {it}")
-        return Line("unconfirmed", text, command=get_path(tree, "diagnosis", "without_command"))
-    text += f" Fit without {it}, and evaluate both models on a flight neither saw."
+            f"compare now, fit without {it} and evaluate both models on a flight neither saw."
+        )
+    else:
+        text += f" Fit without {it}, and evaluate both models on a flight neither saw."
     return Line("unconfirmed", text, command=get_path(tree, "diagnosis", "without_command"))

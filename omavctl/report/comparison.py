@@ -14,7 +14,7 @@ from omavctl.diagnose.verdict import get_path as _get
 from omavctl.report.document import Block, Cell, Lines, Para, Table
 from omavctl.report.load import Evaluation
 from omavctl.report.numfmt import AXES, axes_of, num, percent_change
-from omavctl.report.overview import model_title
+from omavctl.report.overview import model_title, per_model
 
 __all__ = ["comparison_section", "model_rows"]
 
@@ -32,15 +32,12 @@ def model_rows(evals: Sequence[Evaluation]) -> list[Row]:
     terminal's change line read the last one's -52 %."""
     rows: list[Row] = []
     for k, (tree, _, label) in enumerate(evals):
-        models = [m for m in tree.get("models", []) or [] if isinstance(m, Mapping)]
-        by_model = tree.get("metrics_by_model") or []
-        if len(models) > 1 and len(by_model) == len(models):
-            for model, metrics in zip(models, by_model, strict=True):
-                rmse = [float(v) for v in axes_of(_get(metrics, "model", "rmse"))]
+        for model, metrics in per_model(tree):
+            rmse = [float(v) for v in axes_of(_get(metrics, "model", "rmse"))]
+            if model is None:  # one row for the file, beside all its models
+                rows.append((k, label, list(tree.get("models") or []), rmse))
+            else:
                 rows.append((k, f"{label}: {model.get('name', '?')}", [model], rmse))
-        else:
-            rmse = [float(v) for v in axes_of(_get(tree, "metrics", "model", "rmse"))]
-            rows.append((k, label, models, rmse))
     return rows
 
 

@@ -52,14 +52,8 @@ def overview_table(evals: Sequence[Evaluation]) -> list[Block]:
         logs = tree.get("logs", [])
         models = tree.get("models", [])
         missing = _get(tree, "diagnosis", "missing", default=[]) or []
-        by_model = tree.get("metrics_by_model") or []
         # one row per --model: its own RMSE (the first model's stood beside both names)
-        each = (
-            list(zip(models, by_model, strict=True))
-            if len(models) > 1 and len(by_model) == len(models)
-            else [(None, tree.get("metrics"))]
-        )
-        for k, (model, metrics) in enumerate(each):
+        for k, (model, metrics) in enumerate(per_model(tree)):
             shown = [model] if model is not None else models
             top: Cell = "none" if not missing else (Span(str(missing[0]), "code"),)
             rows.append(
@@ -81,6 +75,15 @@ def overview_table(evals: Sequence[Evaluation]) -> list[Block]:
             align="lllrrrrrrrl",
         )
     ]
+
+
+def per_model(tree: Mapping[str, Any]) -> list[tuple[Any, Any]]:
+    """(model entry, its metrics) per ``--model`` of an evaluation file that holds several
+    with their ``metrics_by_model``; else one (None, the file's ``metrics``)."""
+    models, by_model = tree.get("models") or [], tree.get("metrics_by_model") or []
+    if len(models) > 1 and len(by_model) == len(models):
+        return list(zip(models, by_model, strict=True))
+    return [(None, tree.get("metrics"))]
 
 
 def model_title(m: Mapping[str, Any]) -> str:
