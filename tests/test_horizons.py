@@ -505,3 +505,34 @@ def test_a_printed_tie_that_swaps_is_no_ranking_change():
     (rank,) = [f for f in tree["horizons"]["findings"] if f["code"] == "ranking_changes"]
     assert rank["message"].endswith("at 0.5 s: full model, physics + effects, physics only, "
                                     "hold the state")  # fmt: skip
+
+
+def test_a_band_that_holds_everything_at_several_times_the_error_is_called_wide():
+    """A new user read "holds 100 %" at 0.5 s with the band 3-4x the error and no word
+    on it (the helper's eval-h: factor 4.08 at 0.5 s). A calibrated band (std what the
+    errors show: half-width 2 sqrt(pi/2) = 2.51x the mean |error|) is not wide, nor a
+    wide band that misses samples."""
+    import math
+
+    from omavctl.diagnose.horizon_findings import findings, wide_factor
+
+    h = _tree({"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "effects": [0.01, 0.1],
+               "model": [0.01, 0.1]})["horizons"]  # fmt: skip
+    calibrated = 2.0 * math.sqrt(math.pi / 2.0)
+    early, late = h["table"]["model"]
+    early["band_halfwidth"] = {a: calibrated * 0.01 for a in "xyz"}
+    late["band_halfwidth"] = {"x": 0.9, "y": 0.8, "z": 0.6}  # std 3.6x, 3.2x, 2.4x
+    late["coverage"]["all"] = 0.996
+    assert wide_factor({**early, "band_sigma": 2.0}) == pytest.approx(1.0)
+    wide = [f for f in findings(h) if f["code"] == "band_wide"]
+    assert [f["value"] for f in wide] == [pytest.approx(0.6 / calibrated / 0.1)]
+    assert wide[0]["message"] == (
+        "at 0.5 s the full model's 2σ band holds 100 % of the body rates and is at least "
+        "2.4x as wide as its errors show on every axis: safe, not tight (a controller or "
+        "planner reading it would be more cautious than this flight needs)"
+    )
+    late["coverage"]["all"] = 0.97  # wide on average, yet it misses samples: not "wide"
+    assert not [f for f in findings(h) if f["code"] == "band_wide"]
+    late["coverage"]["all"] = 1.0
+    late["band_halfwidth"]["z"] = 0.4  # 1.6x on z: not wide on every axis
+    assert not [f for f in findings(h) if f["code"] == "band_wide"]

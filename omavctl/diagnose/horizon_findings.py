@@ -18,6 +18,10 @@ docs/schemas.md) and lists findings ``{code, model, axis, value, message}``:
   --effects`` with one more name, wins at one step and loses later);
 - ``band_narrow``: the full model's band covers less than 85 % at a horizon
   (``value`` the coverage, ``axis`` null);
+- ``band_wide``: at a horizon the full model's band holds at least 99 % of the body
+  rates and, on every axis, its std is at least :data:`WIDE_FACTOR` times what the
+  errors show (``value`` the smallest factor over the axes, ``axis`` null): safe,
+  not tight;
 - ``gp_left_out``: the full model's rollouts leave the GP mean out on ``axis``
   (``fit``'s check on held-out rollouts, :mod:`omavctl.learn.rollout_check`;
   one-step predictions keep it);
@@ -39,12 +43,14 @@ __all__ = [
     "MIN_COVERAGE",
     "SIGNIFICANT",
     "TOLERANCE",
+    "WIDE_FACTOR",
     "added_rollout_sentence",
     "files_rollout_sentence",
     "findings",
     "label",
     "open_loop_narrow",
     "paired_se",
+    "wide_factor",
 ]
 
 #: a longer-horizon rise is a loss only beyond this many standard errors
@@ -59,6 +65,12 @@ LABELS = {
     "effects": "physics + effects",
     "model": "full model",
 }
+#: a band whose std is at least this many times what the errors show is called wide
+WIDE_FACTOR = 2.0
+#: ... and only where it holds at least this share of the body rates
+WIDE_COVERAGE = 0.99
+#: mean |e| of a zero-mean normal error is sqrt(2 / pi) of its std
+_MEAN_ABS = math.sqrt(2.0 / math.pi)
 AXES = ("x", "y", "z")
 
 
@@ -208,8 +220,55 @@ def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, An
                 f"(below {100 * MIN_COVERAGE:.0f} %): it is too narrow there",
             }
         )
+    out += _wide(tree, table[full])
     for f in out:
         f["model"] = 0 if j is None else j
+    return out
+
+
+def wide_factor(row: Mapping[str, Any]) -> float | None:
+    """The smallest over the axes of the band's std over the std its errors show
+    (``band_halfwidth / band_sigma`` against the mean |error| over sqrt(2/pi), the
+    mean |e| of a normal error being sqrt(2/pi) of its std) at one horizon row of a
+    full model; None without a band or with a zero error."""
+    half, err = row.get("band_halfwidth"), row.get("rate_error") or {}
+    if not half:
+        return None
+    sigma = float(row.get("band_sigma", 2.0))
+    ratios = []
+    for a in AXES:
+        e = float(err.get(a) or 0.0)
+        if not e > 0:
+            return None
+        ratios.append(float(half[a]) / sigma / (e / _MEAN_ABS))
+    return min(ratios)
+
+
+def _wide(tree: Mapping[str, Any], rows: list[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """``band_wide`` per horizon of the full model's ``rows`` whose band holds at least
+    :data:`WIDE_COVERAGE` and is :data:`WIDE_FACTOR` times what its errors show on every
+    axis (a new user read 100 % at 0.5 s, the band several times the error, with no word
+    on it)."""
+    out = []
+    sigma = tree.get("band_sigma", 2.0)
+    for row in rows:
+        cov = row.get("coverage") or {}
+        factor = wide_factor({**row, "band_sigma": sigma})
+        if factor is None or cov.get("all") is None or cov["all"] < WIDE_COVERAGE:
+            continue
+        if factor >= WIDE_FACTOR:
+            out.append(
+                {
+                    "code": "band_wide",
+                    "axis": None,
+                    "value": factor,
+                    "message": f"at {row['seconds']:g} s the full model's {sigma:g}σ band "
+                    f"holds {100 * cov['all']:.0f} % of the body rates and is at least "
+                    f"{factor:.1f}x as wide as its errors show on every axis: safe, not "
+                    "tight (a controller or planner reading it would be more cautious "
+                    "than this flight needs)",
+                }
+            )
     return out
 
 
