@@ -524,3 +524,35 @@ def test_a_report_of_two_files_compares_the_last_files_last_model():
     assert "x −40.9 %, y −50.4 %, z +41.8 %" in steps[0]
     own = [ln.text for ln in lines if ln.who == "both.json" and ln.key == "change"]
     assert any(t.startswith("With motor_lag added (m.npz → m+lag.npz)") for t in own)
+
+
+def test_three_models_in_one_evaluation_show_every_step_not_only_first_to_last():
+    """`evaluate --model a --model b --model c` wrote one change line, a → c: a step
+    b → c that made z worse hid behind the overall fall (the report of three files
+    already gave every step). Now each step, then first to last."""
+    from omavctl.diagnose.change import verdict_of_models
+
+    drag = {"rotational_drag": {"D": [0.05, 0.05, 0.036]}}
+    both = {**drag, "com_offset": {"r": [0.001, 0.0, 0.0]}}
+    a = _file({"x": 0.1, "y": 0.2, "z": 0.04}, {"x": 0.3, "y": 0.3, "z": 0.05}, {})
+    b = _file({"x": 0.06, "y": 0.1, "z": 0.036}, {"x": 0.1, "y": 0.1, "z": 0.04}, drag)
+    c = _file({"x": 0.058, "y": 0.095, "z": 0.039}, {"x": 0.09, "y": 0.1, "z": 0.04}, both)
+    tree = copy.deepcopy(a)
+    tree["models"] = [{"name": "a.npz", "effects": {}}, {"name": "b.npz", "effects": drag},
+                      {"name": "c.npz", "effects": both}]  # fmt: skip
+    tree["metrics_by_model"] = [a["metrics"], b["metrics"], c["metrics"]]
+    texts = [ln.text for ln in verdict_of_models(tree) if ln.key == "change"]
+    falls = [t for t in texts if t.startswith("With ")]
+    assert [t.split(":")[0] for t in falls] == [
+        "With rotational_drag added (a.npz → b.npz)",
+        "With com_offset added (b.npz → c.npz)",
+        "With rotational_drag, com_offset added (a.npz → c.npz)",
+    ]
+    assert "z +8.3 %" in falls[1] and "but rises on z" in falls[1]
+    assert any(t.startswith("Axis z got worse (+8.3 %)") for t in texts)
+    # two models: one line, as before
+    tree["models"], tree["metrics_by_model"] = tree["models"][:2], tree["metrics_by_model"][:2]
+    texts = [ln.text for ln in verdict_of_models(tree) if ln.key == "change"]
+    assert [t.split(":")[0] for t in texts if t.startswith("With ")] == [
+        "With rotational_drag added (a.npz → b.npz)"
+    ]

@@ -113,10 +113,10 @@ def evaluate(
     comes from the first model file, as fit recorded it.
 
     With two or more --model: the verdict's change line compares the first and the
-    last; when one's effects are a subset of the other's, it is the "before" whatever
-    the order ("With motor_lag added (a.npz → b.npz)"), otherwise the given order
-    ("From a.npz to b.npz, X added, Y removed"). The lines after it diagnose the first
-    --model.
+    last (with three or more, each step first); when one's effects are a subset of the
+    other's, it is the "before" whatever the order ("With motor_lag added (a.npz →
+    b.npz)"), otherwise the given order ("From a.npz to b.npz, X added, Y removed").
+    The lines after it diagnose the first --model.
     """
     if vehicle is not None:
         from omavctl.base.errors import OmavctlError

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
+from itertools import pairwise
 from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
@@ -286,7 +287,11 @@ def verdict_of_models(tree: Mapping[str, Any]) -> list[Line]:
         f"The lines below are about {models[0].label} (the first --model), "
         f"{_effects_words(models[0])}.",
     )
-    changes = change_lines(models, shown=tree)
+    # with three or more models each step's change first (a step that made an axis
+    # worse must not hide behind an overall gain, as in report_verdict), then first to last
+    steps = pairwise(models) if len(models) > 2 else ()
+    changes = [ln for a, b in steps for ln in change_lines([a, b], shown=tree)]
+    changes += change_lines(models, shown=tree)
     labels = (models[0].label, models[-1].label)
     rolled = added_rollout_sentence(tree.get("horizons"), labels, len(models) - 1)
     changes += [Line("change", rolled)] if rolled else []
