@@ -302,3 +302,24 @@ def test_fits_table_says_these_flights_for_a_fit_on_several():
         con = Console(width=300, record=True, file=io.StringIO())
         con.print(_effects_table(summary))
         assert f"not told from absent): cannot be pinned down {words}" in con.export_text()
+
+
+def test_an_estimate_outside_its_own_interval_is_said_to_be():
+    """Betaflight: `scale_x │ -7.912 ± 52 │ [0.663, ∞)` with no word on it, while the
+    gain row beside it said "(the estimate is below it)"."""
+    inf = float("inf")
+    which = ("inertia_error", "scale", 0)
+    assert _interval_text((0.663, inf), True, which, -7.912) == (
+        "[0.663, ∞) (the estimate is below it)"
+    )
+    assert (
+        _interval_text((0.663, 1.2), True, which, 1.5) == "[0.663, 1.2] (the estimate is above it)"
+    )
+    assert _interval_text((0.663, 1.2), True, which, 1.0) == "[0.663, 1.2]"
+    # an interval cut at its bound says it once, after the cut
+    assert (
+        _interval_text((0.0, 0.000637), True, ("command_delay", "tau_d", 0), -0.000617).count(
+            "the estimate is below it"
+        )
+        == 1
+    )

@@ -514,3 +514,17 @@ def test_the_coefficients_the_model_predicts_with_are_no_parameter():
     }
     lines = _param_lines(estimate, {"r": "m"}, False, "com_offset")
     assert [str(x).split(" =")[0] for x in lines] == ["r_x", "r_y", "r_z"]
+
+
+def test_a_scale_is_indistinguishable_from_1_not_from_0():
+    """A new user's report: "its fitted scale_z = 2.45 ± 2.9 is indistinguishable from 0"
+    beside fit's interval [0.716, ∞): a scale is absent at 1."""
+    scale = {"inertia_error": {"scale": [1.3, 1.2, 2.45], "scale_stderr": [0.01, 0.01, 2.9]}}
+    after = _tree({"x": 0.060, "y": 0.114, "z": 0.0581}, {"x": 0.95, "y": 0.90, "z": 0.95},
+                  [], scale)  # fmt: skip
+    before = copy.deepcopy(BEFORE)
+    before["diagnosis"]["missing_effects"][0]["name"] = "inertia_error"
+    lines = change_lines(scores_of_files([(before, "before.json"), (after, "after.json")]))
+    reason = next(ln.text for ln in lines if ln.text.startswith("Axis z got worse"))
+    assert "scale_z = 2.45 ± 2.9 is indistinguishable from 1 (absent)" in reason
+    assert "from 0" not in reason

@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.estimate_text import null_component
 from omavctl.diagnose.verdict_lines import AXES, ModelScore, _pct, _signed, get_path
 
 __all__ = ["DERIVED", "MOVED", "worse_reason"]
@@ -86,9 +87,14 @@ def worse_reason(
             if str(key).endswith(DERIVED) or not isinstance(vals, list) or len(vals) != 3:
                 continue
             v, se = _num(vals[i]), _num(get_path(params, f"{key}_stderr", i))
-            if v is not None and se is not None and abs(v) < 2 * se:
+            # from absent: 0 for most, 1 for a scale (a new user read "scale_z = 2.45 ±
+            # 2.9 is indistinguishable from 0" beside fit's interval [0.716, ∞))
+            null = null_component(name, str(key), i)
+            null = 0.0 if null is None or not math.isfinite(null) else null
+            if v is not None and se is not None and abs(v - null) < 2 * se:
                 reasons.append(
-                    f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable from 0"
+                    f"its fitted {key}_{axis} = {v:.3g} ± {se:.2g} is indistinguishable "
+                    f"from {null:g}" + (" (absent)" if null != 0.0 else "")
                 )
             below = name if (name, f"{key}_{axis}") in said else None
             misfit += _disagreement(key, axis, v, se, held, i, below)
