@@ -16,17 +16,16 @@ docs/schemas.md) and lists findings ``{code, model, axis, value, message}``:
   effects or full model: lower at the shortest horizon, higher at the longest
   beyond its standard error (adding the effect the verdict named, as ``fit
   --effects`` with one more name, wins at one step and loses later);
-- ``band_narrow``: the full model's band covers less than 85 % at a horizon
-  (``value`` the coverage, ``axis`` null);
-- ``band_wide``: at a horizon the full model's band holds at least 99 % of the body
-  rates and, on every axis, its std is at least :data:`WIDE_FACTOR` times what the
-  errors show (``value`` the smallest factor over the axes, ``axis`` null): safe,
-  not tight;
+- ``band_narrow`` and ``band_wide``: the full model's band too narrow at a horizon,
+  pooled or on an axis, or on an axis wider than its errors show
+  (:mod:`omavctl.diagnose.horizon_band`);
 - ``gp_left_out``: the full model's rollouts leave the GP mean out on ``axis``
   (``fit``'s check on held-out rollouts, :mod:`omavctl.learn.rollout_check`;
   one-step predictions keep it);
 - ``ranking_changes``: the order of the predictors by the error norm differs
   between the shortest and the longest horizon.
+- ``hold_beats_models``: holding the state predicts the body rates better (error norm,
+  as printed) than every model at a horizon (``value`` the last such horizon, s).
 
 (``no_windows``, a log without a stretch as long as the longest horizon, comes
 from :func:`omavctl.diagnose.horizons.horizon_table` itself.)
@@ -37,6 +36,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from typing import Any
+
+from omavctl.diagnose.horizon_band import (
+    MIN_COVERAGE,
+    WIDE_FACTOR,
+    band_findings,
+    open_loop_narrow,
+    wide_factor,
+)
 
 __all__ = [
     "LABELS",
@@ -57,20 +64,12 @@ __all__ = [
 SIGNIFICANT = 2.0
 #: the full model's longest-horizon error may exceed physics + effects by this factor
 TOLERANCE = 1.05
-#: the least band coverage at any horizon before a finding says the band is too narrow
-MIN_COVERAGE = 0.85
 LABELS = {
     "naive": "hold the state",
     "nominal": "physics only",
     "effects": "physics + effects",
     "model": "full model",
 }
-#: a band whose std is at least this many times what the errors show is called wide
-WIDE_FACTOR = 2.0
-#: ... and only where it holds at least this share of the body rates
-WIDE_COVERAGE = 0.99
-#: mean |e| of a zero-mean normal error is sqrt(2 / pi) of its std
-_MEAN_ABS = math.sqrt(2.0 / math.pi)
 AXES = ("x", "y", "z")
 
 
@@ -208,97 +207,10 @@ def _model_findings(tree: Mapping[str, Any], j: int | None) -> list[dict[str, An
                 }
             )
     out += left_out
-    for row in _narrow_rows(table[full]):
-        cov = row["coverage"]
-        out.append(
-            {
-                "code": "band_narrow",
-                "axis": None,
-                "value": cov["all"],
-                "message": f"at {row['seconds']:g} s the full model's {tree['band_sigma']:g}σ "
-                f"band holds {100 * cov['all']:.0f} % of the body rates "
-                f"(below {100 * MIN_COVERAGE:.0f} %): it is too narrow there",
-            }
-        )
-    out += _wide(tree, table[full])
+    out += band_findings(table[full], tree.get("band_sigma", 2.0))
     for f in out:
         f["model"] = 0 if j is None else j
     return out
-
-
-def wide_factor(row: Mapping[str, Any]) -> float | None:
-    """The smallest over the axes of the band's std over the std its errors show
-    (``band_halfwidth / band_sigma`` against the mean |error| over sqrt(2/pi), the
-    mean |e| of a normal error being sqrt(2/pi) of its std) at one horizon row of a
-    full model; None without a band or with a zero error."""
-    half, err = row.get("band_halfwidth"), row.get("rate_error") or {}
-    if not half:
-        return None
-    sigma = float(row.get("band_sigma", 2.0))
-    ratios = []
-    for a in AXES:
-        e = float(err.get(a) or 0.0)
-        if not e > 0:
-            return None
-        ratios.append(float(half[a]) / sigma / (e / _MEAN_ABS))
-    return min(ratios)
-
-
-def _wide(tree: Mapping[str, Any], rows: list[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """``band_wide`` per horizon of the full model's ``rows`` whose band holds at least
-    :data:`WIDE_COVERAGE` and is :data:`WIDE_FACTOR` times what its errors show on every
-    axis (a new user read 100 % at 0.5 s, the band several times the error, with no word
-    on it)."""
-    out = []
-    sigma = tree.get("band_sigma", 2.0)
-    for row in rows:
-        cov = row.get("coverage") or {}
-        factor = wide_factor({**row, "band_sigma": sigma})
-        if factor is None or cov.get("all") is None or cov["all"] < WIDE_COVERAGE:
-            continue
-        if factor >= WIDE_FACTOR:
-            out.append(
-                {
-                    "code": "band_wide",
-                    "axis": None,
-                    "value": factor,
-                    "message": f"at {row['seconds']:g} s the full model's {sigma:g}σ band "
-                    f"holds {100 * cov['all']:.0f} % of the body rates and is at least "
-                    f"{factor:.1f}x as wide as its errors show on every axis: safe, not "
-                    "tight (a controller or planner reading it would be more cautious "
-                    "than this flight needs)",
-                }
-            )
-    return out
-
-
-def _narrow_rows(rows: list[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
-    """The rows whose band holds less than :data:`MIN_COVERAGE`, compared as printed
-    (whole percent: 84.6 % is "85 %", not below 85 %)."""
-    return [
-        r
-        for r in rows
-        if r.get("coverage") is not None
-        and round(100 * r["coverage"]["all"]) < round(100 * MIN_COVERAGE)
-    ]
-
-
-def open_loop_narrow(tree: Mapping[str, Any] | None) -> str:
-    """Where the first model's open-loop band (the horizon table's full model) is too
-    narrow, in words for the verdict's uncertainty sentence; '' where it is not, or
-    the evaluation has no horizon table."""
-    table = (tree or {}).get("table") or {}
-    rows = _narrow_rows(table.get("model") or [])
-    if not rows:
-        return ""
-    held = [f"{100 * r['coverage']['all']:.0f} %" for r in rows]
-    held[0] += " of the body rates"
-    at = ", ".join(f"{h} at {r['seconds']:g} s" for h, r in zip(held, rows, strict=True))
-    sigma = (tree or {}).get("band_sigma", 2)
-    return (
-        f"the open-loop {sigma:g}σ band is too narrow: it holds {at} "
-        f"({100 * MIN_COVERAGE:.0f} % needed; the horizon table)"
-    )
 
 
 def _ranking(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -356,7 +268,44 @@ def findings(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
             for f in found:
                 f["message"] = f"model {j}: {f['message']}"
         out += found
-    return out + _ranking(tree)
+    return out + _ranking(tree) + _hold_beats(tree)
+
+
+def _hold_beats(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """``hold_beats_models``: the horizons at which the hold-the-state predictor's
+    error norm is below every model's, as printed (a new user's Betaflight and
+    Crazyflie windows: 1.45 against 6.76 rad/s at 0.5 s, and no word but a ranking)."""
+    table, preds = tree["table"], tree["predictors"]
+    if "naive" not in table:
+        return []
+    others = [p for p in preds if p["key"] != "naive"]
+    n_models = 1 + max((p["model"] or 0) for p in preds)
+
+    def shown(key: str, i: int) -> float:
+        return float(f"{float(table[key][i]['rate_error']['norm']):.3g}")
+
+    at = [
+        i
+        for i in range(len(tree["seconds"]))
+        if others and all(shown("naive", i) < shown(p["key"], i) for p in others)
+    ]
+    if not at:
+        return []
+    k = at[-1]
+    best = min(others, key=lambda p: shown(p["key"], k))
+    when = ", ".join(f"{tree['seconds'][i]:g}" for i in at)
+    return [
+        {
+            "code": "hold_beats_models",
+            "model": None,
+            "axis": None,
+            "value": float(tree["seconds"][k]),
+            "message": f"holding the state predicts the body rates better than every model "
+            f"at {when} s (at {tree['seconds'][k]:g} s {shown('naive', k):.3g} rad/s against "
+            f"{shown(best['key'], k):.3g} for the best, {label(best, n_models)}): rolled out "
+            "open loop that far, no model here is worth its prediction on this flight",
+        }
+    ]
 
 
 def added_rollout_sentence(horizons: Any, labels: tuple[str, str], j: int) -> str | None:
