@@ -168,3 +168,40 @@ def test_a_drag_beside_the_lag_takes_the_place_of_the_inertia_scale_that_stood_i
     s, physics = _drag_flight(drag=0.0, gain=0.2)
     out = beside_lag([s], model, physics, _guard(["motor_lag", "inertia_error"]), FLOOR, _guard)  # type: ignore[arg-type]
     assert out.kept == ["motor_lag", "inertia_error"] and out.held_back == []
+
+
+def test_a_rival_held_back_too_is_not_claimed_instead_and_is_said_once():
+    """A new user's Crazyflie window: "Not claimed: drag_moment ..." (h = 0.0224 m), then
+    inertia_error's "drag_moment, in its place, removes 59 % ... is claimed instead",
+    then "Not claimed: drag_moment" again (h = 0.0248 m): the guard run again after the
+    swap held the rival back a second time. Each effect is held back once (its last
+    entry), and a rival held back is not said to be claimed."""
+    from omavctl.diagnose.joint_lag import _merged
+
+    s, physics = _drag_flight(drag=3.0)
+    model = SimpleNamespace(effects={})
+
+    def guard(names):  # the rival, once claimed, is held back as not pinned down
+        out = _guard([n for n in names if n != "rotational_drag"])
+        if "rotational_drag" in names:
+            out.held_back = [{"name": "rotational_drag", "estimate": {"D": [2.9, 2.9, 2.9]}}]
+        return out
+
+    first = guard(["motor_lag", "inertia_error"])
+    first.held_back = [{"name": "rotational_drag", "estimate": {"D": [1.0, 1.0, 1.0]}}]
+    out = beside_lag([s], model, physics, first, FLOOR, guard)  # type: ignore[arg-type]
+    assert [h["name"] for h in out.held_back] == ["inertia_error", "rotational_drag"]
+    assert out.held_back[-1]["estimate"]["D"] == [2.9, 2.9, 2.9]  # the later estimate
+    text = not_pinned_text({"not_pinned": out.held_back})
+    assert "is claimed instead" not in text
+    assert (
+        "; rotational_drag removes 100 % of what is left with motor_lag at 120.0 ms (fitted "
+        "so: D = 3, 3, 3) and would take its place, but cannot be pinned down either (said "
+        "below)." in text
+    )
+    assert text.count("Not claimed: rotational_drag") == 1
+    assert text.index("Not claimed: inertia_error") < text.index("Not claimed: rotational_drag")
+    assert _merged([{"name": "a", "k": 1}], [{"name": "b"}], [{"name": "a", "k": 2}]) == [
+        {"name": "b"},
+        {"name": "a", "k": 2},
+    ]

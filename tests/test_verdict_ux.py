@@ -100,7 +100,7 @@ def test_an_effect_the_gp_absorbed_comes_with_the_command_that_makes_it_physical
     assert len(learned) == 1
     assert learned[0].text.startswith(
         "Not modelled as physics: com_offset, which the nominal model's residual looks like "
-        "(it explains 97 % of it, 2.7 rad/s² RMS; the model leaves 0.004 of it)."
+        "(it explains 97 % of it, 2.7 rad/s² RMS; the model leaves 0.004 rad/s² RMS of it)."
     )
     assert learned[0].command == "omavctl fit f.bag --effects com_offset --out m+c.npz"
     shown = _terminal(tree)

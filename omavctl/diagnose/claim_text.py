@@ -5,7 +5,7 @@ learned that the held-out flight confirms (``learned_claims``)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import Any
 
 from omavctl.diagnose.estimate_text import estimate_sentence
@@ -84,9 +84,10 @@ def _bound_words(name: str) -> str:
     return f"its physical bound {min(bounds):g}" if bounds else "its physical bound"
 
 
-def beside_lag_sentence(name: str, lag: Mapping[str, Any]) -> str:
+def beside_lag_sentence(name: str, lag: Mapping[str, Any], held: Collection[str] = ()) -> str:
     """' Not claimed: inertia_error, which this flight cannot tell from the motor lag's
-    time constant: ...' for a claim :mod:`omavctl.diagnose.joint_lag` held back."""
+    time constant: ...' for a claim :mod:`omavctl.diagnose.joint_lag` held back;
+    ``held``: every effect held back (a rival among them is not "claimed instead")."""
     which = str(lag.get("lag", "the lag"))
     value, share = _num(lag.get("value")), _num(lag.get("share"))
     part, floor = _num(lag.get("part")), _num(lag.get("floor"))
@@ -101,7 +102,7 @@ def beside_lag_sentence(name: str, lag: Mapping[str, Any]) -> str:
     )
     rival = lag.get("rival")
     if isinstance(rival, Mapping) and rival.get("name"):
-        return f"{said}; {_rival_words(which, rival)}"
+        return f"{said}; {_rival_words(which, rival, str(rival['name']) in held)}"
     said += ", short of a claim's bars (15 % of what is left and a part at the claim floor)"
     instead = lag.get("claimed_instead")
     if instead is True:
@@ -127,13 +128,21 @@ def _fitted_so(values: Any) -> str:
     return f" (fitted so: {there})" if there else ""
 
 
-def _rival_words(which: str, rival: Mapping[str, Any]) -> str:
+def _rival_words(which: str, rival: Mapping[str, Any], held: bool = False) -> str:
     """'rotational_drag, in its place, removes 88 % of what is left with motor_lag at
-    119.0 ms (fitted so: D = ...), is claimed instead.'"""
+    119.0 ms (fitted so: D = ...), is claimed instead.'; when the rival was held back
+    too (``held``), '..., would take its place but cannot be pinned down either (said
+    below).' (a new user read "drag_moment ... is claimed instead" between two "Not
+    claimed: drag_moment")."""
     value, share = _num(rival.get("value_with")), _num(rival.get("share"))
     at = f" with {which} at {1000 * value:.1f} ms" if value is not None else ""
     cut = f" removes {_pct(share)} of what is left" if share is not None else ""
     there = _fitted_so(rival.get("values"))
+    if held:
+        return (
+            f"{rival['name']}{cut}{at}{there} and would take its place, but cannot be "
+            "pinned down either (said below)."
+        )
     return f"{rival['name']}, in its place,{cut}{at}{there}, is claimed instead."
 
 
@@ -164,7 +173,7 @@ def not_pinned_text(diag: Mapping[str, Any]) -> str:
             continue
         lag = e.get("beside_lag")
         if isinstance(lag, Mapping):
-            out += beside_lag_sentence(name, lag) + said
+            out += beside_lag_sentence(name, lag, not_pinned_names(diag)) + said
             continue
         beside = e.get("beside_timing")
         if isinstance(beside, Mapping):

@@ -235,8 +235,18 @@ def beside_lag(
     if not held:
         return guarded
     out = guard(names)
-    out.held_back = [*guarded.held_back, *held, *out.held_back]
+    out.held_back = _merged(guarded.held_back, held, out.held_back)
     return out
+
+
+def _merged(*parts: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The held-back entries of ``parts`` in order, each effect once: its last entry
+    (the guard run again after a rival took a claim's place held drag_moment back a
+    second time, with another estimate; a new user's Crazyflie verdict said "Not
+    claimed: drag_moment" twice, h = 0.0224 and 0.0248 m)."""
+    entries = [h for part in parts for h in part]
+    last = {str(h.get("name")): k for k, h in enumerate(entries)}
+    return [h for k, h in enumerate(entries) if last[str(h.get("name"))] == k]
 
 
 def _best_rival(
@@ -299,5 +309,5 @@ def _delay_for_lag(
     swapped = "motor_lag" in out.kept
     if not swapped:  # neither is pinned down beside the other: both held back
         out = guard([n for n in guarded.kept if n != delay])
-    out.held_back = [*guarded.held_back, _held(delay, prof, floor, swapped), *out.held_back]
+    out.held_back = _merged(guarded.held_back, [_held(delay, prof, floor, swapped)], out.held_back)
     return out

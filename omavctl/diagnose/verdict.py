@@ -335,7 +335,7 @@ def _learned_line(tree: Mapping[str, Any]) -> Line | None:
         text = (
             f"Not modelled as physics: {name}, which the nominal model's residual looks like "
             f"(it explains {_pct(ev)} of it, {rms:.2g} rad/s² RMS"
-            + (f"; the model leaves {left:.2g} of it" if left is not None else "")
+            + (f"; the model leaves {left:.2g} rad/s² RMS of it" if left is not None else "")
             + "). What the GP learned of it holds only where the fit flight went; fitted as "
             "a physical effect it is tested on every flight."
         )
