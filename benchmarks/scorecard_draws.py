@@ -227,6 +227,14 @@ SPLITS: dict[str, dict[str, Any]] = {
         "held_back": "steps",
         "version": 2,
     },
+    # report24's records were read (2026-11-28, session 31): the next changes are reported
+    # on report25 (26 000 000; declared in session 31 before any of its draws was flown)
+    "report25": {
+        "seed_base": 26_000_000,
+        "families": ("fig8", "wobble", "chirp", "planned"),
+        "held_back": "steps",
+        "version": 2,
+    },
 }
 #: log kinds by ``simulate --out`` suffix ("" is a ROS 2 bag directory)
 FORMATS = {".bag": "ros1", "": "ros2", ".mcap": "mcap", ".csv": "csv"}
