@@ -138,13 +138,12 @@ def judge(record: dict[str, Any], workdir: Path) -> list[dict[str, Any]]:
     err = held.residual - mean
     fit_z = fit.inputs(model.features)
     margin = np.quantile(nearest_reach(model.inputs, fit_z), 0.99)
-    near = nearest_reach(model.inputs, z) <= margin
+    joint = _inside_box(model.inputs, z) & (nearest_reach(model.inputs, z) <= margin)
     rows = []
     for label, f in variants(fit_z).items():
         v = f(model, held, z, var)
         env = training_envelope(model.inputs, z, list(model.input_names), err, np.sqrt(v))
         within = np.abs(err) <= 2.0 * np.sqrt(v)
-        joint = _inside_box(model.inputs, z) & near
         rows.append(
             {
                 "draw": workdir.name,

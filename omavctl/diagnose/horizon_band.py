@@ -85,12 +85,11 @@ def _narrow_rows(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
     ]
 
 
-def _held(row: Mapping[str, Any], lead: str = "") -> str:
-    """'43 % of the body rates' or '85 % of the body rates but y 75 %' (``lead`` before
-    the pooled share)."""
+def _held(row: Mapping[str, Any]) -> str:
+    """'43 % of the body rates' or '85 % of the body rates but y 75 %'."""
     cov = row["coverage"]
     axes = _narrow_axes(row)
-    text = f"{lead}{_shown(float(cov['all']))} % of the body rates"
+    text = f"{_shown(float(cov['all']))} % of the body rates"
     return text + (
         f" but {', '.join(f'{a} {_shown(float(cov[a]))} %' for a in axes)}" if axes else ""
     )
@@ -100,9 +99,8 @@ def band_findings(rows: Sequence[Mapping[str, Any]], sigma: float) -> list[dict[
     """``band_narrow`` and ``band_wide`` findings of a full model's horizon ``rows``."""
     out = []
     for row in _narrow_rows(rows):
-        cov = row["coverage"]
-        shares = [float(cov["all"]), *(float(cov[a]) for a in _narrow_axes(row))]
-        axes = _narrow_axes(row)
+        cov, axes = row["coverage"], _narrow_axes(row)
+        shares = [float(cov["all"]), *(float(cov[a]) for a in axes)]
         out.append(
             {
                 "code": "band_narrow",

@@ -279,6 +279,8 @@ def _hold_beats(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
     if "naive" not in table:
         return []
     others = [p for p in preds if p["key"] != "naive"]
+    if not others:
+        return []
     n_models = 1 + max((p["model"] or 0) for p in preds)
 
     def shown(key: str, i: int) -> float:
@@ -287,7 +289,7 @@ def _hold_beats(tree: Mapping[str, Any]) -> list[dict[str, Any]]:
     at = [
         i
         for i in range(len(tree["seconds"]))
-        if others and all(shown("naive", i) < shown(p["key"], i) for p in others)
+        if all(shown("naive", i) < shown(p["key"], i) for p in others)
     ]
     if not at:
         return []
