@@ -304,12 +304,7 @@ def _interval_text(
         if math.isfinite(lo) and hi == math.inf
         else "unbounded"
     )
-    note = bound_note(which[0], which[1], lo, value)
-    if value is not None and "below it" not in note:  # an estimate outside its interval
-        # (Betaflight: scale_x -7.912 ± 52 beside [0.663, ∞), no word on it)
-        side = "below" if value < lo else "above" if value > hi else ""
-        note += f"{'; ' if note else ''}the estimate is {side} it" if side else ""
-    if note:
+    if note := bound_note(which[0], which[1], lo, value, hi):
         text += f" ({note})"
     if pinned:
         return text

@@ -239,23 +239,30 @@ def cut_at_bound(name: str, param: str, low: float) -> bool:
     return bound is not None and float(low) == bound
 
 
-def bound_note(name: str, param: str, low: float, value: float | None = None) -> str:
+def bound_note(
+    name: str, param: str, low: float, value: float | None = None, high: float | None = None
+) -> str:
     """'cut at T_m ≥ 0' when an interval's ``low`` end is the parameter's physical bound
     (:func:`cut_at_bound`), else ''; '...; the estimate is below it' when the estimate
-    ``value`` is (it then lies outside its interval: tau_d -0.617 ms, 95 % 0 to 0.637)."""
-    if not cut_at_bound(name, param, low):
+    ``value`` is (it then lies outside its interval: tau_d -0.617 ms, 95 % 0 to 0.637).
+    Given the interval's ``high`` end, an estimate outside it on either side is said
+    whether or not the interval was cut (Betaflight: scale_x -7.912 beside [0.663, ∞))."""
+    cut = cut_at_bound(name, param, low)
+    if not cut and high is None:
         return ""
+    v = None if value is None else float(value)
+    side = "below" if v is not None and v < low else ""
+    side = "above" if v is not None and high is not None and v > high else side
+    said = [f"the estimate is {side} it"] if side else []
+    if not cut:
+        return "; ".join(said)
     bound = physical_bound(name, param)
-    below = value is not None and bound is not None and float(value) < bound
     # cut at the value where the effect is absent (a lag, a delay, a drag at 0): the
     # interval reaches absence, so its narrowness says nothing of a size (eyes6)
     null = np.asarray(null_values(name).get(param, np.array([np.nan])), float).reshape(-1)
     absent = bool(null.size) and bool(np.all(null == bound))
-    return (
-        f"cut at {param} ≥ {bound:g}"
-        + (", not told from absent" if absent else "")
-        + ("; the estimate is below it" if below else "")
-    )
+    cut_words = f"cut at {param} ≥ {bound:g}" + (", not told from absent" if absent else "")
+    return "; ".join([cut_words, *said])
 
 
 def physical_side(name: str, param: str, interval: np.ndarray) -> np.ndarray:

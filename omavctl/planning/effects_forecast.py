@@ -90,12 +90,11 @@ def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
     separates = len(names) > 1 and corr["after"] < corr["before"]
     # "pin down" beside "it does not tell them apart" read as a contradiction: with
     # more than one effect and a correlation that grows, the flight only narrows them
-    kind = "separate and pin down" if separates else "narrow" if len(names) > 1 else "pin down"
     # a relative standard error above 1 after the flight is not pinned down (a new user:
     # "expected to pin down rotor_interference: ... 2.92 now, 2.26 after it")
     unpinned = not rel["after_forecast"] < 1.0
-    if unpinned:
-        kind = "separate and narrow" if separates else "narrow"
+    pin = "narrow" if unpinned or len(names) > 1 else "pin down"
+    kind = f"separate and {'narrow' if unpinned else 'pin down'}" if separates else pin
     line = (
         f"effects: the flight (candidate {result.best}, ranked by --objective "
         f"{result.objective}) is expected to {kind} {', '.join(names)}: relative standard "
