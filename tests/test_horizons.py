@@ -570,3 +570,41 @@ def test_holding_the_state_that_beats_every_model_is_said():
     h = _tree({"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "effects": [0.01, 0.1],
                "model": [0.008, 0.2]})["horizons"]  # fmt: skip
     assert not [f for f in findings(h) if f["code"] == "hold_beats_models"]
+
+
+def test_beyond_the_fit_flights_inputs_the_band_grows_as_the_one_step_band(tmp_path, vehicle):
+    """A model fitted without the vehicle's drag on a gentle figure-8, judged on one of
+    three times its tilt (far beyond its inputs): its one-step band widens there with
+    the growth beyond the inputs (:func:`omavctl.learn.band.growth_variance`) and covers;
+    the rollout integrates that growth as an error of the function, so the horizon band
+    covers too. Without it the band held 13-34 % on x and y at every horizon, while the
+    one-step band held 94-100 % (the first models of the scorecard's tune draws, fit on
+    steps and judged on figure-8s: docs/horizons.md, session 32)."""
+    from omavctl.diagnose.evaluate import _grid, _read_log
+    from omavctl.learn.band import growth_variance
+    from omavctl.learn.model_file import load_model
+    from omavctl.learn.rollout_residual import function_std
+
+    truth = truth_from_tree(
+        {"seed": 1, "effects": {"rotational_drag": {"D": [0.1, 0.08, 0.05]}}}, vehicle
+    )
+    gentle = fig8(roll_deg=10, pitch_deg=10, period=8.0, duration=10.0, ramp=1.0)
+    wide = fig8(roll_deg=30, pitch_deg=30, period=5.0, duration=8.0, ramp=1.0)
+    write_log(tmp_path / "fit.csv", simulate(gentle, vehicle, truth, seed=1).log)
+    write_log(tmp_path / "other.csv", simulate(wide, vehicle, truth, seed=3).log)
+    model = tmp_path / "m.npz"
+    save_model(model, fit_model([tmp_path / "fit.csv"], vehicle, points=80, restarts=0).model)
+    tree = evaluate([model], [tmp_path / "other.csv"], horizon_stride=2, **NO_DIAGNOSIS).tree
+    one_step = tree["metrics"]["model"]["coverage_2sigma"]
+    assert min(one_step.values()) >= 0.9, one_step
+    for row in tree["horizons"]["table"]["model"]:
+        for a in "xyz":
+            assert row["coverage"][a] >= min(0.9, one_step[a] - 0.05), (a, row["coverage"])
+    # the growth is the one-step band's, added to the function the rollout integrates:
+    # zero at the fit flight's own inputs, where nothing changed
+    m = load_model(model)
+    assert np.all(growth_variance(m, m.inputs) == 0.0)
+    samples = _read_log(tmp_path / "other.csv", m.vehicle, *_grid(m), None)[0]
+    grows = growth_variance(m, samples.inputs(m.features))
+    assert np.mean(grows[:, 0] > 0) > 0.5
+    assert np.all(function_std(m, samples) ** 2 >= grows * (1 - 1e-9))

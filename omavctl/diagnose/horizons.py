@@ -28,7 +28,9 @@ k less the start's (2 for independent samples; exact through the interpolation
 weights for a gyro recorded more slowly than the grid,
 :mod:`omavctl.learn.recorded_noise`), ``s_j`` the std of the
 model's residual function at step j (GP latent variance + the effects'
-parameter variance, at the logged inputs, plus, for an effect of a measured force,
+parameter variance + the one-step band's growth beyond the fit flight's inputs,
+:func:`omavctl.learn.band.growth_variance`, at the logged inputs, plus, for an
+effect of a measured force,
 what its rollout's prediction errs after j steps on the log: the force held at the
 window's start, or rolled forward by the logged attitude where the log has one,
 :func:`~omavctl.learn.rollout_residual.held_spread`) and ``s_p^2`` the GP's noise

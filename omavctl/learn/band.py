@@ -57,6 +57,7 @@ __all__ = [
     "TORQUE_GROWTH",
     "band_factor",
     "band_variance",
+    "growth_variance",
     "range_reach",
     "torque_excess",
 ]
@@ -135,10 +136,23 @@ def band_variance(
     if np.any(model.band_scale != 1.0) or np.any(model.band_slope != 0.0):
         lat = var if latent is None else latent
         out = out + (1.0 - w) * (band_factor(model, lat) - 1.0) * (lat + model.band_noise)
+    return np.asarray(out + growth_variance(model, z, w))
+
+
+def growth_variance(model: Any, z: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """The band's growth (B, 3) beyond the fit flight's inputs at GP inputs z (B, d):
+    ``w ((torque_growth ||e||)^2 + (range_growth reach)^2)`` (module docstring), w (B, 1)
+    the weight of :func:`~omavctl.learn.effects_band.beyond_weight` (None: computed
+    here); zeros inside the inputs. A model error, not measurement noise: the horizon
+    band integrates it with the latent variance (:mod:`omavctl.diagnose.horizons`)."""
+    z = np.atleast_2d(np.asarray(z, dtype=float))
+    if w is None:
+        w = beyond_weight(model.inputs, z)[:, None]
+    out = np.zeros((z.shape[0], 3))
     growth = np.asarray(model.torque_growth, dtype=float)
     if np.any(growth > 0):
         out = out + w * (growth[None, :] * torque_excess(model, z)[:, None]) ** 2
     per_range = np.asarray(model.range_growth, dtype=float)
     if np.any(per_range > 0):
         out = out + w * (per_range[None, :] * range_reach(model.inputs, z)[:, None]) ** 2
-    return np.asarray(out)
+    return out

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from omavctl.learn.band import growth_variance
 from omavctl.learn.gp_mean import FusedMean
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.recorded_noise import RecordedNoise, independent_noise
@@ -229,10 +230,15 @@ def function_std(m: ResidualGP, s: ResidualSamples) -> np.ndarray:
     latent variance plus the effects' parameter variance and the rotors' spread (no
     measurement noise), plus ``((1 - w) m)^2`` for the part ``1 - w`` of the GP mean m
     a rollout leaves out (``rollout_gp`` weight w: predicting 0 where the GP says m
-    costs m^2)."""
-    mean, var = m.gp_predict(s.inputs(m.features), noise=False)
+    costs m^2), plus the one-step band's growth beyond the fit flight's inputs
+    (:func:`omavctl.learn.band.growth_variance`: how far the model's error may grow
+    where the fit flight never went, an error of the function, which a rollout
+    integrates; zero inside the inputs)."""
+    z = s.inputs(m.features)
+    mean, var = m.gp_predict(z, noise=False)
     assert var is not None
     var = var + ((1.0 - m.rollout_gp) * mean) ** 2 + m.effects_variance(s)
+    var = var + growth_variance(m, z)
     return np.sqrt(np.maximum(var, 0.0))
 
 
