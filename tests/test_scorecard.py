@@ -126,6 +126,18 @@ def test_physics_fall_and_worse_axes():
     assert sc.judge(_record({}, [first]))["fall"] is None
 
 
+def test_the_first_models_band_and_error_count_beside_the_last():
+    """A first model (fitted with defaults) whose band holds 0.6 on y and whose x is
+    1.2x physics-only fails the every-round rows, though the last model passes both."""
+    first = _round(model={"x": 1.2, "y": 0.5, "z": 0.5}, cover={"x": 0.95, "y": 0.6, "z": 0.9})
+    rec = _record(DRAG, [first, _round()])
+    j = sc.judge(rec)
+    assert j["worse"] is False and j["worse_any_round"] is True
+    assert j["coverage_low_ok"] == [True, True, True]
+    assert j["coverage_low_every_round"] == [True, False, True, True, True, True]
+    assert sc.tally([j], "coverage_low_every_round") == (5, 6)
+
+
 def test_parameters_against_stderr_or_a_real_interval():
     fit = {
         "effects": {"rotational_drag": {"D": [0.05, 0.03, 0.031], "D_stderr": [0.001, 0.001, None]}}
