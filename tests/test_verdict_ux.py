@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from omavctl.diagnose.claim_text import effect_to_test
 from omavctl.diagnose.verdict import verdict
 from omavctl.report.summary import render_evaluation
 
@@ -583,6 +584,9 @@ def test_nothing_claimed_offers_its_command_as_a_test_not_as_an_addition():
         first = verdict(tree)[0]
         assert first.text.startswith("Nothing claimed as missing")
         assert (first.command, first.test) == (cmd, True)
+        # the effect evaluate writes test_command for (it was below_noise's only, and
+        # null in the JSON beside "test it with" for the other two)
+        assert effect_to_test(tree["diagnosis"]) == "rotor_interference"
         assert first.plain().endswith(f" Test it with: {cmd}")
         assert f"    test it with: {cmd}" in _terminal(tree)
         assert "add it with" not in _terminal(tree)
@@ -591,6 +595,12 @@ def test_nothing_claimed_offers_its_command_as_a_test_not_as_an_addition():
     # nothing near a claim: no command, so nothing to test
     plain = verdict(_nothing_missing())[0]
     assert (plain.command, plain.test) == (None, False)
+    assert effect_to_test(_nothing_missing()["diagnosis"]) is None
+    # a claim made: only the noise floor's effect is still offered as a test
+    unpinned["diagnosis"]["missing"] = ["rotational_drag"]
+    assert effect_to_test(unpinned["diagnosis"]) is None
+    below["diagnosis"]["missing"] = ["rotational_drag"]
+    assert effect_to_test(below["diagnosis"]) == "rotor_interference"
 
 
 def test_report_does_not_title_the_which_model_sentence_as_a_change():

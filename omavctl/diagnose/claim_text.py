@@ -14,6 +14,7 @@ from omavctl.diagnose.joint_text import beside_timing_sentence
 __all__ = [
     "beside_lag_sentence",
     "claim_estimate",
+    "effect_to_test",
     "large_cut_sentence",
     "learned_claim_text",
     "not_pinned_names",
@@ -38,6 +39,28 @@ def _held(diag: Mapping[str, Any]) -> list[Mapping[str, Any]]:
 def not_pinned_names(diag: Mapping[str, Any]) -> list[str]:
     """The effects held back because their interval holds their null."""
     return [str(e.get("name")) for e in _held(diag)]
+
+
+def effect_to_test(diag: Mapping[str, Any]) -> str | None:
+    """The effect whose fit the verdict offers as a test ("test it with") when it holds
+    a claim back: the one under the noise floor (``below_noise``); with nothing claimed
+    (no ``missing``, no ``learned_claims``), the one the refit test held back (with both
+    of its shares, as the verdict says them), else the first whose interval holds its
+    null (``not_pinned``); None otherwise. ``diagnosis.test_command`` is that effect's
+    command, the one the terminal prints."""
+    if near := diag.get("below_noise"):
+        return str(near)
+    if diag.get("missing") or diag.get("learned_claims"):
+        return None
+    if name := diag.get("refit_rejected"):
+        entry: Mapping[str, Any] = next(
+            (e for e in diag.get("missing_effects") or [] if e.get("name") == name), {}
+        )
+        shares = (entry.get("explained_variance"), entry.get("refit_explained_variance"))
+        if all(_num(v) is not None for v in shares):
+            return str(name)
+    unpinned = not_pinned_names(diag)
+    return unpinned[0] if unpinned else None
 
 
 def _null_words(name: str) -> str:

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from omavctl.diagnose.axis_share import axis_held, named_effects
+from omavctl.diagnose.claim_text import effect_to_test
 from omavctl.diagnose.commands import effect_commands, fit_command, separation
 from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
@@ -63,15 +64,22 @@ def diagnosis_with_commands(
     diagnosis["unconfirmed"] = drop
     diagnosis["without_command"] = fit_command(model_path, model, [], drop) if drop else None
     diagnosis["fit_command"] = fit_command(model_path, model, claimed) if claimed else None
-    near = diagnosis.get("below_noise")
-    # the fit that tests an effect held back only by the noise floor
-    diagnosis["test_command"] = fit_command(model_path, model, near) if near else None
     diagnosis["effect_commands"] = effect_commands(diagnosis, model_path, model)
     for held in axis_held(diagnosis, list(model.effects)):  # material on one axis only
         if not held["weak"]:  # an estimate at t 0 or out of range has nothing to test
             diagnosis["effect_commands"].setdefault(
                 held["name"], fit_command(model_path, model, held["name"])
             )
+    # the fit that tests the effect the verdict holds back (the one it prints "test it
+    # with" for): under the noise floor, held back by the refit test, or not pinned down
+    near, tested = diagnosis.get("below_noise"), effect_to_test(diagnosis)
+    diagnosis["test_command"] = (
+        fit_command(model_path, model, near)
+        if near
+        else diagnosis["effect_commands"].get(tested)
+        if tested
+        else None
+    )
     diagnosis.update(separation(diagnosis, model_path, model.vehicle.fixed_rotors))
     withhold_given(diagnosis, models, mpaths)
     display_units(diagnosis, model.vehicle.command_units)

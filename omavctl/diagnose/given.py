@@ -16,6 +16,7 @@ import shlex
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from omavctl.diagnose.claim_text import effect_to_test
 from omavctl.learn.model import ResidualGP
 
 __all__ = ["given_sentence", "withhold_given"]
@@ -62,14 +63,14 @@ def withhold_given(
 ) -> None:
     """Drop from ``diagnosis`` (in place) every fit command a given model makes
     pointless or would be overwritten by: ``fit_command`` (of the top missing
-    effect), ``test_command`` (of ``below_noise``) and the entries of
-    ``effect_commands``; ``diagnosis["given"]`` maps each such effect to that
+    effect), ``test_command`` (of :func:`~omavctl.diagnose.claim_text.effect_to_test`)
+    and the entries of ``effect_commands``; ``diagnosis["given"]`` maps each such effect to that
     model (``{"model": path as given, "has_it": bool}``, False: the command would
     overwrite it). ``models`` and ``paths``: every model of the
     evaluation, the diagnosed one first."""
     given: dict[str, dict[str, Any]] = {}
     keyed = {"fit_command": (diagnosis.get("missing") or [None])[0]}
-    keyed["test_command"] = diagnosis.get("below_noise")
+    keyed["test_command"] = effect_to_test(diagnosis)
     for key, effect in keyed.items():
         command = diagnosis.get(key)
         if effect and isinstance(command, str):
