@@ -61,7 +61,8 @@ def test_a_lag_on_normalised_commands_is_a_time_and_fit_gives_the_unit_free_valu
     (_, note) = search_notes(found, normalised=True)
     assert note == (
         "motor_lag: T_m = 50.4 ms with the torque gain on the timed torque (g x lag): the "
-        "time in s whatever the command's unit; the 9.6 ms above is of the form the model "
+        "time in s whatever the command's unit, the one to quote as the vehicle's; the "
+        "9.6 ms above is of the form the model "
         "predicts with (lag + (g - 1) x command), which on normalised commands scales with "
         "their unit (about T_m x gain), and its standard error allows 29.0 ms for the "
         "difference"

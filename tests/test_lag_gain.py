@@ -54,8 +54,11 @@ def test_a_lag_that_trades_with_the_gain_is_not_pinned_down(tmp_path: Path) -> N
     assert not bool(est.pinned()["T_m"][0])
     coupled = [n for n in notes if "with the torque gain on the timed torque" in n]
     assert len(coupled) == 1, notes
-    # the physical form finds the true lag
+    # the physical form finds the true lag, and the note says which number to quote
     assert "finds T_m = 40." in coupled[0] or "finds T_m = 39." in coupled[0], coupled[0]
+    assert coupled[0].endswith(
+        "quote T_m by its interval, which allows both, not by either value alone"
+    )
 
 
 def test_a_lag_with_the_gain_near_one_keeps_a_tight_interval(tmp_path: Path) -> None:

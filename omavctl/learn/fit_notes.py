@@ -196,7 +196,8 @@ def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) ->
         if r.coupled is not None and normalised:
             notes.append(
                 f"{r.name}: {p.name} = {r.coupled * 1e3:.1f} ms with the torque gain on the "
-                "timed torque (g x lag): the time in s whatever the command's unit; the "
+                "timed torque (g x lag): the time in s whatever the command's unit, the one "
+                "to quote as the vehicle's; the "
                 f"{r.value * 1e3:.1f} ms above is of the form the model predicts with (lag + "
                 "(g - 1) x command), which on normalised commands scales with their unit "
                 f"(about {p.name} x gain), and its standard error allows "
@@ -207,7 +208,8 @@ def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) ->
                 f"{r.name}: with the torque gain on the timed torque (g x lag, not lag + "
                 f"(g - 1) x command) the search finds {p.name} = {r.coupled * 1e3:.1f} ms: "
                 "the lag and the gain trade on these samples, and its standard error "
-                f"allows {r.gain_allowance * 1e3:.1f} ms for it"
+                f"allows {r.gain_allowance * 1e3:.1f} ms for it: quote {p.name} by its "
+                "interval, which allows both, not by either value alone"
             )
         if r.traded is not None:
             notes.append(
