@@ -434,7 +434,7 @@ def test_a_log_without_attitude_gets_no_attitude_column():
     out = io.StringIO()
     render_horizons(Console(file=out, width=200), tree)
     text = " ".join(out.getvalue().split())  # the title wraps to the table's width
-    assert "(no attitude in the log)" in text and "attitude rad" not in text
+    assert "(no attitude in the log; in brackets" in text and "attitude rad" not in text
     tree["horizons"]["attitude"] = True
     assert "attitude" in _table(tree["horizons"]).columns
 
@@ -529,8 +529,9 @@ def test_the_band_is_called_wide_or_narrow_per_axis_as_printed():
     assert wide["value"] == pytest.approx(0.9 / calibrated / 0.1)
     assert wide["message"] == (
         "at 0.5 s the full model's 2σ band is wider than its errors show on x 3.6x (holds "
-        "100 %), y 3.2x (holds 99 %): safe, not tight (a controller or planner reading it "
-        "would be more cautious than this flight needs)"
+        "100 %), y 3.2x (holds 99 %): safe, not tight (the band's std over the std its "
+        "errors imply; a controller or planner reading it would be more cautious than this "
+        "flight needs)"
     )
     late["coverage"]["y"] = 0.98  # wide on average, yet it misses samples: not "wide"
     (wide,) = [f for f in findings(h) if f["code"] == "band_wide"]
@@ -608,3 +609,17 @@ def test_beyond_the_fit_flights_inputs_the_band_grows_as_the_one_step_band(tmp_p
     grows = growth_variance(m, samples.inputs(m.features))
     assert np.mean(grows[:, 0] > 0) > 0.5
     assert np.all(function_std(m, samples) ** 2 >= grows * (1 - 1e-9))
+
+
+def test_the_tables_name_an_axis_the_band_fails_beside_the_pooled_share():
+    """A new user read '0.207 (95%)' while the band failed an axis the pooled share hid;
+    the terminal, the report and the docs also defined the share three ways. The cell
+    names every axis under 85 % as printed (84.6 % prints 85 %: not named)."""
+    from omavctl.report.horizons import COVERAGE_WORDS, coverage_cell
+
+    assert coverage_cell({"x": 0.95, "y": 0.745, "z": 0.846, "all": 0.847}) == "85%, y 74%"
+    assert coverage_cell({"x": 0.95, "y": 0.745, "z": 0.8, "all": 0.83}, " ") == (
+        "83 %, y 74 %, z 80 %"
+    )
+    assert coverage_cell({"x": 0.95, "y": 0.95, "z": 0.95, "all": 0.95}) == "95%"
+    assert COVERAGE_WORDS.startswith("the share of windows whose body-rate error lies inside")

@@ -158,8 +158,9 @@ def test_evaluate_says_when_the_horizons_ran_with_a_larger_stride_than_asked():
     assert said.startswith(
         "open-loop error over horizons (3884 windows, a start every 8 samples rather than "
         "at every one: the log is long and the windows are held in memory at once): mean norm "
-        "of the body-rate error, rad/s (no attitude in the log) (share of the samples within "
-        "the full model's 2σ band)"
+        "of the body-rate error, rad/s (no attitude in the log; in brackets: the share of "
+        "windows whose body-rate error lies inside the full model's 2σ band, over the three "
+        "axes, with an axis under 85 % named)"
     )
     con = Console(record=True, width=400)
     render_horizons(con, {"horizons": {**h, "stride_requested": 4}})

@@ -26,6 +26,7 @@ __all__ = [
     "WIDE_FACTOR",
     "axis_factors",
     "band_findings",
+    "narrow_axes",
     "open_loop_narrow",
     "wide_factor",
 ]
@@ -68,7 +69,8 @@ def wide_factor(row: Mapping[str, Any]) -> float | None:
     return min(factors.values()) if len(factors) == len(AXES) else None
 
 
-def _narrow_axes(row: Mapping[str, Any]) -> list[str]:
+def narrow_axes(row: Mapping[str, Any]) -> list[str]:
+    """The axes whose coverage, as the table prints it, is under :data:`MIN_COVERAGE`."""
     cov = row.get("coverage") or {}
     low = _shown(MIN_COVERAGE)
     return [a for a in AXES if cov.get(a) is not None and _shown(float(cov[a])) < low]
@@ -81,14 +83,14 @@ def _narrow_rows(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
         r
         for r in rows
         if r.get("coverage") is not None
-        and (_shown(float(r["coverage"]["all"])) < low or _narrow_axes(r))
+        and (_shown(float(r["coverage"]["all"])) < low or narrow_axes(r))
     ]
 
 
 def _held(row: Mapping[str, Any]) -> str:
     """'43 % of the body rates' or '85 % of the body rates but y 75 %'."""
     cov = row["coverage"]
-    axes = _narrow_axes(row)
+    axes = narrow_axes(row)
     text = f"{_shown(float(cov['all']))} % of the body rates"
     return text + (
         f" but {', '.join(f'{a} {_shown(float(cov[a]))} %' for a in axes)}" if axes else ""
@@ -99,7 +101,7 @@ def band_findings(rows: Sequence[Mapping[str, Any]], sigma: float) -> list[dict[
     """``band_narrow`` and ``band_wide`` findings of a full model's horizon ``rows``."""
     out = []
     for row in _narrow_rows(rows):
-        cov, axes = row["coverage"], _narrow_axes(row)
+        cov, axes = row["coverage"], narrow_axes(row)
         shares = [float(cov["all"]), *(float(cov[a]) for a in axes)]
         out.append(
             {
@@ -128,8 +130,9 @@ def band_findings(rows: Sequence[Mapping[str, Any]], sigma: float) -> list[dict[
                 "axis": next(iter(wide)) if len(wide) == 1 else None,
                 "value": max(wide.values()),
                 "message": f"at {row['seconds']:g} s the full model's {sigma:g}σ band is "
-                f"wider than its errors show on {on}: safe, not tight (a controller or "
-                "planner reading it would be more cautious than this flight needs)",
+                f"wider than its errors show on {on}: safe, not tight (the band's std over "
+                "the std its errors imply; a controller or planner reading it would be more "
+                "cautious than this flight needs)",
             }
         )
     return out
