@@ -717,7 +717,8 @@ def test_a_material_share_of_one_axis_is_named_as_held_back_with_its_reason():
     (line,) = [ln for ln in verdict(tree) if ln.key == "axis"]
     assert line.text.endswith(
         "because over all axes it explains 4 %, under the 15 % of the total a claim needs, "
-        "and its estimate is not significant (t = 0) and outside the effect's plausible "
+        "and its estimate is not significant (t = 0, under the 4 a claim needs) and outside "
+        "the effect's plausible "
         "range."
     )
     assert line.command is None
@@ -978,3 +979,42 @@ def test_a_second_models_narrow_band_is_said_with_its_name():
     tree["metrics_by_model"][1]["model"]["coverage"] = {"x": 0.95, "y": 0.96, "z": 0.95}
     texts = [ln.text for ln in verdict_of_models(tree)]
     assert not any(t.startswith("With half-lag.npz, the uncertainty") for t in texts)
+
+
+def test_an_effect_the_gp_learned_is_not_said_again_as_held_back_on_one_axis():
+    """A new user's verdict said com_offset "is pinned down away from its null" (the
+    learned line) and, a line later, "Not claimed although it explains 61 % of the x
+    error ...: com_offset, because its estimate is not significant (t = 4)", a t of
+    3.9x under the bar of 4, printed as the bar. The learned line discusses it alone;
+    the one-axis line goes on to the next effect, and a t under the bar prints so."""
+    tree = _absorbed()
+    diag = tree["diagnosis"]
+    diag["missing_effects"] = [
+        {
+            "name": "com_offset",
+            "explained_variance": 0.10,
+            "explained_variance_per_axis": {"x": 0.61},
+            "significant": False,
+            "t_value": 3.96,
+        },
+        {
+            "name": "rotational_drag",
+            "explained_variance": 0.05,
+            "explained_variance_per_axis": {"x": 0.28},
+            "significant": False,
+            "t_value": 1.5,
+        },
+    ]
+    lines = verdict(tree)
+    (learned,) = [ln for ln in lines if ln.key == "learned"]
+    (axis,) = [ln for ln in lines if ln.key == "axis"]
+    assert learned.subject == "com_offset"
+    assert axis.text.startswith(
+        "Not claimed although it explains 28 % of the x error on held-out blocks: "
+        "rotational_drag, because"
+    )
+    assert "com_offset" not in axis.text
+    from omavctl.diagnose.axis_share import failed_test
+
+    why = failed_test(diag["missing_effects"][0], 0.05)
+    assert why == "its estimate is not significant (t = 3.96, under the 4 a claim needs)"

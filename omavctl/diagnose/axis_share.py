@@ -10,10 +10,11 @@ it. Works on the evaluation JSON only.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any
 
 from omavctl.diagnose.activity import finite as _num
+from omavctl.diagnose.scoring import MIN_T
 from omavctl.diagnose.verdict_lines import AXES, Line, _pct, get_path
 
 __all__ = ["axis_held", "axis_held_line", "failed_test", "named_effects"]
@@ -45,11 +46,16 @@ def failed_test(entry: Mapping[str, Any], floor: float) -> str:
 
 
 def _not_significant(entry: Mapping[str, Any]) -> str:
-    """'its estimate is not significant (t = 0.3)' for such an entry, else ''."""
+    """'its estimate is not significant (t = 0.3, under the 4 a claim needs)' for such an
+    entry, else ''. (A t of 3.96 printed as "t = 4" read as significant to a new user.)"""
     if entry.get("significant") is not False:
         return ""
     t = _num(entry.get("t_value"))
-    return "its estimate is not significant" + (f" (t = {t:.2g})" if t is not None else "")
+    if t is None:
+        return "its estimate is not significant"
+    # enough digits that a t under the bar never prints as the bar
+    shown = next(s for d in (2, 3, 4, 6) if (s := f"{t:.{d}g}") != f"{MIN_T:g}" or d == 6)
+    return f"its estimate is not significant (t = {shown}, under the {MIN_T:g} a claim needs)"
 
 
 def _implausible(entry: Mapping[str, Any]) -> str:
@@ -96,12 +102,14 @@ def axis_held(diag: Mapping[str, Any], effects: Sequence[str] = ()) -> list[dict
     return out
 
 
-def axis_held_line(tree: Mapping[str, Any]) -> Line | None:
+def axis_held_line(tree: Mapping[str, Any], said: Collection[str] = ()) -> Line | None:
     """'Not claimed although it explains 34 % of the y error: command_delay (over all
-    axes it explains 4 %, ...)' with the command that tests it; None when none is."""
+    axes it explains 4 %, ...)' with the command that tests it; None when none is.
+    ``said``: effects another verdict line discusses already (the one the GP learned: a
+    new user read it "pinned down away from its null" there and "not significant" here)."""
     diag = get_path(tree, "diagnosis", default={}) or {}
     effects = [str(e) for e in get_path(tree, "models", 0, "effects", default={}) or {}]
-    held = axis_held(diag, effects)
+    held = [h for h in axis_held(diag, effects) if h["name"] not in said]
     if not held:
         return None
     first = held[0]

@@ -368,9 +368,10 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
     rank = {key: i for i, key in enumerate(dict.fromkeys(FIRST_FLAGS.values()))}
     firsts = sorted((ln for ln in flags if ln.key in first), key=lambda ln: rank[ln.key])
     lines = [*firsts, _missing_line(tree), *_alternative_lines(tree)]
+    learned = _learned_line(tree)
     for line in (
-        _learned_line(tree),
-        axis_held_line(tree),
+        learned,
+        axis_held_line(tree, [learned.subject] if learned and learned.subject else []),
         disagree_line(tree),
         pinned_here_line(tree),
         unconfirmed_line(tree),
