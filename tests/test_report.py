@@ -289,7 +289,7 @@ def test_cli(evals, tmp_path):
     )
     assert ok.exit_code == 0, ok.output
     assert out.is_file() and "wrote" in ok.output and "change" in ok.output
-    assert "top missing effect" in ok.output
+    assert "diagnosis: top missing" in " ".join(ok.output.split())
     # before.json lacks the hidden effect: the summary gives the command that adds it
     md = tmp_path / "cli.md"
     ok = runner.invoke(app, ["report", str(evals / "before.json"), "--out", str(md)])

@@ -78,7 +78,7 @@ def _render_report(con: Any, summary: Any, out: Path) -> None:
     table.add_column("evaluation")
     for axis in "xyz":
         table.add_column(axis, justify="right")
-    table.add_column("top missing effect")
+    table.add_column("diagnosis: top missing")
     for ev in summary.evaluations:
         several = len(ev.models_rmse) > 1 and len(ev.model_names) == len(ev.models_rmse)
         if not several:

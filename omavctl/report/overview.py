@@ -69,7 +69,15 @@ def overview_table(evals: Sequence[Evaluation]) -> list[Block]:
             )
     return [
         Table(
-            columns=["evaluation", "logs", "models", "samples", *AXES, *AXES, "top missing effect"],
+            columns=[
+                "evaluation",
+                "logs",
+                "models",
+                "samples",
+                *AXES,
+                *AXES,
+                "diagnosis: top missing",
+            ],
             groups=[("", 4), ("nominal RMSE, rad/s²", 3), ("model RMSE, rad/s²", 3), ("", 1)],
             rows=rows,
             align="lllrrrrrrrl",
