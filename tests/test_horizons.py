@@ -623,3 +623,27 @@ def test_the_tables_name_an_axis_the_band_fails_beside_the_pooled_share():
     )
     assert coverage_cell({"x": 0.95, "y": 0.95, "z": 0.95, "all": 0.95}) == "95%"
     assert COVERAGE_WORDS.startswith("the share of windows whose body-rate error lies inside")
+
+
+def test_holding_the_state_that_beats_every_model_reaches_the_verdict():
+    """On the Betaflight tunes holding the state beat every model at every horizon, and
+    only the horizon section said so: the verdict, in the terminal and the report,
+    spoke of one-step errors alone."""
+    from omavctl.diagnose.verdict import verdict
+    from omavctl.report.document import _md_inline
+    from omavctl.report.top import verdict_section
+
+    tree = _tree({"naive": [0.5, 1.45], "nominal": [0.9, 58.9], "model": [0.7, 6.76]})
+    tree["diagnosis"] = {"missing": [], "missing_effects": [], "method": {}}
+    tree["horizons"]["findings"] = findings(tree["horizons"])
+    (line,) = [ln for ln in verdict(tree) if ln.key == "horizons"]
+    assert line.text.startswith(
+        "Open loop: holding the state predicts the body rates better than every model at "
+        "0.01, 0.5 s (at 0.5 s 1.45 rad/s against 6.76 for the best, full model)"
+    )
+    assert line.text.endswith("on this flight (the horizon table).")
+    items = [_md_inline(it) for it in verdict_section([(tree, None, "a.json")])[1].items]
+    assert any(it.startswith("**Open loop:** holding the state predicts") for it in items), items
+    # without the finding there is no such line
+    tree["horizons"]["findings"] = []
+    assert not [ln for ln in verdict(tree) if ln.key == "horizons"]

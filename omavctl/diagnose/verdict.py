@@ -48,6 +48,7 @@ from omavctl.diagnose.verdict_lines import (
     fails_line,
     flag_lines,
     get_path,
+    hold_line,
     uncertainty_line,
 )
 
@@ -377,6 +378,7 @@ def verdict(tree: Mapping[str, Any]) -> list[Line]:
         unconfirmed_line(tree),
         fails_line(tree),
         uncertainty_line(tree),
+        hold_line(tree),
         envelope_line(tree),
         excluded_line(tree),
     ):

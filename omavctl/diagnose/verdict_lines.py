@@ -35,6 +35,7 @@ __all__ = [
     "fails_line",
     "flag_lines",
     "get_path",
+    "hold_line",
     "uncertainty_line",
 ]
 
@@ -244,6 +245,18 @@ def uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
             "wider than needed."
         )
     return Line("uncertainty", f"{text[:-1]}; {hor}." if hor else text)
+
+
+def hold_line(tree: Mapping[str, Any]) -> Line | None:
+    """The horizon table's ``hold_beats_models`` in the verdict: a new user's Betaflight
+    report said, under its horizon figure only, that holding the state beat every model
+    at every horizon, while its verdict spoke of one-step errors alone."""
+    found = (tree.get("horizons") or {}).get("findings") or []
+    said = [f for f in found if isinstance(f, Mapping) and f.get("code") == "hold_beats_models"]
+    if not said:
+        return None
+    message = str(said[0].get("message"))
+    return Line("horizons", f"Open loop: {message} (the horizon table).")
 
 
 #: Share of a flight outside the model's training inputs from which the verdict says so.

@@ -36,6 +36,7 @@ def verdict_section(evals: Sequence[Evaluation]) -> list[Block]:
         "change": "Error change",
         "fails": "Where it fails",
         "uncertainty": "Uncertainty",
+        "horizons": "Open loop",
         "envelope": "Outside the training inputs",
         "excluded": "Excluded",
         "flag": "Warning",
