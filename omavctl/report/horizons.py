@@ -24,7 +24,16 @@ import numpy as np
 
 from omavctl.diagnose.horizon_band import narrow_axes
 from omavctl.diagnose.horizon_findings import SIGNIFICANT, label, paired_se
-from omavctl.report.document import Block, Bullets, Cell, Content, FigureBlock, Para, Table
+from omavctl.report.document import (
+    Block,
+    Bullets,
+    Cell,
+    Content,
+    FigureBlock,
+    Lines,
+    Para,
+    Table,
+)
 from omavctl.report.figures import DPI, png, style
 from omavctl.report.load import Evaluation
 from omavctl.report.numfmt import num
@@ -136,7 +145,9 @@ def _table(h: Mapping[str, Any]) -> Table:
             cov = entry.get("coverage")
             row += [
                 num(entry["rate_error"]["norm"], 3),
-                "/".join(num(entry["rate_error"][a], 3) for a in AXES),
+                # one axis a line: three numbers joined by '/' made the table wider
+                # than the page, its last column behind a scroll bar
+                Lines(tuple(f"{a} {num(entry['rate_error'][a], 3)}" for a in AXES)),
                 num(entry.get("attitude_error"), 3),
                 coverage_cell(cov, " ") if cov else "",
             ]
@@ -145,13 +156,13 @@ def _table(h: Mapping[str, Any]) -> Table:
     if not h.get("attitude"):  # no attitude in the log: no column of empty cells
         rows = [[r[0], *(c for i, c in enumerate(r[1:]) if i % 4 != 2)] for r in rows]
         return Table(
-            columns=["predictor", *(c for _ in secs for c in ("rate", "x/y/z", "2σ"))],
+            columns=["predictor", *(c for _ in secs for c in ("rate", "per axis", "2σ"))],
             groups=[("", 1), *((f"{s:g} s ahead", 3) for s in secs)],
             rows=rows,
             align="l" + "rlr" * len(secs),
         )
     return Table(
-        columns=["predictor", *(c for _ in secs for c in ("rate", "x/y/z", "attitude", "2σ"))],
+        columns=["predictor", *(c for _ in secs for c in ("rate", "per axis", "attitude", "2σ"))],
         groups=[("", 1), *((f"{s:g} s ahead", 4) for s in secs)],
         rows=rows,
         align="l" + "rlrr" * len(secs),
