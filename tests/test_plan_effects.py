@@ -191,7 +191,7 @@ def test_variance_plan_also_reports_the_effects_numbers(setup):
     tau_d = float(setup[3].effects["command_delay"].stderr["tau_d"][0])
     assert f"± {tau_d:.3g} s now (fit's)" in text
     # the forecast after the flight carries the one factor (docs/plan-effects.md)
-    assert re.search(r"after the flight \(planner's ×[0-9.]+\)", text)
+    assert re.search(r"after the flight \(planner's ×[0-9.]+(, no better than now)?\)", text)
     # the rotors' thrust spread stays whatever is flown: the forecast, under it, said
     # nothing of it, so a new user read 'r_x ± 0.000946 after the flight' beside fit's
     # interval of ± 0.0043 m (± 0.0019 of it the spread)
@@ -292,6 +292,7 @@ def test_a_weak_correlation_is_not_called_inseparable():
     assert correlation_remark(0.4, 0.8) == (
         " (the flight correlates them more: it does not tell them apart)"
     )
+    assert correlation_remark(0.762, 0.757) == " (still too correlated after it to tell them apart)"
 
 
 def test_the_headline_does_not_promise_to_pin_down_what_it_correlates_more():
@@ -339,6 +340,12 @@ def test_the_headline_says_a_forecast_above_the_value_is_not_pinned_down():
     assert line.endswith("(flying the task again is forecast to narrow it more)")
     line = _headline(result, ["com_offset", "rotor_interference"], rel, corr)
     assert "is expected to separate and narrow com_offset, rotor_interference" in line
+    # 0.76 now, 0.76 after it (a new user's effects plan): neither a fall as printed nor
+    # a pair told apart, so no "separate"
+    same = {"before": 0.762, "after": 0.757, "task": 0.77}
+    line = _headline(result, ["com_offset", "rotor_interference"], rel, same)
+    assert "is expected to narrow com_offset, rotor_interference" in line
+    assert line.endswith("(still too correlated after it to tell them apart)")
 
 
 def test_the_planned_flights_forecast_carries_the_linear_effects_median_factor():
@@ -384,3 +391,14 @@ def test_forecasts_for_effects_no_fit_calibrates_are_called_lower_bounds():
                           fitted=("com_offset",), fit_stderr=np.full(3, 2e-3))  # fmt: skip
     lines = _parameter_lines(fitted, before, np.full(3, 2e-3), forecasts, (np.ones(3) * 3, 3.0))
     assert lines[-1].startswith("  (forecasts of fit's standard errors")
+    # a forecast held at the standard error now says so: a new user multiplied the
+    # planner's 1.76e-05 by the printed x2.8 and did not get the printed 4.81e-05
+    capped = (np.array([True, False, False]), np.zeros(3, bool))
+    lines = _parameter_lines(
+        fitted, before, np.full(3, 2e-3), forecasts, (np.ones(3) * 3, 3.0), capped
+    )
+    assert (
+        "after the flight (planner's ×3, no better than now), ± 0.00066 after the task (×3)"
+        in (lines[0])
+    )
+    assert "no better than now" not in lines[1]

@@ -84,10 +84,17 @@ def _finite(values: np.ndarray) -> list[float | None]:
 def _headline(result, names: Sequence[str], rel: dict, corr: dict) -> str:
     """The summary's first line: what the flight is expected to do for ``names``.
 
-    "separate" only when the largest cross-effect correlation falls; a flight that
-    narrows the parameters while correlating them more says "narrow" and why.
+    "separate" only when the largest cross-effect correlation falls as printed and ends
+    below :data:`STRONG_CORRELATION`; a flight that narrows the parameters while
+    correlating them more, or leaves them as correlated, says "narrow" and why (a new
+    user read "expected to separate and pin down com_offset, rotor_interference" beside
+    "largest cross-effect correlation 0.76 now, 0.76 after it").
     """
-    separates = len(names) > 1 and corr["after"] < corr["before"]
+    separates = (
+        len(names) > 1
+        and round(corr["after"], 2) < round(corr["before"], 2)
+        and corr["after"] < STRONG_CORRELATION
+    )
     # "pin down" beside "it does not tell them apart" read as a contradiction: with
     # more than one effect and a correlation that grows, the flight only narrows them
     # a relative standard error above 1 after the flight is not pinned down (a new user:
@@ -128,6 +135,8 @@ def correlation_remark(before: float, after: float) -> str:
     """What the largest cross-effect correlation before and after a flight says ('' when
     it falls): only a strong one means the flight does not tell the effects apart."""
     if not after > before:
+        if after >= STRONG_CORRELATION:  # falls a little or not at all, stays strong
+            return " (still too correlated after it to tell them apart)"
         return ""
     if after >= STRONG_CORRELATION:
         return " (the flight correlates them more: it does not tell them apart)"
@@ -169,13 +178,17 @@ def _parameter_lines(
     fit_se: np.ndarray,
     forecasts: tuple[np.ndarray, np.ndarray],
     factors: tuple[np.ndarray, float],
+    capped: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> list[str]:
     """One line per parameter: its value and standard error now, the forecasts (p,)
     after the flight and after the task with their factors, the spread beside them;
-    then how the forecasts are made."""
+    then how the forecasts are made. ``capped`` (p,) each: where the factor's forecast
+    was above the standard error now and the line shows now's (a new user multiplied
+    the planner's 1.76e-05 by ×2.8 and did not get the printed 4.81e-05)."""
     owner = np.concatenate([np.full(get_effect(n).n_theta, n) for n in prior.names])
     spread = _spread(prior, before.size)
     (after, task), (allowance, factor) = forecasts, factors
+    cap_after, cap_task = capped if capped is not None else (np.zeros(after.size, bool),) * 2
     lines = []
     units = theta_units(prior.names)
     for i, label in enumerate(parameter_labels(prior.names)):
@@ -187,15 +200,18 @@ def _parameter_lines(
             if owner[i] in prior.fitted
             else f"not in the model (prior ± {before[i]:.3g}{u})"
         )
+        held = ", no better than now" if cap_after[i] else ""
+        held_task = ", no better than now" if cap_task[i] else ""
         lines.append(
-            f"  {label}: {now}, ± {after[i]:.3g} after the flight (planner's ×{factor:.2g}), "
-            f"± {task[i]:.3g} after the task (×{allowance[i]:.2g})"
+            f"  {label}: {now}, ± {after[i]:.3g} after the flight (planner's ×{factor:.2g}"
+            f"{held}), ± {task[i]:.3g} after the task (×{allowance[i]:.2g}{held_task})"
             + (f"; ± {spread[i]:.3g} spread beside each: {_SPREAD_STAYS}" if spread[i] > 0 else "")
         )
     if not np.isfinite(fit_se).any():  # nothing fitted to calibrate the planner's against
         lines.append(
-            "  (forecasts: the planner's white linearisation, ×1, uncalibrated: the model "
-            "holds no fitted effect whose standard error says how far it is off, and fit's "
+            "  (forecasts: the planner's white linearisation, ×1, uncalibrated: no effect "
+            "planned for is fitted in the model with a standard error that says how far it "
+            "is off, and fit's "
             "have been several-fold larger (6–8x for a centre-of-mass offset on a figure-8, "
             "docs/plan-effects.md): read them as lower bounds)"
         )
@@ -204,8 +220,9 @@ def _parameter_lines(
         "  (forecasts of fit's standard errors: the planner's white linearisation times "
         "fit's allowance for autocorrelation, after the task each parameter's own, after "
         f"the flight the median over the parameters the fit flight determined, ×{factor:.2g}; "
-        "a flight unlike the fit flight has its own: docs/plan-effects.md says how far "
-        "they held)"
+        "never above the standard error now, as a flight adds information ('no better "
+        "than now' where the product was above it); a flight unlike the fit flight has "
+        "its own: docs/plan-effects.md says how far they held)"
     )
     return lines
 
@@ -251,13 +268,16 @@ def effects_summary(result) -> dict | None:
     # model, prior +- 2.02 ms, was forecast +- 3.04 ms after the flight with the factor)
     after_fc = np.minimum(after * factor, shown_now)
     task_fc = np.minimum(task * allowance, shown_now)
+    capped = (after * factor > shown_now, task * allowance > shown_now)
     rel.update(
         now=geometric_mean(shown_now / prior.scale),
         after_forecast=geometric_mean(after_fc / prior.scale),
         task_forecast=geometric_mean(task_fc / prior.scale),
     )
     lines = [_headline(result, prior.names, rel, corr)]
-    lines += _parameter_lines(prior, before, fit_se, (after_fc, task_fc), (allowance, factor))
+    lines += _parameter_lines(
+        prior, before, fit_se, (after_fc, task_fc), (allowance, factor), capped
+    )
     return {
         "names": list(prior.names),
         "parameters": labels,
