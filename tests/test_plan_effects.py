@@ -402,3 +402,21 @@ def test_forecasts_for_effects_no_fit_calibrates_are_called_lower_bounds():
         in (lines[0])
     )
     assert "no better than now" not in lines[1]
+
+
+def test_an_evaluation_that_names_nothing_missing_is_said_not_silently_replaced(setup):
+    """A new user planned with --objective effects --evaluation E, E naming nothing
+    missing: the plan went on for the model's own effects with no word ('notes: []')."""
+    tmp, task_path, model_path, _ = setup
+    ev = tmp / "nothing.json"
+    ev.write_text(json.dumps({"diagnosis": {"missing": [], "missing_effects": []}}))
+    args = ["plan", "--task", str(task_path), "--model", str(model_path)]
+    args += ["--out", str(tmp / "n.csv"), "--objective", "effects", "--evaluation", str(ev)]
+    args += ["--candidates", "3", "--sims", "2", "--test-points", "80", "--points", "10"]
+    result = runner.invoke(app, [*args, "--json"])
+    assert result.exit_code == 0, result.output
+    notes = json.loads(result.stdout)["notes"]
+    assert notes[0] == (
+        f"{ev} names no effect missing: the plan is for the model's own fitted effects "
+        "(name others with --effects)"
+    )

@@ -73,6 +73,8 @@ class PlanJob:
     settings: PlanSettings
     out: Path
     scores: Path | None
+    #: said before the planner's own notes (how the effects to plan for were chosen)
+    notes: tuple[str, ...] = ()
 
     def run(self, progress: Progress | None = None) -> PlanResult:
         """Plan, then write the most informative reference to ``out`` (and the scores).
@@ -86,6 +88,7 @@ class PlanJob:
         if result.best < 0:
             raise no_feasible_candidate(result, self.task_path, self.scores)
         write_plan(self.out, result.best_trajectory(self.task_path), result, self.scores)
+        result.notes[:0] = self.notes
         return result
 
 
@@ -114,14 +117,20 @@ def prepare_plan(
     check_replaceable(out)
     refuse_replacing(scores, is_scores_file, "a plan's scores CSV")
     refuse_replacing(report, is_report_file, "an omavctl report")
+    notes: tuple[str, ...] = ()
     if not settings.effects and evaluation is not None:
         from omavctl.planning.effects_objective import effects_from_evaluation
 
         settings = replace(settings, effects=effects_from_evaluation(evaluation))
+        if not settings.effects:  # a new user's plan went on for the model's effects, silent
+            notes = (
+                f"{evaluation} names no effect missing: the plan is for the model's own "
+                "fitted effects (name others with --effects)",
+            )
     check_plan_settings(settings)
     mdl = load_model(model)
     mdl.vehicle.check_flyable("plan", model)
     if vehicle is not None:
         check_vehicle(mdl, load_vehicle(vehicle), vehicle)
     ref = read_trajectory(task)
-    return PlanJob(mdl, ref, task, settings, out, scores)
+    return PlanJob(mdl, ref, task, settings, out, scores, notes)
