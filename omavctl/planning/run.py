@@ -87,8 +87,8 @@ class PlanJob:
             result = plan(self.model, self.task, self.settings, progress)
         if result.best < 0:
             raise no_feasible_candidate(result, self.task_path, self.scores)
+        result.notes[:0] = self.notes  # before the files that carry them are written
         write_plan(self.out, result.best_trajectory(self.task_path), result, self.scores)
-        result.notes[:0] = self.notes
         return result
 
 
