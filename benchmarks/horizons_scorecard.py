@@ -41,11 +41,11 @@ from typing import Any
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from omavctl.diagnose.horizon_band import MIN_COVERAGE as COVER
+from omavctl.diagnose.horizon_findings import SIGNIFICANT as SIG
+from omavctl.diagnose.horizon_findings import TOLERANCE as RATIO
+
 AXES = ("x", "y", "z")
-KINDS = ("naive", "nominal", "effects", "model")
-RATIO = 1.05
-COVER = 0.85
-SIG = 2.0
 
 
 def _models(record: dict[str, Any]) -> list[str]:
