@@ -32,8 +32,8 @@ variance, its growth beyond the training box, what weighing the mean adds:
   flight's excursions): ``(r reach)^2``, ``r`` = ``range_growth`` (3,)
   rad/s^2, which ``fit`` sets to :data:`RANGE_GROWTH` times the RMS of the training
   targets about their mean: over one more training range the residual may change by
-  four times what it varied over the fit flight's (the rotors' interference at a thrust the
-  fit flight never reached: docs/intervals.md).
+  eight times what it varied over the fit flight's (the rotors' interference at a thrust
+  or tilt the fit flight never reached: docs/intervals.md, docs/scorecard.md).
 
 Issue 26's rule: a band wider than needed beyond the fit flight's inputs is accepted,
 an overconfident one is not.
@@ -74,8 +74,14 @@ TORQUE_GROWTH = 0.3
 #: (``benchmarks/band_variants.py``, docs/intervals.md); 4 since the scorecard's last
 #: models (``benchmarks/band_steps.py``, docs/scorecard.md session 31): on the tune
 #: draws' held-out flights it lifted one axis-flight of 192 above 0.85 coverage (three of
-#: 900 on the report draws already read), without moving a sample inside the fit inputs.
-RANGE_GROWTH = 4.0
+#: 900 on the report draws already read), without moving a sample inside the fit inputs;
+#: 8 since every round's model counts (session 33): a first model, fitted on steps with a
+#: missing effect in its GP and judged on a figure-8 that tilts beyond them, met an error
+#: that grows faster than 4x (the rotors' interference; own-fig8 draws' x at 0.57-0.83).
+#: On the tune draws' first models 182 -> 197 of 210 axis-flights >= 0.85, 16x would
+#: add one more; the last models are unchanged (209/210) with their band 1.19x as wide
+#: on average beyond the inputs (``benchmarks/band_first.py``).
+RANGE_GROWTH = 8.0
 
 #: The GP inputs that hold the commanded angular acceleration ``I^-1 tau`` (rad/s^2).
 _TORQUE_INPUTS = ("(I^-1 tau)x", "(I^-1 tau)y", "(I^-1 tau)z")
