@@ -753,6 +753,17 @@ def test_the_likewise_effects_of_the_one_axis_share_come_with_their_shares():
         "a claim needs. Likewise: com_offset (18 % of the x error, 21 % of the z error), "
         "motor_lag (16 % of the y error)."
     )
+    # with the first's command the others are told how to be tested (a new user found no
+    # command for them in the terminal)
+    tree["diagnosis"]["effect_commands"] = {
+        n: f"omavctl fit f.csv --effects {n}" for n in ("command_delay", "com_offset")
+    }
+    (line,) = [ln for ln in verdict(tree) if ln.key == "axis"]
+    assert line.text.endswith(
+        "motor_lag (16 % of the y error). Test each the same way, its name in place of "
+        "command_delay."
+    )
+    assert line.plain().endswith("Test it with: omavctl fit f.csv --effects command_delay")
 
 
 def test_the_ranking_says_why_an_effect_the_model_holds_stands_below_one_it_lacks():

@@ -117,13 +117,17 @@ def axis_held_line(tree: Mapping[str, Any], said: Collection[str] = ()) -> Line 
         f"Not claimed although it explains {_shares(first)} on held-out blocks: "
         f"{first['name']}, because {first['why']}."
     )
-    if len(held) > 1:  # each with its share, as the first (a bare name said nothing)
-        text += " Likewise: " + ", ".join(f"{h['name']} ({_shares(h)})" for h in held[1:])
-        text += "."
     command = (diag.get("effect_commands") or {}).get(first["name"])
     cmd = command if isinstance(command, str) and command else None
     if first["weak"]:  # an estimate at t 0 or out of range: nothing for a fit to test
         cmd = None
+    if len(held) > 1:  # each with its share, as the first (a bare name said nothing)
+        text += " Likewise: " + ", ".join(f"{h['name']} ({_shares(h)})" for h in held[1:])
+        text += "."
+        # and how to test them: the command below names the first (a new user found
+        # no command for the others; evaluate --json has each in effect_commands)
+        if cmd and any(not h["weak"] for h in held[1:]):
+            text += f" Test each the same way, its name in place of {first['name']}."
     return Line("axis", text, command=cmd, subject=first["name"], test=cmd is not None)
 
 
