@@ -51,7 +51,8 @@ def test_the_band_covers_the_yaw_a_com_offset_gets_wrong(steps_then_fig8) -> Non
     """Measured: without the term the figure-8's yaw lies within 2 sigma on 0.939 of
     its samples, with it on 0.986; roll and pitch move by under 0.02. Since the band's
     growth beyond the fit inputs doubled (``range_growth`` 4x, session 31) the yaw
-    without the term is 0.954, with it 0.986."""
+    without the term is 0.954, with it 0.986; since it doubled again (8x, session 33)
+    0.966 and 0.986: the growth now holds part of what the term adds."""
     model, held, _ = steps_then_fig8
     assert model.spread is not None and model.spread.gain.shape == (3, 12)
     mean, var = model.predict_samples(held, noise=True)
@@ -60,7 +61,7 @@ def test_the_band_covers_the_yaw_a_com_offset_gets_wrong(steps_then_fig8) -> Non
     _, without = model.predict_samples(held, noise=True)
     model.spread = basis
     cov, cov0 = (np.mean(err < 2.0 * np.sqrt(v), axis=0) for v in (var, without))
-    assert cov[2] >= 0.98 and cov0[2] < 0.96 and cov[2] - cov0[2] > 0.025, (cov, cov0)
+    assert cov[2] >= 0.98 and cov0[2] < 0.97 and cov[2] - cov0[2] > 0.015, (cov, cov0)
     assert np.all(np.abs(cov[:2] - cov0[:2]) < 0.02), (cov, cov0)
 
 
