@@ -41,6 +41,13 @@ def test_every_command_has_help_with_units_and_defaults():
     assert "Integration rate of the truth plant, Hz. [default: 1000.0]" in sim
 
 
+def test_the_top_level_help_says_where_the_output_goes():
+    """A new user piped `omavctl evaluate` and found stdout empty: the human text is on
+    stderr, which only each command's --json option said."""
+    text = " ".join(runner.invoke(app, ["--help"]).output.split())
+    assert "Tables, verdicts and notes go to stderr (inspect's listing excepted); stdout " in text
+
+
 def test_the_task_summary_names_every_task():
     """The top-level help lists the task generators by name (written out: the help
     must not import the numerics that define them)."""

@@ -38,7 +38,9 @@ _arguments_by_metavar()
 app = typer.Typer(
     name="omavctl",
     help="Learn residual models of an omnidirectional aerial vehicle from flight logs, "
-    "diagnose missing physics, and plan informative next flights.",
+    "diagnose missing physics, and plan informative next flights.\n\n"
+    "Tables, verdicts and notes go to stderr (inspect's listing excepted); stdout holds "
+    "only what --json asks for (one JSON object), so a command can sit in a pipeline.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
