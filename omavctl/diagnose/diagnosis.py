@@ -44,6 +44,7 @@ from omavctl.diagnose.scoring import (
 )
 from omavctl.diagnose.selection import lag_checked, select_guarded
 from omavctl.diagnose.timing_beside import timing_beside_look_alikes
+from omavctl.learn.band import growth_variance
 from omavctl.learn.model import ResidualGP
 from omavctl.learn.signal import ResidualSamples, SavitzkyGolay
 from omavctl.physics.effects import EFFECTS, get_effect
@@ -53,6 +54,7 @@ __all__ = [
     "diagnose",
     "measurement_noise",
     "unexplained_structure",
+    "weight_std",
 ]
 
 
@@ -178,6 +180,19 @@ def _regressors(samples: Sequence[ResidualSamples], model: ResidualGP) -> dict[s
     }
 
 
+def weight_std(model: ResidualGP, z: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """The std (n, 3) the diagnosis weighs samples by (``1 / std^2``): the model's band
+    std (n, 3) at GP inputs z (n, d) without its growth beyond the fit inputs
+    (:func:`omavctl.learn.band.growth_variance`). That growth is room the band leaves
+    for an error the fit flight could not show, such as an effect the model lacks; the
+    diagnosis looks for exactly that error, and weighing it away there lost the first
+    answer of a tune draw when the growth doubled (docs/scorecard.md, session 33)."""
+    grown = growth_variance(model, z)
+    if not np.any(grown > 0):
+        return std
+    return np.sqrt(np.maximum(std**2 - grown, 1e-12 * np.maximum(std**2, 1e-300)))
+
+
 def diagnose(
     samples: Sequence[ResidualSamples],
     model: ResidualGP,
@@ -199,6 +214,7 @@ def diagnose(
     blocks = time_blocks(t, log_id, BLOCK_SECONDS)
     regs = _regressors(samples, model)
     z = np.concatenate([s.inputs(model.features) for s in samples])
+    model_std = weight_std(model, z, model_std)
     candidates, refit = _candidates(regs, model, z)
     remaining = residual - model_mean
     noise = measurement_noise(samples, sg, model)
