@@ -652,6 +652,28 @@ def test_the_band_grows_with_the_reach_beyond_the_training_inputs(vehicle, tmp_p
     _check_optional_key(path, tmp_path, "range_growth", [0.4, 0.2, 0.1], None, bad)
 
 
+def test_the_diagnosis_weighs_samples_by_the_band_without_its_growth(vehicle):
+    """The band's growth beyond the fit inputs is room for an error the fit flight could
+    not show, such as a missing effect; the diagnosis looks for that error and weighs
+    samples by the band without it (``diagnose.diagnosis.weight_std``): inside the fit
+    inputs the same std, beyond them the band's std less its growth."""
+    from omavctl.diagnose.diagnosis import weight_std
+
+    model = make_model(vehicle)
+    model.range_growth = np.array([0.4, 0.2, 0.1])
+    lo, hi = model.inputs.min(0), model.inputs.max(0)
+    at = np.array([model.inputs[0]] * 2)
+    at[1, 2] = hi[2] + 0.5 * (hi[2] - lo[2])  # the thrust half a range beyond
+    _, var = model.gp_predict(at, noise=True)
+    std = np.sqrt(var)
+    weights = weight_std(model, at, std)
+    np.testing.assert_allclose(weights[0], std[0], rtol=1e-12)
+    np.testing.assert_allclose(weights[1] ** 2, var[1] - (model.range_growth * 0.5) ** 2)
+    assert np.all(weights[1] < std[1])
+    model.range_growth = np.zeros(3)  # no growth: the band itself
+    np.testing.assert_allclose(weight_std(model, at, std), std)
+
+
 def test_a_gp_mean_near_zero_still_carries_back_a_parameter_error(drag_fit):
     """The parameter term is R&W eq. 2.42's with the GP mean's carry-back in full, also
     where ``mean_shrink`` weighs the mean (its cost is the band's own ``((1 - w) m)^2``
