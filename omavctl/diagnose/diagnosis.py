@@ -209,9 +209,8 @@ def diagnose(
     samples, model_std (n, 3) its std. ``contributions`` receives each candidate's
     fitted part of the remaining error (n, 3) rad/s²."""
     residual = np.concatenate([s.residual for s in samples])
-    t = np.concatenate([s.t for s in samples])
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
-    blocks = time_blocks(t, log_id, BLOCK_SECONDS)
+    blocks = time_blocks(np.concatenate([s.t for s in samples]), log_id, BLOCK_SECONDS)
     regs = _regressors(samples, model)
     z = np.concatenate([s.inputs(model.features) for s in samples])
     model_std = weight_std(model, z, model_std)
