@@ -459,6 +459,31 @@ def test_report_verdict_keeps_what_a_file_lacked_behind_a_leading_warning():
     assert [ln.key for ln in plain if ln.who == "a.json"] == ["missing"]
 
 
+def test_report_verdict_keeps_an_earlier_files_effect_held_back_on_one_axis():
+    """A new user's terminal said "Not claimed although it explains 28 % of the y error
+    ...: rotational_drag" with its test command; the report of both evaluations dropped
+    it, the only word left on a drag the vehicle had. An earlier file keeps that line,
+    unless the next file's model holds the effect."""
+    before = copy.deepcopy(BEFORE)
+    before["diagnosis"]["missing_effects"].append(
+        {
+            "name": "command_delay",
+            "explained_variance": 0.13,
+            "explained_variance_per_axis": {"y": 0.34},
+        }
+    )
+    before["diagnosis"]["effect_commands"] = {"command_delay": "omavctl fit f.bag --effects c"}
+    (terminal,) = [ln for ln in verdict(before) if ln.key == "axis"]
+    lines = report_verdict([(before, "a.json"), (AFTER, "b.json")])
+    (kept,) = [ln for ln in lines if ln.key == "axis"]
+    assert (kept.who, kept.text, kept.command) == ("a.json", terminal.text, terminal.command)
+    assert kept.text.startswith("Not claimed although it explains 34 % of the y error")
+    after = copy.deepcopy(AFTER)
+    after["models"][0]["effects"]["command_delay"] = {"tau_d": [0.03]}
+    lines = report_verdict([(before, "a.json"), (after, "b.json")])
+    assert not [ln for ln in lines if ln.key == "axis" and ln.who == "a.json"]
+
+
 def test_the_summary_table_gives_r2_against_the_measured_signal_too():
     """R² against the nominal model can read 0.81 on an axis where the model does no
     better than predicting no acceleration (the nominal model far worse than that): the
