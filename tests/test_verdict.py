@@ -484,6 +484,22 @@ def test_report_verdict_keeps_an_earlier_files_effect_held_back_on_one_axis():
     assert not [ln for ln in lines if ln.key == "axis" and ln.who == "a.json"]
 
 
+def test_a_sum_over_the_axes_that_does_not_move_is_said_unchanged():
+    """A new user read "the model error rises by 0.0 % (sum over axes) — x +4.8 %, y
+    −16.1 %, z +11.2 %": a sum within 0.1 % is unchanged, and the axes that rose are
+    named as when the sum falls."""
+    after = copy.deepcopy(AFTER)
+    before = copy.deepcopy(BEFORE)
+    before["metrics"]["model"]["rmse"] = {"x": 0.1, "y": 0.2, "z": 0.1}
+    after["metrics"]["model"]["rmse"] = {"x": 0.1048, "y": 0.184, "z": 0.1112}
+    lines = report_verdict([(before, "a.json"), (after, "b.json")])
+    (change,) = [ln for ln in lines if ln.key == "change" and ln.text.startswith("With ")]
+    assert change.text.startswith(
+        "With rotational_drag added: the model error summed over the axes is unchanged "
+        "(within 0.1 %), but rises on x and z — x +4.8 %, y −8.0 %, z +11.2 %"
+    ), change.text
+
+
 def test_the_summary_table_gives_r2_against_the_measured_signal_too():
     """R² against the nominal model can read 0.81 on an axis where the model does no
     better than predicting no acceleration (the nominal model far worse than that): the
