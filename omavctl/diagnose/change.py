@@ -364,7 +364,7 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
         # and an effect held back on one axis, with its test command, unless the next
         # file's model holds it (a new user's report dropped the terminal's "Not claimed
         # although it explains 28 % of the y error ...: rotational_drag", a real drag)
-        held = set(_model_effects(evals[i + 1][0]))
+        held = set(get_path(evals[i + 1][0], "models", 0, "effects", default={}) or {})
         lines += [
             replace(ln, who=label) for ln in own[1:] if ln.key == "axis" and ln.subject not in held
         ]
@@ -375,13 +375,6 @@ def report_verdict(evals: Sequence[tuple[Mapping[str, Any], str]]) -> list[Line]
         lines += _files_rolled(scores[0], scores[-1])
     lines += [replace(ln, who=label1) for ln in verdict_of_models(last)]
     return lines
-
-
-def _model_effects(tree: Mapping[str, Any]) -> list[str]:
-    """The effect names of an evaluation's first model."""
-    models = tree.get("models") or [{}]
-    effects = models[0].get("effects") if isinstance(models[0], Mapping) else None
-    return [str(e) for e in effects or {}]
 
 
 def _files_rolled(first: ModelScore, last: ModelScore) -> list[Line]:

@@ -326,15 +326,13 @@ def render_horizons(con: Any, tree: Mapping[str, Any]) -> None:
         return
     # a log without attitude has no attitude column: its title does not name one
     attitude = (
-        " / mean geodesic attitude error, rad"
+        " / mean geodesic attitude error, rad ("
         if h.get("attitude")
         else " (no attitude in the log; "
     )
     table = RichTable(
         title=f"open-loop error over horizons ({h['windows']} windows{stride_words(h)}): "
-        f"mean norm of the body-rate error, rad/s{attitude}"
-        + (" (" if h.get("attitude") else "")
-        + f"in brackets: {COVERAGE_WORDS})",
+        f"mean norm of the body-rate error, rad/s{attitude}in brackets: {COVERAGE_WORDS})",
         title_justify="left",
     )
     table.add_column("predictor")
