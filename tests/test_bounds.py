@@ -50,7 +50,7 @@ def test_a_lag_interval_is_cut_at_zero_and_its_standard_error_kept():
     delay = {"tau_d": [-0.000617], "tau_d_ci95": [[0.0, 0.000637]], "tau_d_pinned": [False]}
     entry = {"name": "command_delay", "estimate": delay, "units": {"tau_d": "s"}}
     assert (
-        "tau_d = -0.000617 s (95 %: below 0.000637, cut at tau_d ≥ 0, not told from absent; "
+        "tau_d = -0.000617 s (95 %: below 0.000637 s, cut at tau_d ≥ 0, not told from absent; "
         "the estimate is below it, cannot be pinned down from this flight)"
     ) in (estimate_sentence(entry))
     assert _interval_note(delay, "tau_d", 0, "command_delay").startswith(
@@ -72,7 +72,7 @@ def test_every_place_that_shows_the_interval_shows_the_cut_one():
         "this flight"
     )
     entry = {"name": "motor_lag", "estimate": js, "units": {"T_m": "s"}}
-    assert "T_m = 0.0094 s (95 %: below 0.0457, cut at T_m ≥ 0, not told from absent, cannot" in (
+    assert "T_m = 0.0094 s (95 %: below 0.0457 s, cut at T_m ≥ 0, not told from absent, cannot" in (
         estimate_sentence(entry)
     )
     assert _interval_note(js, "T_m", 0, "motor_lag") == (
@@ -153,7 +153,7 @@ def test_a_claim_held_back_as_not_physical_says_so():
         " Not claimed: command_delay, which is not physical here: the 95 % interval of "
         "tau_d lies wholly below its physical bound 0"
     )
-    assert "tau_d = -0.00136 s (95 %: -0.0027 to -3e-05, not physical" in text
+    assert "tau_d = -0.00136 s (95 %: -0.0027 to -3e-05 s, not physical" in text
 
 
 def test_a_torque_gain_interval_is_its_scale_interval_inverted():

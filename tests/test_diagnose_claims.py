@@ -200,7 +200,7 @@ def test_a_learned_drag_is_claimed_with_its_fit_command():
     assert head.key == "missing" and head.command == command
     assert head.text.startswith("Learned by the GP, not yet in the physics: rotational_drag")
     assert "removes 72 % of the squared physics-only error" in head.text
-    assert "D_x = 0.05 N m s^2 (95 %: 0.04 to 0.06)" in head.text
+    assert "D_x = 0.05 N m s^2 (95 %: 0.04 to 0.06 N m s^2)" in head.text
     assert not any(ln.text.startswith("Nothing missing") for ln in lines)
     # it is not said a second time as "not modelled as physics"
     assert not [ln for ln in lines if ln.key == "learned"]
@@ -311,9 +311,11 @@ def test_a_claim_the_fit_flight_does_not_confirm_says_so_with_both_estimates():
         "Not claimed: command_delay, which the fit flight does not confirm: estimated there "
         "from the model's training points together with the other claims, its 95 % interval "
         "holds tau_d = 0 (the value at which it is absent). On the fit flight: "
-        "tau_d = -0.00056 s (95 %: -0.00125 to 0.00013)."
+        "tau_d = -0.00056 s (95 %: -0.00125 to 0.00013 s)."
     ) in text
-    assert "Estimated on this flight as fit would: tau_d = 0.004 s (95 %: 0.0021 to 0.0059)" in text
+    assert (
+        "Estimated on this flight as fit would: tau_d = 0.004 s (95 %: 0.0021 to 0.0059 s)" in text
+    )
 
 
 def test_a_fit_flight_interval_on_the_other_side_says_so_not_that_it_holds_the_null():

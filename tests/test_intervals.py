@@ -215,11 +215,11 @@ def test_the_verdict_gives_the_missing_effects_estimate_and_interval():
 
     (line,) = [ln for ln in verdict(tree([0.04, 0.06], True)) if ln.key == "missing"]
     assert line.text.endswith(
-        " Estimated on this flight as fit would: T_m = 0.05 s (95 %: 0.04 to 0.06)."
+        " Estimated on this flight as fit would: T_m = 0.05 s (95 %: 0.04 to 0.06 s)."
     )
     (line,) = [ln for ln in verdict(tree([-0.01, 0.11], False)) if ln.key == "missing"]
     assert line.text.endswith(
-        " Estimated on this flight as fit would: T_m = 0.05 s (95 %: -0.01 to 0.11, "
+        " Estimated on this flight as fit would: T_m = 0.05 s (95 %: -0.01 to 0.11 s, "
         "cannot be pinned down from this flight)."
     )
     # a narrow interval is printed with the digits that tell its ends apart, never
@@ -227,7 +227,7 @@ def test_the_verdict_gives_the_missing_effects_estimate_and_interval():
     narrow = tree([0.0122941, 0.0123334], True)
     narrow["diagnosis"]["learned"][0]["estimate"]["T_m"] = [0.0123137]
     (line,) = [ln for ln in verdict(narrow) if ln.key == "missing"]
-    assert line.text.endswith("T_m = 0.01231 s (95 %: 0.01229 to 0.01233).")
+    assert line.text.endswith("T_m = 0.01231 s (95 %: 0.01229 to 0.01233 s).")
 
 
 @needs_px4

@@ -197,7 +197,7 @@ def test_an_unpinned_interval_is_worded_by_what_it_holds():
                      "D_ci95": [[0.0334, 0.0416], [0.0263, 0.0381], [0.809, 1.34]]},
     }  # fmt: skip
     text = estimate_sentence(entry, None)
-    assert "D_z = 1.08 N m s^2 (95 %: 0.809 to 1.34, outside the plausible 0 to 1:" in text
+    assert "D_z = 1.08 N m s^2 (95 %: 0.809 to 1.34 N m s^2, outside the plausible 0 to 1:" in text
     assert "pinned down" not in text
     # the report's parameter lines say the same
     from omavctl.report.params import _interval_note

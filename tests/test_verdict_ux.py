@@ -404,10 +404,10 @@ def test_a_component_on_an_axis_the_effect_does_not_explain_is_not_quoted():
         },
     }
     text = estimate_sentence(entry, {"x", "y"})
-    assert "D_y = 0.0463 N m s^2 (95 %: 0.0311 to 0.0615)" in text
+    assert "D_y = 0.0463 N m s^2 (95 %: 0.0311 to 0.0615 N m s^2)" in text
     assert "0.225" not in text
     assert text.endswith(" D_z not claimed: the effect explains under 5 % of the z error here.")
-    assert "D_z = 0.225 N m s^2 (95 %: 0.164 to 0.286)" in estimate_sentence(entry)
+    assert "D_z = 0.225 N m s^2 (95 %: 0.164 to 0.286 N m s^2)" in estimate_sentence(entry)
 
 
 def test_an_axis_share_of_a_few_per_cent_is_not_a_claim_on_that_axis():

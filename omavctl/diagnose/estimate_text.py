@@ -15,8 +15,8 @@ AXIS_CLAIM = 0.05
 
 
 def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = None) -> str:
-    """' Estimated on this flight as fit would: T_m = 0.027 s (95 %: -0.10 to 0.16, cannot be pinned
-    down from this flight).' for a diagnosis ``learned`` entry with an ``estimate``
+    """' Estimated on this flight as fit would: T_m = 0.027 s (95 %: -0.10 to 0.16 s, cannot
+    be pinned down from this flight).' for a diagnosis ``learned`` entry with an ``estimate``
     ('' without one).
 
     ``axes``: the axes the claim is made on; a per-axis component (D_z) on another
@@ -75,7 +75,9 @@ def estimate_sentence(entry: Mapping[str, Any], axes: Collection[str] | None = N
             u = "" if unit == "1" else f" {unit}"
             null = null_component(str(entry.get("name")), name, i)
             span, digits = interval_span(str(entry.get("name")), name, ci[0], ci[1], null)
-            text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {span}"
+            # the unit after the interval too: "0.0327 s (95 %: 0.0282 to 0.0372)" beside
+            # the actuators' "30 ms" left a new user unsure what the ends were in
+            text = f"{labels[i]} = {v:.{digits}g}{u} (95 %: {span}{u}"
             if note := _bound_note(str(entry.get("name")), name, ci[0], v):
                 text += f", {note}"
             if isinstance(pinned, list) and i < len(pinned) and pinned[i] is False:
