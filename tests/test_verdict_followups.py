@@ -60,8 +60,9 @@ def test_a_claim_that_took_a_held_back_lags_joint_step_says_whose_share_it_is():
     alone = verdict(_rival_tree(["command_delay"]))[0].text
     assert alone.startswith(
         "Missing: command_delay — estimated from the fit flight as fit --effects would, it "
-        "removes 17 % of the squared physics-only error on held-out data (the model's GP has "
-        f"absorbed it: it explains 2 % of the model's remaining error); {RIVAL}."
+        "removes 17 % of the squared physics-only error on held-out data that "
+        "rotor_interference leaves, 5 % of the whole (the model's GP has absorbed it: it "
+        f"explains 2 % of the model's remaining error); {RIVAL}."
     )
     # no command printed (several models evaluated): no "fit command" to point at
     bare = _rival_tree(["rotor_interference", "command_delay"])

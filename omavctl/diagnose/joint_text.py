@@ -9,6 +9,7 @@ from typing import Any
 
 __all__ = [
     "beside_timing_sentence",
+    "joint_left_words",
     "joint_share",
     "joint_text",
     "linear_words",
@@ -17,6 +18,11 @@ __all__ = [
     "replaced_step",
     "replaced_text",
 ]
+
+
+#: The look-alikes of every rotorcraft's imperfections (omavctl.diagnose.joint's
+#: DEFAULT_LOOK_ALIKES, not imported: this module stays free of numpy).
+_LOOK_ALIKES = ("com_offset", "rotor_interference")
 
 
 def _num(v: Any) -> float | None:
@@ -103,6 +109,40 @@ def joint_share(diag: Mapping[str, Any], name: str) -> float | None:
         if isinstance(e, Mapping) and e.get("name") == step:
             return _num(e.get("share"))
     return None
+
+
+def joint_left_words(diag: Mapping[str, Any], name: str, in_model: Sequence[str] = ()) -> str:
+    """What ``name``'s joint share (:func:`joint_share`) is a share of, when not of the
+    whole physics-only error, with its share of the whole: ' that com_offset leaves, 2 %
+    of the whole'; '' when the two agree to the percent.
+
+    A new user read "it removes 71 % of the squared physics-only error" beside "they
+    remove 99 %, command_delay 2 %, com_offset 98 %": the 71 % was of what the
+    look-alikes left. A lag or delay judged beside the look-alikes
+    (:mod:`omavctl.diagnose.timing_beside`) stands first in ``joint_steps``, its share of
+    what their least-squares fit on this flight leaves; a later step of the forward
+    selection, of what the steps before it leave. ``in_model``: the model's effects (the
+    look-alikes fitted beside it are those the model lacks)."""
+    step = replaced_step(diag, name) or name
+    steps = _entries(diag, "joint_steps")
+    at = next((i for i, e in enumerate(steps) if e.get("name") == step), None)
+    if at is None:
+        return ""
+    share, total = _num(steps[at].get("share")), _num(steps[at].get("share_of_total"))
+    if share is None or total is None or round(100 * share) == round(100 * total):
+        return ""
+    whole = f", {_pct(total)} of the whole"
+    if at == 0:
+        alikes = [n for n in _LOOK_ALIKES if n not in in_model] or list(_LOOK_ALIKES)
+        who = (
+            f"{alikes[0]}, the look-alike of a rotorcraft's imperfections, leaves at its"
+            if len(alikes) == 1
+            else f"{' and '.join(alikes)}, the look-alikes of every rotorcraft's "
+            "imperfections, leave at their"
+        )
+        return f" that {who} least-squares fit there{whole}"
+    before = [str(e.get("name")) for e in steps[:at]]
+    return f" that {' and '.join(before)} leave{'s' if len(before) == 1 else ''}{whole}"
 
 
 def min_explained(diag: Mapping[str, Any]) -> float:

@@ -26,6 +26,7 @@ from omavctl.diagnose.fit_vs_flight import disagree_line, elsewhere_clause, pinn
 from omavctl.diagnose.given import given_sentence
 from omavctl.diagnose.heldout import on_what
 from omavctl.diagnose.joint_text import (
+    joint_left_words,
     joint_share,
     joint_text,
     linear_words,
@@ -149,6 +150,7 @@ def _how_missing(
         text = (
             f" — estimated from the fit flight as fit --effects would, it removes "
             f"{_pct(joint)} of the squared physics-only error {on_what(tree)}"
+            f"{joint_left_words(diag, name, _model_effects(tree))}"
         )
         if ev is not None:
             share = f"{_pct(ev)} of" if ev > 0.005 else "none of"  # -2 % reads as a typo
@@ -166,6 +168,15 @@ def _how_missing(
         # the y axis held 94 % of
         return text + (f" (the axes weighted alike: {axes})" if axes else ""), False
     return "", False
+
+
+def _model_effects(tree: Mapping[str, Any]) -> list[str]:
+    """The effects of the evaluation's model (none when it holds several models)."""
+    models = tree.get("models")
+    if not isinstance(models, list) or len(models) != 1 or not isinstance(models[0], Mapping):
+        return []
+    effects = models[0].get("effects")
+    return [str(n) for n in effects] if isinstance(effects, Mapping | list) else []
 
 
 def _also_text(diag: Mapping[str, Any], missing: Sequence[str]) -> str:
