@@ -69,21 +69,21 @@ def test_adding_an_effect_that_loses_at_half_a_second_is_named_beyond_its_error(
                    tight["horizons"]["table"]["effects_1"][1], "x")  # fmt: skip
     assert se is not None and 0.0002 < se < 0.0006  # sqrt(2) 0.001 / sqrt(20)
     assert found[0]["message"] == (
-        "model 1: x: physics + effects of model 1 against model 0 lowers the 0.01 s "
+        "model 1: x: nominal + effects of model 1 against model 0 lowers the 0.01 s "
         f"body-rate error (0.01 -> 0.009 rad/s) but raises it at 0.5 s (0.1 -> 0.11 rad/s, "
         f"+0.01 ± {se:.2g} rad/s)"
     )
     other = _tree(BASE, 0.001)
     blocks = _side_by_side([(tight, {}, "one.json"), (other, {}, "two.json")])
     notes = [str(item) for b in blocks if hasattr(b, "items") for item in b.items]
-    assert any(n.startswith("one.json: model 1: x: physics + effects of model 1") for n in notes)
+    assert any(n.startswith("one.json: model 1: x: nominal + effects of model 1") for n in notes)
     # the same rise among chunks spread 20x wider is within its standard error: no loss
     wide = _tree(errors, spread=0.02)
     codes = [f["code"] for f in wide["horizons"]["findings"]]
     assert "effect_added_hurts_long" not in codes
     blocks = _side_by_side([(wide, {}, "one.json"), (other, {}, "two.json")])
     notes = [str(item) for b in blocks if hasattr(b, "items") for item in b.items]
-    assert not any("physics + effects of model 1" in n for n in notes)
+    assert not any("nominal + effects of model 1" in n for n in notes)
 
 
 def test_a_gp_rise_within_its_standard_error_is_not_a_loss():

@@ -413,8 +413,8 @@ def test_the_ranking_puts_predictors_with_the_same_error_in_one_place():
                   "model": [0.01, 0.95]})  # fmt: skip
     (rank,) = [f for f in tree["horizons"]["findings"] if f["code"] == "ranking_changes"]
     assert rank["message"] == (
-        "best to worst at 0.01 s: full model, hold the state, physics only = physics + "
-        "effects; at 0.5 s: hold the state, physics only = physics + effects, full model"
+        "best to worst at 0.01 s: full model, hold the state, nominal = nominal + "
+        "effects; at 0.5 s: hold the state, nominal = nominal + effects, full model"
     )
 
 
@@ -503,7 +503,7 @@ def test_a_printed_tie_that_swaps_is_no_ranking_change():
     tree = _tree({"naive": [0.0331, 0.5], "nominal": [0.0338, 0.4], "effects": [0.02, 0.3],
                   "model": [0.01, 0.2]})  # fmt: skip
     (rank,) = [f for f in tree["horizons"]["findings"] if f["code"] == "ranking_changes"]
-    assert rank["message"].endswith("at 0.5 s: full model, physics + effects, physics only, "
+    assert rank["message"].endswith("at 0.5 s: full model, nominal + effects, nominal, "
                                     "hold the state")  # fmt: skip
 
 
@@ -533,6 +533,14 @@ def test_the_band_is_called_wide_or_narrow_per_axis_as_printed():
         "errors imply; a controller or planner reading it would be more cautious than this "
         "flight needs)"
     )
+    late["band_halfwidth"]["x"] = 3.0  # 12x: too wide to use, not only safe
+    (wide,) = [f for f in findings(h) if f["code"] == "band_wide"]
+    assert wide["message"].endswith(
+        "y 3.2x (holds 99 %): far too wide to use: it says little about these errors (the "
+        "band's std over the std its errors imply; beyond the model's inputs it grows with "
+        "how far the flight goes)"
+    )
+    late["band_halfwidth"]["x"] = 0.9
     late["coverage"]["y"] = 0.98  # wide on average, yet it misses samples: not "wide"
     (wide,) = [f for f in findings(h) if f["code"] == "band_wide"]
     assert wide["axis"] == "x"
@@ -561,7 +569,7 @@ def test_holding_the_state_that_beats_every_model_is_said():
     assert hold["value"] == 0.5
     assert hold["message"] == (
         "holding the state predicts the body rates better than every model at 0.01, 0.5 s "
-        "(at 0.5 s 0.05 rad/s against 0.1 for the best, physics + effects): rolled out open "
+        "(at 0.5 s 0.05 rad/s against 0.1 for the best, nominal + effects): rolled out open "
         "loop that far, no model here is worth its prediction on this flight"
     )
     h = _tree({"naive": [0.02, 0.05], "nominal": [0.03, 0.9], "effects": [0.01, 0.1],

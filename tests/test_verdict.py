@@ -158,6 +158,26 @@ def test_a_band_that_holds_every_sample_is_called_cautious():
     assert line.count("cautious") == 1  # said once, not again as '(100 % inside)'
 
 
+def test_a_band_a_hundred_times_the_error_is_called_too_wide_to_use():
+    """A new user's Crazyflie window judged on another log (session 34): mean predicted
+    σ 1314 and 1347 rad/s² against errors of 11.5 and 9.9 (the flight went nine training
+    ranges beyond the model's yaw rate) read "Uncertainty cautious on x, y: ... the
+    predicted σ more than twice the actual error"."""
+    tree = copy.deepcopy(AFTER)
+    model = tree["metrics"]["model"]
+    model["coverage_2sigma"] = {"x": 1.0, "y": 1.0, "z": 0.984}
+    model["mean_std"] = {"x": 1313.9, "y": 1347.0, "z": 46.7}
+    model["rmse"] = {"x": 11.45, "y": 9.93, "z": 10.46}
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line == (
+        "Uncertainty too wide to use on x, y: the predicted σ is x 115x, y 136x the actual "
+        "error (within 2σ: x 100 %, y 100 %, z 98 %); its error bars say little here."
+    )
+    model["mean_std"] = {"x": 91.6, "y": 1.0, "z": 1.0}  # 8x: cautious, as before
+    line = next(ln.text for ln in verdict(tree) if ln.key == "uncertainty")
+    assert line.startswith("Uncertainty cautious on x: the band is wider than needed")
+
+
 def test_before_after_per_axis_with_the_reason_for_the_worse_axis():
     lines = change_lines(scores_of_files([(BEFORE, "before.json"), (AFTER, "after.json")]))
     head = lines[0].text

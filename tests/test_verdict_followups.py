@@ -340,8 +340,8 @@ def test_a_change_that_does_not_hold_rolled_out_says_so_in_the_verdict():
         "(the horizons table; docs/horizons.md); there it does worse than holding the state "
         "(x 1.99, y 2.33 rad/s)."
     )
-    for f in hurts:  # physics + effects only: the full model is what the change quotes
-        f["message"] = f["message"].replace("the full model", "physics + effects")
+    for f in hurts:  # nominal + effects only: the full model is what the change quotes
+        f["message"] = f["message"].replace("the full model", "nominal + effects")
     assert not [t for t in verdict_of_models(tree) if t.text.startswith("Rolled out")]
 
 
@@ -458,7 +458,7 @@ def test_a_falling_model_error_says_when_its_physics_rose():
     tree["metrics_by_model"] = [before["metrics"], after["metrics"]]
     (line,) = [ln for ln in verdict_of_models(tree) if ln.text.startswith("From m.npz")]
     assert line.text.endswith(
-        "; its physics + effects error rose on x (+64.6 %), y (+37.2 %): there the refitted "
+        "; its nominal + effects error rose on x (+64.6 %), y (+37.2 %): there the refitted "
         "effects alone predict worse, the GP carries the fall."
     )
     # a Crazyflie's motor lag (a new user): physics x, y fell by half and z rose 48 %,
@@ -474,7 +474,7 @@ def test_a_falling_model_error_says_when_its_physics_rose():
     assert any(t.startswith("Axis z got worse (+42.1 %)") for t in lines)
     tree["metrics_by_model"][1]["effects"]["rmse"] = {"x": 0.036, "y": 0.07, "z": 0.07}
     (line,) = [ln for ln in verdict_of_models(tree) if ln.text.startswith("From m.npz")]
-    assert "physics + effects error rose" not in line.text  # under 20 %: not said
+    assert "nominal + effects error rose" not in line.text  # under 20 %: not said
 
 
 def test_a_worse_axis_names_a_kept_effects_parameter_the_refit_moved():

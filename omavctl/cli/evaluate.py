@@ -65,7 +65,7 @@ Horizons = Annotated[
         help="Open-loop prediction horizons in seconds (default 0.01,0.1,0.5; 'none': no "
         "horizon table): from each start the body rate and attitude are rolled forward "
         "over the logged commands and compared with the log, for holding the state, "
-        "physics only, physics + effects and each model.",
+        "nominal physics, nominal + the model's effects and each model.",
     ),
 ]
 NoVehicle = Annotated[

@@ -38,6 +38,10 @@ MIN_COVERAGE = 0.85
 WIDE_FACTOR = 2.0
 #: ... on an axis where it holds at least this share of the body rates
 WIDE_COVERAGE = 0.99
+#: A band this many times wider than its errors show is too wide to use, not only safe:
+#: a new user's Crazyflie window judged on another log printed "653.6x ... safe, not
+#: tight" (its flight went nine training ranges beyond the model's yaw rate).
+USELESS_FACTOR = 10.0
 #: mean |e| of a zero-mean normal error is sqrt(2 / pi) of its std
 _MEAN_ABS = math.sqrt(2.0 / math.pi)
 AXES = ("x", "y", "z")
@@ -124,15 +128,21 @@ def band_findings(rows: Sequence[Mapping[str, Any]], sigma: float) -> list[dict[
         if not wide:
             continue
         on = ", ".join(f"{a} {f:.1f}x (holds {_shown(float(cov[a]))} %)" for a, f in wide.items())
+        how = (
+            "far too wide to use: it says little about these errors (the band's std over "
+            "the std its errors imply; beyond the model's inputs it grows with how far the "
+            "flight goes)"
+            if max(wide.values()) >= USELESS_FACTOR
+            else "safe, not tight (the band's std over the std its errors imply; a "
+            "controller or planner reading it would be more cautious than this flight needs)"
+        )
         out.append(
             {
                 "code": "band_wide",
                 "axis": next(iter(wide)) if len(wide) == 1 else None,
                 "value": max(wide.values()),
                 "message": f"at {row['seconds']:g} s the full model's {sigma:g}σ band is "
-                f"wider than its errors show on {on}: safe, not tight (the band's std over "
-                "the std its errors imply; a controller or planner reading it would be more "
-                "cautious than this flight needs)",
+                f"wider than its errors show on {on}: {how}",
             }
         )
     return out

@@ -47,6 +47,8 @@ COVERAGE_UNDER = 0.995
 #: From this fraction up the uncertainty "can be trusted"; between COVERAGE_MIN and
 #: it, it is called a little narrow.
 COVERAGE_GOOD = 0.9
+#: A predicted σ this many times the error is too wide to use (said with the factors).
+USELESS_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
@@ -97,7 +99,7 @@ class ModelScore:
     physics: Mapping[str, float] = field(default_factory=dict)
 
 
-#: A rise of the physics + effects error on an axis from which a falling model error
+#: A rise of the nominal + effects error on an axis from which a falling model error
 #: says it (the GP carries the fall; the refitted effects alone predict worse).
 PHYSICS_ROSE = 0.2
 #: A model error that rises by more than this on an axis gets its own "Axis z got
@@ -106,7 +108,7 @@ WORSE_AXIS = 0.02
 
 
 def physics_rose_clause(before: ModelScore, after: ModelScore) -> str:
-    """'; its physics + effects error rose on x (+64 %), y (+37 %): the refitted effects
+    """'; its nominal + effects error rose on x (+64 %), y (+37 %): the refitted effects
     alone predict worse, the GP carries the fall' when ``after``'s physics-only error is
     at least :data:`PHYSICS_ROSE` above ``before``'s on an axis whose model error did not
     rise by more than :data:`WORSE_AXIS` (a
@@ -126,7 +128,7 @@ def physics_rose_clause(before: ModelScore, after: ModelScore) -> str:
         return ""
     axes = ", ".join(f"{a} ({_signed(c)})" for a, c in rose.items())
     return (
-        f"; its physics + effects error rose on {axes}: there the refitted effects alone "
+        f"; its nominal + effects error rose on {axes}: there the refitted effects alone "
         "predict worse, the GP carries the fall"
     )
 
@@ -220,10 +222,8 @@ def uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
             + (f" (within 2σ: {shown})." if len(over) < len(cov) else ".")
         )
     elif under:
-        text = (
-            f"Uncertainty cautious on {', '.join(under)}: the band is wider than needed, "
-            f"the predicted σ more than twice the actual error (within 2σ: {shown})"
-            + (f"; a little narrow on {', '.join(narrow)}." if narrow else ".")
+        text = _cautious_text(under, std, rmse, shown) + (
+            f"; a little narrow on {', '.join(narrow)}." if narrow else "."
         )
     elif narrow:
         text = (
@@ -245,6 +245,26 @@ def uncertainty_line(tree: Mapping[str, Any]) -> Line | None:
             "wider than needed."
         )
     return Line("uncertainty", f"{text[:-1]}; {hor}." if hor else text)
+
+
+def _cautious_text(
+    under: Sequence[str], std: Mapping[str, Any], rmse: Mapping[str, Any], shown: str
+) -> str:
+    """'Uncertainty cautious on x: ...' without its full stop; a band whose predicted σ
+    is :data:`USELESS_FACTOR` times the error or more is called too wide to use, with the
+    factors (a new user read "cautious ... more than twice the actual error" of a
+    Crazyflie band 115x the error)."""
+    factors = {a: float(std[a]) / float(rmse[a]) for a in under if float(rmse[a]) > 0}
+    if factors and max(factors.values()) >= USELESS_FACTOR:
+        each = ", ".join(f"{a} {f:.0f}x" for a, f in factors.items())
+        return (
+            f"Uncertainty too wide to use on {', '.join(under)}: the predicted σ is {each} "
+            f"the actual error (within 2σ: {shown}); its error bars say little here"
+        )
+    return (
+        f"Uncertainty cautious on {', '.join(under)}: the band is wider than needed, "
+        f"the predicted σ more than twice the actual error (within 2σ: {shown})"
+    )
 
 
 def hold_line(tree: Mapping[str, Any]) -> Line | None:

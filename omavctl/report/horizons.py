@@ -243,7 +243,7 @@ def _crossing_notes(full: Sequence[Full], secs: list[float]) -> list[Content]:
 
 
 def _side_by_side(evals: Sequence[Evaluation]) -> list[Block]:
-    """Every file's physics + effects and full models at each horizon; where a full
+    """Every file's nominal + effects and full models at each horizon; where a full
     model that wins at the first horizon loses at the last to another on the same
     logs; and the files whose GP helps at one step and hurts at the last horizon."""
     have = [(h, tree, lab) for tree, _, lab in evals if (h := horizons_of(tree)) is not None]
@@ -281,7 +281,7 @@ def _side_by_side(evals: Sequence[Evaluation]) -> list[Block]:
         blocks.append(
             Para(
                 "No full model wins at the shortest horizon and loses at the longest (to "
-                "another on the same logs, or to its own physics + effects)."
+                "another on the same logs, or to its own nominal + effects)."
             )
         )
     return blocks
