@@ -410,7 +410,8 @@ def test_an_undetermined_parameter_is_named_as_the_reports_write_it():
             {"rotor_rotor": np.array([0.004]), "rotor_arm": np.array([0.04])},
         ),
         # absent at scale 1, not 0 (a Crazyflie said "scale_x, scale_y within 2 standard
-        # errors of zero" of 29 ± 150 and 14.5 ± 32): x is near 1, y near 0 but not 1
+        # errors of zero" of 29 ± 150 and 14.5 ± 32): x and y are near 1 on the torque's
+        # gain 1/scale, as their intervals are computed (y's gain 2.5 ± 1.6), z is not
         "inertia_error": EffectEstimate(
             "inertia_error",
             {"scale": np.array([1.05, 0.4, 3.4])},
@@ -423,6 +424,7 @@ def test_an_undetermined_parameter_is_named_as_the_reports_write_it():
         "from the effect's absence (small, absent, or barely excited)",
         "rotor_interference: rotor_arm within 2 standard errors of zero: these logs do not "
         "tell it from the effect's absence (small, absent, or barely excited)",
-        "inertia_error: scale_x within 2 standard errors of 1: these logs do not tell it "
+        "inertia_error: scale_x, scale_y within 2 standard errors of 1: these logs do not "
+        "tell it "
         "from the effect's absence (small, absent, or barely excited)",
     ]

@@ -128,6 +128,12 @@ def effect_notes(eff: EffectFit, torque_normalised: bool = False) -> list[str]:
             null = np.broadcast_to(np.asarray(nulls[p.name], float).reshape(-1), value.shape)
             # a component exactly 0 was never excited (motor_loss beyond the rotors)
             near = np.abs(value - null) < 2.0 * est.stderr[p.name]
+            if name == GAIN_EFFECT and p.name == "scale":
+                # as its interval, on the torque's gain 1/scale: a Crazyflie's scale_x
+                # 8.56 +- 8.6 was "within 2 standard errors of 1" beside the interval
+                # [2.88, inf) its gain 0.12 +- 0.12 gives, which excludes 1
+                gain, gain_se = torque_gain(est)
+                near = np.abs(np.asarray(gain) - 1.0) < 2.0 * np.asarray(gain_se)
             weak = np.flatnonzero(near & (value != 0.0))
             if weak.size:
                 # a scalar parameter by its name; a vector's components as the reports
