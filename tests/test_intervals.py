@@ -110,6 +110,7 @@ def test_a_lag_searched_as_a_delay_shows_in_a_wider_interval():
     wrong = first_pass([lag], ["command_delay"]).found["command_delay"]
     right = first_pass([delay], ["command_delay"]).found["command_delay"]
     assert wrong.better_form == "motor_lag" and wrong.form_allowance > 0.005
+    assert wrong.form_significant  # the lag's form saves far beyond the noise
     assert right.better_form is None and right.form_allowance == 0.0
     assert wrong.stderr > 1.5 * right.stderr
     # its 95 % interval holds the lag's time constant, the white one did not
@@ -350,3 +351,40 @@ def test_the_diagnosis_searches_a_lag_jointly_with_a_gp_as_fit_does():
     assert 0.5 < d_se / f_se < 2.0, (d_se, f_se)
     assert abs(d - f) < 2 * math.hypot(d_se, f_se), (d, f)
     assert abs(d - 0.04) < 2 * d_se + 0.005, d
+
+
+def test_a_better_form_is_suggested_only_when_significant_and_not_shown_otherwise():
+    """Session 34's new-user trial (a hidden 40 ms motor lag and a drag the model lacked,
+    fit on a figure-8): fit said "the form of command_delay fits these samples better:
+    motor_lag's form may be wrong ... (try --effects with command_delay instead)" beside
+    the rotors' feedback "T_m = 40.0 ms (95 %: 37.5 to 42.5 ms)". A form that saves
+    within the noise is said to fit about as well; one the feedback contradicts is not
+    suggested instead."""
+    from dataclasses import replace
+
+    from omavctl.learn.effect_search import SearchResult
+    from omavctl.learn.fit_notes import _form_shown, search_notes
+
+    lag = SearchResult("motor_lag", 0.0366, 0.0111, False, 1.0, "command_delay", 0.0102)
+    (_, said) = search_notes({"motor_lag": lag})
+    assert said == (
+        "motor_lag: the form of command_delay fits these samples about as well (not "
+        "significantly better: these samples do not tell the two forms apart); its "
+        "standard error allows 10.2 ms for either form"
+    )
+    lag = replace(lag, form_significant=True)
+    (_, said) = search_notes({"motor_lag": lag})
+    assert said.endswith("(try --effects with command_delay instead)")
+    (_, said) = search_notes({"motor_lag": lag}, confirmed={"motor_lag"})
+    assert said == (
+        "motor_lag: the form of command_delay fits these samples better, but the actuators' "
+        "feedback shows motor_lag (below); its standard error allows 10.2 ms for the "
+        "difference"
+    )
+    # the feedback confirms only where its interval meets the fit's 95 % interval
+    assert _form_shown(lag, 0.0375, 0.0425).startswith(
+        "; that is motor_lag at the fitted value: the torque's better fit with "
+        "command_delay's form comes from elsewhere in these samples"
+    )
+    assert _form_shown(lag, 0.070, 0.080) == ""
+    assert _form_shown(None, 0.0375, 0.0425) == ""

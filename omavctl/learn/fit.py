@@ -220,10 +220,12 @@ def fit_model(
         _rollout_check(model, original, train, notes)
     with _timed(timings, "evaluate"):
         _training_fit(model, original, gp.axes)
-    notes = actuator_notes(res.found, original, vehicle) + notes
+    confirmed: set[str] = set()  # lags and delays the actuators' feedback shows
+    notes = actuator_notes(res.found, original, vehicle, confirmed) + notes
     timings["total"] = time.perf_counter() - t_start
     report("done", 1.0)
-    return FitResult(model, _summary(opts, summaries, res, train, gp, eff, gain, notes, timings))
+    summary = _summary(opts, summaries, res, train, gp, eff, gain, notes, timings, confirmed)
+    return FitResult(model, summary)
 
 
 def _reporter(progress: Progress | None) -> Progress:
@@ -359,8 +361,10 @@ def _summary(
     gain: tuple[np.ndarray, np.ndarray] | None,
     notes: list[str],
     timings: dict[str, float],
+    confirmed: set[str],
 ) -> FitSummary:
-    """What the CLI prints after the fit."""
+    """What the CLI prints after the fit; ``confirmed``: the lags and delays the
+    actuators' feedback shows (:func:`~omavctl.learn.fit_notes.actuator_notes`)."""
     return FitSummary(
         logs=summaries,
         samples=sum(s.used for s in summaries),
@@ -374,7 +378,7 @@ def _summary(
         axes=gp.axes,
         effects=_effects(opts, res, eff),
         timings=timings,
-        notes=search_notes(res.found, opts.vehicle.torque_normalised) + notes + gp.notes,
+        notes=search_notes(res.found, opts.vehicle.torque_normalised, confirmed) + notes + gp.notes,
         command_units=dict(opts.vehicle.command_units),
         added_effects=opts.added,
         torque_gain=None if gain is None else gain[0],

@@ -6,13 +6,14 @@ commands are normalised.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from omavctl.learn.effect_fit import GAIN_EFFECT, EffectFit, torque_gain
 from omavctl.learn.effect_search import SearchResult
+from omavctl.learn.intervals import Z95
 from omavctl.physics.effects import get_effect
 from omavctl.vehicle import NORMALISED, Vehicle
 
@@ -181,10 +182,16 @@ def _no_torque_notes(est: Any) -> list[str]:
     ]
 
 
-def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) -> list[str]:
+def search_notes(
+    found: Mapping[str, SearchResult],
+    normalised: bool = False,
+    confirmed: Collection[str] = (),
+) -> list[str]:
     """What the summary says about effects estimated by a 1-D search; ``normalised``:
     the torque command is, and the value with the gain on the timed torque is then
-    always given, as the time in s that does not depend on the command's unit."""
+    always given, as the time in s that does not depend on the command's unit;
+    ``confirmed``: the effects the actuators' feedback shows at the fitted value
+    (:func:`actuator_notes`), whose better-fitting form is not suggested instead."""
     notes = []
     for r in found.values():
         p = get_effect(r.name).parameters[0]
@@ -192,12 +199,25 @@ def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) ->
             f"{r.name}: {p.name} = {r.value * 1e3:.1f} ± {r.stderr * 1e3:.1f} ms "
             "(exact form, 1-D search jointly with the GP and the linear effects)"
         )
-        if r.better_form is not None:
+        if r.better_form is not None and r.form_significant and r.name in confirmed:
+            notes.append(
+                f"{r.name}: the form of {r.better_form} fits these samples better, but the "
+                f"actuators' feedback shows {r.name} (below); its standard error allows "
+                f"{r.form_allowance * 1e3:.1f} ms for the difference"
+            )
+        elif r.better_form is not None and r.form_significant:
             notes.append(
                 f"{r.name}: the form of {r.better_form} fits these samples better: "
                 f"{r.name}'s form may be wrong, and its standard error allows "
                 f"{r.form_allowance * 1e3:.1f} ms for it (try --effects with "
                 f"{r.better_form} instead)"
+            )
+        elif r.better_form is not None:
+            notes.append(
+                f"{r.name}: the form of {r.better_form} fits these samples about as well "
+                "(not significantly better: these samples do not tell the two forms "
+                f"apart); its standard error allows {r.form_allowance * 1e3:.1f} ms for "
+                "either form"
             )
         if r.coupled is not None and normalised:
             notes.append(
@@ -234,12 +254,18 @@ def search_notes(found: Mapping[str, SearchResult], normalised: bool = False) ->
 
 
 def actuator_notes(
-    found: Mapping[str, SearchResult], samples: Sequence[Any], vehicle: Vehicle
+    found: Mapping[str, SearchResult],
+    samples: Sequence[Any],
+    vehicle: Vehicle,
+    confirmed: set[str] | None = None,
 ) -> list[str]:
     """Beside each fitted lag or delay, what the actuators' own feedback of each log
     shows for it (:mod:`omavctl.learn.actuator_timing`): the logged tilts' lag for
     ``servo_lag``, the rotors' for ``motor_lag``, their common delay for
-    ``command_delay``; none for a log that does not record them."""
+    ``command_delay``; none for a log that does not record them. The names whose
+    feedback shows them at the fitted value where the torque's search preferred another
+    form (:func:`_form_shown`) are added to ``confirmed``: :func:`search_notes` then
+    does not tell the user to try that form instead."""
     from omavctl.learn.actuator_timing import SHOWN_BY, actuator_timing
 
     names = [n for n in found if n in SHOWN_BY]
@@ -267,8 +293,29 @@ def actuator_notes(
                     "of a faster controller, so a delay and a lag are not told apart from them, "
                     "nor by the torque's forms, which rest on the same commands)"
                 )
+            shown_form = _form_shown(found[name], lo, hi)
+            if shown_form and confirmed is not None:
+                confirmed.add(name)
             notes.append(
                 f"{name}: the actuators' own feedback of {s.path.name} (the logged {which} "
-                f"against their commands) gives {how}"
+                f"against their commands) gives {how}{shown_form}"
             )
     return notes
+
+
+def _form_shown(r: SearchResult | None, lo: float, hi: float) -> str:
+    """Where the torque's search said another timing form fits better (significantly)
+    but the actuators' feedback shows this effect at a value inside the fit's 95 %
+    interval: '; that is motor_lag at the fitted value: ...'; '' otherwise. A new user's
+    figure-8 with a hidden 40 ms motor lag and a drag the model lacked read "the form of
+    command_delay fits these samples better ... try command_delay instead" beside the
+    rotors' feedback "T_m = 40.0 ms (37.5 to 42.5 ms)"."""
+    if r is None or r.better_form is None or not r.form_significant or lo > hi:
+        return ""
+    if not (lo <= r.value + Z95 * r.stderr and r.value - Z95 * r.stderr <= hi):
+        return ""
+    return (
+        f"; that is {r.name} at the fitted value: the torque's better fit with "
+        f"{r.better_form}'s form comes from elsewhere in these samples (an effect the model "
+        "lacks can bend one timing form toward another), not from a wrong form"
+    )
