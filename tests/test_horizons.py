@@ -430,13 +430,15 @@ def test_a_log_without_attitude_gets_no_attitude_column():
     tree = _tree({"naive": [0.02, 0.5], "nominal": [0.03, 0.9], "model": [0.01, 0.4]})
     tree["horizons"]["windows"] = 10
     table = _table(tree["horizons"])
-    assert "attitude" not in table.columns and len(table.rows[0]) == 1 + 3 * 2
+    assert "attitude, rad" not in table.columns and len(table.rows[0]) == 1 + 3 * 2
+    # every column carries its unit: the Markdown report's "0.01 s ahead rate" had none
+    assert table.columns[1:4] == ["rate, rad/s", "per axis, rad/s", "2σ"]
     out = io.StringIO()
     render_horizons(Console(file=out, width=200), tree)
     text = " ".join(out.getvalue().split())  # the title wraps to the table's width
     assert "(no attitude in the log; in brackets" in text and "attitude rad" not in text
     tree["horizons"]["attitude"] = True
-    assert "attitude" in _table(tree["horizons"]).columns
+    assert "attitude, rad" in _table(tree["horizons"]).columns
 
 
 def test_horizon_notes_say_no_change_that_rounds_to_nothing_and_compare_as_printed():

@@ -46,6 +46,10 @@ __all__ = [
     "render_horizons",
 ]
 
+#: The horizon table's columns with their units (the Markdown report read "0.01 s ahead
+#: rate" with the unit only in the paragraph above: a new user asked which).
+RATE, PER_AXIS, ATTITUDE = "rate, rad/s", "per axis, rad/s", "attitude, rad"
+
 AXES = ("x", "y", "z")
 #: line colours per predictor kind
 COLOURS = {"naive": "#7f7f7f", "nominal": "#ff7f0e", "effects": "#2ca02c", "model": "#1f77b4"}
@@ -156,13 +160,13 @@ def _table(h: Mapping[str, Any]) -> Table:
     if not h.get("attitude"):  # no attitude in the log: no column of empty cells
         rows = [[r[0], *(c for i, c in enumerate(r[1:]) if i % 4 != 2)] for r in rows]
         return Table(
-            columns=["predictor", *(c for _ in secs for c in ("rate", "per axis", "2σ"))],
+            columns=["predictor", *(c for _ in secs for c in (RATE, PER_AXIS, "2σ"))],
             groups=[("", 1), *((f"{s:g} s ahead", 3) for s in secs)],
             rows=rows,
             align="l" + "rlr" * len(secs),
         )
     return Table(
-        columns=["predictor", *(c for _ in secs for c in ("rate", "per axis", "attitude", "2σ"))],
+        columns=["predictor", *(c for _ in secs for c in (RATE, PER_AXIS, ATTITUDE, "2σ"))],
         groups=[("", 1), *((f"{s:g} s ahead", 4) for s in secs)],
         rows=rows,
         align="l" + "rlrr" * len(secs),
