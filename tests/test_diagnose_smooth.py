@@ -75,7 +75,8 @@ def test_a_lag_the_data_do_not_tell_from_it_is_named_ambiguous_and_the_text_says
     assert (
         " This flight alone does not pin its value down; the fit flight shows it "
         f"({ms:.0f} ms, its 95 % interval excluding 0; the GP shrinks it, so fit --effects "
-        "gives the value to trust), and at that value it removes the share above beside the "
-        "look-alikes. The data do not tell it from motor_lag: plan --objective effects "
+        "gives the value to trust), and at the training points' value it removes the share "
+        "above beside the look-alikes. The data do not tell it from motor_lag: plan "
+        "--objective effects "
         "designs a flight that does."
     ) in text

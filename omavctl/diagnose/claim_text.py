@@ -319,11 +319,25 @@ def held_out_not_pinned_sentence(step: Mapping[str, Any]) -> str:
     value = _num(step.get("fit_flight_value"))
     if step.get("held_out_not_pinned") is not True or value is None:
         return ""
+    fit = step.get("fit_flight_fit")
+    if isinstance(fit, Mapping):  # checked as fit would estimate it on the fit logs
+        there = estimate_sentence(
+            {"name": step.get("name"), "estimate": fit, "units": step.get("units")}
+        ).replace(" Estimated on this flight as fit would: ", "", 1)
+        shown = f"estimated there as fit --effects would, {there.rstrip('.')}"
+    elif step.get("fit_flight_checked") is False:
+        shown = (
+            f"{1e3 * value:.0f} ms by least squares at the model's training points, its 95 % "
+            "interval excluding 0; the fit logs could not be read to estimate it as fit "
+            "--effects would, whose interval, robust to the flight's autocorrelation, may "
+            "be wider"
+        )
+    else:  # a file written before the check
+        shown = f"{1e3 * value:.0f} ms, its 95 % interval excluding 0"
     text = (
-        " This flight alone does not pin its value down; the fit flight shows it "
-        f"({1e3 * value:.0f} ms, its 95 % interval excluding 0; the GP shrinks it, so "
-        "fit --effects gives the value to trust), and at that value it removes the share "
-        "above beside the look-alikes."
+        f" This flight alone does not pin its value down; the fit flight shows it ({shown}; "
+        "the GP shrinks it, so fit --effects gives the value to trust), and at the "
+        "training points' value it removes the share above beside the look-alikes."
     )
     return text + _not_told_apart(step)
 

@@ -27,11 +27,13 @@ from omavctl.diagnose.claims import (
     learned_claim,
 )
 from omavctl.diagnose.estimates import ESTIMATE_METHOD, SecondStage, fit_estimates
+from omavctl.diagnose.fit_flight_check import checked_on_fit_flight
 from omavctl.diagnose.held_beside import held_timing_beside
 from omavctl.diagnose.joint import JointStep, joint_selection
 from omavctl.diagnose.learned_alikes import learned_look_alikes
 from omavctl.diagnose.learned_beside import learned_beside_look_alikes
 from omavctl.diagnose.learned_fit_pinned import learned_fit_pinned
+from omavctl.diagnose.logread import FitFlight
 from omavctl.diagnose.metrics import AXES
 from omavctl.diagnose.scoring import (
     BLOCK_SECONDS,
@@ -201,13 +203,16 @@ def diagnose(
     features: dict[str, np.ndarray],
     sg: SavitzkyGolay,
     contributions: dict[str, np.ndarray] | None = None,
+    fit_flight: FitFlight | None = None,
 ) -> dict[str, Any]:
     """The ``diagnosis`` section (see module docstring).
 
     samples: the residual samples of every log built with every registry effect's
     regressor; model_mean (n, 3) the model's residual prediction on the concatenated
     samples, model_std (n, 3) its std. ``contributions`` receives each candidate's
-    fitted part of the remaining error (n, 3) rad/s²."""
+    fitted part of the remaining error (n, 3) rad/s². ``fit_flight`` reads the model's
+    fit logs, to check a claim made on their estimate as fit would make it
+    (:mod:`omavctl.diagnose.fit_flight_check`)."""
     residual = np.concatenate([s.residual for s in samples])
     log_id = np.concatenate([np.full(s.n, i) for i, s in enumerate(samples)])
     blocks = time_blocks(np.concatenate([s.t for s in samples]), log_id, BLOCK_SECONDS)
@@ -262,16 +267,35 @@ def diagnose(
         "actuators": actuators,
     }
     _mark_entries(out["missing_effects"], guarded, actuators)
-    # when nothing else is, a learned effect confirmed on the held-out flight is claimed
-    step, pool = None, []
-    if not names:
-        pool = _learned_pool(out["learned"], stage, physics, raw, blocks, floor)
-        step = _learned_claim(pool, samples, model, physics, raw, blocks, (floor, sg.dt, guarded))
+    unpinned: dict[str, Any] = {}  # filled by the learned claim's fit-flight check
+    held = (floor, sg.dt, guarded, (fit_flight, sg, unpinned))
+    return {**out, **_learned_part(out, stage, samples, model, (physics, raw, blocks), held)}
+
+
+def _learned_part(
+    out: Mapping[str, Any],
+    stage: SecondStage,
+    samples: Sequence[ResidualSamples],
+    model: ResidualGP,
+    judged: tuple[np.ndarray, dict[str, np.ndarray], np.ndarray],
+    held: tuple[float, float, Guarded, tuple[FitFlight | None, SavitzkyGolay, dict[str, Any]]],
+) -> dict[str, Any]:
+    """When nothing else is claimed, the learned effect the held-out flight confirms
+    (:func:`_learned_claim`): the diagnosis's ``learned_claims``, ``learned_steps`` and,
+    without one, ``learned_held``; ``fit_flight_unpinned`` the claims the fit flight,
+    estimated as fit would, did not pin down. ``judged``: (the physics-only error (n, 3),
+    the raw regressors, the 2 s blocks); ``held`` as :func:`_learned_claim`'s."""
+    physics, raw, blocks = judged
+    step, pool, unpinned = None, [], held[3][2]
+    if not out["missing"]:
+        pool = _learned_pool(out["learned"], stage, physics, raw, blocks, held[0])
+        step = _learned_claim(pool, samples, model, physics, raw, blocks, held)
+    named = out["missing"] or step
     return {
-        **out,
         "learned_claims": [step[0].name, *getattr(step[0], "also", [])] if step else [],
         "learned_steps": [_learned_json(*step)] if step else [],
-        **({} if names or step else {"learned_held": _learned_held(pool, model, raw)}),
+        **({} if named else {"learned_held": _learned_held(pool, model, raw, unpinned)}),
+        **({"fit_flight_unpinned": unpinned} if unpinned else {}),
     }
 
 
@@ -293,7 +317,10 @@ def _mark_entries(
 
 
 def _learned_held(
-    pool: Sequence[Mapping[str, Any]], model: ResidualGP, raw: Mapping[str, np.ndarray]
+    pool: Sequence[Mapping[str, Any]],
+    model: ResidualGP,
+    raw: Mapping[str, np.ndarray],
+    unpinned: Mapping[str, Any],
 ) -> dict[str, str]:
     """Why each effect of the learned ``pool`` was not claimed when none was (the
     verdict said "not pinned down away from its null, or adding it does not lower the
@@ -301,10 +328,16 @@ def _learned_held(
     physics-only residual does not claim it), ``look_alike`` (of an effect the model
     holds), ``not_pinned`` (no claimed axis's 95 % interval excludes its null) or
     ``no_fall`` (pinned down, but its fit-flight estimate fails the held-out test on
-    the physics-only error, :func:`omavctl.diagnose.claims.learned_claim`)."""
+    the physics-only error, :func:`omavctl.diagnose.claims.learned_claim`), or
+    ``fit_flight_not_pinned`` (claimed on the fit flight's training points, but
+    ``unpinned``: estimated there as fit would, its interval holds 0,
+    :mod:`omavctl.diagnose.fit_flight_check`)."""
     out: dict[str, str] = {}
     for entry in pool:
         name = str(entry.get("name"))
+        if name in unpinned:
+            out[name] = "fit_flight_not_pinned"
+            continue
         if name in model.effects or name not in raw:
             continue
         axes = claimed_axes(entry.get("explained_variance_per_axis"))
@@ -326,7 +359,7 @@ def _learned_claim(
     physics: np.ndarray,
     raw: dict[str, np.ndarray],
     blocks: np.ndarray,
-    held: tuple[float, float, Guarded],
+    held: tuple[float, float, Guarded, tuple[FitFlight | None, SavitzkyGolay, dict[str, Any]]],
 ) -> tuple[JointStep, Mapping[str, Any]] | None:
     """The learned claim: a lag or delay held back as not pinned down on the held-out
     flight, judged there at its fit-flight estimate beside the look-alikes
@@ -336,12 +369,21 @@ def _learned_claim(
     learned_claim`), or one the held-out flight does not pin down that the fit flight does,
     when it removes more (:mod:`omavctl.diagnose.learned_fit_pinned`; beside the
     look-alikes judged together, the larger share). ``held``: (the claim floor, the
-    log's sample period, the claims guard)."""
-    floor, dt, guarded = held
+    log's sample period, the claims guard, (the fit-flight reader, the filter, the
+    claims it did not pin down: filled here)); a lag or delay claimed on its fit-flight
+    estimate stands only where that flight, estimated as fit would, pins it down too
+    (:mod:`omavctl.diagnose.fit_flight_check`)."""
+    floor, dt, guarded, (fit_flight, sg, unpinned) = held
     args = (pool, samples, model, physics, raw, blocks, floor)
-    beside = held_timing_beside(
+    timing = held_timing_beside(
         guarded.held_back, samples, model, physics, raw, blocks, (floor, dt)
-    ) or learned_beside_look_alikes(*args)
+    )
+    if timing is not None:
+        entry, stands = checked_on_fit_flight(timing[1], fit_flight, model, sg)
+        if stands:
+            return timing[0], entry
+        unpinned[str(entry.get("name"))] = entry["fit_flight_fit"]
+    beside = learned_beside_look_alikes(*args)
     if beside is not None:
         return beside
     claim = learned_claim(*args)

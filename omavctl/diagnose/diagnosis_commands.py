@@ -15,6 +15,7 @@ from omavctl.diagnose.claim_text import effect_to_test
 from omavctl.diagnose.commands import effect_commands, fit_command, separation
 from omavctl.diagnose.diagnosis import diagnose
 from omavctl.diagnose.given import withhold_given
+from omavctl.diagnose.logread import fit_flight_reader
 from omavctl.diagnose.unconfirmed import shown_by_actuators, unconfirmed
 from omavctl.learn.estimate import GAIN_EFFECT
 from omavctl.learn.fit_notes import effect_unit
@@ -37,10 +38,13 @@ def diagnosis_with_commands(
     part of the model's error of the named effects (or the top candidate) to
     ``series`` as ``contribution_<name>`` (n, 3) rad/s², the quantity the diagnosis
     scores, for the report's effect-signature figures. No fit that a given model
-    (a later one of ``models``, at ``mpaths``) makes moot."""
+    (a later one of ``models``, at ``mpaths``) makes moot. A claim made on the fit
+    flight's estimate is checked on the first model's fit logs, read when needed
+    (:func:`omavctl.diagnose.logread.fit_flight_reader`)."""
     model, model_path = models[0], mpaths[0]
     parts: dict[str, np.ndarray] = {}
-    diagnosis = diagnose(samples, model, series["mean_0"], series["std_0"], features, sg, parts)
+    mean, std = series["mean_0"], series["std_0"]
+    diagnosis = diagnose(samples, model, mean, std, features, sg, parts, fit_flight_reader(model))
     # of the effects the verdict discusses those scored on the model's error (one the
     # GP absorbed may not be: px4tools' com_offset); else the top candidate's, as before
     shown = [n for n in discussed(diagnosis, list(model.effects)) if n in parts]

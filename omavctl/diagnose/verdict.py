@@ -310,6 +310,11 @@ _HELD_WHY = {
         "explains a material share of what is left."
     ),
     "look_alike": ": an effect the model holds leaves a residual of the same shape.",
+    "fit_flight_not_pinned": (
+        ": this flight does not pin it down, and the fit flight, estimated as fit "
+        "--effects would, does not either (its 95 % interval holds the value at which it "
+        "is absent; the model's training points alone had excluded it):"
+    ),
 }
 
 
@@ -322,7 +327,16 @@ def _held_why(diag: Mapping[str, Any], name: str) -> str:
             " (not pinned down away from its null, or adding it does not lower the held-out "
             "physics-only error)."
         )
-    return _HELD_WHY.get(str(held.get(name, "not_shown")), ".")
+    why = str(held.get(name, "not_shown"))
+    if why == "fit_flight_not_pinned":
+        est = (diag.get("fit_flight_unpinned") or {}).get(name)
+        units = next(
+            (e.get("units") for e in diag.get("learned") or [] if e.get("name") == name), None
+        )
+        there = estimate_sentence({"name": name, "estimate": est, "units": units})
+        there = there.replace(" Estimated on this flight as fit would: ", " ", 1)
+        return _HELD_WHY[why] + (there if there else " see the fit's own table.")
+    return _HELD_WHY.get(why, ".")
 
 
 def _learned_line(tree: Mapping[str, Any]) -> Line | None:
