@@ -432,7 +432,7 @@ def test_a_log_without_attitude_gets_no_attitude_column():
     table = _table(tree["horizons"])
     assert "attitude, rad" not in table.columns and len(table.rows[0]) == 1 + 3 * 2
     # every column carries its unit: the Markdown report's "0.01 s ahead rate" had none
-    assert table.columns[1:4] == ["rate, rad/s", "per axis, rad/s", "2σ"]
+    assert table.columns[1:4] == ["rate, rad/s", "per axis", "2σ"]
     out = io.StringIO()
     render_horizons(Console(file=out, width=200), tree)
     text = " ".join(out.getvalue().split())  # the title wraps to the table's width

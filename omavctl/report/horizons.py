@@ -47,8 +47,9 @@ __all__ = [
 ]
 
 #: The horizon table's columns with their units (the Markdown report read "0.01 s ahead
-#: rate" with the unit only in the paragraph above: a new user asked which).
-RATE, PER_AXIS, ATTITUDE = "rate, rad/s", "per axis, rad/s", "attitude, rad"
+#: rate" with the unit only in the paragraph above: a new user asked which); the per-axis
+#: column is the rate's, beside it ("per axis, rad/s" wrapped its cells at 800 px).
+RATE, PER_AXIS, ATTITUDE = "rate, rad/s", "per axis", "attitude, rad"
 
 AXES = ("x", "y", "z")
 #: line colours per predictor kind
