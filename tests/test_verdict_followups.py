@@ -337,8 +337,9 @@ def test_a_change_that_does_not_hold_rolled_out_says_so_in_the_verdict():
     tree["horizons"]["table"]["naive"] = rows((0.3, 1.6, 1.99), (0.3, 1.9, 2.33))
     (rolled,) = [t for t in verdict_of_models(tree) if t.text.startswith("Rolled out")]
     assert rolled.text.endswith(
-        "(the horizons table; docs/horizons.md); there it does worse than holding the state "
-        "(x 1.99, y 2.33 rad/s)."
+        "(the horizons table; docs/horizons.md); there, on those axes, it does worse than "
+        "holding the state (x 1.99, y 2.33 rad/s; the table's ranking is by the norm over "
+        "the axes)."
     )
     for f in hurts:  # nominal + effects only: the full model is what the change quotes
         f["message"] = f["message"].replace("the full model", "nominal + effects")

@@ -391,8 +391,12 @@ def _rolled_text(
     )
     worse = [] if not naive or len(naive) != len(secs) else _worse_than_naive(b_rows, naive, axes)
     if worse:
+        # per axis, as the table's per-axis column: its ranking, by the norm over the
+        # axes, put holding the state behind the models (a new user read the two as
+        # disagreeing)
         text = text[:-1] + (
-            f"; there it does worse than holding the state ({', '.join(worse)} rad/s)."
+            f"; there, on those axes, it does worse than holding the state "
+            f"({', '.join(worse)} rad/s; the table's ranking is by the norm over the axes)."
         )
     return text
 
