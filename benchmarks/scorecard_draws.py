@@ -500,6 +500,10 @@ def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
         "learned_claims": list(diag.get("learned_claims") or []),
         "not_pinned": [e.get("name") for e in diag.get("not_pinned") or []],
         "candidates": [{k: e.get(k) for k in keep} for e in diag.get("missing_effects", [])],
+        # the claims' estimates as the printed fit command makes them on this flight (what
+        # the verdict quotes of its first claim; session 34: the none draws' look-alikes
+        # named after "Also:" were judged on the ranking's effect-alone fit instead)
+        "claim_estimates": diag.get("claim_estimates") or {},
         "learned": [e["name"] for e in diag.get("learned", []) if e.get("missing")],
         "model_effects": list(model.get("effects") or []),
         "rmse_nominal": out["rmse_nominal"],

@@ -273,8 +273,13 @@ def lookalike(record: Mapping[str, Any], apparent: Mapping[str, Any], name: str)
     truth of a vehicle without hidden effects on the held-out flight (the thrust
     spread's offset, the default lags as a delay or a lag); a component the verdict
     does not claim is not judged. A claim whose estimate the verdict does not quote
-    is judged on the ranking's interval (the candidate's ``parameters``: that effect
-    fitted alone against the model's remaining error)."""
+    is judged on the same estimate from the round's ``claim_estimates`` (records since
+    session 34, or backfilled from the draws' evaluation files by
+    ``benchmarks/scorecard_backfill.py``), else on the ranking's interval (the
+    candidate's ``parameters``: that effect fitted alone against the model's remaining
+    error, which a look-alike beside the others it is claimed with is not: report26
+    draw 42's r_y -0.0095 [-0.0113, -0.0077] alone, -0.0044 as fit would, the apparent
+    -0.0044)."""
     from benchmarks.scorecard_truth import apparent_value
 
     if name in ("rotor_interference", "arm_thrust"):
@@ -291,7 +296,14 @@ def lookalike(record: Mapping[str, Any], apparent: Mapping[str, Any], name: str)
             ci = quoted_interval(record, name, label)
             if ci is not None:
                 checks.append((t, ci))
-    if not checks:  # not quoted: the ranking's estimate, the effect fitted alone
+    if not checks:  # not quoted: the claim's estimate as the fit command makes it
+        est = (first.get("claim_estimates") or {}).get(name)
+        params = flat_parameters(est) if isinstance(est, Mapping) else {}
+        for pname, values in truth.items():
+            for i, t in enumerate(values):
+                if pname in params:
+                    checks.append((t, interval(params, pname, i)))
+    if not checks:  # none recorded: the ranking's estimate, the effect fitted alone
         cand = next((c for c in first["candidates"] if c.get("name") == name), None)
         params = flat_parameters((cand or {}).get("parameters") or {})
         alone = apparent_value(record, apparent, name, {name}, "held") or {}

@@ -156,6 +156,26 @@ def test_none_draw_claims_that_are_the_defaults_look_alikes():
         assert sc.judge(_none_record([bad]), app)["none_lookalike"] is False, bad[0]
 
 
+def test_a_look_alike_named_after_also_is_judged_on_its_estimate_as_fit_makes_it():
+    """report26 draw 42 (steps -> wobble, nothing hidden): com_offset named after "Also:",
+    so the verdict quotes no estimate of it; the ranking's fit of it alone to the model's
+    remaining error gave r_y -0.0095 (95 %: -0.0113 to -0.0077) for an apparent -0.0044,
+    and the draw counted as a claim that is no default's look-alike. Its estimate as the
+    fit command makes it (claim_estimates), -0.0044, is what is judged now."""
+    probe = _none_record([])
+    app = st.apparent_truth(probe)
+    r = app["held"]["shifts"]["com_offset"]["com_offset"]["r"]
+    alone = {"r": [v + 0.005 for v in r], "r_ci95": [[v + 0.004, v + 0.006] for v in r]}
+    rec = _none_record([("com_offset", alone)])
+    assert sc.judge(rec, app)["none_lookalike"] is False  # the ranking's fit alone
+    as_fit = {"r": r, "r_ci95": [[v - 2e-4, v + 2e-4] for v in r]}
+    rec["rounds"][0]["claim_estimates"] = {"com_offset": as_fit}
+    assert sc.judge(rec, app)["none_lookalike"] is True
+    off = {"r": [v + 0.005 for v in r], "r_ci95": [[v + 0.004, v + 0.006] for v in r]}
+    rec["rounds"][0]["claim_estimates"] = {"com_offset": off}
+    assert sc.judge(rec, app)["none_lookalike"] is False
+
+
 def test_the_verdicts_quoted_estimate_is_read_per_component():
     verdict = (
         "Missing: com_offset — it explains 35 % of the model's remaining error. Estimated on "
