@@ -4,8 +4,9 @@
 
 Since session 34 ``scorecard_draws.round_record`` keeps the claims' estimates as the
 printed fit command makes them on the held-out flight (the evaluation's
-``diagnosis.claim_estimates``), which ``scorecard_score.lookalike`` judges a none draw's
-look-alike by when the verdict does not quote it (a claim named after "Also:"). Older
+``diagnosis.claim_estimates``, and the learned claims' estimates), which
+``scorecard_score.lookalike`` judges a none draw's look-alike by when the verdict does
+not quote it (a claim named after "Also:", or claimed as learned). Older
 records lack them; their draws' evaluation files (``ROOT/<split>-<index>/``: round 0's
 ``m0.eval.json``, round k's the ``.eval.json`` of the model the k-th fit wrote) hold
 them. Records whose files are gone are copied unchanged.
@@ -18,6 +19,11 @@ import shlex
 import sys
 from pathlib import Path
 from typing import Any
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from scorecard_draws import claim_estimates
 
 
 def _eval_files(record: dict[str, Any], folder: Path) -> list[Path]:
@@ -36,7 +42,7 @@ def backfill(record: dict[str, Any], root: Path) -> dict[str, Any]:
     for rnd, path in zip(record.get("rounds", []), _eval_files(record, folder), strict=False):
         if "claim_estimates" not in rnd and path.is_file():
             diag = json.loads(path.read_text()).get("diagnosis") or {}
-            rnd["claim_estimates"] = diag.get("claim_estimates") or {}
+            rnd["claim_estimates"] = claim_estimates(diag)
     return record
 
 

@@ -480,6 +480,19 @@ def fly(
     return None
 
 
+def claim_estimates(diag: dict[str, Any]) -> dict[str, Any]:
+    """Each claim's estimate on the evaluated flight as ``fit --effects`` makes it: the
+    missing ones' ``claim_estimates``, the learned claims' from their ``learned`` entry
+    (estimated with the model's effects)."""
+    out = dict(diag.get("claim_estimates") or {})
+    learned = {e.get("name"): e for e in diag.get("learned") or [] if isinstance(e, dict)}
+    for name in diag.get("learned_claims") or []:
+        est = (learned.get(name) or {}).get("estimate")
+        if isinstance(est, dict) and name not in out:
+            out[name] = est
+    return out
+
+
 def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
     """What the scoring needs from one evaluation: its ``--json`` object and its file."""
     doc = json.loads(eval_path.read_text())
@@ -502,8 +515,9 @@ def round_record(out: dict[str, Any], eval_path: Path) -> dict[str, Any]:
         "candidates": [{k: e.get(k) for k in keep} for e in diag.get("missing_effects", [])],
         # the claims' estimates as the printed fit command makes them on this flight (what
         # the verdict quotes of its first claim; session 34: the none draws' look-alikes
-        # named after "Also:" were judged on the ranking's effect-alone fit instead)
-        "claim_estimates": diag.get("claim_estimates") or {},
+        # named after "Also:", or claimed as learned, were judged on the ranking's
+        # effect-alone fit instead)
+        "claim_estimates": claim_estimates(diag),
         "learned": [e["name"] for e in diag.get("learned", []) if e.get("missing")],
         "model_effects": list(model.get("effects") or []),
         "rmse_nominal": out["rmse_nominal"],

@@ -273,9 +273,10 @@ def lookalike(record: Mapping[str, Any], apparent: Mapping[str, Any], name: str)
     truth of a vehicle without hidden effects on the held-out flight (the thrust
     spread's offset, the default lags as a delay or a lag); a component the verdict
     does not claim is not judged. A claim whose estimate the verdict does not quote
-    is judged on the same estimate from the round's ``claim_estimates`` (records since
-    session 34, or backfilled from the draws' evaluation files by
-    ``benchmarks/scorecard_backfill.py``), else on the ranking's interval (the
+    (named after "Also:", or claimed as learned) is judged on the same estimate from the
+    round's ``claim_estimates`` (records since session 34, or backfilled from the draws'
+    evaluation files by ``benchmarks/scorecard_backfill.py``), else on the ranking's
+    interval (the
     candidate's ``parameters``: that effect fitted alone against the model's remaining
     error, which a look-alike beside the others it is claimed with is not: report26
     draw 42's r_y -0.0095 [-0.0113, -0.0077] alone, -0.0044 as fit would, the apparent

@@ -174,6 +174,15 @@ def test_a_look_alike_named_after_also_is_judged_on_its_estimate_as_fit_makes_it
     off = {"r": [v + 0.005 for v in r], "r_ci95": [[v + 0.004, v + 0.006] for v in r]}
     rec["rounds"][0]["claim_estimates"] = {"com_offset": off}
     assert sc.judge(rec, app)["none_lookalike"] is False
+    # a learned claim's estimate (its ``learned`` entry, as fit would) is recorded too
+    from benchmarks.scorecard_draws import claim_estimates
+
+    diag = {
+        "claim_estimates": {},
+        "learned_claims": ["com_offset"],
+        "learned": [{"name": "com_offset", "estimate": as_fit}, {"name": "motor_lag"}],
+    }
+    assert claim_estimates(diag) == {"com_offset": as_fit}
 
 
 def test_the_verdicts_quoted_estimate_is_read_per_component():
