@@ -9,7 +9,7 @@ again, two rounds. One JSON line per draw; the tables (every rate with its
 Wilson 95 % interval, overall and by the hidden effect's size over the claim
 floor) are rebuilt from those lines.
 
-    python benchmarks/scorecard.py run --split tune|report|tune2|report2..report27 [--draws N]
+    python benchmarks/scorecard.py run --split tune|report|tune2|report2..report28 [--draws N]
         [--start I] [--jobs J] [--workdir DIR] [--out FILE.jsonl]
         [--simulator 'CMD {reference} {truth} {out} {seed}']
     python benchmarks/scorecard.py analyse FILE.jsonl... [--markdown OUT.md] [--apparent A.json]
@@ -17,7 +17,7 @@ floor) are rebuilt from those lines.
 The split (benchmarks/scorecard_draws.py, SPLITS): ``tune`` draws (seeds from 0,
 families figure-8, multi-sine wobble, chirp) may be looked at to change the
 tool; ``report`` draws (seeds from 1 000 000, every one flying the held-back
-random-steps family) are only reported. ``tune2`` and ``report2`` to ``report27`` are
+random-steps family) are only reported. ``tune2`` and ``report2`` to ``report28`` are
 version 2 (benchmarks/scorecard_v2.py: sizes as multiples of the claim floor, planned
 flights); each later report split has other seeds than the one before, whose records
 were read to find causes. ``run`` skips draws already in the output file, so an interrupted run
@@ -73,6 +73,7 @@ DEFAULT_DRAWS = {
     "report25": 48,
     "report26": 48,
     "report27": 48,
+    "report28": 48,
 }
 
 
