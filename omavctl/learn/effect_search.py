@@ -219,12 +219,12 @@ def _form_allowance(
     ``delta = sqrt(dRSS / |J|^2)`` of ``name``'s parameter that would cost as much as
     the better form saves (J the exact form's derivative, linear effects profiled).
     A first-order lag searched as a delay fits worse than the lag itself: its
-    parameter is then not determined better than that shift. (None, 0) when no
+    parameter is then not determined better than that shift. (None, 0, False) when no
     other form fits better. The third value: whether the better form's saving is
     significant, beyond ``Z95^2`` times the residual variance times ``inflation`` (the
-    profile interval's rule, :func:`_profile_se`): a 40 ms motor lag on a figure-8 was
-    told "the form of command_delay fits these samples better", by a saving within the
-    noise, and the allowance alone is then said."""
+    profile interval's rule, :func:`_profile_se`); below it ``fit`` says the two forms
+    fit about as well instead of suggesting the other (any smaller sum of squares was
+    called "fits these samples better" before)."""
     rss = prob.rss(base - prob.exact(name, value))
     best, best_rss = None, rss
     for other in TIMING_FORMS:
