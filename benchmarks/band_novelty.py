@@ -37,21 +37,11 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from band_first import jobs
+from gp_signal_cap import draw_log
 
 #: Lengths L (input stds) over which the novelty term reaches the GP's prior; None: the
 #: model's own band.
 LENGTHS = (None, 1.0, 2.0, 4.0, 8.0)
-
-
-def _logs(draw: Path) -> tuple[Path, Path]:
-    """The draw's held-out and fit logs (any format; a ROS 2 bag is a folder)."""
-    held = next(p for p in sorted(draw.glob("held*")) if p.name != "held-ref.csv")
-    fit = next(
-        p
-        for p in sorted(draw.glob("fit*"))
-        if p.name != "fit-ref.csv" and (p.is_file() or p.name == "fit")
-    )
-    return held, fit
 
 
 def judge(job: tuple[dict[str, Any], str, str, bool]) -> list[dict[str, Any]]:
@@ -67,7 +57,7 @@ def judge(job: tuple[dict[str, Any], str, str, bool]) -> list[dict[str, Any]]:
 
     record, folder, sub, last = job
     draw = Path(folder)
-    held_log, fit_log = _logs(draw)
+    held_log, fit_log = draw_log(draw, "held"), draw_log(draw, "fit")
 
     def read(model: Any, role: str = "held") -> Any:
         log = held_log if role == "held" else fit_log

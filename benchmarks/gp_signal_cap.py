@@ -31,7 +31,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def _log(draw: Path, role: str) -> Path:
+def draw_log(draw: Path, role: str) -> Path:
     """The draw's fit or held-out log (any format; a ROS 2 bag is a folder)."""
     skip = (f"{role}-ref.csv", f"{role}cache")
     return next(
@@ -52,8 +52,8 @@ def judge(job: tuple[str, float]) -> dict[str, Any]:
     from omavctl.learn.fit import fit_model
 
     draw = Path(folder)
-    model = fit_model([_log(draw, "fit")]).model
-    held = _read_log(_log(draw, "held"), model.vehicle, *_grid(model), None)[0]
+    model = fit_model([draw_log(draw, "fit")]).model
+    held = _read_log(draw_log(draw, "held"), model.vehicle, *_grid(model), None)[0]
     mean, var = model.predict_samples(held, noise=True)
     physics = held.residual - model.effects_samples(held)
     err = held.residual - mean
